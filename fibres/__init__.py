@@ -1,0 +1,7 @@
+"""Muscle fibre decomposition (Kohout et al., GRAPP 2012): pure geometry on arrays.
+
+Never imports ``motion`` or ``analysis``.
+"""
+from .errors import InputError, MissingDependencyError
+
+__all__ = ["InputError", "MissingDependencyError"]

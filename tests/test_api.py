@@ -1,0 +1,26 @@
+"""Pin each package's public names: changing them is a contract change (INTERFACE.md)."""
+import importlib
+
+import pytest
+
+# Each package's curated public API. Add a name here when you add it to the package's __all__.
+EXPECTED = {
+    "motion": {
+        "InputError", "MissingDependencyError",
+    },
+    "fibres": {
+        "InputError", "MissingDependencyError",
+    },
+    "analysis": {
+        "InputError", "MissingDependencyError",
+    },
+}
+
+
+@pytest.mark.parametrize("package", sorted(EXPECTED))
+def test_all_is_pinned(package):
+    module = importlib.import_module(package)
+    assert set(module.__all__) == EXPECTED[package]
+    assert len(module.__all__) == len(set(module.__all__)), "duplicate names in __all__"
+    for name in module.__all__:
+        assert hasattr(module, name), f"{package}.{name} is in __all__ but not defined"
