@@ -1,0 +1,480 @@
+"""The fibre model: a TOML file tying an OpenSim model to the muscle surfaces to decompose.
+
+Format (``docs/INTERFACE.md``; paths are relative to the TOML file)::
+
+    model = "arm.osim"            # OpenSim model (required)
+    motion = "flexion.mot"        # default motion for `fibres run` (optional)
+    units = "m"                   # units of meshes and landmarks: "m" or "mm" (default "m")
+
+    [defaults]                    # any muscle key below, applied unless the muscle sets it
+    template = "parallel"
+    fibres = 100
+    resolution = 19
+
+    [muscles.biceps]
+    action_lines = ["BIClong", "BICshort"]   # OpenSim paths driving and compared with this surface
+    mesh = "meshes/biceps.stl"    # closed surface; omit it to generate one around the action line
+    frame = "ground"              # "ground" (at rest_pose) | a body name | "bodies"
+    rest_pose = { r_elbow_flex = 0.0 }       # SI (rad, m); default: the model's default values
+    origin = { body = "r_humerus", points = [[0.0, 0.0, 0.0]] }
+    insertion = { body = "r_ulna_radius_hand", file = "biceps_insertion.csv" }
+
+Muscle keys: ``action_lines``, ``mesh``, ``frame``, ``rest_pose``, ``origin``, ``insertion``,
+``template``, ``fibres``, ``resolution``, ``seed``, ``template_params`` (a table handed to the
+template), ``units`` (overrides the top-level units for this muscle).
+
+``frame = "bodies"`` is for NMSBuilder/LHDL exports: mesh and landmark coordinates are in one
+scanner frame in which every body frame is the identity, so a landmark's coordinates are already
+its coordinates in the frame of the body it rides on, whatever that body is.
+
+Attachment tables (``origin`` / ``insertion``; omit one to use the first / last path point of the
+first action line) take exactly one of
+
+- ``points = [[x, y, z], ...]`` in the muscle's frame and units;
+- ``file = "landmarks.csv"``: a CSV file (header row) with columns ``x, y, z`` (the muscle's
+  units), or ``x_mm, y_mm, z_mm`` (millimetres) or ``x_m, y_m, z_m`` (metres), or the three
+  columns named by ``columns = ["px", "py", "pz"]``; ``where = {muscle = "iliacus_r", type =
+  "origin"}`` keeps only the rows whose columns equal those values (a list value means "any of");
+  ``units = "mm"`` overrides the unit rule. A file that is not ``.csv``/``.txt`` is read as a point
+  cloud (legacy VTK, VTP, PLY, ...): its vertices are the points.
+
+and ``body`` (the body the points ride on; default: the body of the first / last path point of the
+first action line).
+
+Every mistake raises one :class:`analysis.errors.InputError` naming the TOML file, the key (e.g.
+``muscles.biceps.action_lines[1]``) and the fix.
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+
+from .errors import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["load_spec", "FibreModelSpec", "MuscleSpec", "AttachmentSpec", "TEMPLATE_NAMES"]
+
+#: The fibre templates (``fibres.TEMPLATES`` once available; the same names as INTERFACE.md).
+TEMPLATE_NAMES = ("parallel", "pennate", "bipennate", "curved", "fanned", "rectus")
+_TOP_KEYS = ("model", "motion", "units", "defaults", "muscles")
+_MUSCLE_KEYS = ("action_lines", "mesh", "frame", "rest_pose", "origin", "insertion", "template",
+                "fibres", "resolution", "seed", "template_params", "units")
+_ATTACH_KEYS = ("body", "points", "file", "where", "columns", "units")
+_UNITS = {"m": 1.0, "mm": 1e-3}
+_DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0}
+
+
+def _template_names():
+    try:
+        from fibres import TEMPLATES
+    except ImportError:
+        return TEMPLATE_NAMES
+    return tuple(TEMPLATES)
+
+
+def _frozen(a):
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class AttachmentSpec:
+    """Attachment points of one muscle end.
+
+    Attributes
+    ----------
+    body : str
+        The body the points ride on.
+    points : (K, 3) float
+        Points in metres, in the muscle's ``frame`` (``in_body_frame=False``) or in ``body``'s own
+        frame (``in_body_frame=True``: the default taken from a path point).
+    in_body_frame : bool
+    source : str
+        Where the points came from (for messages and run.json).
+    """
+
+    body: str
+    points: np.ndarray
+    in_body_frame: bool = False
+    source: str = ""
+
+    def __post_init__(self):
+        pts = _frozen(self.points)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+            raise ValueError(f"attachment points must be (K, 3) with K >= 1, got {pts.shape}")
+        object.__setattr__(self, "points", pts)
+
+
+@dataclass(frozen=True)
+class MuscleSpec:
+    """One muscle of the fibre model, with defaults applied and paths resolved.
+
+    Attributes
+    ----------
+    name : str
+    action_lines : tuple of str
+        OpenSim path (muscle) names.
+    mesh : Path or None
+        Closed surface file; None means "generate one around the action line".
+    units : str
+        "m" or "mm": units of the mesh (landmarks are already converted to metres).
+    frame : str
+        "ground", a body name, or "bodies".
+    rest_pose : mapping str -> float
+        Coordinate values (SI) at which the mesh was acquired; missing ones take model defaults.
+    origin, insertion : AttachmentSpec
+    template : str
+    n_fibres : int
+    resolution : int
+        Segments per fibre (resolution + 1 points).
+    seed : int
+    template_params : mapping
+    """
+
+    name: str
+    action_lines: tuple
+    mesh: Path | None
+    units: str
+    frame: str
+    rest_pose: MappingProxyType
+    origin: AttachmentSpec
+    insertion: AttachmentSpec
+    template: str = "parallel"
+    n_fibres: int = 100
+    resolution: int = 19
+    seed: int = 0
+    template_params: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+
+    @property
+    def scale(self) -> float:
+        """Metres per mesh unit."""
+        return _UNITS[self.units]
+
+
+@dataclass(frozen=True)
+class FibreModelSpec:
+    """A loaded, validated fibre model.
+
+    Attributes
+    ----------
+    file : Path
+        The TOML file.
+    model_path : Path
+    motion_path : Path or None
+    units : str
+    muscles : tuple of MuscleSpec
+    model : motion.Model
+        The loaded OpenSim model (used for validation; reused by the run).
+    """
+
+    file: Path
+    model_path: Path
+    motion_path: Path | None
+    units: str
+    muscles: tuple
+    model: object = field(default=None, compare=False, repr=False)
+
+    @property
+    def muscle_names(self) -> tuple:
+        return tuple(m.name for m in self.muscles)
+
+    def muscle(self, name: str) -> MuscleSpec:
+        for m in self.muscles:
+            if m.name == name:
+                return m
+        raise KeyError(name)
+
+
+# --------------------------------------------------------------------------- model accessors
+def _model_paths(model) -> dict:
+    """name -> path record of every muscle/path force in the model."""
+    return {p.name: p for p in model.paths}
+
+
+def _model_bodies(model) -> tuple:
+    return tuple(b.name for b in model.bodies)
+
+
+def _path_end(path, end: str):
+    """(body, location (3,)) of the first ("origin") or last ("insertion") point of a path."""
+    pts = list(path.points)
+    p = pts[0] if end == "origin" else pts[-1]
+    return p.body, np.asarray(p.location, dtype=float)
+
+
+# --------------------------------------------------------------------------- loading
+class _Ctx:
+    """Raises InputError naming the TOML file."""
+
+    def __init__(self, file: Path):
+        self.file = file
+
+    def fail(self, where, problem, fix):
+        raise InputError(problem, file=self.file, where=where, fix=fix)
+
+    def check_keys(self, table, allowed, where):
+        for key in table:
+            if key not in allowed:
+                close = [a for a in allowed if a.startswith(str(key)[:3])]
+                hint = f" Did you mean '{close[0]}'?" if close else ""
+                self.fail(f"{where}.{key}" if where else key, "unknown key",
+                          f"Allowed keys here: {', '.join(allowed)}.{hint}")
+
+    def file_path(self, value, where, what):
+        if not isinstance(value, str) or not value:
+            self.fail(where, f"expected a file name (string), got {value!r}",
+                      f"Write the path of the {what} relative to the TOML file.")
+        p = (self.file.parent / value).resolve()
+        if not p.is_file():
+            self.fail(where, f"the {what} '{value}' does not exist (looked for {p})",
+                      "Fix the path; paths are relative to the TOML file.")
+        return p
+
+
+def load_spec(path, *, model=None) -> FibreModelSpec:
+    """Load and validate a fibre-model TOML file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``*.toml`` file.
+    model : motion.Model, optional
+        The already-loaded OpenSim model; default: ``motion.load_model`` of the ``model`` key.
+
+    Returns
+    -------
+    FibreModelSpec
+
+    Raises
+    ------
+    analysis.errors.InputError
+        One line naming the file, the key and the fix, for any mistake.
+    """
+    file = Path(path)
+    ctx = _Ctx(file)
+    if not file.is_file():
+        raise InputError("the fibre model file does not exist", file=file,
+                         fix="Pass the path of a fibre-model .toml file.")
+    try:
+        data = tomllib.loads(file.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError("not a text file", file=file, fix="Pass a fibre-model .toml file.") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML ({exc})", file=file,
+                         fix="Fix the TOML syntax (https://toml.io).") from None
+    ctx.check_keys(data, _TOP_KEYS, "")
+    if "model" not in data:
+        ctx.fail("model", "missing key", "Add model = \"<file>.osim\" (relative to the TOML file).")
+    model_path = ctx.file_path(data["model"], "model", "OpenSim model")
+    motion_path = ctx.file_path(data["motion"], "motion", "motion") if "motion" in data else None
+    units = data.get("units", "m")
+    if units not in _UNITS:
+        ctx.fail("units", f"unknown units {units!r}", "Use units = \"m\" or units = \"mm\".")
+    defaults = data.get("defaults", {})
+    if not isinstance(defaults, dict):
+        ctx.fail("defaults", "expected a table", "Write [defaults] with muscle keys.")
+    ctx.check_keys(defaults, _MUSCLE_KEYS, "defaults")
+    muscles = data.get("muscles")
+    if not isinstance(muscles, dict) or not muscles:
+        ctx.fail("muscles", "no muscles", "Add at least one [muscles.<name>] table.")
+    if model is None:
+        import motion
+
+        model = motion.load_model(model_path)
+    specs = []
+    for name, table in muscles.items():
+        where = f"muscles.{name}"
+        if not isinstance(table, dict):
+            ctx.fail(where, "expected a table", f"Write [muscles.{name}] with its keys.")
+        ctx.check_keys(table, _MUSCLE_KEYS, where)
+        merged = {**_DEFAULTS, "units": units, **defaults, **table}
+        # a key taken from [defaults] is reported there
+        src = {k: (f"{where}.{k}" if k in table else f"defaults.{k}") for k in merged}
+        specs.append(_muscle(ctx, name, merged, src, model))
+    return FibreModelSpec(file=file.resolve(), model_path=model_path, motion_path=motion_path,
+                          units=units, muscles=tuple(specs), model=model)
+
+
+def _muscle(ctx, name, d, src, model) -> MuscleSpec:
+    where = f"muscles.{name}"
+    paths = _model_paths(model)
+    bodies = _model_bodies(model)
+    if "action_lines" not in d:
+        ctx.fail(f"{where}.action_lines", "missing key",
+                 "List the OpenSim muscles that drive this surface, e.g. action_lines = [\"BIClong\"].")
+    lines = d["action_lines"]
+    if isinstance(lines, str):
+        lines = [lines]
+    if not isinstance(lines, list) or not lines:
+        ctx.fail(src["action_lines"], "expected a non-empty list of OpenSim muscle names",
+                 "Write action_lines = [\"<muscle in the .osim>\", ...].")
+    for i, ln in enumerate(lines):
+        if ln not in paths:
+            ctx.fail(f"{src['action_lines']}[{i}]", f"'{ln}' is not a muscle of the model",
+                     f"Use one of: {', '.join(sorted(paths)[:12])}{' ...' if len(paths) > 12 else ''}.")
+    if len(set(lines)) != len(lines):
+        ctx.fail(src["action_lines"], "an action line is listed twice", "List each one once.")
+    unit = d["units"]
+    if unit not in _UNITS:
+        ctx.fail(src["units"], f"unknown units {unit!r}", "Use \"m\" or \"mm\".")
+    mesh = ctx.file_path(d["mesh"], src["mesh"], "mesh") if "mesh" in d else None
+    frame = d["frame"]
+    if not isinstance(frame, str) or (frame not in ("ground", "bodies") and frame not in bodies):
+        ctx.fail(src["frame"], f"unknown frame {frame!r}",
+                 f"Use \"ground\", \"bodies\" or a body of the model: {', '.join(bodies)}.")
+    rest = d.get("rest_pose", {})
+    if not isinstance(rest, dict):
+        ctx.fail(src["rest_pose"], "expected a table", "Write rest_pose = { <coordinate> = <value> }.")
+    names = tuple(model.coordinate_names)
+    for k, v in rest.items():
+        if k not in names:
+            ctx.fail(f"{src['rest_pose']}.{k}", "not a coordinate of the model",
+                     f"Use one of: {', '.join(names)}.")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            ctx.fail(f"{src['rest_pose']}.{k}", f"expected a number, got {v!r}",
+                     "Give the coordinate value in SI units (rad or m).")
+    template = d["template"]
+    names_t = _template_names()
+    if template not in names_t:
+        ctx.fail(src["template"], f"unknown template {template!r}", f"Use one of: {', '.join(names_t)}.")
+    ints = {}
+    for key, lo in (("fibres", 1), ("resolution", 1), ("seed", 0)):
+        v = d[key]
+        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+            ctx.fail(src[key], f"expected an integer >= {lo}, got {v!r}", f"Set {key} to a whole number >= {lo}.")
+        ints[key] = v
+    params = d.get("template_params", {})
+    if not isinstance(params, dict):
+        ctx.fail(src["template_params"], "expected a table", "Write template_params = { name = value }.")
+    ends = {}
+    for end in ("origin", "insertion"):
+        ends[end] = _attachment(ctx, d.get(end), src.get(end, f"{where}.{end}"), end, unit, bodies,
+                                paths[lines[0]])
+    return MuscleSpec(name=name, action_lines=tuple(lines), mesh=mesh, units=unit, frame=frame,
+                      rest_pose=MappingProxyType({k: float(v) for k, v in rest.items()}),
+                      origin=ends["origin"], insertion=ends["insertion"], template=template,
+                      n_fibres=ints["fibres"], resolution=ints["resolution"], seed=ints["seed"],
+                      template_params=MappingProxyType(dict(params)))
+
+
+def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
+    default_body, default_loc = _path_end(path, end)
+    if table is None:
+        return AttachmentSpec(body=default_body, points=default_loc[None], in_body_frame=True,
+                              source=f"{'first' if end == 'origin' else 'last'} path point of {path.name}")
+    if not isinstance(table, dict):
+        ctx.fail(where, "expected a table", f"Write {end} = {{ body = \"...\", points = [[x, y, z]] }}.")
+    ctx.check_keys(table, _ATTACH_KEYS, where)
+    body = table.get("body", default_body)
+    if body not in bodies:
+        ctx.fail(f"{where}.body", f"'{body}' is not a body of the model", f"Use one of: {', '.join(bodies)}.")
+    if ("points" in table) == ("file" in table):
+        ctx.fail(where, "needs exactly one of 'points' and 'file'",
+                 "Give points = [[x, y, z], ...] or file = \"<landmarks>.csv\".")
+    if "points" in table:
+        for k in ("where", "columns"):
+            if k in table:
+                ctx.fail(f"{where}.{k}", "only allowed with 'file'", f"Remove {k} or use file = ...")
+        try:
+            pts = np.array(table["points"], dtype=float)
+        except (TypeError, ValueError):
+            pts = np.zeros((0,))
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.isfinite(pts).all():
+            ctx.fail(f"{where}.points", "expected a list of [x, y, z] triples of numbers",
+                     "Write points = [[x, y, z], ...].")
+        scale = _UNITS.get(table.get("units", unit))
+        if scale is None:
+            ctx.fail(f"{where}.units", f"unknown units {table['units']!r}", "Use \"m\" or \"mm\".")
+        return AttachmentSpec(body=body, points=pts * scale, source=f"{where}.points")
+    file = ctx.file_path(table["file"], f"{where}.file", "landmark file")
+    pts, scale = _read_points(ctx, file, table, where, unit)
+    return AttachmentSpec(body=body, points=pts * scale, source=str(file))
+
+
+def _read_points(ctx, file, table, where, unit):
+    """(K, 3) points and metres-per-unit from a CSV (with row selection) or a point-cloud file."""
+    if "units" in table and table["units"] not in _UNITS:
+        ctx.fail(f"{where}.units", f"unknown units {table['units']!r}", "Use \"m\" or \"mm\".")
+    if file.suffix.lower() not in (".csv", ".txt"):
+        for k in ("where", "columns"):
+            if k in table:
+                ctx.fail(f"{where}.{k}", "only allowed with a CSV file", f"Remove {k}.")
+        try:
+            import pyvista
+
+            pts = np.asarray(pyvista.read(str(file)).points, dtype=float)
+        except Exception as exc:  # noqa: BLE001 - any reader failure is bad input
+            ctx.fail(f"{where}.file", f"cannot read the point cloud {file.name} ({exc})",
+                     "Give a CSV with x,y,z columns or a VTK/VTP/PLY point cloud.")
+        if pts.ndim != 2 or len(pts) == 0:
+            ctx.fail(f"{where}.file", f"no points in {file.name}", "Give a file with at least one point.")
+        return pts, _UNITS[table.get("units", unit)]
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(file)
+    except Exception as exc:  # noqa: BLE001 - malformed CSV is bad input
+        ctx.fail(f"{where}.file", f"cannot read the CSV {file.name} ({exc})", "Give a CSV with a header row.")
+    df.columns = [str(c).strip() for c in df.columns]
+    cols = table.get("columns")
+    col_units = None
+    if cols is not None:
+        if not (isinstance(cols, list) and len(cols) == 3 and all(isinstance(c, str) for c in cols)):
+            ctx.fail(f"{where}.columns", "expected three column names", "Write columns = [\"x\", \"y\", \"z\"].")
+    else:
+        for cand, u in ((["x", "y", "z"], None), (["x_mm", "y_mm", "z_mm"], "mm"), (["x_m", "y_m", "z_m"], "m")):
+            if all(c in df.columns for c in cand):
+                cols, col_units = cand, u
+                break
+        else:
+            # a header-less CSV of three numbers per row
+            try:
+                raw = np.loadtxt(file, delimiter=",", ndmin=2)
+            except ValueError:
+                raw = None
+            if raw is None or raw.shape[1] != 3 or "where" in table:
+                ctx.fail(f"{where}.file", f"{file.name} has no x,y,z columns (found {', '.join(df.columns)})",
+                         "Name them with columns = [\"...\", \"...\", \"...\"].")
+            return raw, _UNITS[table.get("units", unit)]
+    missing = [c for c in cols if c not in df.columns]
+    if missing:
+        ctx.fail(f"{where}.columns", f"{file.name} has no column {missing[0]!r}",
+                 f"Columns are: {', '.join(df.columns)}.")
+    sel = table.get("where", {})
+    if not isinstance(sel, dict):
+        ctx.fail(f"{where}.where", "expected a table", "Write where = { column = value }.")
+    mask = np.ones(len(df), dtype=bool)
+    for col, want in sel.items():
+        if col not in df.columns:
+            ctx.fail(f"{where}.where.{col}", f"{file.name} has no column {col!r}",
+                     f"Columns are: {', '.join(df.columns)}.")
+        wants = want if isinstance(want, list) else [want]
+        series = df[col]
+        hit = np.zeros(len(df), dtype=bool)
+        for w in wants:
+            if isinstance(w, (int, float)) and not isinstance(w, bool):
+                hit |= (pd.to_numeric(series, errors="coerce") == w).to_numpy()
+            else:
+                hit |= (series.astype(str).str.strip() == str(w)).to_numpy()
+        mask &= hit
+        if not mask.any():
+            have = sorted(set(series.astype(str)))[:12]
+            ctx.fail(f"{where}.where.{col}", f"no row of {file.name} matches {col} = {want!r}"
+                     " (with the conditions before it)", f"Values in that column: {', '.join(have)}.")
+    try:
+        pts = df.loc[mask, cols].to_numpy(dtype=float)
+    except ValueError:
+        ctx.fail(f"{where}.file", f"non-numeric values in columns {', '.join(cols)} of {file.name}",
+                 "Fix the file.")
+    if len(pts) == 0 or not np.isfinite(pts).all():
+        ctx.fail(f"{where}.file", f"no usable points in {file.name}", "Give at least one finite x,y,z row.")
+    return pts, _UNITS[table.get("units", col_units or unit)]
