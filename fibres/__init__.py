@@ -3,5 +3,6 @@
 Never imports ``motion`` or ``analysis``.
 """
 from .errors import InputError, MissingDependencyError
+from .surface import Surface, as_surface
 
-__all__ = ["InputError", "MissingDependencyError"]
+__all__ = ["InputError", "MissingDependencyError", "Surface", "as_surface"]

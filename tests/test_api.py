@@ -10,6 +10,7 @@ EXPECTED = {
     },
     "fibres": {
         "InputError", "MissingDependencyError",
+        "Surface", "as_surface",
     },
     "analysis": {
         "InputError", "MissingDependencyError",
