@@ -7,6 +7,7 @@ import pytest
 EXPECTED = {
     "motion": {
         "InputError", "MissingDependencyError",
+        "Motion", "load_motion", "write_sto",
     },
     "fibres": {
         "InputError", "MissingDependencyError",
