@@ -3,6 +3,7 @@
 Never imports ``motion`` or ``analysis``.
 """
 from .errors import InputError, MissingDependencyError
+from .sampling import sobol_rs
 from .surface import Surface, as_surface
 
-__all__ = ["InputError", "MissingDependencyError", "Surface", "as_surface"]
+__all__ = ["InputError", "MissingDependencyError", "Surface", "as_surface", "sobol_rs"]

@@ -11,7 +11,7 @@ EXPECTED = {
     },
     "fibres": {
         "InputError", "MissingDependencyError",
-        "Surface", "as_surface",
+        "Surface", "as_surface", "sobol_rs",
     },
     "analysis": {
         "InputError", "MissingDependencyError",
