@@ -1,0 +1,192 @@
+"""``fibres lines MODEL.osim MOTION.mot``: body poses and action lines, like OpenSim's MuscleAnalysis.
+
+Writes into ``--out`` (default ``fibres-out/``), as INTERFACE.md says:
+
+- ``body_poses.csv``: frame, time, body, tx, ty, tz, r00 ... r22 (v_ground = R v_body + t);
+- ``action_lines.csv``: frame, time, muscle, length;
+- ``action_line_moment_arms.csv``: frame, time, muscle, coordinate, moment_arm (r = -dL/dq),
+  only for the coordinates each muscle spans.
+
+``frame`` is the 0-based index into the motion rows actually used (after ``--frames``), ``time``
+the motion's time column. The output folder is checked before any work; the three files are
+written to temporary names and renamed together at the end, so a failed run leaves none of them.
+Warnings (unknown or missing motion columns) are printed as one line each on stderr.
+"""
+from __future__ import annotations
+
+import contextlib
+import difflib
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .frames_option import add_frames_argument, resolve_frames
+from .lines_tables import action_lines_table, body_poses_table, moment_arms_table
+from .output_files import atomic_path, prepare_out_dir
+from .progress import progress
+
+__all__ = ["add_arguments", "execute", "compute_lines", "OUTPUT_FILES"]
+
+OUTPUT_FILES = ("body_poses.csv", "action_lines.csv", "action_line_moment_arms.csv")
+
+#: frames per batch: the progress bar moves once per batch (each batch is one vectorised call)
+BATCH_FRAMES = 256
+
+
+def add_arguments(parser) -> None:
+    """Arguments of ``fibres lines``."""
+    parser.add_argument("model", metavar="MODEL.osim", help="OpenSim model (.osim, 3.x or 4.x)")
+    parser.add_argument("motion", metavar="MOTION.mot", help="motion (.mot or .sto)")
+    parser.add_argument("--out", default="fibres-out", metavar="DIR",
+                        help="output folder (default: fibres-out)")
+    parser.add_argument("--muscle", action="append", default=None, metavar="NAME",
+                        help="only this path force (repeatable; default: every path in the model)")
+    add_frames_argument(parser)
+    parser.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+
+
+def _check_out_dir(out: Path) -> None:
+    """Fail early (before any work) if ``out`` can never be written."""
+    import os
+
+    if out.exists():
+        if not out.is_dir():
+            raise InputError("the output folder is a file", file=out,
+                             fix="Pass --out a folder name (or remove the file).")
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise InputError("the output folder is not writable", file=out,
+                             fix="Choose a folder you can write to with --out.")
+        return
+    parent = out.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"cannot create the output folder: {parent} is not writable", file=out,
+                         fix="Choose a folder you can write to with --out.")
+
+
+def _select_muscles(model, names, model_file):
+    """Model path names to compute, in the order asked (default: all, model order)."""
+    if not names:
+        return None
+    available = tuple(model.path_names)
+    chosen = []
+    for name in names:
+        if name not in available:
+            close = difflib.get_close_matches(name, available, n=3)
+            hint = (f"Did you mean {', '.join(close)}?" if close else
+                    f"The model's paths are: {', '.join(available[:8])}"
+                    + (" ..." if len(available) > 8 else "") + ".")
+            raise InputError(f"the model has no muscle or path named '{name}'", file=model_file,
+                             where=f"--muscle {name}", fix=hint)
+        if name not in chosen:
+            chosen.append(name)
+    return chosen
+
+
+def _poses_arrays(poses, model):
+    """(F, B, 4, 4) transforms and (B,) body names from `motion.body_poses`' result."""
+    tf = getattr(poses, "tf_ground_body", None)
+    if tf is None:
+        tf = getattr(poses, "transforms")
+    names = getattr(poses, "body_names", None) or model.body_names
+    return np.asarray(tf), tuple(names)
+
+
+def compute_lines(model, motion, *, muscles=None, quiet=True):
+    """Body poses and action lines for every frame, in batches of `BATCH_FRAMES` frames.
+
+    Parameters
+    ----------
+    model : motion.Model
+    motion : motion.Motion
+    muscles : list of str, optional
+        Path names (default: all).
+    quiet : bool
+        No progress bar.
+
+    Returns
+    -------
+    dict
+        ``tf_ground_body`` (F, B, 4, 4), ``body_names`` (B,), ``lengths`` (F, M),
+        ``moment_arms`` (F, M, C), ``spanned`` (M, C), ``muscle_names`` (M,),
+        ``coordinate_names`` (C,).
+    """
+    import motion as motion_pkg
+
+    starts = np.arange(0, motion.n_frames, BATCH_FRAMES)
+    tfs, lengths, arms = [], [], []
+    lines = body_names = None
+    bar = progress(total=motion.n_frames, desc="action lines", quiet=quiet, unit="frame")
+    try:
+        for start in starts:  # batches of frames, each one vectorised call
+            part = motion.select_frames(slice(start, start + BATCH_FRAMES))
+            tf, body_names = _poses_arrays(motion_pkg.body_poses(model, part), model)
+            lines = motion_pkg.action_lines(model, part, muscles=muscles)
+            tfs.append(tf)
+            lengths.append(np.asarray(lines.lengths))
+            arms.append(np.asarray(lines.moment_arms))
+            bar.update(part.n_frames)
+    finally:
+        bar.close()
+    return {
+        "tf_ground_body": np.concatenate(tfs),
+        "body_names": body_names,
+        "lengths": np.concatenate(lengths),
+        "moment_arms": np.concatenate(arms),
+        "spanned": np.asarray(lines.spanned, dtype=bool),
+        "muscle_names": tuple(lines.muscle_names),
+        "coordinate_names": tuple(lines.coordinate_names),
+    }
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    text = " ".join(str(message).split())
+    print(f"fibres lines: warning: {text}", file=sys.stderr)
+
+
+def execute(args) -> int:
+    """Run ``fibres lines``; returns the exit status (errors are raised as InputError)."""
+    import motion as motion_pkg
+
+    out = Path(args.out)
+    _check_out_dir(out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        warnings.showwarning = _show_warning
+        model = motion_pkg.load_model(args.model)
+        muscles = _select_muscles(model, args.muscle, args.model)
+        mot = motion_pkg.load_motion(args.motion, model)
+        rows = resolve_frames(args.frames, mot.n_frames, source=args.motion)
+        mot = mot.select_frames(rows)
+        result = compute_lines(model, mot, muscles=muscles, quiet=args.quiet)
+
+    tables = {
+        "body_poses.csv": body_poses_table(mot.time, result["tf_ground_body"],
+                                           result["body_names"]),
+        "action_lines.csv": action_lines_table(mot.time, result["lengths"],
+                                               result["muscle_names"]),
+        "action_line_moment_arms.csv": moment_arms_table(
+            mot.time, result["moment_arms"], result["spanned"], result["muscle_names"],
+            result["coordinate_names"]),
+    }
+    existed = out.exists()
+    prepare_out_dir(out)
+    try:
+        with contextlib.ExitStack() as stack:
+            # All three go to temporary names first; they are renamed only if all were written.
+            for name, table in tables.items():
+                tmp = stack.enter_context(atomic_path(out / name))
+                table.to_csv(tmp, index=False, float_format="%.12g")
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only if still empty
+        raise
+    if not args.quiet:
+        print(f"fibres lines: {mot.n_frames} frames, {len(result['muscle_names'])} paths, "
+              f"{len(result['body_names'])} bodies -> {out}/{{{','.join(OUTPUT_FILES)}}}")
+    return 0

@@ -1,0 +1,150 @@
+"""Action-line results as long (tidy) tables, the columns of INTERFACE.md.
+
+Arrays in (frame axis first), pandas DataFrames out, built with ``np.repeat``/``np.tile`` (no
+loop over frames). Rows are ordered frame-major: every body/muscle of frame 0, then frame 1 ...
+Used by ``fibres lines`` and ``fibres run``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["body_poses_table", "action_lines_table", "moment_arms_table", "POSE_COLUMNS"]
+
+#: rotation columns, row-major: r_ij = R[i, j], v_ground = R v_body + t
+POSE_COLUMNS = ("tx", "ty", "tz") + tuple(f"r{i}{j}" for i in range(3) for j in range(3))
+
+
+def _frame_index(time, frames):
+    time = np.asarray(time, dtype=float).reshape(-1)
+    frames = np.arange(time.shape[0]) if frames is None else np.asarray(frames).reshape(-1)
+    if frames.shape != time.shape:
+        raise ValueError(f"frames {frames.shape} and time {time.shape} differ")
+    return time, frames
+
+
+def body_poses_table(time, tf_ground_body, body_names, *, frames=None):
+    """Body frames in ground: columns frame, time, body, tx, ty, tz, r00 ... r22.
+
+    Parameters
+    ----------
+    time : (F,) float
+    tf_ground_body : (F, B, 4, 4) float
+        ``v_ground = R v_body + t`` with ``R = tf[:3, :3]``, ``t = tf[:3, 3]``.
+    body_names : (B,) str
+    frames : (F,) int, keyword-only
+        Frame numbers to write (default 0 .. F-1).
+
+    Returns
+    -------
+    pandas.DataFrame
+        F * B rows.
+    """
+    import pandas as pd
+
+    time, frames = _frame_index(time, frames)
+    tf = np.asarray(tf_ground_body, dtype=float)
+    n_frames, n_bodies = time.shape[0], len(body_names)
+    if tf.shape != (n_frames, n_bodies, 4, 4):
+        raise ValueError(f"tf_ground_body must be (F, B, 4, 4) = ({n_frames}, {n_bodies}, 4, 4), "
+                         f"got {tf.shape}")
+    table = {
+        "frame": np.repeat(frames, n_bodies),
+        "time": np.repeat(time, n_bodies),
+        "body": np.tile(np.asarray(body_names, dtype=object), n_frames),
+    }
+    flat = tf.reshape(n_frames * n_bodies, 4, 4)
+    for k, axis in enumerate("xyz"):
+        table[f"t{axis}"] = flat[:, k, 3]
+    for i in range(3):
+        for j in range(3):
+            table[f"r{i}{j}"] = flat[:, i, j]
+    return pd.DataFrame(table)
+
+
+def action_lines_table(time, lengths, muscle_names, *, frames=None, action_lines=None):
+    """Path lengths: columns frame, time, muscle, [action_line,] length.
+
+    Parameters
+    ----------
+    time : (F,) float
+    lengths : (F, M) float
+        Whole-path lengths in metres.
+    muscle_names : (M,) str
+    frames : (F,) int, keyword-only
+    action_lines : (M,) str, keyword-only
+        If given, an ``action_line`` column after ``muscle`` (``fibres run``: the OpenSim path
+        behind each fibre-model muscle).
+
+    Returns
+    -------
+    pandas.DataFrame
+        F * M rows.
+    """
+    import pandas as pd
+
+    time, frames = _frame_index(time, frames)
+    lengths = np.asarray(lengths, dtype=float)
+    n_frames, n_muscles = time.shape[0], len(muscle_names)
+    if lengths.shape != (n_frames, n_muscles):
+        raise ValueError(f"lengths must be (F, M) = ({n_frames}, {n_muscles}), got {lengths.shape}")
+    table = {
+        "frame": np.repeat(frames, n_muscles),
+        "time": np.repeat(time, n_muscles),
+        "muscle": np.tile(np.asarray(muscle_names, dtype=object), n_frames),
+    }
+    if action_lines is not None:
+        if len(action_lines) != n_muscles:
+            raise ValueError("action_lines must have one name per muscle")
+        table["action_line"] = np.tile(np.asarray(action_lines, dtype=object), n_frames)
+    table["length"] = lengths.reshape(-1)
+    return pd.DataFrame(table)
+
+
+def moment_arms_table(time, moment_arms, spanned, muscle_names, coordinate_names, *,
+                      frames=None, action_lines=None):
+    """Moment arms for the coordinates each path spans: frame, time, muscle, [action_line,]
+    coordinate, moment_arm.
+
+    Parameters
+    ----------
+    time : (F,) float
+    moment_arms : (F, M, C) float
+        r = -dL/dq in metres (per radian for rotational coordinates).
+    spanned : (M, C) bool
+        Which (muscle, coordinate) pairs to write; others are left out.
+    muscle_names : (M,) str
+    coordinate_names : (C,) str
+    frames : (F,) int, keyword-only
+    action_lines : (M,) str, keyword-only
+        As in `action_lines_table`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        F * spanned.sum() rows; within a frame, muscles in order, then coordinates in order.
+    """
+    import pandas as pd
+
+    time, frames = _frame_index(time, frames)
+    arms = np.asarray(moment_arms, dtype=float)
+    spanned = np.asarray(spanned, dtype=bool)
+    n_frames, n_muscles, n_coords = time.shape[0], len(muscle_names), len(coordinate_names)
+    if arms.shape != (n_frames, n_muscles, n_coords):
+        raise ValueError(f"moment_arms must be (F, M, C) = ({n_frames}, {n_muscles}, {n_coords}), "
+                         f"got {arms.shape}")
+    if spanned.shape != (n_muscles, n_coords):
+        raise ValueError(f"spanned must be (M, C) = ({n_muscles}, {n_coords}), got {spanned.shape}")
+    muscle_of, coord_of = np.nonzero(spanned)  # row-major: muscle order, then coordinate order
+    n_pairs = muscle_of.shape[0]
+    table = {
+        "frame": np.repeat(frames, n_pairs),
+        "time": np.repeat(time, n_pairs),
+        "muscle": np.tile(np.asarray(muscle_names, dtype=object)[muscle_of], n_frames),
+    }
+    if action_lines is not None:
+        if len(action_lines) != n_muscles:
+            raise ValueError("action_lines must have one name per muscle")
+        table["action_line"] = np.tile(np.asarray(action_lines, dtype=object)[muscle_of], n_frames)
+    table["coordinate"] = np.tile(np.asarray(coordinate_names, dtype=object)[coord_of], n_frames)
+    table["moment_arm"] = arms[:, muscle_of, coord_of].reshape(-1)
+    return pd.DataFrame(table)
