@@ -11,7 +11,7 @@ EXPECTED = {
     },
     "fibres": {
         "InputError", "MissingDependencyError",
-        "Surface", "as_surface", "sobol_rs",
+        "Surface", "as_surface", "sobol_rs", "get_template", "TEMPLATES",
     },
     "analysis": {
         "InputError", "MissingDependencyError",

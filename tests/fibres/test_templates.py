@@ -1,0 +1,135 @@
+"""fibres.templates: Blemker & Delp (2005) style Bézier fibre families in the unit cube."""
+import numpy as np
+import pytest
+
+from fibres.bezier import bernstein, evaluate
+from fibres.errors import InputError
+from fibres.sampling import sobol_rs
+from fibres.templates import DEFAULTS, TEMPLATES, get_template
+
+RS = sobol_rs(512, seed=1)
+T = np.linspace(0.0, 1.0, 41)
+EPS = 1e-12  # round-off of a convex combination of numbers in [0, 1]
+
+
+def _in_rects(pts, rects):
+    inside = np.zeros(len(pts), bool)
+    for r in rects:
+        inside |= ((pts[:, 0] >= r[0] - EPS) & (pts[:, 0] <= r[1] + EPS)
+                   & (pts[:, 1] >= r[2] - EPS) & (pts[:, 1] <= r[3] + EPS))
+    return inside
+
+
+@pytest.mark.parametrize("name", TEMPLATES)
+def test_fibres_inside_cube_from_origin_to_insertion(name):
+    tm = get_template(name)
+    p = tm.fibre_points(RS, T)
+    assert p.shape == (len(RS), len(T), 3)
+    assert p.min() >= -EPS and p.max() <= 1 + EPS
+    np.testing.assert_allclose(p[:, 0, 2], 0.0, atol=EPS)
+    np.testing.assert_allclose(p[:, -1, 2], 1.0, atol=EPS)
+    o_rects, i_rects = tm._rects
+    assert _in_rects(p[:, 0], o_rects).all()
+    assert _in_rects(p[:, -1], i_rects).all()
+    # z rises monotonically along every fibre (z control ordinates are non-decreasing)
+    assert (np.diff(p[..., 2], axis=1) > 0).all()
+    # the area samples lie on the faces and inside the rectangles
+    np.testing.assert_array_equal(tm.origin_area[:, 2], 0.0)
+    np.testing.assert_array_equal(tm.insertion_area[:, 2], 1.0)
+    assert _in_rects(tm.origin_area, o_rects).all() and _in_rects(tm.insertion_area, i_rects).all()
+
+
+@pytest.mark.parametrize("name", TEMPLATES)
+def test_degree_and_rational_structure(name):
+    tm = get_template(name)
+    ctrl, w = tm.control_points(RS[:7])
+    assert ctrl.shape == (7, tm.degree + 1, 3)
+    assert 2 <= tm.degree <= 4
+    assert (w is not None) == tm.rational
+    # the fibre points are exactly the Bernstein combination of the control points
+    basis = bernstein(tm.degree, T)
+    wt = np.ones(tm.degree + 1) if w is None else w
+    ref = np.einsum("pd,d,ndk->npk", basis, wt, ctrl) / (basis @ wt)[None, :, None]
+    np.testing.assert_allclose(tm.fibre_points(RS[:7], T), ref, atol=1e-14)
+
+
+def test_parallel_fibres_are_straight_lines():
+    p = get_template("parallel").fibre_points(RS, T)
+    lin = p[:, :1] + (p[:, -1:] - p[:, :1]) * T[None, :, None]
+    np.testing.assert_allclose(p, lin, atol=1e-14)
+    # full faces by default: the fibre (r, s) starts at (r, s, 0) and ends at (r, s, 1)
+    np.testing.assert_allclose(p[:, 0, :2], RS, atol=1e-14)
+    np.testing.assert_allclose(p[:, -1, :2], RS, atol=1e-14)
+
+
+def test_curved_centre_fibre_is_a_circular_arc():
+    c = 0.6
+    p = get_template("curved", curvature=c, origin_size=(1, 1), insertion_size=(1, 1)) \
+        .fibre_points(np.array([[0.5, 0.5]]), T)[0]
+    # circle in the xz plane through (0.5,0), (0.5,1) with tangent at the ends meeting at
+    # (0.5 + c/2, 0.5): centre (0.5 - d, 0.5) with d = (1/2)^2 / (c/2) - ... solve analytically:
+    # tangent from (0.5,0) to (0.5+h,0.5), h=c/2 -> radius direction is perpendicular to it.
+    h = c / 2
+    # centre x0 on the line z = 0.5 with (P0 - C) . (P1 - P0) = 0:  (0.5 - x0) h + (-0.5)(0.5) = 0
+    x0 = 0.5 - 0.25 / h
+    radius = np.hypot(0.5 - x0, 0.5)
+    dist = np.hypot(p[:, 0] - x0, p[:, 2] - 0.5)
+    np.testing.assert_allclose(dist, radius, rtol=1e-12)
+    assert p[:, 0].max() > 0.5  # bulges towards +x
+
+
+def test_fanned_converges_on_fan_centre():
+    tm = get_template("fanned", fan_centre=(0.3, 0.7), insertion_size=(0.1, 0.1))
+    p = tm.fibre_points(RS, T)
+    np.testing.assert_allclose(p[:, -1, :2].mean(axis=0), [0.3, 0.7], atol=0.01)
+    assert np.ptp(p[:, -1, 0]) <= 0.1 + EPS and np.ptp(p[:, 0, 0]) > 0.9
+
+
+def test_bipennate_and_rectus_halves():
+    p = get_template("bipennate").fibre_points(RS, T)
+    left = RS[:, 0] < 0.5
+    # left fibres start on the left band and run right to the central tendon, and vice versa
+    assert (p[left, 0, 0] <= 0.25 + EPS).all() and (p[~left, 0, 0] >= 0.75 - EPS).all()
+    assert (p[left, -1, 0] <= 0.5 + EPS).all() and (p[~left, -1, 0] >= 0.5 - EPS).all()
+    q = get_template("rectus").fibre_points(RS, T)
+    assert (q[left, -1, 0] <= 0.25 + EPS).all() and (q[~left, -1, 0] >= 0.75 - EPS).all()
+
+
+@pytest.mark.parametrize("name", TEMPLATES)
+def test_params_are_documented_and_applied(name):
+    tm = get_template(name)
+    assert set(tm.params) == set(DEFAULTS[name])
+    smaller = get_template(name, origin_size=(0.2, 0.4))
+    assert np.ptp(smaller.origin_area[:, 1]) == pytest.approx(0.4)
+
+
+def test_parameter_validation():
+    with pytest.raises(InputError, match="unknown template 'spiral'"):
+        get_template("spiral")
+    with pytest.raises(InputError, match="unknown parameter"):
+        get_template("parallel", curvature=0.2)
+    with pytest.raises(InputError, match="out of range"):
+        get_template("curved", curvature=1.0)
+    with pytest.raises(InputError, match="out of range"):
+        get_template("pennate", tendon=-0.1)
+    with pytest.raises(InputError, match="does not fit"):
+        get_template("parallel", origin_centre=(0.9, 0.5), origin_size=(0.5, 0.5))
+    with pytest.raises(InputError, match="in \\(0, 1\\]"):
+        get_template("fanned", insertion_size=(0.0, 0.2))
+    with pytest.raises(ValueError, match="rs"):
+        get_template("parallel").fibre_points(np.array([[1.5, 0.2]]), T)
+
+
+def test_template_is_frozen():
+    tm = get_template("pennate")
+    with pytest.raises(AttributeError):
+        tm.name = "x"
+    with pytest.raises(TypeError):
+        tm.params["tendon"] = 0.1
+    assert not tm.origin_area.flags.writeable
+
+
+def test_bezier_evaluate_rational_reduces_to_polynomial_with_unit_weights():
+    ctrl = np.random.default_rng(0).random((4, 4, 3))
+    np.testing.assert_allclose(evaluate(ctrl, T, np.ones(4)), evaluate(ctrl, T), atol=1e-14)
+    np.testing.assert_allclose(bernstein(3, T).sum(axis=1), 1.0, atol=1e-14)
