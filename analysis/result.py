@@ -1,0 +1,175 @@
+"""What `analysis.run` returns: per-muscle fibre and action-line lengths and moment arms, in memory.
+
+Dimension letters (STYLE.md): F frames, N fibres, L action lines of one muscle, C coordinates the
+muscle spans, P points per fibre.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+__all__ = ["MuscleResult", "RunResult"]
+
+
+def _ro(value, ndim=None, name="array"):
+    arr = np.array(value, dtype=float, copy=True)
+    if ndim is not None and arr.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimensions, got shape {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class MuscleResult:
+    """One muscle over the frames of a run.
+
+    Attributes
+    ----------
+    name : str
+    coordinates : tuple of str, (C,)
+        The independent coordinates its action lines span (the moment-arm coordinates).
+    fibre_lengths : (F, N) float
+        Polyline arc length of each fibre, metres.
+    fibre_moment_arms : (F, N, C) float
+        r = -dL/dq per fibre and coordinate (m, or dimensionless for a translational coordinate).
+    action_lines : tuple of str, (L,)
+    action_line_lengths : (F, L) float
+    action_line_moment_arms : (F, L, C) float
+        Exact -dL/dq of the OpenSim paths (``motion.action_lines``).
+    rest_lengths : (N,) float
+        Fibre lengths at the rest pose (the pose the mesh was acquired in).
+    fibre_points : (F, N, P, 3) float or None
+        Fibre polylines per frame in ground (kept unless the run was told not to).
+    surface_vertices : (F, V, 3) float or None
+        The wrapped surface per frame, if kept; ``surface_faces`` (T, 3) int goes with it.
+    """
+
+    name: str
+    coordinates: tuple
+    fibre_lengths: np.ndarray
+    fibre_moment_arms: np.ndarray
+    action_lines: tuple
+    action_line_lengths: np.ndarray
+    action_line_moment_arms: np.ndarray
+    rest_lengths: np.ndarray
+    fibre_points: np.ndarray | None = None
+    surface_vertices: np.ndarray | None = None
+    surface_faces: np.ndarray | None = None
+    notes: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "coordinates", tuple(self.coordinates))
+        object.__setattr__(self, "action_lines", tuple(self.action_lines))
+        object.__setattr__(self, "notes", tuple(self.notes))
+        fl = _ro(self.fibre_lengths, 2, "fibre_lengths")
+        fr = _ro(self.fibre_moment_arms, 3, "fibre_moment_arms")
+        al = _ro(self.action_line_lengths, 2, "action_line_lengths")
+        ar = _ro(self.action_line_moment_arms, 3, "action_line_moment_arms")
+        rest = _ro(self.rest_lengths, 1, "rest_lengths")
+        n_f, n_n = fl.shape
+        c = len(self.coordinates)
+        if fr.shape != (n_f, n_n, c):
+            raise ValueError(f"fibre_moment_arms must be {(n_f, n_n, c)}, got {fr.shape}")
+        if al.shape != (n_f, len(self.action_lines)):
+            raise ValueError(f"action_line_lengths must be {(n_f, len(self.action_lines))}, got {al.shape}")
+        if ar.shape != (n_f, len(self.action_lines), c):
+            raise ValueError(f"action_line_moment_arms must be {(n_f, len(self.action_lines), c)}, "
+                             f"got {ar.shape}")
+        if rest.shape != (n_n,):
+            raise ValueError(f"rest_lengths must be ({n_n},), got {rest.shape}")
+        for key, val in (("fibre_lengths", fl), ("fibre_moment_arms", fr), ("action_line_lengths", al),
+                         ("action_line_moment_arms", ar), ("rest_lengths", rest)):
+            object.__setattr__(self, key, val)
+        if self.fibre_points is not None:
+            pts = _ro(self.fibre_points, 4, "fibre_points")
+            if pts.shape[:2] != (n_f, n_n) or pts.shape[3] != 3:
+                raise ValueError(f"fibre_points must be ({n_f}, {n_n}, P, 3), got {pts.shape}")
+            object.__setattr__(self, "fibre_points", pts)
+        if self.surface_vertices is not None:
+            object.__setattr__(self, "surface_vertices", _ro(self.surface_vertices, 3, "surface_vertices"))
+            faces = np.array(self.surface_faces, dtype=np.int64)
+            faces.setflags(write=False)
+            object.__setattr__(self, "surface_faces", faces)
+
+    @property
+    def n_fibres(self) -> int:
+        return self.fibre_lengths.shape[1]
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """Everything `fibres run` computes, in memory.
+
+    Attributes
+    ----------
+    time : (F,) float
+        The motion's time of each frame used.
+    frames : (F,) int
+        Row index into the motion file of each frame used (the tables' ``frame`` column is
+        ``0..F-1``, an index into the rows actually used).
+    coordinate_names : tuple of str
+        All model coordinates, model order.
+    q : (F, C_all) float
+        Coordinate values of each frame (SI).
+    muscles : tuple of MuscleResult
+    timings : mapping str -> float
+        Wall-clock seconds per stage.
+    settings : mapping
+        Everything that shaped the result (fibres, resolution, template, step h, ...).
+    inputs : mapping
+        Input files (spec, model, motion, meshes, landmarks) by role.
+    """
+
+    time: np.ndarray
+    frames: np.ndarray
+    coordinate_names: tuple
+    q: np.ndarray
+    muscles: tuple
+    timings: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    settings: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    inputs: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+
+    def __post_init__(self):
+        object.__setattr__(self, "time", _ro(self.time, 1, "time"))
+        frames = np.array(self.frames, dtype=np.int64)
+        frames.setflags(write=False)
+        object.__setattr__(self, "frames", frames)
+        object.__setattr__(self, "q", _ro(self.q, 2, "q"))
+        object.__setattr__(self, "coordinate_names", tuple(self.coordinate_names))
+        object.__setattr__(self, "muscles", tuple(self.muscles))
+        for key in ("timings", "settings", "inputs"):
+            object.__setattr__(self, key, MappingProxyType(dict(getattr(self, key))))
+        n_f = len(self.time)
+        if frames.shape != (n_f,) or self.q.shape != (n_f, len(self.coordinate_names)):
+            raise ValueError("time, frames and q must share the frame axis")
+        for m in self.muscles:
+            if m.fibre_lengths.shape[0] != n_f:
+                raise ValueError(f"muscle {m.name!r} has {m.fibre_lengths.shape[0]} frames, expected {n_f}")
+
+    @property
+    def muscle_names(self) -> tuple:
+        return tuple(m.name for m in self.muscles)
+
+    def muscle(self, name: str) -> MuscleResult:
+        """The result of muscle ``name`` (KeyError if it was not run)."""
+        for m in self.muscles:
+            if m.name == name:
+                return m
+        raise KeyError(f"no muscle {name!r} in this run; have {', '.join(self.muscle_names)}")
+
+    def coordinate_values(self, name: str) -> np.ndarray:
+        """(F,) values of coordinate ``name``."""
+        return self.q[:, self.coordinate_names.index(name)]
+
+    def to_frame(self):
+        """All lengths and moment arms as one long pandas DataFrame.
+
+        Columns: frame, time, muscle, kind ("fibre" | "action_line"), fibre (id, -1 for an
+        action line), action_line ("" for a fibre), quantity ("length" | "moment_arm"),
+        coordinate ("" for a length), value (SI).
+        """
+        from .tables import result_long_frame
+
+        return result_long_frame(self)

@@ -1,0 +1,315 @@
+"""`analysis.run`: the whole per-motion fibre study of a fibre model, in memory.
+
+The chain (DESIGN.md), per muscle:
+
+1. Poses and action lines for all frames (``motion.action_lines``: lengths and exact moment arms
+   r = -dL/dq of the OpenSim paths, and which coordinates each path spans).
+2. The muscle surface wrapped at every frame (``motion.wrap_surfaces``): same topology as the rest
+   surface, attachments riding their bodies.
+3. Fibres: ``fibres.decompose`` once on the rest-pose surface, which fixes the decomposition plan
+   (box orientation, slicing, contour starts, template parameters of every fibre); the plan is
+   then reapplied to every wrapped frame, so fibre k is the same material fibre everywhere.
+4. Per-fibre length = polyline arc length (sum of segment lengths).
+5. Per-fibre moment arms r = -dL/dq about every coordinate the muscle's action lines span, by
+   central differences of the WHOLE chain (wrap + decompose with the frozen plan + length):
+   ``r = -(L(q + h e_c) - L(q - h e_c)) / (2 h)``. All perturbed poses are extra frames of ONE
+   batch (the motion is stacked ``[q; q + h e_1; q - h e_1; ...]``), so wrapping runs once.
+
+The step h (``FD_STEP``: 1e-4 rad for rotational, 1e-5 m for translational coordinates). The
+central difference has truncation error h^2/6 * L''' and round-off error ~ eps * L / h. For a
+muscle path L''' is of the order of L (a rotation by q changes a point's position with
+derivatives of order its lever arm ~ L), so with L ~ 0.1 m the truncation error is ~1e-10 m,
+four orders below the 1e-6 m resolution that matters for a moment arm of ~1e-2 m; the round-off
+error of double precision is ~1e-16 * 0.1 / 1e-4 ~ 1e-13 m, and even if the chain's own
+numerical noise were 1e-9 relative (iterative steps in wrapping), it contributes ~1e-6 m. The
+step is also far below the 1-2 degree scale on which wrapping contact or the path geometry
+change, so the quotient is a derivative, not a secant (checked by the smoothness test against a
+2-degree difference quotient).
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import time as _time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .progress import progress
+from .result import MuscleResult, RunResult
+from .spec import FibreModelSpec, load_spec
+
+__all__ = ["run", "FD_STEP", "fibre_lengths", "select_frames"]
+
+#: central-difference step per motion type (SI): see the module docstring.
+FD_STEP = {"rotational": 1e-4, "translational": 1e-5, "coupled": 1e-4}
+
+
+def fibre_lengths(points) -> np.ndarray:
+    """Polyline arc lengths.
+
+    Parameters
+    ----------
+    points : (..., N, P, 3) float
+
+    Returns
+    -------
+    (..., N) float
+    """
+    return np.linalg.norm(np.diff(np.asarray(points, dtype=float), axis=-2), axis=-1).sum(-1)
+
+
+def select_frames(frames, n_rows: int, *, file=None) -> np.ndarray:
+    """Row indices from ``frames``: None (all), "START:STOP:STEP" or a ``FrameSelection``
+    (`analysis.frames_option`), a slice, or a sequence of ints.
+
+    Out-of-range or empty selections raise InputError with the valid range.
+    """
+    from .frames_option import FrameSelection, resolve_frames
+
+    if frames is None or isinstance(frames, (str, FrameSelection)):
+        return resolve_frames(frames, n_rows, source=file)
+    if isinstance(frames, slice):
+        if frames.step is not None and frames.step <= 0:
+            raise InputError("the frame step must be positive", file=file, where="frames",
+                             fix="Use START:STOP:STEP with STEP >= 1.")
+        rows = np.arange(n_rows)[frames]
+    else:
+        rows = np.asarray(frames, dtype=np.int64).reshape(-1)
+        if rows.size and (rows.min() < 0 or rows.max() >= n_rows):
+            raise InputError("frame index out of range", file=file, where="frames",
+                             fix=f"The motion has {n_rows} frames: use indices 0..{n_rows - 1}.")
+    if rows.size == 0:
+        raise InputError("the frame selection is empty", file=file, where="frames",
+                         fix=f"The motion has {n_rows} frames (0..{n_rows - 1}); widen START:STOP.")
+    return rows
+
+
+# --------------------------------------------------------------------------------- the chain
+@dataclasses.dataclass
+class _Ctx:
+    spec: FibreModelSpec
+    model: object
+    motion: object            # motion.Motion of the frames used
+    lines: object             # motion.ActionLines of every action line used
+    quiet: bool
+    keep_points: bool
+    keep_surfaces: bool
+    step: dict
+
+
+def _timed(timings, stage):
+    class _T:
+        def __enter__(self):
+            self.t0 = _time.perf_counter()
+
+        def __exit__(self, *exc):
+            timings[stage] = timings.get(stage, 0.0) + _time.perf_counter() - self.t0
+            return False
+
+    return _T()
+
+
+def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, template=None,
+        frames=None, quiet=True, jobs=1, step=None, keep_points=True, keep_surfaces=False) -> RunResult:
+    """Run the fibre study of a fibre model over a motion.
+
+    Parameters
+    ----------
+    spec_path : str or os.PathLike or FibreModelSpec
+        The fibre-model TOML (docs/INTERFACE.md).
+    motion : str or os.PathLike or motion.Motion, optional
+        The motion (.mot/.sto); default: the ``motion`` key of the TOML.
+    muscles : sequence of str, optional, keyword-only
+        Muscles of the TOML to run (default all).
+    fibres, resolution : int, optional, keyword-only
+        Override the number of fibres / segments per fibre for every muscle.
+    template : str, optional, keyword-only
+        Override the fibre template for every muscle.
+    frames : None, slice, "START:STOP:STEP" or sequence of int, keyword-only
+        Motion rows to use.
+    quiet : bool, keyword-only
+        No progress bars.
+    jobs : int, keyword-only
+        Muscles processed in parallel (threads; numpy releases the GIL in the heavy parts).
+    step : dict, optional, keyword-only
+        Central-difference step per motion type (default `FD_STEP`).
+    keep_points : bool, keyword-only
+        Keep the fibre polylines per frame (``MuscleResult.fibre_points``) for the 3D files.
+    keep_surfaces : bool, keyword-only
+        Keep the wrapped surfaces per frame.
+
+    Returns
+    -------
+    RunResult
+    """
+    import motion as motion_pkg
+
+    timings = {}
+    with _timed(timings, "load"):
+        spec = spec_path if isinstance(spec_path, FibreModelSpec) else load_spec(spec_path)
+        model = spec.model
+        mot_path = None
+        if motion is None or isinstance(motion, (str, Path)):
+            mot_path = Path(motion) if motion is not None else spec.motion_path
+            if mot_path is None:
+                raise InputError("no motion given and the fibre model has no 'motion' key", file=spec.file,
+                                 where="motion", fix="Pass --motion FILE or add motion = \"<file>.mot\".")
+            full = motion_pkg.load_motion(mot_path, model)
+        else:
+            full = motion
+        rows = select_frames(frames, len(full.time), file=mot_path)
+        mot = motion_pkg.Motion.from_array(model, full.time[rows], full.q[rows], source=full.source)
+        mspecs = _select_muscles(spec, muscles, fibres=fibres, resolution=resolution, template=template)
+    names = tuple(dict.fromkeys(n for m in mspecs for n in m.action_lines))
+    with _timed(timings, "action_lines"):
+        lines = motion_pkg.action_lines(model, mot, muscles=names)
+    ctx = _Ctx(spec=spec, model=model, motion=mot, lines=lines, quiet=quiet, keep_points=keep_points,
+               keep_surfaces=keep_surfaces, step=dict(FD_STEP, **(step or {})))
+    results, muscle_timings = [None] * len(mspecs), []
+    if jobs > 1 and len(mspecs) > 1:
+        with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
+            futures = [pool.submit(_run_muscle, ctx, m) for m in mspecs]
+            try:
+                for i, fut in enumerate(futures):
+                    results[i], t = fut.result()
+                    muscle_timings.append(t)
+            except BaseException:
+                for fut in futures:
+                    fut.cancel()
+                raise
+    else:
+        for i, m in enumerate(mspecs):
+            results[i], t = _run_muscle(ctx, m)
+            muscle_timings.append(t)
+    for t in muscle_timings:
+        for k, v in t.items():
+            timings[k] = timings.get(k, 0.0) + v
+    inputs = {"spec": spec.file, "model": spec.model_path}
+    if mot_path is not None:
+        inputs["motion"] = Path(mot_path).resolve()
+    for m in mspecs:
+        if m.mesh is not None:
+            inputs[f"mesh:{m.name}"] = m.mesh
+        for end in ("origin", "insertion"):
+            src = getattr(m, end).source
+            if src and Path(src).is_file():
+                inputs[f"{end}:{m.name}"] = Path(src)
+    settings = {
+        "motion_rows": rows.tolist(), "jobs": int(jobs), "fd_step": ctx.step,
+        "muscles": {m.name: {"action_lines": list(m.action_lines), "template": m.template,
+                             "fibres": m.n_fibres, "resolution": m.resolution, "seed": m.seed,
+                             "frame": m.frame, "units": m.units, "rest_pose": dict(m.rest_pose),
+                             "template_params": dict(m.template_params)} for m in mspecs},
+    }
+    return RunResult(time=mot.time, frames=rows, coordinate_names=model.coordinate_names, q=mot.q,
+                     muscles=tuple(results), timings=timings, settings=settings, inputs=inputs)
+
+
+def _select_muscles(spec, muscles, *, fibres, resolution, template):
+    if muscles:
+        unknown = [m for m in muscles if m not in spec.muscle_names]
+        if unknown:
+            raise InputError(f"no muscle '{unknown[0]}' in the fibre model", file=spec.file, where="--muscle",
+                             fix=f"Use one of: {', '.join(spec.muscle_names)}.")
+        chosen = [spec.muscle(m) for m in dict.fromkeys(muscles)]
+    else:
+        chosen = list(spec.muscles)
+    over = {}
+    for key, val, lo in (("n_fibres", fibres, 1), ("resolution", resolution, 1)):
+        if val is not None:
+            if int(val) != val or val < lo:
+                raise InputError(f"--{'fibres' if key == 'n_fibres' else key} must be an integer >= {lo}",
+                                 fix="Give a whole number.")
+            over[key] = int(val)
+    if template is not None:
+        from .spec import _template_names
+
+        if template not in _template_names():
+            raise InputError(f"unknown template {template!r}", where="--template",
+                             fix=f"Use one of: {', '.join(_template_names())}.")
+        over["template"] = template
+    return [dataclasses.replace(m, **over) for m in chosen]
+
+
+def _spanned_coordinates(ctx, mspec):
+    """Indices (into model coordinates) of the independent coordinates the muscle's lines span."""
+    lines = ctx.lines
+    rows = [list(lines.muscle_names).index(n) for n in mspec.action_lines]
+    spanned = np.asarray(lines.spanned, dtype=bool)[rows].any(axis=0)
+    indep = np.asarray(ctx.model.independent_coordinates, dtype=bool)
+    return np.flatnonzero(spanned & indep), rows
+
+
+def _stacked_motion(ctx, coord_idx):
+    """The base motion followed by +h and -h perturbations of each coordinate: (F * (1 + 2K), C)."""
+    import motion as motion_pkg
+
+    q = np.asarray(ctx.motion.q, dtype=float)
+    n_f = len(q)
+    coords = ctx.model.coordinates
+    steps = np.array([ctx.step[coords[c].motion_type] for c in coord_idx])
+    blocks = [q]
+    for k, c in enumerate(coord_idx):
+        for sign in (1.0, -1.0):
+            qp = q.copy()
+            qp[:, c] += sign * steps[k]
+            blocks.append(qp)
+    q_all = np.concatenate(blocks, axis=0)
+    t_all = np.tile(np.asarray(ctx.motion.time, dtype=float), len(blocks))
+    stacked = motion_pkg.Motion.from_array(ctx.model, t_all, q_all, source=ctx.motion.source)
+    return stacked, steps, n_f
+
+
+def _run_muscle(ctx, mspec):
+    """Wrap, decompose, measure one muscle over all frames (+ perturbed frames)."""
+    import fibres as fibres_pkg
+
+    from .surface_inputs import rest_surface, wrap_muscle
+
+    timings = {}
+    coord_idx, line_rows = _spanned_coordinates(ctx, mspec)
+    stacked, steps, n_f = _stacked_motion(ctx, coord_idx)
+    with _timed(timings, "wrap"):
+        rest, wrapped = wrap_muscle(ctx.model, stacked, mspec)
+    opts = dict(template=mspec.template, n_fibres=mspec.n_fibres, resolution=mspec.resolution,
+                seed=mspec.seed)
+    if mspec.template_params:
+        opts["template_params"] = dict(mspec.template_params)
+    with _timed(timings, "decompose_rest"):
+        bundle0 = fibres_pkg.decompose((rest.vertices, rest.faces), rest.origin, rest.insertion, **opts)
+    plan = bundle0.plan
+    n_all = wrapped.vertices.shape[0]
+    points = np.empty((n_all,) + bundle0.points.shape)
+    bar = progress(total=n_all, desc=f"fibres {mspec.name}", quiet=ctx.quiet, unit="frame")
+    with _timed(timings, "decompose"):
+        try:
+            for f in range(n_all):  # one decomposition per (perturbed) frame: the plan is frozen
+                b = fibres_pkg.decompose((wrapped.vertices[f], rest.faces), wrapped.origin[f],
+                                         wrapped.insertion[f], plan=plan, **opts)
+                points[f] = b.points
+                bar.update(1)
+        finally:
+            bar.close()
+    with _timed(timings, "lengths"):
+        lengths = fibre_lengths(points)                       # (F * (1 + 2K), N)
+    with _timed(timings, "moment_arms"):
+        blocks = lengths.reshape(1 + 2 * len(coord_idx), n_f, -1)
+        base = blocks[0]
+        plus, minus = blocks[1::2], blocks[2::2]              # (K, F, N)
+        r = -(plus - minus) / (2.0 * steps[:, None, None])
+        r = np.moveaxis(r, 0, -1)                             # (F, N, K)
+    lines = ctx.lines
+    al_len = np.asarray(lines.lengths)[:, line_rows]
+    al_r = np.asarray(lines.moment_arms)[:, line_rows][:, :, coord_idx]
+    names = tuple(ctx.model.coordinate_names[c] for c in coord_idx)
+    notes = tuple(getattr(bundle0, "notes", ()) or ())
+    result = MuscleResult(
+        name=mspec.name, coordinates=names, fibre_lengths=base, fibre_moment_arms=r,
+        action_lines=mspec.action_lines, action_line_lengths=al_len, action_line_moment_arms=al_r,
+        rest_lengths=fibre_lengths(bundle0.points),
+        fibre_points=points[:n_f] if ctx.keep_points else None,
+        surface_vertices=wrapped.vertices[:n_f] if ctx.keep_surfaces else None,
+        surface_faces=rest.faces if ctx.keep_surfaces else None, notes=notes)
+    return result, timings

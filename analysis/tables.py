@@ -1,0 +1,207 @@
+"""The tables of `fibres run` (INTERFACE.md): long/tidy pandas DataFrames built from a RunResult.
+
+- ``fibre_lengths.csv``: frame, time, muscle, fibre, length
+- ``fibre_moment_arms.csv``: frame, time, muscle, fibre, coordinate, moment_arm
+- ``action_lines.csv``: frame, time, muscle, action_line, length
+- ``action_line_moment_arms.csv``: frame, time, muscle, action_line, coordinate, moment_arm
+- ``summary.csv``: one row per frame x muscle for the length, and per frame x muscle x coordinate
+  for the moment arm: frame, time, muscle, quantity ("length" | "moment_arm"), coordinate ("" for
+  the length), n_fibres, mean, std, min, p5, median, p95, max of the fibres, then the action
+  lines: n_action_lines, action_line_mean, action_line_min, action_line_max and
+  action_line_values ("name=value;name=value", values with 12 significant digits).
+
+``frame`` is 0-based over the frames actually used; SI units throughout. Every table is built
+with array operations (repeat/tile), no loop over frames or fibres.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["fibre_lengths_table", "fibre_moment_arms_table", "action_lines_table",
+           "action_line_moment_arms_table", "summary_table", "result_long_frame", "TABLES",
+           "write_tables"]
+
+#: file name -> table builder
+TABLES = {}
+
+
+def _grid(n_f, time, *inner):
+    """frame, time columns for an (F, *inner) array flattened in C order."""
+    k = int(np.prod(inner)) if inner else 1
+    frame = np.repeat(np.arange(n_f), k)
+    return frame, np.repeat(np.asarray(time, dtype=float), k)
+
+
+def _concat(frames, columns):
+    import pandas as pd
+
+    if not frames:
+        return pd.DataFrame({c: [] for c in columns})
+    return pd.concat(frames, ignore_index=True)[columns]
+
+
+def fibre_lengths_table(result):
+    """(frame, time, muscle, fibre, length) for every muscle, frame and fibre."""
+    import pandas as pd
+
+    cols = ["frame", "time", "muscle", "fibre", "length"]
+    out = []
+    for m in result.muscles:
+        n_f, n_n = m.fibre_lengths.shape
+        frame, time = _grid(n_f, result.time, n_n)
+        out.append(pd.DataFrame({"frame": frame, "time": time, "muscle": m.name,
+                                 "fibre": np.tile(np.arange(n_n), n_f),
+                                 "length": m.fibre_lengths.ravel()}))
+    return _concat(out, cols)
+
+
+def fibre_moment_arms_table(result):
+    """(frame, time, muscle, fibre, coordinate, moment_arm) for every spanned coordinate."""
+    import pandas as pd
+
+    cols = ["frame", "time", "muscle", "fibre", "coordinate", "moment_arm"]
+    out = []
+    for m in result.muscles:
+        n_f, n_n, n_c = m.fibre_moment_arms.shape
+        if n_c == 0:
+            continue
+        frame, time = _grid(n_f, result.time, n_n, n_c)
+        out.append(pd.DataFrame({"frame": frame, "time": time, "muscle": m.name,
+                                 "fibre": np.tile(np.repeat(np.arange(n_n), n_c), n_f),
+                                 "coordinate": np.tile(np.array(m.coordinates, dtype=object), n_f * n_n),
+                                 "moment_arm": m.fibre_moment_arms.ravel()}))
+    return _concat(out, cols)
+
+
+def action_lines_table(result):
+    """(frame, time, muscle, action_line, length)."""
+    import pandas as pd
+
+    cols = ["frame", "time", "muscle", "action_line", "length"]
+    out = []
+    for m in result.muscles:
+        n_f, n_l = m.action_line_lengths.shape
+        frame, time = _grid(n_f, result.time, n_l)
+        out.append(pd.DataFrame({"frame": frame, "time": time, "muscle": m.name,
+                                 "action_line": np.tile(np.array(m.action_lines, dtype=object), n_f),
+                                 "length": m.action_line_lengths.ravel()}))
+    return _concat(out, cols)
+
+
+def action_line_moment_arms_table(result):
+    """(frame, time, muscle, action_line, coordinate, moment_arm)."""
+    import pandas as pd
+
+    cols = ["frame", "time", "muscle", "action_line", "coordinate", "moment_arm"]
+    out = []
+    for m in result.muscles:
+        n_f, n_l, n_c = m.action_line_moment_arms.shape
+        if n_c == 0:
+            continue
+        frame, time = _grid(n_f, result.time, n_l, n_c)
+        out.append(pd.DataFrame({
+            "frame": frame, "time": time, "muscle": m.name,
+            "action_line": np.tile(np.repeat(np.array(m.action_lines, dtype=object), n_c), n_f),
+            "coordinate": np.tile(np.array(m.coordinates, dtype=object), n_f * n_l),
+            "moment_arm": m.action_line_moment_arms.ravel()}))
+    return _concat(out, cols)
+
+
+_STATS = ("mean", "std", "min", "p5", "median", "p95", "max")
+
+
+def _stats(values):
+    """Statistics over the last axis of (..., N) values -> dict of (...) arrays."""
+    p5, median, p95 = np.percentile(values, [5.0, 50.0, 95.0], axis=-1)
+    return {"mean": values.mean(-1), "std": values.std(-1, ddof=0), "min": values.min(-1), "p5": p5,
+            "median": median, "p95": p95, "max": values.max(-1)}
+
+
+def _line_values(names, values):
+    """(R, L) values -> R strings 'name=value;...'."""
+    cols = [np.char.add(f"{n}=", np.char.mod("%.12g", values[:, i])) for i, n in enumerate(names)]
+    out = cols[0]
+    for c in cols[1:]:
+        out = np.char.add(np.char.add(out, ";"), c)
+    return out.astype(object)
+
+
+def summary_table(result):
+    """One row per frame x muscle (length) and frame x muscle x coordinate (moment arm)."""
+    import pandas as pd
+
+    cols = (["frame", "time", "muscle", "quantity", "coordinate", "n_fibres", *_STATS, "n_action_lines",
+             "action_line_mean", "action_line_min", "action_line_max", "action_line_values"])
+    out = []
+    for m in result.muscles:
+        n_f, n_n = m.fibre_lengths.shape
+        n_l = len(m.action_lines)
+        st = _stats(m.fibre_lengths)
+        al = m.action_line_lengths
+        out.append(pd.DataFrame({
+            "frame": np.arange(n_f), "time": result.time, "muscle": m.name, "quantity": "length",
+            "coordinate": "", "n_fibres": n_n, **st, "n_action_lines": n_l,
+            "action_line_mean": al.mean(-1), "action_line_min": al.min(-1), "action_line_max": al.max(-1),
+            "action_line_values": _line_values(m.action_lines, al)}))
+        n_c = len(m.coordinates)
+        if n_c == 0:
+            continue
+        st = _stats(np.moveaxis(m.fibre_moment_arms, 1, 2).reshape(n_f * n_c, n_n))
+        ar = np.moveaxis(m.action_line_moment_arms, 1, 2).reshape(n_f * n_c, n_l)
+        frame, time = _grid(n_f, result.time, n_c)
+        out.append(pd.DataFrame({
+            "frame": frame, "time": time, "muscle": m.name, "quantity": "moment_arm",
+            "coordinate": np.tile(np.array(m.coordinates, dtype=object), n_f), "n_fibres": n_n, **st,
+            "n_action_lines": n_l, "action_line_mean": ar.mean(-1), "action_line_min": ar.min(-1),
+            "action_line_max": ar.max(-1), "action_line_values": _line_values(m.action_lines, ar)}))
+    df = _concat(out, cols)
+    if len(df):
+        order = {"length": 0, "moment_arm": 1}
+        df = df.assign(_q=df["quantity"].map(order)).sort_values(
+            ["frame", "muscle", "_q", "coordinate"], kind="stable").drop(columns="_q").reset_index(drop=True)
+    return df
+
+
+def result_long_frame(result):
+    """Every number of a RunResult in one long DataFrame (see `RunResult.to_frame`)."""
+    import pandas as pd
+
+    cols = ["frame", "time", "muscle", "kind", "fibre", "action_line", "quantity", "coordinate", "value"]
+    parts = []
+    fl = fibre_lengths_table(result)
+    parts.append(fl.rename(columns={"length": "value"}).assign(kind="fibre", action_line="", quantity="length",
+                                                               coordinate=""))
+    fr = fibre_moment_arms_table(result)
+    parts.append(fr.rename(columns={"moment_arm": "value"}).assign(kind="fibre", action_line="",
+                                                                   quantity="moment_arm"))
+    al = action_lines_table(result)
+    parts.append(al.rename(columns={"length": "value"}).assign(kind="action_line", fibre=-1, quantity="length",
+                                                               coordinate=""))
+    ar = action_line_moment_arms_table(result)
+    parts.append(ar.rename(columns={"moment_arm": "value"}).assign(kind="action_line", fibre=-1,
+                                                                   quantity="moment_arm"))
+    df = pd.concat([p[cols] for p in parts], ignore_index=True)
+    return df.astype({"frame": np.int64, "fibre": np.int64, "value": float})
+
+
+TABLES.update({
+    "fibre_lengths.csv": fibre_lengths_table,
+    "fibre_moment_arms.csv": fibre_moment_arms_table,
+    "action_lines.csv": action_lines_table,
+    "action_line_moment_arms.csv": action_line_moment_arms_table,
+    "summary.csv": summary_table,
+})
+
+
+def write_tables(result, out_dir) -> list:
+    """Write the five CSV tables into ``out_dir`` atomically; return the paths written."""
+    from pathlib import Path
+
+    from .output_files import write_csv
+
+    written = []
+    for name, build in TABLES.items():
+        path = Path(out_dir) / name
+        write_csv(build(result), path)
+        written.append(path)
+    return written

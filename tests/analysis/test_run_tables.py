@@ -1,0 +1,128 @@
+"""Tables, summary, run.json and staged output writing of `fibres run`, on a synthetic RunResult
+whose numbers are known (so every statistic is checked against numpy directly)."""
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis import cli_run
+from analysis.result import MuscleResult, RunResult
+from analysis.run import fibre_lengths
+from analysis.tables import TABLES, summary_table
+
+
+def _result(tmp_path=None):
+    rng = np.random.default_rng(7)
+    n_f, n_n = 4, 6
+    a = MuscleResult("a", ("q1", "q2"), 0.1 + rng.random((n_f, n_n)) / 3, rng.normal(size=(n_f, n_n, 2)) / 50,
+                     ("l1", "l2"), 0.1 + rng.random((n_f, 2)), rng.normal(size=(n_f, 2, 2)) / 50,
+                     0.1 + rng.random(n_n), fibre_points=rng.random((n_f, n_n, 5, 3)))
+    b = MuscleResult("b", ("q2",), 0.2 + rng.random((n_f, 3)), rng.normal(size=(n_f, 3, 1)),
+                     ("l3",), 0.2 + rng.random((n_f, 1)), rng.normal(size=(n_f, 1, 1)), np.ones(3))
+    inputs = {}
+    if tmp_path is not None:
+        (tmp_path / "in.toml").write_text("model = 'x'\n")
+        inputs["spec"] = tmp_path / "in.toml"
+    return RunResult(time=np.linspace(0.0, 0.3, n_f), frames=np.arange(2, 2 + n_f), coordinate_names=("q1", "q2"),
+                     q=rng.random((n_f, 2)), muscles=(a, b), timings={"wrap": 0.5}, settings={"fibres": 6},
+                     inputs=inputs)
+
+
+def test_columns_and_rows_are_the_contract():
+    res = _result()
+    want = {
+        "fibre_lengths.csv": ["frame", "time", "muscle", "fibre", "length"],
+        "fibre_moment_arms.csv": ["frame", "time", "muscle", "fibre", "coordinate", "moment_arm"],
+        "action_lines.csv": ["frame", "time", "muscle", "action_line", "length"],
+        "action_line_moment_arms.csv": ["frame", "time", "muscle", "action_line", "coordinate", "moment_arm"],
+    }
+    rows = {"fibre_lengths.csv": 4 * 6 + 4 * 3, "fibre_moment_arms.csv": 4 * 6 * 2 + 4 * 3,
+            "action_lines.csv": 4 * 2 + 4, "action_line_moment_arms.csv": 4 * 2 * 2 + 4}
+    for name, cols in want.items():
+        df = TABLES[name](res)
+        assert list(df.columns) == cols and len(df) == rows[name]
+    fl = TABLES["fibre_lengths.csv"](res)
+    a = res.muscle("a")
+    # every value lands on its (frame, fibre): pivot back and compare with the array
+    piv = fl[fl.muscle == "a"].pivot(index="frame", columns="fibre", values="length").to_numpy()
+    np.testing.assert_array_equal(piv, a.fibre_lengths)
+    fr = TABLES["fibre_moment_arms.csv"](res)
+    sel = fr[(fr.muscle == "a") & (fr.coordinate == "q2")]
+    np.testing.assert_array_equal(sel.pivot(index="frame", columns="fibre", values="moment_arm"),
+                                  a.fibre_moment_arms[:, :, 1])
+    np.testing.assert_array_equal(fl.time.unique(), res.time)   # frame is 0..F-1 with the motion's time
+    assert fl.frame.max() == 3
+
+
+def test_summary_statistics_match_numpy():
+    res = _result()
+    s = summary_table(res)
+    a = res.muscle("a")
+    # rows: per frame: a length, a q1, a q2, b length, b q2
+    assert len(s) == 4 * 5
+    row = s[(s.frame == 2) & (s.muscle == "a") & (s.quantity == "moment_arm") & (s.coordinate == "q1")].iloc[0]
+    v = a.fibre_moment_arms[2, :, 0]
+    assert row["mean"] == pytest.approx(v.mean()) and row["std"] == pytest.approx(v.std())
+    assert row["p5"] == pytest.approx(np.percentile(v, 5)) and row["median"] == pytest.approx(np.median(v))
+    assert row["min"] == v.min() and row["max"] == v.max() and row["n_fibres"] == 6
+    al = a.action_line_moment_arms[2, :, 0]
+    assert row["action_line_min"] == al.min() and row["action_line_max"] == al.max()
+    assert row["action_line_values"] == f"l1={al[0]:.12g};l2={al[1]:.12g}"
+    row = s[(s.frame == 0) & (s.muscle == "b") & (s.quantity == "length")].iloc[0]
+    assert row["coordinate"] == "" or pd.isna(row["coordinate"])
+    assert row["p95"] == pytest.approx(np.percentile(res.muscle("b").fibre_lengths[0], 95))
+
+
+def test_to_frame_holds_every_number():
+    res = _result()
+    df = res.to_frame()
+    n = sum(m.fibre_lengths.size + m.fibre_moment_arms.size + m.action_line_lengths.size
+            + m.action_line_moment_arms.size for m in res.muscles)
+    assert len(df) == n
+    total = sum(m.fibre_lengths.sum() + m.fibre_moment_arms.sum() + m.action_line_lengths.sum()
+                + m.action_line_moment_arms.sum() for m in res.muscles)
+    assert df.value.sum() == pytest.approx(total, rel=1e-12)
+
+
+def test_fibre_lengths_is_polyline_arc_length():
+    # a quarter circle of radius 2 sampled at 1001 points: chord sum -> pi (1 - O(1/n^2))
+    t = np.linspace(0, np.pi / 2, 1001)
+    pts = np.stack([2 * np.cos(t), 2 * np.sin(t), 0 * t], -1)[None]
+    assert fibre_lengths(pts)[0] == pytest.approx(np.pi, rel=1e-6)
+
+
+def test_outputs_are_written_with_precision_and_run_json(tmp_path):
+    res = _result(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    cli_run.write_outputs(res, out, plots=False, vtk=False, sto=True)
+    back = pd.read_csv(out / "fibre_lengths.csv")
+    np.testing.assert_allclose(back[back.muscle == "a"].length.to_numpy(), res.muscle("a").fibre_lengths.ravel(),
+                               rtol=1e-11)   # written with 12 significant digits
+    record = json.loads((out / "run.json").read_text())
+    assert record["inputs"]["spec"]["sha256"] == hashlib.sha256((tmp_path / "in.toml").read_bytes()).hexdigest()
+    assert record["versions"]["numpy"] == np.__version__
+    assert record["timings_s"]["wrap"] == 0.5 and "write_tables" in record["timings_s"]
+    assert (out / "MuscleAnalysis_Length.sto").is_file() and (out / "FibreAnalysis_MomentArm_q2.sto").is_file()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]   # staging removed
+
+
+def test_interrupt_while_writing_leaves_no_file_and_rerun_works(tmp_path, monkeypatch):
+    res = _result(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+
+    def boom(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_run, "write_sto_files", boom)      # after the tables were written
+    with pytest.raises(KeyboardInterrupt):
+        cli_run.write_outputs(res, out, plots=False, vtk=False, sto=True)
+    assert list(out.iterdir()) == []
+    monkeypatch.undo()
+    cli_run.write_outputs(res, out, plots=False, vtk=False, sto=True)
+    assert (out / "summary.csv").is_file() and (out / "run.json").is_file()
