@@ -136,3 +136,26 @@ def test_point_cloud_file_and_explicit_columns(tmp_path):
     spec = load_spec(_write(tmp_path, text), model=_model())
     np.testing.assert_allclose(spec.muscles[0].origin.points, pts * 1e-3)
     np.testing.assert_allclose(spec.muscles[0].insertion.points, [[1.0, 2.0, 3.0]])
+
+
+def test_lhdl_fibre_model_loads(lhdl_dir):
+    """tests/data/lhdl_hip.toml: four muscles, landmarks selected from the shared CSV, mm -> m."""
+    from pathlib import Path
+
+    import pandas as pd
+
+    from motion.osim_reader import load_model
+
+    toml = Path(__file__).resolve().parents[1] / "data" / "lhdl_hip.toml"
+    spec = load_spec(toml, model=load_model(lhdl_dir / "model" / "LHDL_hip_r.osim"))
+    assert spec.muscle_names == ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
+    lm = pd.read_csv(lhdl_dir / "attachments" / "attachment_landmarks.csv")
+    # counts from the dataset README: glut max origin 21+22, insertion cloud 1 = 11, ...
+    counts = {m.name: (len(m.origin.points), len(m.insertion.points)) for m in spec.muscles}
+    assert counts == {"glut_max_r": (43, 11), "glut_med_r": (38, 17), "iliacus_r": (40, 7), "psoas_r": (40, 7)}
+    il = lm[(lm.muscle == "iliacus_r") & (lm.type == "origin")][["x_mm", "y_mm", "z_mm"]].to_numpy() / 1000
+    np.testing.assert_allclose(spec.muscle("psoas_r").origin.points, il)   # psoas origin = iliacus area
+    for m in spec.muscles:
+        assert m.frame == "bodies" and m.units == "mm" and (m.n_fibres, m.resolution) == (100, 15)
+        assert m.origin.body == "pelvis" and m.insertion.body == "femur_r"
+        assert m.mesh.is_file()
