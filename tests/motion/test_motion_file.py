@@ -374,3 +374,62 @@ def test_every_shared_motion_parses_as_opensim_does(shared_dir, osim, tmp_path):
         assert motion.in_degrees == in_degrees, path
         np.testing.assert_array_equal(np.column_stack([motion.time, motion.q]), expected,
                                       err_msg=str(path))
+
+
+# ------------------------------------------------------------------ real models (shared data)
+
+
+def _reference_cases(shared_dir):
+    """(model, motion, reference folder) of every OpenSim reference set."""
+    import json
+
+    cases = []
+    for meta in sorted((shared_dir / "opensim" / "reference").glob("*/*/metadata.json")):
+        info = json.loads(meta.read_text())
+        # metadata paths are relative to the repository root: ../shared/...
+        model = shared_dir.parent / info["model_file"].replace("../", "", 1)
+        motion = shared_dir.parent / info["motion_file"].replace("../", "", 1)
+        cases.append((model, motion, meta.parent))
+    return cases
+
+
+def test_motions_match_opensim_reference_values(shared_dir):
+    """q equals the reference's ``motion_value`` (OpenSim's own deg->rad rule) where the file has
+    the column, and the model default where it has not (the reference keeps defaults too)."""
+    pd = pytest.importorskip("pandas")
+    from motion.osim_reader import load_model
+
+    cases = _reference_cases(shared_dir)
+    assert len(cases) >= 14
+    for model_file, motion_file, ref_dir in cases:
+        model = load_model(model_file)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", MotionFileWarning)
+            motion = load_motion(motion_file, model)
+        ref = pd.read_csv(ref_dir / "coordinates.csv")
+        rows = np.searchsorted(motion.time, ref.time.to_numpy() - 1e-9)
+        np.testing.assert_allclose(motion.time[rows], ref.time, rtol=0, atol=1e-8)
+        cols = [model.coordinate_index(n) for n in ref.coordinate]
+        ours = motion.q[rows, cols]
+        expected = ref.motion_value.to_numpy()
+        defaults = np.array([model.coordinates[c].default_value for c in cols])
+        expected = np.where(np.isnan(expected), defaults, expected)
+        # the reference CSV prints 17 significant digits: equality to 1 ulp-ish
+        np.testing.assert_allclose(ours, expected, rtol=1e-15, atol=1e-15, err_msg=str(ref_dir))
+
+
+def test_lhdl_motion_warns_once_per_kind(lhdl_dir):
+    from motion.osim_reader import load_model
+
+    model = load_model(lhdl_dir / "model" / "LHDL_hip_r.osim")
+    motion, caught = _load(lhdl_dir / "model" / "motions" / "hip_flexion.mot", model)
+    assert motion.unknown == ("xRotation", "yRotation", "zRotation", "xTranslation",
+                              "yTranslation", "zTranslation")
+    assert motion.missing == ("pelvis_tilt", "pelvis_list", "pelvis_rotation", "pelvis_tx",
+                              "pelvis_ty", "pelvis_tz")
+    assert len(caught) == 2
+    assert sum("xRotation" in str(w.message) for w in caught) == 1
+    assert sum("pelvis_tilt" in str(w.message) for w in caught) == 1
+    assert motion.n_frames == 36  # the header says nRows=51; OpenSim also reads 36 rows
+    np.testing.assert_allclose(motion.column("hip_flexion_r")[[0, -1]], np.radians([-10, 60]),
+                               rtol=1e-15)
