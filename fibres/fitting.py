@@ -1,0 +1,293 @@
+"""Fitting the template cube to a muscle: principal axis and oriented bounding box (OBB).
+
+Kohout et al. (GRAPP 2012) §3.2. The principal axis passes through the centroid of the surface
+vertices; its direction is the vector from the centroid of the origin landmarks to the centroid
+of the insertion landmarks or, when the attachments do not define it well, the eigenvector of
+the largest eigenvalue of the vertex covariance matrix (eq. 1-2). Two vectors v0, w0 complete
+an orthonormal frame; they are rotated about the axis in steps of 5 degrees and for each frame
+the minimal box of the vertices aligned with it is built. The winner is the box whose template
+attachment areas, mapped into the box, best match the user's landmarks: for every template area
+point the distance to the closest landmark of the same attachment, summed over both areas.
+
+All rotations are evaluated at once: (J, V) projections, (J, K_template, K_landmarks) distances.
+
+Axis rule (``axis="auto"``): the attachment direction is used unless the two landmark
+centroids are closer than ``AUTO_MIN_SEPARATION`` (1/4) of the surface's extent along its
+covariance axis; then the covariance axis is used, oriented from origin to insertion.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from .errors import InputError
+from .templates import Template, get_template
+
+__all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
+           "AUTO_MIN_SEPARATION"]
+
+AUTO_MIN_SEPARATION = 0.25
+_AXES = ("attachments", "covariance", "auto")
+
+
+class PrincipalFrame(NamedTuple):
+    """Centroid (3,), unit principal axis u (3,) and the reference cross-section axes v0, w0
+    (3,) with (v0, w0, u) right-handed orthonormal; ``method`` is "attachments" or
+    "covariance"."""
+
+    centroid: np.ndarray
+    axis: np.ndarray
+    v0: np.ndarray
+    w0: np.ndarray
+    method: str
+
+
+def _as_set(points, name):
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim == 1 and pts.shape == (3,):
+        pts = pts[None]
+    if pts.ndim != 2 or pts.shape[1:] != (3,):
+        raise InputError(f"the {name} landmarks must be (K, 3), got shape {pts.shape}",
+                         where=name, fix="Give three coordinates per landmark.")
+    if len(pts) == 0:
+        raise InputError(f"the {name} landmark set is empty", where=name,
+                         fix="Give at least one landmark of the attachment area.")
+    if not np.isfinite(pts).all():
+        raise InputError(f"the {name} landmarks contain NaN or infinite values", where=name,
+                         fix="Give finite coordinates.")
+    return pts
+
+
+def _covariance_axis(vertices, centroid):
+    d = vertices - centroid
+    cov = d.T @ d / max(len(d) - 1, 1)  # Kohout 2012 eq. 1-2
+    evals, evecs = np.linalg.eigh(cov)
+    return evecs[:, -1]
+
+
+def principal_frame(vertices, origin, insertion, *, axis: str = "auto",
+                    v_ref=None) -> PrincipalFrame:
+    """The muscle's principal axis and reference frame (Kohout 2012 §3.2).
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+        Surface vertices.
+    origin, insertion : (K, 3) float
+        Landmarks of the attachment areas.
+    axis : {"auto", "attachments", "covariance"}, keyword-only
+        How to choose the direction (module docstring); it always points from the origin
+        towards the insertion.
+    v_ref : (3,) float, optional
+        Direction whose projection perpendicular to the axis becomes v0 (a plan passes the
+        rest-pose v0 carried along with the muscle). Default: the world axis least aligned
+        with u.
+
+    Returns
+    -------
+    PrincipalFrame
+    """
+    if axis not in _AXES:
+        raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
+    vertices = np.asarray(vertices, dtype=np.float64)
+    origin = _as_set(origin, "origin")
+    insertion = _as_set(insertion, "insertion")
+    centroid = vertices.mean(axis=0)
+    size = float(np.linalg.norm(np.ptp(vertices, axis=0)))
+    direction = insertion.mean(axis=0) - origin.mean(axis=0)
+    dist = float(np.linalg.norm(direction))
+    if dist <= 1e-9 * max(size, 1e-300):
+        raise InputError("the origin and insertion landmarks have the same centroid",
+                         where="origin/insertion",
+                         fix="Give the two attachment areas of the muscle (origin on one bone, "
+                             "insertion on the other).")
+    method = axis
+    if axis in ("covariance", "auto"):
+        cov_axis = _covariance_axis(vertices, centroid)
+        if axis == "auto":
+            length = float(np.ptp((vertices - centroid) @ cov_axis))
+            method = "covariance" if dist < AUTO_MIN_SEPARATION * length else "attachments"
+    if method == "attachments":
+        u = direction / dist
+    else:
+        u = cov_axis if cov_axis @ direction >= 0 else -cov_axis
+    if v_ref is None:
+        ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+    else:
+        ref = np.asarray(v_ref, dtype=np.float64)
+        if abs(ref @ u) > 0.999 * np.linalg.norm(ref):
+            ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+    v0 = ref - (ref @ u) * u
+    v0 /= np.linalg.norm(v0)
+    w0 = np.cross(u, v0)
+    return PrincipalFrame(centroid, u, v0, w0, method)
+
+
+def check_landmarks(vertices, points, *, name: str = "landmarks", file=None):
+    """Refuse landmarks that miss the surface by orders of magnitude (a unit mistake).
+
+    If even the closest landmark is farther from the surface's bounding box than the surface's
+    size, and scaling the landmarks by 1000 or 1/1000 would put them on the surface, the
+    message names the unit mistake; beyond 5 surface sizes the landmarks are refused anyway.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+    points : (K, 3) float
+    """
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    size = float(np.linalg.norm(hi - lo))
+
+    def gap(p):
+        return float(np.linalg.norm(np.maximum(np.maximum(lo - p, p - hi), 0), axis=1).min())
+
+    g = gap(points)
+    if g <= size:
+        return
+    for factor, hint in ((1e3, "the landmarks look like metres and the surface like "
+                               "millimetres"),
+                         (1e-3, "the landmarks look like millimetres and the surface like "
+                                "metres")):
+        if gap(points * factor) <= 0.1 * size:
+            raise InputError(f"the {name} landmarks lie {g:.3g} from a surface only "
+                             f"{size:.3g} across: {hint}", file=file, where=name,
+                             fix="Give the surface and the landmarks in the same units "
+                                 "(--units m|mm applies to both).")
+    if g > 5 * size:
+        raise InputError(f"the {name} landmarks lie {g:.3g} from a surface only {size:.3g} "
+                         "across", file=file, where=name,
+                         fix="Check that the landmarks belong to this muscle and use its units.")
+
+
+@dataclass(frozen=True)
+class Box:
+    """An oriented box: the template cube fitted to a muscle (Kohout 2012 §3.2).
+
+    Attributes
+    ----------
+    corner : (3,) float
+        World position of the unit-cube point (0, 0, 0).
+    axes : (3, 3) float
+        COLUMNS are the unit x, y, z directions; z is the principal axis (origin -> insertion).
+    extents : (3,) float
+        Edge lengths along x, y, z.
+    angle_index : int
+        Which rotation of (v0, w0) won (angle = angle_index * angle_step_deg).
+    angle_step_deg : float
+    scores : (J,) float
+        Matching error of every rotation (sum of closest distances, both areas).
+    method : str
+        How the axis was chosen ("attachments" or "covariance").
+    """
+
+    corner: np.ndarray
+    axes: np.ndarray
+    extents: np.ndarray
+    angle_index: int
+    angle_step_deg: float = 5.0
+    scores: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    method: str = "attachments"
+
+    def __post_init__(self):
+        for name, shape in (("corner", (3,)), ("axes", (3, 3)), ("extents", (3,))):
+            arr = np.array(getattr(self, name), dtype=np.float64)
+            if arr.shape != shape:
+                raise ValueError(f"{name} must be {shape}, got {arr.shape}")
+            arr.flags.writeable = False
+            object.__setattr__(self, name, arr)
+        s = np.array(self.scores, dtype=np.float64)
+        s.flags.writeable = False
+        object.__setattr__(self, "scores", s)
+        object.__setattr__(self, "angle_index", int(self.angle_index))
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(4, 4) affine map from unit-cube to world coordinates."""
+        m = np.eye(4)
+        m[:3, :3] = self.axes * self.extents
+        m[:3, 3] = self.corner
+        return m
+
+    def to_world(self, unit_pts) -> np.ndarray:
+        """Unit-cube points (..., 3) -> world points (..., 3)."""
+        return self.corner + np.asarray(unit_pts, dtype=np.float64) @ (self.axes * self.extents).T
+
+    def to_unit(self, world_pts) -> np.ndarray:
+        """World points (..., 3) -> unit-cube coordinates (..., 3)."""
+        return ((np.asarray(world_pts, dtype=np.float64) - self.corner) @ self.axes) / self.extents
+
+
+def _closest_sum(area, landmarks):
+    """Sum over area points of the distance to the closest landmark: area (J, Ka, 3)."""
+    d = np.linalg.norm(area[:, :, None, :] - landmarks[None, None, :, :], axis=-1)
+    return d.min(axis=2).sum(axis=1)
+
+
+def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg: float = 5.0,
+            axis: str = "auto", v_ref=None, check_units: bool = True) -> Box:
+    """Fit the template cube to the muscle as the best-matching principal-axis OBB.
+
+    Kohout et al. (GRAPP 2012) §3.2, vectorised over all rotations.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+        Surface vertices (metres).
+    origin, insertion : (K, 3) float
+        Attachment landmarks.
+    template : Template or str
+        Supplies the template attachment areas compared with the landmarks.
+    angle_step_deg : float, keyword-only
+        Rotation step about the axis (5 degrees in the paper); rotations cover a full turn.
+    axis : {"auto", "attachments", "covariance"}, keyword-only
+        See `principal_frame`.
+    v_ref : (3,) float, optional
+        Reference for v0 (see `principal_frame`).
+    check_units : bool, keyword-only
+        Run `check_landmarks` on both sets (refuses unit mistakes).
+
+    Returns
+    -------
+    Box
+    """
+    if not isinstance(template, Template):
+        template = get_template(template)
+    step = float(angle_step_deg)
+    if not (0 < step <= 180):
+        raise ValueError(f"angle_step_deg must be in (0, 180], got {angle_step_deg!r}")
+    vertices = np.asarray(vertices, dtype=np.float64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) < 4:
+        raise InputError(f"need at least 4 surface vertices (V, 3), got {vertices.shape}",
+                         where="mesh", fix="Pass the muscle's closed surface.")
+    origin = _as_set(origin, "origin")
+    insertion = _as_set(insertion, "insertion")
+    if check_units:
+        check_landmarks(vertices, origin, name="origin")
+        check_landmarks(vertices, insertion, name="insertion")
+    frame = principal_frame(vertices, origin, insertion, axis=axis, v_ref=v_ref)
+    c, u, v0, w0 = frame.centroid, frame.axis, frame.v0, frame.w0
+
+    n_rot = max(int(np.floor(360.0 / step + 1e-9)), 1)
+    theta = np.deg2rad(step * np.arange(n_rot))                       # (J,)
+    xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
+    ys = np.cross(u, xs)                                              # (J, 3)
+    d = vertices - c
+    a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
+    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V)
+    py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V)
+    lo = np.stack([px.min(axis=1), py.min(axis=1), np.full(n_rot, z.min())], axis=1)  # (J, 3)
+    ext = np.stack([px.max(axis=1), py.max(axis=1), np.full(n_rot, z.max())], axis=1) - lo
+    size = float(np.linalg.norm(np.ptp(vertices, axis=0)))
+    if (ext <= 1e-12 * max(size, 1e-300)).any():
+        raise InputError("the surface is flat (zero thickness)", where="mesh",
+                         fix="Pass the muscle's closed volume surface.")
+    axes = np.stack([xs, ys, np.broadcast_to(u, xs.shape)], axis=2)   # (J, 3, 3) columns
+    corner = c + np.einsum("jkl,jl->jk", axes, lo)                    # (J, 3)
+    scale = axes * ext[:, None, :]                                    # (J, 3, 3)
+    t_ori = corner[:, None] + np.einsum("kl,jml->jkm", template.origin_area, scale)
+    t_ins = corner[:, None] + np.einsum("kl,jml->jkm", template.insertion_area, scale)
+    scores = _closest_sum(t_ori, origin) + _closest_sum(t_ins, insertion)
+    best = int(np.argmin(scores))
+    return Box(corner[best], axes[best], ext[best], best, step, scores, frame.method)

@@ -1,0 +1,149 @@
+"""fibres.fitting: principal axis and OBB fit after Kohout 2012 §3.2."""
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from fibres.errors import InputError
+from fibres.fitting import Box, fit_box, principal_frame
+from fibres.templates import get_template
+
+# an asymmetric template whose two area centroids lie on one z line (so the attachment axis is
+# the box's z axis): off-centre rectangles of the parallel template
+TM = get_template("parallel", origin_size=(0.4, 0.4), insertion_size=(0.4, 0.4),
+                  origin_centre=(0.3, 0.4), insertion_centre=(0.3, 0.4))
+EXT = np.array([0.04, 0.06, 0.2])
+
+
+def _true_box(theta_deg, centre=np.array([0.1, -0.2, 0.3]), z_dir=(1.0, 2.0, 0.5)):
+    u = np.asarray(z_dir, float) / np.linalg.norm(z_dir)
+    # the reference frame fit_box derives for this axis (independent of the attachments)
+    ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+    v0 = ref - (ref @ u) * u
+    v0 /= np.linalg.norm(v0)
+    w0 = np.cross(u, v0)
+    th = np.deg2rad(theta_deg)
+    x = np.cos(th) * v0 + np.sin(th) * w0
+    axes = np.stack([x, np.cross(u, x), u], axis=1)
+    corner = centre - axes @ (EXT / 2)
+    return Box(corner, axes, EXT, 0)
+
+
+def _box_mesh(box):
+    m = trimesh.creation.box(bounds=[[0, 0, 0], [1, 1, 1]])
+    return box.to_world(np.asarray(m.vertices))
+
+
+@pytest.mark.parametrize("theta", [0.0, 35.0, 180.0, 275.0])
+def test_recovers_a_known_box(theta):
+    true = _true_box(theta)
+    v = _box_mesh(true)
+    o = true.to_world(TM.origin_area)
+    i = true.to_world(TM.insertion_area)
+    box = fit_box(v, o, i, TM)
+    assert box.angle_index == round(theta / 5.0) % 72
+    np.testing.assert_allclose(box.axes, true.axes, atol=1e-12)
+    np.testing.assert_allclose(box.extents, EXT, atol=1e-12)
+    np.testing.assert_allclose(box.corner, true.corner, atol=1e-12)
+    assert box.scores[box.angle_index] == pytest.approx(0.0, abs=1e-12)
+    assert box.method == "attachments"
+    # round trip of the maps
+    p = np.random.default_rng(0).random((10, 3))
+    np.testing.assert_allclose(box.to_unit(box.to_world(p)), p, atol=1e-12)
+
+
+def test_rigid_motion_equivariance_exact_with_reference():
+    true = _true_box(35.0)
+    v, o, i = _box_mesh(true), true.to_world(TM.origin_area), true.to_world(TM.insertion_area)
+    # a lumpy non-box surface: perturb radially so the minimal boxes differ per angle
+    rng = np.random.default_rng(3)
+    v = np.vstack([v, true.to_world(rng.random((200, 3)))])
+    b1 = fit_box(v, o, i, TM, v_ref=[1.0, 0.0, 0.0])
+    rot = Rotation.from_euler("xyz", [20, -50, 110], degrees=True).as_matrix()
+    shift = np.array([1.0, 2.0, -3.0])
+    move = lambda p: p @ rot.T + shift  # noqa: E731
+    b2 = fit_box(move(v), move(o), move(i), TM, v_ref=rot @ [1.0, 0.0, 0.0])
+    assert b2.angle_index == b1.angle_index
+    np.testing.assert_allclose(b2.axes, rot @ b1.axes, atol=1e-10)
+    np.testing.assert_allclose(b2.corner, move(b1.corner), atol=1e-10)
+    np.testing.assert_allclose(b2.extents, b1.extents, atol=1e-12)
+
+
+def test_rotation_off_the_grid_costs_at_most_the_half_step():
+    # true box 2.5 deg off the 5-degree grid: the fitted frame is within 2.5 deg, and each
+    # cross-section extent grows by at most a(cos d - 1) + b sin d <= b sin(2.5 deg)
+    true = _true_box(37.5)
+    v, o, i = _box_mesh(true), true.to_world(TM.origin_area), true.to_world(TM.insertion_area)
+    box = fit_box(v, o, i, TM)
+    cosang = np.clip(box.axes[:, 0] @ true.axes[:, 0], -1, 1)
+    assert np.rad2deg(np.arccos(cosang)) <= 2.5 + 1e-9
+    bound = EXT[[1, 0]] * np.sin(np.deg2rad(2.5)) + 1e-12
+    assert (box.extents[:2] - EXT[:2] <= bound).all() and (box.extents[:2] >= EXT[:2] - 1e-12).all()
+
+
+def _ellipsoid(radii, rot):
+    m = trimesh.creation.icosphere(subdivisions=3)
+    return (np.asarray(m.vertices) * radii) @ rot.T
+
+
+def test_covariance_fallback_when_attachments_are_close():
+    rot = Rotation.from_euler("zyx", [30, 20, -10], degrees=True).as_matrix()
+    v = _ellipsoid(np.array([0.02, 0.03, 0.15]), rot)
+    long_axis = rot[:, 2]
+    side = rot[:, 0] * 0.02
+    # both attachments on the same side, 2 mm apart along the long axis: centroids too close
+    o = side + 0.0 * long_axis
+    i = side + 0.002 * long_axis + 0.001 * rot[:, 1]
+    f = principal_frame(v, [o], [i], axis="auto")
+    assert f.method == "covariance"
+    # icosphere vertices are symmetric under the coordinate reflections, so the covariance is
+    # diagonal in the ellipsoid frame and its main eigenvector is the long axis exactly
+    np.testing.assert_allclose(f.axis, long_axis, atol=1e-9)  # oriented origin -> insertion
+    f2 = principal_frame(v, [i], [o], axis="covariance")
+    np.testing.assert_allclose(f2.axis, -long_axis, atol=1e-9)
+    fa = principal_frame(v, [o], [i], axis="attachments")
+    np.testing.assert_allclose(fa.axis, (i - o) / np.linalg.norm(i - o), atol=1e-12)
+    # frame is orthonormal and right-handed
+    m = np.stack([f.v0, f.w0, f.axis], axis=1)
+    np.testing.assert_allclose(m.T @ m, np.eye(3), atol=1e-12)
+    assert np.linalg.det(m) == pytest.approx(1.0)
+    # far-apart attachments: auto uses them
+    fe = principal_frame(v, [-0.15 * long_axis], [0.15 * long_axis + side], axis="auto")
+    assert fe.method == "attachments"
+
+
+def test_bad_landmarks():
+    true = _true_box(0.0)
+    v = _box_mesh(true)
+    o, i = true.to_world(TM.origin_area), true.to_world(TM.insertion_area)
+    with pytest.raises(InputError, match="origin landmark set is empty"):
+        fit_box(v, np.zeros((0, 3)), i, TM)
+    with pytest.raises(InputError, match="same centroid"):
+        fit_box(v, o, o, TM)
+    with pytest.raises(InputError, match="NaN"):
+        fit_box(v, o, np.full((2, 3), np.nan), TM)
+    # surface in mm read as metres; landmarks in metres -> unit mistake named
+    with pytest.raises(InputError, match="millimetres") as err:
+        fit_box(v * 1000, o, i, TM)
+    assert "same units" in str(err.value)
+    with pytest.raises(InputError, match="millimetres"):
+        fit_box(v, o * 1000, i * 1000, TM)
+    with pytest.raises(InputError, match="lie"):
+        fit_box(v, o + 100.0, i, TM)
+
+
+def test_lhdl_landmarks_are_accepted(lhdl_dir):
+    # real data: gluteus maximus insertion 2 lies ~310 mm off the muscle (README) and must pass
+    import pandas as pd
+
+    from fibres.surface import as_surface
+
+    s = as_surface(lhdl_dir / "muscles_clean" / "glut_max_r.vtk", units="mm")
+    tab = pd.read_csv(lhdl_dir / "attachments" / "attachment_landmarks.csv")
+    sel = tab[tab.muscle == "glut_max_r"]
+    pts = lambda kind: sel[sel.type == kind][["x_mm", "y_mm", "z_mm"]].to_numpy() / 1000  # noqa
+    box = fit_box(s.vertices, pts("origin"), pts("insertion"), "parallel")
+    # every vertex inside the fitted box (it is a bounding box)
+    unit = box.to_unit(s.vertices)
+    assert unit.min() > -1e-9 and unit.max() < 1 + 1e-9
+    assert box.scores.shape == (72,)
