@@ -417,6 +417,7 @@ class ModelBuilder:
         try:
             with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
                 fh.write(self.to_xml())
+            os.chmod(tmp, 0o644)       # mkstemp makes 0600 files
             os.replace(tmp, path)
         except BaseException:
             if os.path.exists(tmp):
