@@ -1,0 +1,273 @@
+"""Keep deformed muscle surfaces out of wrap objects and bones: smooth signed-distance push-out.
+
+Every obstacle has a signed distance ``d`` (negative inside) and an outward direction ``n`` in
+its own frame, which moves with a body (``tf_ground_obstacle`` (F, 4, 4)). A vertex whose
+distance is below ``allowed + margin`` is moved along ``n`` to the distance
+
+    allowed + g(d - allowed),   g(x) = x                       for x >= m
+                                g(x) = m exp((x - m) / m)      for x <  m
+
+(``m`` = margin). ``g`` is C1, equals the identity outside the margin (vertices farther than
+``m`` do not move at all) and maps any penetration depth into the open shell (0, m], so a
+pushed vertex never ends inside and the result is a continuous, once-differentiable function
+of the poses -- as needed for finite-difference moment arms. Penetrating parts flatten against
+the obstacle like a muscle pressed on a pulley; `motion.surface_binding` then re-solves the
+cross-section scale so the volume is kept.
+
+- Wrap objects (OpenSim's WrapCylinder, WrapSphere, WrapEllipsoid): analytic distances. The
+  cylinder is treated as infinite along its axis inside its length and the push fades out
+  smoothly (quintic) over one radius beyond the ends; the ellipsoid uses the scaled-radius
+  approximation ``d = (|p / r| - 1) min(r)``, exact on the surface. WrapTorus is not pushed.
+- Bones: a signed distance grid in the bone's body frame (spacing ``h``, default 1.5 mm),
+  computed once per mesh from the nearest face (unsigned: max of the plane distance and the
+  centroid distance minus the face's circumradius; sign from the face normal) and read with
+  tricubic B-spline interpolation (``scipy.ndimage.map_coordinates``, order 3), whose gradient
+  gives ``n``. ``allowed`` is ``min(0, d_rest)`` per vertex: a vertex that already overlaps the
+  bone at rest (segmentation overlap in LHDL) may stay as deep as it was, but not go deeper.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["WrapObstacle", "BoneDistance", "BoneObstacle", "soft_floor", "wrap_obstacle"]
+
+
+def soft_floor(x, margin: float) -> np.ndarray:
+    """``g(x)``: identity for ``x >= margin``, ``margin * exp((x - margin) / margin)`` below (C1)."""
+    x = np.asarray(x, dtype=float)
+    m = float(margin)
+    return np.where(x >= m, x, m * np.exp(np.minimum(x - m, 0.0) / m))
+
+
+def _quintic(x):
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
+
+
+def _to_local(tf: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Vertices (F, V, 3) in ground to the obstacle frame, tf (F, 4, 4) or (4, 4)."""
+    tf = np.asarray(tf, dtype=float)
+    if tf.ndim == 2:
+        tf = tf[None]
+    rot = tf[:, :3, :3]
+    return np.einsum("fji,fvj->fvi", rot, v - tf[:, None, :3, 3])
+
+
+def _to_ground_dir(tf: np.ndarray, d: np.ndarray) -> np.ndarray:
+    tf = np.asarray(tf, dtype=float)
+    if tf.ndim == 2:
+        tf = tf[None]
+    return np.einsum("fij,fvj->fvi", tf[:, :3, :3], d)
+
+
+@dataclass(frozen=True, eq=False)
+class WrapObstacle:
+    """An analytic wrap object as an obstacle.
+
+    Attributes
+    ----------
+    kind : str
+        "cylinder", "sphere" or "ellipsoid".
+    tf_ground_obstacle : (F, 4, 4) or (4, 4) float
+        The wrap frame in ground (body pose @ ``tf_body_wrap``).
+    radii : (3,) float
+        Cylinder: (radius, radius, length); sphere: (r, r, r); ellipsoid: its dimensions.
+    margin : float
+        Push-out shell thickness ``m`` in metres.
+    """
+
+    kind: str
+    tf_ground_obstacle: np.ndarray
+    radii: np.ndarray
+    margin: float = 5e-4
+
+    def __post_init__(self):
+        if self.kind not in ("cylinder", "sphere", "ellipsoid"):
+            raise ValueError(f"kind must be cylinder, sphere or ellipsoid, got {self.kind!r}")
+        object.__setattr__(self, "tf_ground_obstacle", np.asarray(self.tf_ground_obstacle, dtype=float))
+        object.__setattr__(self, "radii", np.asarray(self.radii, dtype=float).reshape(3))
+
+    def signed_distance(self, vertices) -> np.ndarray:
+        """(F, V) signed distance of ground vertices (F, V, 3); negative inside."""
+        return self._distance_direction(_to_local(self.tf_ground_obstacle, np.asarray(vertices, float)))[0]
+
+    def _distance_direction(self, p):
+        if self.kind == "cylinder":
+            rad = np.hypot(p[..., 0], p[..., 1])
+            d = rad - self.radii[0]
+            n = np.stack([p[..., 0], p[..., 1], np.zeros_like(rad)], axis=-1) / np.maximum(rad, 1e-12)[..., None]
+            half = 0.5 * self.radii[2] if np.isfinite(self.radii[2]) else np.inf
+            over = np.maximum(np.abs(p[..., 2]) - half, 0.0) if np.isfinite(half) else np.zeros_like(rad)
+            window = 1.0 - _quintic(over / self.radii[0])
+            return d, n, window
+        if self.kind == "sphere":
+            rad = np.linalg.norm(p, axis=-1)
+            return rad - self.radii[0], p / np.maximum(rad, 1e-12)[..., None], np.ones_like(rad)
+        scaled = p / self.radii
+        rad = np.linalg.norm(scaled, axis=-1)
+        d = (rad - 1.0) * float(np.min(self.radii))
+        grad = scaled / self.radii
+        n = grad / np.maximum(np.linalg.norm(grad, axis=-1), 1e-12)[..., None]
+        return d, n, np.ones_like(rad)
+
+    def push_out(self, vertices) -> np.ndarray:
+        """Vertices (F, V, 3) in ground, pushed out of the object (see the module docstring)."""
+        v = np.asarray(vertices, dtype=float)
+        p = _to_local(self.tf_ground_obstacle, v)
+        d, n, window = self._distance_direction(p)
+        move = (soft_floor(d, self.margin) - d) * window
+        if not np.any(move):
+            return v
+        if self.kind == "ellipsoid":
+            # move in the scaled space so that the surface point lands on the ellipsoid
+            scaled = p / self.radii
+            rad = np.maximum(np.linalg.norm(scaled, axis=-1), 1e-12)
+            target = (d + move) / float(np.min(self.radii)) + 1.0
+            p_new = scaled * (target / rad)[..., None] * self.radii
+            delta = p_new - p
+        else:
+            delta = move[..., None] * n
+        return v + _to_ground_dir(self.tf_ground_obstacle, delta)
+
+
+def wrap_obstacle(wrap, tf_ground_body, *, margin: float = 5e-4) -> WrapObstacle | None:
+    """A `WrapObstacle` for a `motion.model.WrapObject` on a body with pose (F, 4, 4).
+
+    Returns None for a torus (not pushed; documented limitation).
+    """
+    tf = np.asarray(tf_ground_body, dtype=float) @ np.asarray(wrap.tf_body_wrap, dtype=float)
+    if wrap.kind == "cylinder":
+        radii = (wrap.radius, wrap.radius, wrap.length if np.isfinite(wrap.length) else np.inf)
+    elif wrap.kind == "sphere":
+        radii = (wrap.radius,) * 3
+    elif wrap.kind == "ellipsoid":
+        radii = tuple(wrap.dimensions)
+    else:
+        return None
+    return WrapObstacle(wrap.kind, tf, np.asarray(radii, dtype=float), margin)
+
+
+# ------------------------------------------------------------------------------- bones
+@dataclass(frozen=True, eq=False)
+class BoneDistance:
+    """A bone's signed distance field on a grid in its body frame, tricubic B-spline read-out.
+
+    Build with `BoneDistance.from_mesh`. Distances in metres, negative inside.
+    """
+
+    origin: np.ndarray        # (3,) grid corner in the body frame
+    spacing: float
+    coefficients: np.ndarray  # (nx, ny, nz) prefiltered B-spline coefficients of the SDF
+    far: float                # value used outside the grid (positive, far from the bone)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def from_mesh(cls, vertices, faces, *, spacing: float = 1.5e-3, pad: float = 0.02) -> "BoneDistance":
+        """Signed distance grid of a closed bone surface (V, 3) in its body frame, metres."""
+        from scipy.ndimage import spline_filter
+        from scipy.spatial import cKDTree
+
+        v = np.asarray(vertices, dtype=float)
+        f = np.asarray(faces, dtype=np.int64)
+        a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        normal = np.cross(b - a, c - a)
+        area2 = np.linalg.norm(normal, axis=-1)
+        keep = area2 > 1e-20
+        a, b, c, normal = a[keep], b[keep], c[keep], normal[keep] / area2[keep, None]
+        centroid = (a + b + c) / 3.0
+        circum = np.max(np.stack([np.linalg.norm(x - centroid, axis=-1) for x in (a, b, c)]), axis=0)
+        lo = v.min(axis=0) - pad
+        hi = v.max(axis=0) + pad
+        shape = np.ceil((hi - lo) / spacing).astype(int) + 1
+        axes = [lo[i] + spacing * np.arange(shape[i]) for i in range(3)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        tree = cKDTree(centroid)
+        sdf = np.empty(len(grid))
+        step = 400_000
+        for s in range(0, len(grid), step):  # chunks of grid points
+            p = grid[s:s + step]
+            dist, idx = tree.query(p, k=4)
+            rel = p[:, None, :] - centroid[idx]
+            plane = np.einsum("pkj,pkj->pk", rel, normal[idx])
+            unsigned = np.maximum(np.abs(plane), dist - circum[idx])
+            best = np.argmin(unsigned, axis=1)
+            rows = np.arange(len(p))
+            sdf[s:s + step] = np.sign(plane[rows, best]) * unsigned[rows, best]
+        sdf = sdf.reshape(tuple(shape))
+        coeffs = spline_filter(sdf, order=3, mode="nearest")
+        return cls(origin=lo, spacing=float(spacing), coefficients=coeffs, far=float(pad))
+
+    def evaluate(self, points, *, gradient: bool = False):
+        """Signed distance (...,) at body-frame points (..., 3); with ``gradient`` also (..., 3)."""
+        from scipy.ndimage import map_coordinates
+
+        p = np.asarray(points, dtype=float)
+        idx = ((p - self.origin) / self.spacing).reshape(-1, 3).T
+        shape = np.array(self.coefficients.shape)
+        inside = np.all((idx >= 1) & (idx <= (shape - 2)[:, None]), axis=0)
+        value = np.full(idx.shape[1], self.far)
+        grad = np.zeros((idx.shape[1], 3))
+        if np.any(inside):
+            sub = idx[:, inside]
+            value[inside] = map_coordinates(self.coefficients, sub, order=3, prefilter=False, mode="nearest")
+            if gradient:
+                h = 0.25
+                for axis in range(3):  # three axes, central differences of the spline
+                    plus, minus = sub.copy(), sub.copy()
+                    plus[axis] += h
+                    minus[axis] -= h
+                    grad[inside, axis] = (
+                        map_coordinates(self.coefficients, plus, order=3, prefilter=False, mode="nearest")
+                        - map_coordinates(self.coefficients, minus, order=3, prefilter=False, mode="nearest")
+                    ) / (2.0 * h * self.spacing)
+        value = value.reshape(p.shape[:-1])
+        if gradient:
+            return value, grad.reshape(p.shape)
+        return value
+
+
+@dataclass(frozen=True, eq=False)
+class BoneObstacle:
+    """A bone moving with its body, as an obstacle for one muscle.
+
+    Attributes
+    ----------
+    distance : BoneDistance
+    tf_ground_body : (F, 4, 4) float
+    allowed : (V,) float
+        Per-vertex floor of the signed distance: ``min(0, d_rest)``.
+    margin : float
+    iterations : int
+        Push steps (the field is not exactly linear over deep penetrations).
+    """
+
+    distance: BoneDistance
+    tf_ground_body: np.ndarray
+    allowed: np.ndarray
+    margin: float = 5e-4
+    iterations: int = 2
+
+    @classmethod
+    def bind(cls, distance: BoneDistance, tf_ground_body, rest_vertices, tf_rest_body, *,
+             margin: float = 5e-4) -> "BoneObstacle":
+        """Obstacle for a surface whose rest vertices (V, 3, ground) start where they start."""
+        tf_rest = np.asarray(tf_rest_body, dtype=float)
+        local = _to_local(tf_rest, np.asarray(rest_vertices, dtype=float)[None])[0]
+        allowed = np.minimum(distance.evaluate(local), 0.0)
+        return cls(distance, np.asarray(tf_ground_body, dtype=float), allowed, margin)
+
+    def push_out(self, vertices) -> np.ndarray:
+        """Vertices (F, V, 3) in ground pushed out to ``allowed`` (module docstring)."""
+        v = np.asarray(vertices, dtype=float)
+        for _ in range(int(self.iterations)):
+            local = _to_local(self.tf_ground_body, v)
+            d, g = self.distance.evaluate(local, gradient=True)
+            x = d - self.allowed[None, :]
+            move = soft_floor(x, self.margin) - x
+            if not np.any(move):
+                break
+            n = g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-12)
+            v = v + _to_ground_dir(self.tf_ground_body, move[..., None] * n)
+        return v

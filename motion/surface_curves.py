@@ -1,0 +1,182 @@
+"""Curve tools for surface wrapping: arc-length resampling and rotation-minimising frames.
+
+All functions work on a whole motion at once: curves are (F, P, 3) arrays, frame axis first.
+The only Python loops run over the (tens of) samples of a curve, never over frames.
+
+Rotation-minimising frames use the double-reflection method of Wang, Juettler, Zheng & Liu,
+"Computation of rotation minimizing frames", ACM Trans. Graph. 27(1), 2008: each frame is
+carried to the next sample by two reflections, which is fourth-order accurate and, unlike
+Frenet frames, defined on straight segments and smooth in the curve points.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["resample_polylines", "curve_tangents", "rotation_minimizing_frames",
+           "transport_vector", "any_perpendicular"]
+
+_TINY = 1e-15
+
+
+def _fill_nan_forward(points: np.ndarray) -> np.ndarray:
+    """Replace NaN rows (padding after the last valid point) by the last valid point."""
+    bad = ~np.isfinite(points).all(axis=-1)  # (F, P)
+    if not bad.any():
+        return points
+    if bad[:, 0].any():
+        raise ValueError("a curve starts with a missing (NaN) point")
+    index = np.where(bad, 0, np.arange(points.shape[1])[None, :])
+    index = np.maximum.accumulate(index, axis=1)
+    return np.take_along_axis(points, index[..., None], axis=1)
+
+
+def resample_polylines(points, n_samples: int) -> np.ndarray:
+    """Resample polylines at ``n_samples`` points equally spaced in arc length.
+
+    Parameters
+    ----------
+    points : (P, 3) or (F, P, 3) float
+        Polyline vertices per frame; trailing NaN rows are padding (a path that has fewer
+        points in some frames) and are ignored.
+    n_samples : int
+        Number of output samples, at least 2; the first and last are the polyline's ends.
+
+    Returns
+    -------
+    (n_samples, 3) or (F, n_samples, 3) float
+    """
+    pts = np.asarray(points, dtype=float)
+    single = pts.ndim == 2
+    if single:
+        pts = pts[None]
+    if pts.ndim != 3 or pts.shape[-1] != 3 or pts.shape[1] < 2:
+        raise ValueError(f"points must be (P, 3) or (F, P, 3) with P >= 2, got shape {np.shape(points)}")
+    n = int(n_samples)
+    if n < 2:
+        raise ValueError("n_samples must be at least 2")
+    pts = _fill_nan_forward(pts)
+    seg = np.linalg.norm(np.diff(pts, axis=1), axis=-1)  # (F, P-1)
+    cum = np.concatenate([np.zeros((pts.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+    total = cum[:, -1:]
+    target = total * np.linspace(0.0, 1.0, n)[None, :]  # (F, n)
+    # index of the segment holding each target: count of interior vertices at or before it
+    j = np.sum(cum[:, None, 1:-1] <= target[:, :, None], axis=-1)  # (F, n) in [0, P-2]
+    s0 = np.take_along_axis(cum, j, axis=1)
+    length = np.take_along_axis(seg, j, axis=1)
+    t = np.where(length > _TINY, (target - s0) / np.where(length > _TINY, length, 1.0), 0.0)
+    t = np.clip(t, 0.0, 1.0)[..., None]
+    a = np.take_along_axis(pts, j[..., None], axis=1)
+    b = np.take_along_axis(pts, (j + 1)[..., None], axis=1)
+    out = a + t * (b - a)
+    out[:, 0] = pts[:, 0]
+    out[:, -1] = pts[:, -1]
+    return out[0] if single else out
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(norm, _TINY)
+
+
+def curve_tangents(curve: np.ndarray) -> np.ndarray:
+    """Unit tangents of sampled curves: central differences inside, one-sided at the ends.
+
+    Parameters
+    ----------
+    curve : (F, n, 3) float
+
+    Returns
+    -------
+    (F, n, 3) float
+    """
+    d = np.empty_like(curve)
+    d[:, 1:-1] = curve[:, 2:] - curve[:, :-2]
+    d[:, 0] = curve[:, 1] - curve[:, 0]
+    d[:, -1] = curve[:, -1] - curve[:, -2]
+    return _unit(d)
+
+
+def any_perpendicular(t: np.ndarray) -> np.ndarray:
+    """A unit vector perpendicular to each unit vector ``t`` (..., 3), deterministic."""
+    t = np.asarray(t, dtype=float)
+    axis = np.zeros_like(t)
+    idx = np.argmin(np.abs(t), axis=-1)
+    np.put_along_axis(axis, idx[..., None], 1.0, axis=-1)
+    return _unit(np.cross(t, axis))
+
+
+def transport_vector(r: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotate ``r`` by the minimal rotation that takes unit ``a`` to unit ``b`` (..., 3).
+
+    Rodrigues' formula without trigonometry: ``R r = (a.b) r + w x r + w (w.r) / (1 + a.b)``
+    with ``w = a x b``; smooth everywhere except ``b = -a``.
+    """
+    w = np.cross(a, b)
+    c = np.sum(a * b, axis=-1, keepdims=True)
+    return c * r + np.cross(w, r) + w * np.sum(w * r, axis=-1, keepdims=True) / np.maximum(1.0 + c, 1e-12)
+
+
+def rotation_minimizing_frames(curve, r0, *, tangents=None) -> np.ndarray:
+    """Rotation-minimising frames along sampled curves (double reflection, Wang et al. 2008).
+
+    Parameters
+    ----------
+    curve : (F, n, 3) float
+    r0 : (F, 3) float
+        Reference vector at the first sample; it is made perpendicular to the first tangent.
+    tangents : (F, n, 3) float, optional
+        Unit tangents; default `curve_tangents`.
+
+    Returns
+    -------
+    (F, n, 3, 3) float
+        Orthonormal frames whose columns are (normal r, binormal t x r, tangent t).
+    """
+    x = np.asarray(curve, dtype=float)
+    t = curve_tangents(x) if tangents is None else np.asarray(tangents, dtype=float)
+    r = np.asarray(r0, dtype=float)
+    r = _unit(r - np.sum(r * t[:, 0], axis=-1, keepdims=True) * t[:, 0])
+    normals = np.empty_like(x)
+    normals[:, 0] = r
+    for i in range(x.shape[1] - 1):  # loop over the curve's samples (tens), vectorised over frames
+        v1 = x[:, i + 1] - x[:, i]
+        c1 = np.sum(v1 * v1, axis=-1, keepdims=True)
+        ok1 = c1 > _TINY
+        c1s = np.where(ok1, c1, 1.0)
+        r_l = np.where(ok1, r - (2.0 / c1s) * np.sum(v1 * r, axis=-1, keepdims=True) * v1, r)
+        t_l = np.where(ok1, t[:, i] - (2.0 / c1s) * np.sum(v1 * t[:, i], axis=-1, keepdims=True) * v1, t[:, i])
+        v2 = t[:, i + 1] - t_l
+        c2 = np.sum(v2 * v2, axis=-1, keepdims=True)
+        ok2 = c2 > _TINY
+        c2s = np.where(ok2, c2, 1.0)
+        r = np.where(ok2, r_l - (2.0 / c2s) * np.sum(v2 * r_l, axis=-1, keepdims=True) * v2, r_l)
+        # re-orthogonalise against the tangent to stop round-off drift
+        r = _unit(r - np.sum(r * t[:, i + 1], axis=-1, keepdims=True) * t[:, i + 1])
+        normals[:, i + 1] = r
+    binormals = np.cross(t, normals)
+    return np.stack([normals, binormals, t], axis=-1)
+
+
+def twist_frames(frames: np.ndarray, angle: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+    """Rotate each frame about its tangent by ``angle * fraction``.
+
+    Parameters
+    ----------
+    frames : (F, n, 3, 3) float
+        Columns (normal, binormal, tangent).
+    angle : (F,) float
+        Total twist at the last sample.
+    fraction : (n,) float
+        Share of the twist at each sample (0 at the start, 1 at the end).
+    """
+    phi = angle[:, None] * fraction[None, :]
+    c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
+    n, b = frames[..., 0], frames[..., 1]
+    return np.stack([c * n + s * b, -s * n + c * b, frames[..., 2]], axis=-1)
+
+
+def twist_angle(n_have: np.ndarray, n_want: np.ndarray, tangent: np.ndarray) -> np.ndarray:
+    """Signed angle (F,) about ``tangent`` that turns ``n_have`` into ``n_want`` (both ⟂ tangent)."""
+    sin = np.sum(np.cross(n_have, n_want) * tangent, axis=-1)
+    cos = np.sum(n_have * n_want, axis=-1)
+    return np.arctan2(sin, cos)
