@@ -250,15 +250,22 @@ def _read_3x(model: Node):
         if not parent or parent not in frames:
             raise j.error(f"<parent_body> {parent!r} is not a body of the model", "name an existing body",
                           where=f"{j.path}/parent_body")
-        tf_pf = frame_transform(j.floats("location_in_parent", 3, default=[0, 0, 0]),
-                                j.floats("orientation_in_parent", 3, default=[0, 0, 0]))
-        tf_cf = frame_transform(j.floats("location", 3, default=[0, 0, 0]),
-                                j.floats("orientation", 3, default=[0, 0, 0]))
+        tf_pf = frame_transform(*(_six_digits(j.floats(t, 3, default=[0, 0, 0]))
+                                  for t in ("location_in_parent", "orientation_in_parent")))
+        tf_cf = frame_transform(*(_six_digits(j.floats(t, 3, default=[0, 0, 0])) for t in ("location", "orientation")))
         coord_nodes = j.objects("CoordinateSet")
         joint, jc = _joint_from_nodes(j, rename.get(parent, parent), b.name, tf_pf, tf_cf, coord_nodes)
         joints.append(joint)
         coords.extend(jc)
     return bodies, joints, coords, frames
+
+
+def _six_digits(values: np.ndarray) -> np.ndarray:
+    """Round to 6 significant digits, as OpenSim 4.x does when it converts a 3.x/2.x joint's
+    location/orientation (in parent and in child) into PhysicalOffsetFrames: it writes them
+    through a default-precision text stream (checked with OpenSim 4.6: an orientation of
+    -1.5707963267948966 becomes -1.5708)."""
+    return np.array([float(f"{v:.6g}") for v in values])
 
 
 def _order_joints(joints: list, model: Node) -> tuple:

@@ -1,0 +1,261 @@
+"""Forward kinematics of an OpenSim model, vectorised over frames, with exact derivatives.
+
+Coordinates (`coordinate_values`) are set as OpenSim's AnalyzeTool does: the motion's values,
+then "assembly": locked coordinates keep their default value; in models with constraints,
+clamped coordinates are clamped to their range; every CoordinateCouplerConstraint sets its
+dependent coordinate to ``scale_factor * f(q_independent)``. The Jacobian ``dq_dqk`` (F, C, C)
+gives column k = dq/dq_k: for a coordinate that is not a coupler's dependent, the total
+derivative along the couplers (chain rule); for a dependent coordinate the partial one (e_k).
+
+Body poses (`body_poses`, `body_pose_derivatives`) compose the joints root to leaf:
+``tf_ground_child = tf_ground_parent @ tf_parent_F @ tf_F_M(q) @ inv(tf_child_M)`` with
+``tf_F_M = [R1 R2 R3 | sum_i f_i(q) a_i]`` (OpenSim's SpatialTransform / SimTK FunctionBased
+mobilizer: rotations about axes in successively rotated frames, translations in F).
+Derivatives are forward-mode (analytic product rule), not finite differences.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .model import Model
+
+__all__ = ["BodyPoses", "body_poses", "body_pose_derivatives", "coordinate_values", "motion_coordinates",
+           "motion_from_array"]
+
+
+@dataclass(frozen=True, eq=False)
+class BodyPoses:
+    """Every body's frame in ground, per frame.
+
+    Attributes
+    ----------
+    tf_ground_body : (F, B, 4, 4) float
+        p_ground = tf_ground_body[f, b] @ p_body (homogeneous).
+    body_names : (B,) tuple of str
+        Ground first, model order.
+    time : (F,) float
+    q : (F, C) float
+        The coordinate values used (after locking, clamping and couplers).
+    """
+
+    tf_ground_body: np.ndarray
+    body_names: tuple
+    time: np.ndarray
+    q: np.ndarray
+
+    def __post_init__(self):
+        for key in ("tf_ground_body", "time", "q"):
+            arr = np.array(getattr(self, key), dtype=float, copy=True)
+            arr.setflags(write=False)
+            object.__setattr__(self, key, arr)
+        if self.tf_ground_body.shape[1:] != (len(self.body_names), 4, 4):
+            raise ValueError(f"tf_ground_body must be (F, {len(self.body_names)}, 4, 4)")
+
+    def __getitem__(self, body: str) -> np.ndarray:
+        """(F, 4, 4) transforms of the body called ``body``."""
+        return self.tf_ground_body[:, self.body_names.index(body)]
+
+    def __array__(self, dtype=None, copy=None):
+        return np.asarray(self.tf_ground_body, dtype=dtype)
+
+
+@dataclass(frozen=True)
+class _SimpleMotion:
+    time: np.ndarray
+    q: np.ndarray
+    coordinate_names: tuple
+
+
+def motion_from_array(model: Model, q, time=None):
+    """A motion-like object (``time``, ``q``, ``coordinate_names``) from (F, C) values in model order."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.shape[1] != len(model.coordinates):
+        raise ValueError(f"q must be (F, {len(model.coordinates)}), got {q.shape}")
+    t = np.arange(len(q), dtype=float) if time is None else np.asarray(time, dtype=float)
+    return _SimpleMotion(t, q, model.coordinate_names)
+
+
+def motion_coordinates(model: Model, motion) -> tuple:
+    """(time (F,), q (F, C) in model order) from a Motion-like object or an (F, C) array."""
+    if hasattr(motion, "q"):
+        q = np.asarray(motion.q, dtype=float)
+        names = tuple(getattr(motion, "coordinate_names", model.coordinate_names))
+        time = np.asarray(getattr(motion, "time", np.arange(len(q))), dtype=float)
+    else:
+        q = np.atleast_2d(np.asarray(motion, dtype=float))
+        names = model.coordinate_names
+        time = np.arange(len(q), dtype=float)
+    if q.ndim != 2 or q.shape[1] != len(names):
+        raise ValueError(f"motion q must be (F, {len(names)}), got {q.shape}")
+    if names != model.coordinate_names:
+        missing = [n for n in model.coordinate_names if n not in names]
+        if missing:
+            raise InputError(f"the motion lacks coordinates {missing[:5]} of model {model.name!r}",
+                             where="motion", fix="give a value for every model coordinate (motion.load_motion fills defaults)")
+        q = q[:, [names.index(n) for n in model.coordinate_names]]
+    return time, q
+
+
+def _coupler_order(model: Model) -> list:
+    """Couplers ordered so that a coupler whose independent is another's dependent comes after it."""
+    pending = list(model.couplers)
+    deps = {c.dependent for c in pending}
+    done, out = set(), []
+    while pending:
+        rest = [c for c in pending if any(i in deps and i not in done for i in c.independent)]
+        ready = [c for c in pending if c not in rest]
+        if not ready:
+            raise InputError("coordinate couplers form a cycle", file=model.file, where="ConstraintSet",
+                             fix="make the coupler chain acyclic")
+        out += ready
+        done |= {c.dependent for c in ready}
+        pending = rest
+    return out
+
+
+def coordinate_values(model: Model, q) -> tuple:
+    """Assembled coordinates and their Jacobian w.r.t. each coordinate.
+
+    Parameters
+    ----------
+    q : (F, C) float
+        Coordinate values in model order (e.g. a motion's).
+
+    Returns
+    -------
+    q_used : (F, C) float
+        After locking (default value), clamping (models with constraints) and couplers.
+    dq_dqk : (F, C, C) float
+        dq_used[:, i] / dq_k in [:, i, k] (see module docstring).
+    """
+    q = np.array(np.atleast_2d(q), dtype=float)
+    n_frames, n_coords = q.shape
+    for i, c in enumerate(model.coordinates):
+        if c.locked:
+            q[:, i] = c.default_value
+    if model.couplers or model.welds:
+        for i, c in enumerate(model.coordinates):
+            if c.clamped:
+                q[:, i] = np.clip(q[:, i], c.range[0], c.range[1])
+    jac = np.broadcast_to(np.eye(n_coords), (n_frames, n_coords, n_coords)).copy()
+    for cp in _coupler_order(model):
+        d = model.coordinate_index(cp.dependent)
+        k = model.coordinate_index(cp.independent[0])
+        x = q[:, k]
+        q[:, d] = cp.scale_factor * cp.function.value(x)
+        slope = cp.scale_factor * cp.function.derivative(x)
+        # row d = slope * row k (chain rule through k's own coupler, if any); partial stays e_d
+        jac[:, d, :] = slope[:, None] * jac[:, k, :]
+        jac[:, d, d] = 1.0
+    return q, jac
+
+
+def _axis_angle_matrices(axis: np.ndarray, angle: np.ndarray) -> tuple:
+    """Rotation about a unit ``axis`` by ``angle`` (F,) and its derivative dR/dangle (F, 3, 3)."""
+    kx = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    kk = kx @ kx
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    rot = np.eye(3) + s * kx + (1.0 - c) * kk
+    drot = c * kx + s * kk
+    return rot, drot
+
+
+def _joint_transform(joint, q: np.ndarray, cidx: dict) -> tuple:
+    """tf_F_M (F, 4, 4) and its partials w.r.t. the joint's coordinates (F, n, 4, 4)."""
+    n_frames = q.shape[0]
+    local = {name: i for i, name in enumerate(joint.coordinates)}
+    n = len(joint.coordinates)
+    tf = np.broadcast_to(np.eye(4), (n_frames, 4, 4)).copy()
+    dtf = np.zeros((n_frames, n, 4, 4))
+    rots, drots, owners = [], [], []
+    for ax in joint.axes[:3]:
+        if ax.coordinates:
+            x = q[:, cidx[ax.coordinates[0]]]
+            val, dval = ax.function.value(x), ax.function.derivative(x)
+            owners.append((local[ax.coordinates[0]], dval))
+        else:
+            val = np.full(n_frames, float(ax.function.value(0.0)))
+            owners.append(None)
+        r, dr = _axis_angle_matrices(ax.axis, val)
+        rots.append(r)
+        drots.append(dr)
+    tf[:, :3, :3] = rots[0] @ rots[1] @ rots[2]
+    for i, owner in enumerate(owners):
+        if owner is None:
+            continue
+        mats = [rots[0], rots[1], rots[2]]
+        mats[i] = drots[i]
+        dtf[:, owner[0], :3, :3] += owner[1][:, None, None] * (mats[0] @ mats[1] @ mats[2])
+    for ax in joint.axes[3:]:
+        if ax.coordinates:
+            x = q[:, cidx[ax.coordinates[0]]]
+            tf[:, :3, 3] += ax.function.value(x)[:, None] * ax.axis
+            dtf[:, local[ax.coordinates[0]], :3, 3] += ax.function.derivative(x)[:, None] * ax.axis
+        else:
+            tf[:, :3, 3] += float(ax.function.value(0.0)) * ax.axis
+    return tf, dtf
+
+
+def body_pose_derivatives(model: Model, motion, *, derivatives: bool = True) -> tuple:
+    """Body transforms in ground and their derivatives w.r.t. every coordinate.
+
+    Parameters
+    ----------
+    motion : Motion-like (``q`` (F, C), ``coordinate_names``) or (F, C) array in model order.
+    derivatives : bool, keyword-only
+        If False, ``d_tf_ground_body`` is None (faster).
+
+    Returns
+    -------
+    tf_ground_body : (F, B, 4, 4) float
+    d_tf_ground_body : (F, B, C, 4, 4) float or None
+        d tf_ground_body / d q_k along the couplers (see `coordinate_values`).
+    q_used : (F, C) float
+    dq_dqk : (F, C, C) float
+    """
+    _, q = motion_coordinates(model, motion)
+    q_used, jac = coordinate_values(model, q)
+    n_frames, n_coords = q_used.shape
+    n_bodies = len(model.bodies)
+    cidx = model._coord_index
+    tf = np.zeros((n_frames, n_bodies, 4, 4))
+    tf[:, 0] = np.eye(4)
+    dtf = np.zeros((n_frames, n_bodies, n_coords, 4, 4)) if derivatives else None
+    for joint in model.joints:
+        p = model.body_index(joint.parent)
+        b = model.body_index(joint.child)
+        tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx)
+        inv_child = np.linalg.inv(joint.tf_child_jointframe)
+        left = tf[:, p] @ joint.tf_parent_jointframe           # (F, 4, 4) ground <- F
+        tf[:, b] = left @ tf_fm @ inv_child
+        if derivatives:
+            # parent's motion carried along: d(parent) @ (X_PF X_FM X_MB)
+            rest = joint.tf_parent_jointframe @ tf_fm @ inv_child           # (F, 4, 4)
+            dtf[:, b] = dtf[:, p] @ rest[:, None]
+            if joint.coordinates:
+                cols = [cidx[c] for c in joint.coordinates]
+                # total derivative: sum_c dX_FM/dq_c * dq_c/dq_k
+                dfm_total = np.einsum("fcij,fck->fkij", dtf_fm, jac[:, cols, :])
+                dtf[:, b] += left[:, None] @ dfm_total @ inv_child
+    return tf, dtf, q_used, jac
+
+
+def body_poses(model: Model, motion) -> BodyPoses:
+    """Transforms of every body in ground for every frame of ``motion``.
+
+    Parameters
+    ----------
+    model : Model
+    motion : Motion-like (``time`` (F,), ``q`` (F, C), ``coordinate_names``) or (F, C) array.
+
+    Returns
+    -------
+    BodyPoses
+        ``tf_ground_body`` (F, B, 4, 4), ``body_names`` (B,), ``time``, ``q`` used.
+    """
+    time, _ = motion_coordinates(model, motion)
+    tf, _, q_used, _ = body_pose_derivatives(model, motion, derivatives=False)
+    return BodyPoses(tf, model.body_names, time, q_used)
