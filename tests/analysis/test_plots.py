@@ -1,0 +1,136 @@
+"""analysis.plots: PNG files of sane size, shape checks, atomic writes, NaN-safe percentiles."""
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+from analysis import plots
+
+F, N, L = 27, 60, 2
+
+
+def _png_size(path):
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+@pytest.fixture()
+def synthetic():
+    """Straight fibres across a pin joint: L = |R(q) (d, -b) - (d, a)|, r = -dL/dq analytic."""
+    rng = np.random.default_rng(1)
+    q = np.radians(np.linspace(0.0, 130.0, F))
+    a = 0.2 + 0.02 * rng.random(N)
+    b = 0.05 + 0.01 * rng.random(N)
+    d = 0.01 + 0.01 * rng.random(N)
+
+    def length(q, a, b, d):
+        c, s = np.cos(q), np.sin(q)
+        return np.hypot(d * c + b * s - d, d * s - b * c - a)
+
+    h = 1e-6
+    fl = length(q[:, None], a, b, d)
+    fm = -(length(q[:, None] + h, a, b, d) - length(q[:, None] - h, a, b, d)) / (2 * h)
+    ll = np.stack([length(q, 0.21, 0.055, 0.015), length(q, 0.2, 0.05, 0.02)], axis=1)
+    lm = -(np.stack([length(q + h, 0.21, 0.055, 0.015), length(q + h, 0.2, 0.05, 0.02)], 1)
+           - np.stack([length(q - h, 0.21, 0.055, 0.015), length(q - h, 0.2, 0.05, 0.02)], 1)
+           ) / (2 * h)
+    return dict(times=0.05 * np.arange(F), fibre_lengths=fl, line_lengths=ll,
+                line_names=["A", "B"], coordinate_values=q, fibre_moment_arms=fm,
+                line_moment_arms=lm, coordinate_names=["elbow_flexion"], rest_lengths=fl[0])
+
+
+def test_plot_muscle_writes_three_pngs(synthetic, tmp_path):
+    paths = plots.plot_muscle(tmp_path, "biceps", **synthetic)
+    assert [p.name for p in paths] == ["biceps_lengths.png", "biceps_moment_arms.png",
+                                       "biceps_length_histogram.png"]
+    for p in paths:
+        w, h = _png_size(p)
+        # figure size (7 x 4.2 in) at 110 dpi, give or take a pixel of rounding
+        assert abs(w - 770) <= 1 and abs(h - 462) <= 1
+        assert 10_000 < p.stat().st_size < 500_000
+    assert sorted(x.name for x in tmp_path.iterdir()) == sorted(p.name for p in paths)
+
+
+def test_moment_arms_one_panel_per_coordinate(synthetic, tmp_path):
+    q = np.stack([synthetic["coordinate_values"], 0.01 * np.arange(F)], axis=1)
+    fm = np.stack([synthetic["fibre_moment_arms"]] * 2, axis=2)
+    lm = np.stack([synthetic["line_moment_arms"]] * 2, axis=2)
+    p = plots.plot_moment_arms(tmp_path / "m.png", q, fm, lm, ["A", "B"], muscle="x",
+                               coordinate_names=["flex", "slide"], rotational=[True, False])
+    w, h = _png_size(p)
+    assert abs(w - 2 * 6.0 * 110) <= 1 and abs(h - 462) <= 1     # two 6-inch panels
+
+
+def test_histogram_pooled_and_nan_frames(synthetic, tmp_path):
+    fl = synthetic["fibre_lengths"].copy()
+    fl[3] = np.nan                                          # a missing frame must not break it
+    plots.plot_length_histogram(tmp_path / "h.png", fl, synthetic["rest_lengths"], muscle="m",
+                                frames="all")
+    plots.plot_fibre_lengths(tmp_path / "l.png", synthetic["times"], fl,
+                             synthetic["line_lengths"], ["A", "B"], muscle="m")
+    assert _png_size(tmp_path / "h.png")[0] > 0 and _png_size(tmp_path / "l.png")[0] > 0
+
+
+def test_percentiles_match_numpy_and_skip_empty_frames():
+    rng = np.random.default_rng(0)
+    v = rng.random((5, 40))
+    v[1, :10] = np.nan
+    v[2] = np.nan
+    p = plots._percentiles(v, [5.0, 50.0, 95.0])
+    np.testing.assert_allclose(p[:, 0], np.percentile(v[0], [5, 50, 95]), rtol=1e-12)
+    np.testing.assert_allclose(p[:, 1], np.percentile(v[1, 10:], [5, 50, 95]), rtol=1e-12)
+    assert np.isnan(p[:, 2]).all()
+
+
+@pytest.mark.parametrize("call", [
+    lambda s, d: plots.plot_fibre_lengths(d / "x.png", s["times"][:-1], s["fibre_lengths"],
+                                          s["line_lengths"], ["A", "B"], muscle="m"),
+    lambda s, d: plots.plot_fibre_lengths(d / "x.png", s["times"], s["fibre_lengths"],
+                                          s["line_lengths"], ["A"], muscle="m"),
+    lambda s, d: plots.plot_fibre_lengths(d / "x.png", s["times"], s["fibre_lengths"][0],
+                                          s["line_lengths"], ["A", "B"], muscle="m"),
+    lambda s, d: plots.plot_moment_arms(d / "x.png", s["coordinate_values"],
+                                        s["fibre_moment_arms"][:, :, None].repeat(2, 2),
+                                        s["line_moment_arms"], ["A", "B"], muscle="m",
+                                        coordinate_names=["q"]),
+    lambda s, d: plots.plot_moment_arms(d / "x.png", s["coordinate_values"],
+                                        s["fibre_moment_arms"], s["line_moment_arms"],
+                                        ["A", "B"], muscle="m", coordinate_names=["q", "p"]),
+    lambda s, d: plots.plot_length_histogram(d / "x.png", s["fibre_lengths"],
+                                             s["rest_lengths"][1:], muscle="m"),
+    lambda s, d: plots.plot_length_histogram(d / "x.png", s["fibre_lengths"],
+                                             -s["rest_lengths"], muscle="m"),
+    lambda s, d: plots.plot_length_histogram(d / "x.png", s["fibre_lengths"],
+                                             s["rest_lengths"], muscle="m", frames=[F]),
+])
+def test_rejects_mismatched_shapes_and_writes_nothing(synthetic, tmp_path, call):
+    with pytest.raises(ValueError):
+        call(synthetic, tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_save_leaves_no_file(synthetic, tmp_path, monkeypatch):
+    from matplotlib.figure import Figure
+
+    def boom(self, *a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(Figure, "savefig", boom)
+    with pytest.raises(OSError):
+        plots.plot_fibre_lengths(tmp_path / "x.png", synthetic["times"],
+                                 synthetic["fibre_lengths"], synthetic["line_lengths"],
+                                 ["A", "B"], muscle="m")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_import_does_not_load_matplotlib():
+    import subprocess
+    import sys
+
+    code = "import sys, analysis.plots; print('matplotlib' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
