@@ -287,9 +287,11 @@ def load_spec(path, *, model=None) -> FibreModelSpec:
     if not isinstance(muscles, dict) or not muscles:
         ctx.fail("muscles", "no muscles", "Add at least one [muscles.<name>] table.")
     if model is None:
-        import motion
-
-        model = motion.load_model(model_path)
+        try:
+            from motion import load_model
+        except ImportError:  # not yet exported by this checkout's motion/__init__.py
+            from motion.osim_reader import load_model
+        model = load_model(model_path)
     specs = []
     for name, table in muscles.items():
         where = f"muscles.{name}"

@@ -1,0 +1,126 @@
+"""`fibres run` bad input through `analysis.cli.main`: exit status 2, one line on stderr naming the
+file/element and the fix, no traceback, no output file. Ctrl-C: status 130, nothing written."""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from analysis import cli
+from analysis import run as run_module
+
+MODELS = Path(__file__).resolve().parents[2] / "models"
+
+
+@pytest.fixture()
+def example(tmp_path):
+    """A private copy of the bundled example (repository files, not shared data)."""
+    if not (MODELS / "arm_example.toml").is_file():
+        pytest.skip("the bundled example model is not in this checkout")
+    dst = tmp_path / "models"
+    shutil.copytree(MODELS, dst, ignore=shutil.ignore_patterns("*.py", "*.log", "__pycache__"))
+    return dst
+
+
+def _fails(capsys, argv, *must):
+    code = cli.main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    for text in must:
+        assert text in lines[0], lines[0]
+    return lines[0]
+
+
+def _no_output(out: Path):
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("old,new,key", [
+    ('action_lines = ["BRA"]', 'action_lines = ["BRA", "NOPE"]', "muscles.brachialis.action_lines[1]"),
+    ('mesh = "meshes/biceps.ply"', 'mesh = "meshes/gone.ply"', "muscles.biceps.mesh"),
+    ('template = "pennate"', 'template = "spiral"', "muscles.brachialis.template"),
+    ('origin = { body = "humerus", file = "biceps_origin.csv" }',
+     'origin = { body = "scapula", file = "biceps_origin.csv" }', "muscles.biceps.origin.body"),
+    ('units = "m"', 'units = "m"\ncolour = "red"', "colour"),
+])
+def test_toml_mistakes_exit_2_with_one_line(example, tmp_path, capsys, old, new, key):
+    toml = example / "arm_example.toml"
+    text = toml.read_text()
+    assert old in text
+    toml.write_text(text.replace(old, new, 1))
+    out = tmp_path / "out"
+    _fails(capsys, ["run", str(toml), "--out", str(out), "--quiet"], str(toml), key)
+    _no_output(out)
+
+
+def test_motion_with_coordinates_the_model_lacks(example, tmp_path, capsys):
+    mot = tmp_path / "knee.mot"
+    mot.write_text("knee\nversion=1\nnRows=2\nnColumns=2\ninDegrees=yes\nendheader\n"
+                   "time\tknee_angle\n0\t0\n0.1\t10\n")
+    out = tmp_path / "out"
+    _fails(capsys, ["run", str(example / "arm_example.toml"), "--motion", str(mot), "--out", str(out),
+                    "--quiet"], str(mot))
+    _no_output(out)
+
+
+def test_frames_out_of_range(example, tmp_path, capsys):
+    out = tmp_path / "out"
+    line = _fails(capsys, ["run", str(example / "arm_example.toml"), "--frames", "500:600", "--out", str(out),
+                           "--quiet"], "--frames", "out of range")
+    assert "elbow_flexion.mot" in line
+    _no_output(out)
+
+
+def test_output_folder_is_a_file(example, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.write_text("not a folder")
+    _fails(capsys, ["run", str(example / "arm_example.toml"), "--out", str(out), "--quiet"], str(out),
+           "is a file")
+    assert out.read_text() == "not a folder"
+
+
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="needs POSIX permissions, not root")
+def test_output_folder_read_only(example, tmp_path, capsys):
+    out = tmp_path / "ro"
+    out.mkdir()
+    out.chmod(0o500)
+    try:
+        _fails(capsys, ["run", str(example / "arm_example.toml"), "--out", str(out), "--quiet"], str(out),
+               "not writable")
+        assert list(out.iterdir()) == []
+    finally:
+        out.chmod(0o700)
+
+
+def test_output_folder_not_writable_as_root_too(example, tmp_path, capsys, monkeypatch):
+    """Root ignores permission bits, so the check itself is exercised through os.access."""
+    out = tmp_path / "ro"
+    out.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **k: False if Path(p) == out else real(p, mode, **k))
+    _fails(capsys, ["run", str(example / "arm_example.toml"), "--out", str(out), "--quiet"], str(out),
+           "not writable")
+    assert list(out.iterdir()) == []
+
+
+def test_ctrl_c_in_the_middle_leaves_nothing(example, tmp_path, capsys, monkeypatch):
+    import motion
+
+    if not hasattr(motion, "action_lines"):
+        pytest.skip("motion.action_lines is not in this checkout yet")
+    out = tmp_path / "out"
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    # the per-muscle stage (wrap -> fibres -> lengths) is interrupted after the action lines
+    monkeypatch.setattr(run_module, "_run_muscle", interrupted)
+    code = cli.main(["run", str(example / "arm_example.toml"), "--out", str(out), "--quiet", "--frames", "0:2"])
+    assert code == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert list(out.iterdir()) == []        # the folder was checked/created, nothing else
