@@ -1,0 +1,228 @@
+"""Action lines of an OpenSim model: path lengths and exact moment arms, vectorised over frames.
+
+For every path force (muscle, ligament, path actuator): the current path per frame (active
+points, and the wrap tangent points of `motion.path_wrapping` when the path has wrap objects),
+its length L (F,) and the moment arms r = -dL/dq (F, C) by forward-mode derivatives (chain rule
+through the body transforms, moving points and couplers; no finite differences).
+
+Moment-arm convention (INTERFACE.md): r_k = -dL/dq_k. For a coordinate that is not the dependent
+of a coupler, the derivative is total (dependent coordinates follow their couplers): this is
+what OpenSim's ``computeMomentArm`` returns for paths without wrapping. For a dependent
+coordinate it is the partial derivative (the dependent coordinate moved alone), and for a locked
+coordinate the partial derivative as if it were unlocked — the same as the references'
+``neg_dLdq_fd`` column. Where a path does not span a coordinate the moment arm is exactly 0.0
+and ``spanned`` is False; spanned coordinates are those of the joints between the bodies the
+path touches (points and wrap objects), those driving conditional and moving points, and the
+independent coordinates of couplers whose dependent is spanned (as OpenSim's reference script).
+
+OpenSim's ``computeMomentArm`` equals -dL/dq for unwrapped paths and differs from it where a path
+wraps (0.05-4 mm: OpenSim neglects the motion of the tangent points) and at BallJoint /
+EllipsoidJoint coordinates (OpenSim works with angular velocities there: its "moment arm" about
+an Euler-angle coordinate is the torque per unit tension about the mobilizer axis, not -dL/dq).
+This module returns -dL/dq only, the documented contract; it does not imitate those two
+OpenSim-specific quantities.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .kinematics import body_pose_derivatives, motion_coordinates
+from .model import Model, Path
+from .path_points import path_points
+
+__all__ = ["ActionLines", "action_lines", "spanned_coordinates", "polyline_length"]
+
+
+@dataclass(frozen=True, eq=False)
+class ActionLines:
+    """Lengths, moment arms and current path points of a model's path forces.
+
+    Attributes
+    ----------
+    lengths : (F, M) float
+        Path lengths (m).
+    moment_arms : (F, M, C) float
+        r = -dL/dq (m for rotational coordinates); exactly 0.0 where not ``spanned``.
+    spanned : (M, C) bool
+    muscle_names : (M,) tuple of str
+    coordinate_names : (C,) tuple of str
+    coordinate_status : (C,) tuple of str
+        "independent", "dependent" (of a coupler) or "locked".
+    time : (F,) float
+    points : (F, M, K, 3) float
+        Current path points in ground (active points and wrap tangent points), padded with NaN.
+    point_mask : (F, M, K) bool
+        True where ``points`` holds a point of the current path.
+    point_labels : (M, K) tuple of tuples of str
+        Point names ('' for padding; wrap tangent points as the wrap helper labels them).
+    """
+
+    lengths: np.ndarray
+    moment_arms: np.ndarray
+    spanned: np.ndarray
+    muscle_names: tuple
+    coordinate_names: tuple
+    coordinate_status: tuple
+    time: np.ndarray
+    points: np.ndarray
+    point_mask: np.ndarray
+    point_labels: tuple
+
+    def __post_init__(self):
+        for key in ("lengths", "moment_arms", "spanned", "time", "points", "point_mask"):
+            arr = np.array(getattr(self, key), copy=True)
+            arr.setflags(write=False)
+            object.__setattr__(self, key, arr)
+        n_frames, n_paths = self.lengths.shape
+        n_coords = len(self.coordinate_names)
+        if self.moment_arms.shape != (n_frames, n_paths, n_coords):
+            raise ValueError(f"moment_arms must be (F, M, C) = {(n_frames, n_paths, n_coords)}")
+        if self.spanned.shape != (n_paths, n_coords) or len(self.muscle_names) != n_paths:
+            raise ValueError("spanned must be (M, C) and muscle_names (M,)")
+
+    def length(self, muscle: str) -> np.ndarray:
+        """(F,) length of one path."""
+        return self.lengths[:, self.muscle_names.index(muscle)]
+
+    def moment_arm(self, muscle: str, coordinate: str) -> np.ndarray:
+        """(F,) moment arm of one path about one coordinate."""
+        return self.moment_arms[:, self.muscle_names.index(muscle), self.coordinate_names.index(coordinate)]
+
+
+def _ancestor_joints(model: Model, body: str) -> set:
+    parent = {j.child: j for j in model.joints}
+    out = set()
+    while body in parent:
+        j = parent[body]
+        out.add(j.name)
+        body = j.parent
+    return out
+
+
+def spanned_coordinates(model: Model, path: Path) -> np.ndarray:
+    """(C,) bool: the coordinates ``path`` spans (see the module docstring)."""
+    bodies = {p.body for p in path.points} | {model.wrap_object(w.wrap_object).body for w in path.wraps}
+    chains = [_ancestor_joints(model, b) for b in bodies]
+    joints = set().union(*chains) - set.intersection(*chains) if chains else set()
+    names = {c for j in model.joints if j.name in joints for c in j.coordinates}
+    for p in path.points:
+        if p.kind == "conditional":
+            names.add(p.coordinate)
+        elif p.kind == "moving":
+            names.update(c for c in p.moving_coordinates if c is not None)
+    changed = True
+    while changed:
+        changed = False
+        for cp in model.couplers:
+            if cp.dependent in names and not set(cp.independent) <= names:
+                names.update(cp.independent)
+                changed = True
+    return np.array([c in names for c in model.coordinate_names], dtype=bool)
+
+
+def polyline_length(points: np.ndarray, active: np.ndarray, d_points: np.ndarray | None = None) -> tuple:
+    """Length of the polyline through the active points, and its derivative.
+
+    Parameters
+    ----------
+    points : (F, P, 3) float
+    active : (F, P) bool
+        Inactive points are skipped (each active point joins the next active one).
+    d_points : (F, P, C, 3) float, optional
+
+    Returns
+    -------
+    length : (F,) float
+    d_length : (F, C) float or None
+    """
+    n_frames, n_points = active.shape
+    idx = np.where(active, np.arange(n_points), n_points)
+    # next active point after i: running minimum from the right, shifted by one
+    nxt = np.minimum.accumulate(idx[:, ::-1], axis=1)[:, ::-1]
+    nxt = np.concatenate([nxt[:, 1:], np.full((n_frames, 1), n_points)], axis=1)
+    valid = active & (nxt < n_points)
+    nxt_c = np.minimum(nxt, n_points - 1)
+    rows = np.arange(n_frames)[:, None]
+    seg = points[rows, nxt_c] - points                           # (F, P, 3)
+    seg_len = np.linalg.norm(seg, axis=-1)
+    length = np.where(valid, seg_len, 0.0).sum(axis=1)
+    if d_points is None:
+        return length, None
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = np.where((valid & (seg_len > 0))[..., None], seg / np.where(seg_len > 0, seg_len, 1.0)[..., None], 0.0)
+    d_seg = d_points[rows, nxt_c] - d_points                     # (F, P, C, 3)
+    d_length = np.einsum("fpi,fpci->fc", unit, d_seg)
+    return length, d_length
+
+
+def _wrap_module():
+    try:
+        from . import path_wrapping
+    except ImportError as exc:       # clearly marked: never measure a wrapped path without its wraps
+        raise NotImplementedError("this path has wrap objects but motion.path_wrapping is not available; "
+                                  "refusing to return an unwrapped (wrong) length") from exc
+    return path_wrapping
+
+
+def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
+    """Lengths, moment arms and current points of the model's path forces over a motion.
+
+    Parameters
+    ----------
+    model : Model
+    motion : Motion-like (``time`` (F,), ``q`` (F, C), ``coordinate_names``) or (F, C) array.
+    muscles : sequence of str, optional, keyword-only
+        Names of the path forces to compute (default: all, in model order).
+
+    Returns
+    -------
+    ActionLines
+    """
+    if muscles is None:
+        chosen = list(model.paths)
+    else:
+        if isinstance(muscles, str):
+            muscles = [muscles]
+        unknown = [m for m in muscles if m not in model.path_names]
+        if unknown:
+            raise InputError(f"no path force named {unknown[0]!r} in model {model.name!r}", file=model.file,
+                             where="ForceSet", fix=f"choose among {', '.join(model.path_names[:8])}"
+                             + (" ..." if len(model.path_names) > 8 else ""))
+        chosen = [model.path(m) for m in muscles]
+    time, _ = motion_coordinates(model, motion)
+    tf, dtf, q_used, jac = body_pose_derivatives(model, motion)
+    n_frames, n_coords = q_used.shape
+    lengths = np.zeros((n_frames, len(chosen)))
+    dldq = np.zeros((n_frames, len(chosen), n_coords))
+    spanned = np.zeros((len(chosen), n_coords), dtype=bool)
+    per_path = []
+    for m, path in enumerate(chosen):
+        pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
+        if path.wraps:
+            wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
+            lengths[:, m] = wrapped.length
+            dldq[:, m] = wrapped.d_length
+            per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
+                             tuple(str(x) for x in wrapped.labels)))
+        else:
+            lengths[:, m], dldq[:, m] = polyline_length(pp.points, pp.active, pp.d_points)
+            per_path.append((pp.points, pp.active, pp.names))
+        spanned[m] = spanned_coordinates(model, path)
+    moment_arms = np.where(spanned[None], -dldq, 0.0)
+    k_max = max((p[0].shape[1] for p in per_path), default=0)
+    points = np.full((n_frames, len(chosen), k_max, 3), np.nan)
+    mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
+    labels = []
+    for m, (pts, msk, lab) in enumerate(per_path):
+        k = pts.shape[1]
+        points[:, m, :k] = np.where(msk[..., None], pts, np.nan)
+        mask[:, m, :k] = msk
+        labels.append(tuple(lab) + ("",) * (k_max - k))
+    dep = model.dependent_coordinates
+    status = tuple("dependent" if dep[i] else ("locked" if c.locked else "independent")
+                   for i, c in enumerate(model.coordinates))
+    return ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
+                       status, time, points, mask, tuple(labels))

@@ -1,0 +1,114 @@
+"""Ground positions of a path's points per frame, which of them are active, and their derivatives.
+
+Point kinds (OpenSim's PathPoint, ConditionalPathPoint, MovingPathPoint):
+- fixed: ``location`` in its body.
+- conditional: fixed in its body, active when ``range[0] - 1e-5 <= q <= range[1] + 1e-5``
+  (OpenSim 4.6 ConditionalPathPoint::isActive, the coordinate's value after assembly).
+- moving: location ``(fx(qx), fy(qy), fz(qz))`` in its body (MovingPathPoint; an axis without
+  function keeps ``location``).
+
+``p_ground = R_ground_body p_body + t_ground_body``; its derivative w.r.t. coordinate k is
+``dR/dq_k p_body + dt/dq_k + R dp_body/dq_k`` with ``dp_body/dq_k = f'(q_c) dq_c/dq_k``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import Model, Path
+
+__all__ = ["PathPoints", "path_points", "CONDITIONAL_TOLERANCE"]
+
+CONDITIONAL_TOLERANCE = 1e-5   # OpenSim ConditionalPathPoint::isActive
+
+
+@dataclass(frozen=True, eq=False)
+class PathPoints:
+    """The points of one path for all frames.
+
+    Attributes
+    ----------
+    points : (F, P, 3) float
+        Ground positions of every defined point (active or not).
+    active : (F, P) bool
+        Whether each point is part of the path in that frame.
+    d_points : (F, P, C, 3) float or None
+        d points / d q_k (see `motion.kinematics.coordinate_values` for the meaning of k).
+    names : (P,) tuple of str
+    bodies : (P,) int
+        Body index of each point.
+    """
+
+    points: np.ndarray
+    active: np.ndarray
+    d_points: np.ndarray | None
+    names: tuple
+    bodies: np.ndarray
+
+
+def _local_positions(path: Path, model: Model, q: np.ndarray, jac: np.ndarray | None) -> tuple:
+    """Body-frame positions (F, P, 3) and their derivatives (F, P, C, 3) or None."""
+    n_frames = q.shape[0]
+    n_points = len(path.points)
+    loc = np.broadcast_to(np.array([p.location for p in path.points]), (n_frames, n_points, 3)).copy()
+    dloc = None if jac is None else np.zeros((n_frames, n_points, q.shape[1], 3))
+    for i, p in enumerate(path.points):          # only the (few) moving points
+        if p.kind != "moving":
+            continue
+        for axis in range(3):
+            f, c = p.moving_functions[axis], p.moving_coordinates[axis]
+            if f is None:
+                continue
+            if c is None:
+                loc[:, i, axis] = float(f.value(0.0))
+                continue
+            k = model.coordinate_index(c)
+            loc[:, i, axis] = f.value(q[:, k])
+            if dloc is not None:
+                dloc[:, i, :, axis] = f.derivative(q[:, k])[:, None] * jac[:, k, :]
+    return loc, dloc
+
+
+def active_mask(path: Path, model: Model, q: np.ndarray) -> np.ndarray:
+    """(F, P) bool: conditional points inside their range (+-1e-5), all others True."""
+    act = np.ones((q.shape[0], len(path.points)), dtype=bool)
+    for i, p in enumerate(path.points):
+        if p.kind == "conditional":
+            x = q[:, model.coordinate_index(p.coordinate)]
+            act[:, i] = (x >= p.range[0] - CONDITIONAL_TOLERANCE) & (x <= p.range[1] + CONDITIONAL_TOLERANCE)
+    return act
+
+
+def path_points(path: Path, model: Model, q_used: np.ndarray, tf_ground_body: np.ndarray,
+                *, jac: np.ndarray | None = None, d_tf_ground_body: np.ndarray | None = None) -> PathPoints:
+    """Ground positions, active mask and derivatives of a path's points.
+
+    Parameters
+    ----------
+    path : Path
+    model : Model
+    q_used : (F, C) float
+        Assembled coordinates (`motion.kinematics.coordinate_values`).
+    tf_ground_body : (F, B, 4, 4) float
+    jac : (F, C, C) float, optional
+        dq_used/dq_k; with ``d_tf_ground_body`` gives ``d_points``.
+    d_tf_ground_body : (F, B, C, 4, 4) float, optional
+
+    Returns
+    -------
+    PathPoints
+    """
+    bodies = np.array([model.body_index(p.body) for p in path.points], dtype=int)
+    want_d = jac is not None and d_tf_ground_body is not None
+    loc, dloc = _local_positions(path, model, q_used, jac if want_d else None)
+    tf = tf_ground_body[:, bodies]                                    # (F, P, 4, 4)
+    pts = np.einsum("fpij,fpj->fpi", tf[..., :3, :3], loc) + tf[..., :3, 3]
+    d_pts = None
+    if want_d:
+        dtf = d_tf_ground_body[:, bodies]                             # (F, P, C, 4, 4)
+        d_pts = np.einsum("fpcij,fpj->fpci", dtf[..., :3, :3], loc) + dtf[..., :3, 3]
+        if any(p.kind == "moving" for p in path.points):
+            d_pts += np.einsum("fpij,fpcj->fpci", tf[..., :3, :3], dloc)
+    return PathPoints(pts, active_mask(path, model, q_used), d_pts,
+                      tuple(p.name for p in path.points), bodies)
