@@ -3,5 +3,9 @@
 May import ``motion`` and ``fibres``.
 """
 from .errors import InputError, MissingDependencyError
+from .result import MuscleResult, RunResult
+from .run import run
+from .spec import AttachmentSpec, FibreModelSpec, MuscleSpec, load_spec
 
-__all__ = ["InputError", "MissingDependencyError"]
+__all__ = ["InputError", "MissingDependencyError", "run", "RunResult", "MuscleResult", "load_spec",
+           "FibreModelSpec", "MuscleSpec", "AttachmentSpec"]

@@ -9,7 +9,9 @@ from pathlib import Path
 import pytest
 
 from analysis import cli
-from analysis import run as run_module
+import importlib
+
+run_module = importlib.import_module("analysis.run")  # the module (analysis.run is the function)
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 
