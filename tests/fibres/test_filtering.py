@@ -1,0 +1,113 @@
+"""fibres.filtering.trim_and_reconstruct: Kohout 2012 §3.4 on a box with known attachments."""
+import numpy as np
+import pytest
+import trimesh
+
+from fibres.filtering import attachment_region, trim_and_reconstruct
+
+P = 40
+
+
+@pytest.fixture(scope="module")
+def cube():
+    m = trimesh.creation.box(bounds=[[0, 0, 0], [1, 1, 1]]).subdivide_to_size(0.05)
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def _grid_on_x0(z0, z1, n=5):
+    y, z = np.meshgrid(np.linspace(0.2, 0.8, n), np.linspace(z0, z1, n))
+    return np.stack([np.zeros(y.size), y.ravel(), z.ravel()], axis=1)
+
+
+def _converging_fibres(n=12):
+    # fibres meeting in one point at the bottom (the unrealistic case of Fig. 8) and spread
+    # over the top
+    rng = np.random.default_rng(5)
+    top = np.column_stack([rng.uniform(0.1, 0.9, (n, 2)), np.ones(n)])
+    t = np.linspace(0, 1, P)[None, :, None]
+    return np.array([0.5, 0.5, 0.0]) + t * (top[:, None] - np.array([0.5, 0.5, 0.0]))
+
+
+def test_origin_side_trim_and_reconstruct(cube):
+    v, f = cube
+    fib = _converging_fibres()
+    origin = _grid_on_x0(0.0, 0.3)              # wide origin area up the x=0 side: plane z=0.3
+    insertion = np.array([[0.5, 0.5, 1.0]])     # on the top face: nothing beyond its plane
+    out, trimmed, recon = trim_and_reconstruct(fib, (v, f), origin, insertion, [0, 0, 1])
+    assert out.shape == fib.shape
+    assert trimmed.all() and recon.all()
+    np.testing.assert_allclose(out[:, -1], fib[:, -1], atol=1e-15)  # insertion end untouched
+    region = attachment_region(v, f, origin)
+    a, b = fib[:, 0], fib[:, -1]
+    for k in range(len(fib)):  # independent brute-force check, fibre by fibre
+        # the cut point is where the original line crosses z = 0.3
+        c = a[k] + 0.3 * (b[k] - a[k])
+        d = (a[k] - b[k]) / np.linalg.norm(a[k] - b[k])  # ray continuing the kept segment
+        best, best_dist = None, np.inf
+        for q in region:
+            s = max((q - c) @ d, 0.0)
+            dist = np.linalg.norm(q - c - s * d)
+            if dist < best_dist:
+                best, best_dist = q, dist
+        np.testing.assert_allclose(out[k, 0], best, atol=1e-12)
+        # on the area: within the region radius (landmark spacing 0.15) of a landmark
+        assert np.linalg.norm(origin - out[k, 0], axis=1).min() <= 0.15 + 1e-12
+        # the kept part (above the plane) is still the original line
+        # (points whose arc length from the new start exceeds the new segment's length)
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(out[k], axis=0), axis=1))])
+        up = out[k, arc > np.linalg.norm(best - c) + 1e-12]
+        assert len(up) > P // 2
+        line_dir = (b[k] - a[k]) / np.linalg.norm(b[k] - a[k])
+        rel = up - a[k]
+        np.testing.assert_allclose(np.cross(rel, line_dir), 0.0, atol=1e-12)
+        # uniform arc-length resampling of [end, c, ..., b]: length is preserved except at the
+        # one corner at c, where chords cut at most one segment's worth
+        true_len = np.linalg.norm(best - c) + np.linalg.norm(b[k] - c)
+        new_len = np.linalg.norm(np.diff(out[k], axis=0), axis=1).sum()
+        assert true_len * (1 - 1.0 / (P - 1)) <= new_len <= true_len + 1e-12
+    # the reconstructed starts no longer meet in one point
+    assert len(np.unique(out[:, 0], axis=0)) > len(fib) // 4
+
+
+def test_insertion_side_is_symmetric(cube):
+    v, f = cube
+    fib = _converging_fibres()[:, ::-1]          # now they meet at the TOP end... reversed
+    fib = fib.copy()
+    fib[..., 2] = 1.0 - fib[..., 2]              # mirror so index 0 is at z=0 again
+    # fibres now run from spread bottom points to one top point (0.5, 0.5, 1)
+    insertion = _grid_on_x0(0.7, 1.0)
+    origin = np.array([[0.5, 0.5, 0.0]])
+    out, trimmed, recon = trim_and_reconstruct(fib, (v, f), origin, insertion, [0, 0, 1])
+    assert trimmed.all() and recon.all()
+    np.testing.assert_allclose(out[:, 0], fib[:, 0], atol=1e-15)
+    near = np.linalg.norm(insertion[None] - out[:, -1, None], axis=2).min(axis=1)
+    assert (near <= 0.15 + 1e-12).all()  # within the region radius (landmark spacing 0.15)
+    assert (out[:, -1, 2] >= 0.7 - 0.15).all()
+
+
+def test_fibres_not_beyond_the_planes_are_unchanged(cube):
+    v, f = cube
+    fib = _converging_fibres()
+    origin = np.array([[0.2, 0.3, 0.0], [0.7, 0.6, 0.0]])   # plane z = 0: nothing below it
+    insertion = np.array([[0.5, 0.5, 1.0]])
+    out, trimmed, recon = trim_and_reconstruct(fib, (v, f), origin, insertion, [0, 0, 1])
+    np.testing.assert_array_equal(out, fib)
+    assert not trimmed.any() and not recon.any()
+
+
+def test_overlapping_attachment_bands_leave_fibres_alone(cube):
+    v, f = cube
+    fib = _converging_fibres()
+    out, trimmed, _ = trim_and_reconstruct(fib, (v, f), _grid_on_x0(0.0, 0.8),
+                                           _grid_on_x0(0.5, 1.0), [0, 0, 1])
+    np.testing.assert_array_equal(out, fib)
+    assert not trimmed.any()
+
+
+def test_attachment_region_of_one_landmark_is_its_neighbourhood(cube):
+    v, f = cube
+    reg = attachment_region(v, f, np.array([[0.0, 0.5, 0.5]]))
+    assert len(reg) >= 1
+    # all within one mean edge length of the projected landmark
+    edges = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean()
+    assert (np.linalg.norm(reg - [0.0, 0.5, 0.5], axis=1) <= edges + 1e-12).all()
