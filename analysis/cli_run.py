@@ -130,24 +130,34 @@ def _publish(staging: Path, out: Path) -> list:
 
 
 def _write_plots(result, folder: Path, *, quiet, progress):
-    try:
-        from . import plots
-    except ImportError:  # plots module not in this build
-        return
+    """Per muscle: fibre-length band over time, moment arm vs coordinate, L/L_rest histogram."""
+    from . import plots
+
     folder.mkdir(parents=True, exist_ok=True)
+    motion_types = result.settings.get("motion_types", {})
     for m in progress(result.muscles, desc="plots", quiet=quiet, unit="muscle"):
-        plots.plot_muscle(result, m.name, folder)
+        cols = [result.coordinate_names.index(c) for c in m.coordinates]
+        plots.plot_muscle(folder, m.name, times=result.time, fibre_lengths=m.fibre_lengths,
+                          line_lengths=m.action_line_lengths, line_names=m.action_lines,
+                          coordinate_values=result.q[:, cols], fibre_moment_arms=m.fibre_moment_arms,
+                          line_moment_arms=m.action_line_moment_arms, coordinate_names=m.coordinates,
+                          rest_lengths=m.rest_lengths,
+                          rotational=[motion_types.get(c, "rotational") != "translational"
+                                      for c in m.coordinates])
 
 
 def _write_vtk(result, folder: Path, *, quiet, progress):
-    try:
-        from . import vtk_files
-    except ImportError:  # 3D files module not in this build
-        return
+    """``fibres/<muscle>.pvd`` + ``<muscle>_<frame>.vtp`` (cell data ``fibre``, ``length``)."""
+    from . import vtk_files
+
     folder.mkdir(parents=True, exist_ok=True)
     for m in progress(result.muscles, desc="3D files", quiet=quiet, unit="muscle"):
         if m.fibre_points is not None:
-            vtk_files.write_fibre_series(folder, m.name, result.time, m.fibre_points)
+            vtk_files.write_fibre_frames(folder, m.name, m.fibre_points, times=result.time,
+                                         cell_data={"length": m.fibre_lengths})
+        if m.surface_vertices is not None:
+            vtk_files.write_surface_frames(folder, m.name, m.surface_vertices, m.surface_faces,
+                                           times=result.time)
 
 
 def write_sto_files(result, folder) -> list:

@@ -198,6 +198,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
                 inputs[f"{end}:{m.name}"] = Path(src)
     settings = {
         "motion_rows": rows.tolist(), "jobs": int(jobs), "fd_step": ctx.step,
+        "motion_types": {c.name: c.motion_type for c in model.coordinates},
         "muscles": {m.name: {"action_lines": list(m.action_lines), "template": m.template,
                              "fibres": m.n_fibres, "resolution": m.resolution, "seed": m.seed,
                              "frame": m.frame, "units": m.units, "rest_pose": dict(m.rest_pose),

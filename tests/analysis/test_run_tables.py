@@ -99,7 +99,14 @@ def test_outputs_are_written_with_precision_and_run_json(tmp_path):
     res = _result(tmp_path)
     out = tmp_path / "out"
     out.mkdir()
-    cli_run.write_outputs(res, out, plots=False, vtk=False, sto=True)
+    cli_run.write_outputs(res, out, plots=True, vtk=True, sto=True)
+    assert (out / "plots" / "a_moment_arms.png").stat().st_size > 1000
+    pv = pytest.importorskip("pyvista")
+    files = sorted((out / "fibres").glob("a_*.vtp"))
+    assert (out / "fibres" / "a.pvd").is_file() and len(files) == 4
+    poly = pv.read(files[2])
+    assert poly.n_cells == 6 and list(poly.cell_data["fibre"]) == list(range(6))
+    np.testing.assert_allclose(poly.points.reshape(6, 5, 3), res.muscle("a").fibre_points[2], rtol=1e-6)
     back = pd.read_csv(out / "fibre_lengths.csv")
     np.testing.assert_allclose(back[back.muscle == "a"].length.to_numpy(), res.muscle("a").fibre_lengths.ravel(),
                                rtol=1e-11)   # written with 12 significant digits
