@@ -164,7 +164,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         mspecs = _select_muscles(spec, muscles, fibres=fibres, resolution=resolution, template=template)
     names = tuple(dict.fromkeys(n for m in mspecs for n in m.action_lines))
     with _timed(timings, "action_lines"):
-        lines = motion_pkg.action_lines(model, mot, muscles=names)
+        lines = _action_lines()(model, mot, muscles=names)
     ctx = _Ctx(spec=spec, model=model, motion=mot, lines=lines, quiet=quiet, keep_points=keep_points,
                keep_surfaces=keep_surfaces, step=dict(FD_STEP, **(step or {})))
     results, muscle_timings = [None] * len(mspecs), []
@@ -258,28 +258,60 @@ def _stacked_motion(ctx, coord_idx):
             qp[:, c] += sign * steps[k]
             blocks.append(qp)
     q_all = np.concatenate(blocks, axis=0)
-    t_all = np.tile(np.asarray(ctx.motion.time, dtype=float), len(blocks))
+    t_all = np.arange(len(q_all), dtype=float)   # a placeholder clock: poses do not depend on time
     stacked = motion_pkg.Motion.from_array(ctx.model, t_all, q_all, source=ctx.motion.source)
     return stacked, steps, n_f
 
 
+def _surface_spec(mspec):
+    """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres."""
+    from fibres import as_surface
+    from motion.surface_spec import MuscleSurfaceSpec, SurfaceAttachment
+
+    vertices = faces = None
+    if mspec.mesh is not None:
+        surf = as_surface(mspec.mesh, units=mspec.units)
+        vertices, faces = surf.vertices, surf.faces
+    ends = {end: SurfaceAttachment(body=a.body, points=a.points, in_body_frame=a.in_body_frame)
+            for end, a in (("origin", mspec.origin), ("insertion", mspec.insertion))}
+    return MuscleSurfaceSpec(name=mspec.name, action_lines=tuple(mspec.action_lines), vertices=vertices,
+                             faces=faces, frame=mspec.frame, rest_pose=dict(mspec.rest_pose), **ends)
+
+
+def _api(package: str, name: str, module: str):
+    """``package.name`` if exported as a function, else ``package.module.name`` (a checkout in
+    which the name is not yet exported; ``from package import name`` could return the module)."""
+    import importlib
+
+    obj = getattr(importlib.import_module(package), name, None)
+    if callable(obj) and not isinstance(obj, type(importlib)):
+        return obj
+    return getattr(importlib.import_module(f"{package}.{module}"), name)
+
+
+def _action_lines():
+    return _api("motion", "action_lines", "action_lines")
+
+
+def _wrap_surfaces():
+    return _api("motion", "wrap_surfaces", "surface_wrap")
+
+
 def _run_muscle(ctx, mspec):
     """Wrap, decompose, measure one muscle over all frames (+ perturbed frames)."""
-    import fibres as fibres_pkg
-
-    from .surface_inputs import rest_surface, wrap_muscle
-
+    decompose = _api("fibres", "decompose", "decompose")
     timings = {}
     coord_idx, line_rows = _spanned_coordinates(ctx, mspec)
     stacked, steps, n_f = _stacked_motion(ctx, coord_idx)
     with _timed(timings, "wrap"):
-        rest, wrapped = wrap_muscle(ctx.model, stacked, mspec)
+        (wrapped,) = _wrap_surfaces()(ctx.model, stacked, [_surface_spec(mspec)])
     opts = dict(template=mspec.template, n_fibres=mspec.n_fibres, resolution=mspec.resolution,
                 seed=mspec.seed)
     if mspec.template_params:
         opts["template_params"] = dict(mspec.template_params)
+    faces = wrapped.faces
     with _timed(timings, "decompose_rest"):
-        bundle0 = fibres_pkg.decompose((rest.vertices, rest.faces), rest.origin, rest.insertion, **opts)
+        bundle0 = decompose((wrapped.rest_vertices, faces), wrapped.rest_origin, wrapped.rest_insertion, **opts)
     plan = bundle0.plan
     n_all = wrapped.vertices.shape[0]
     points = np.empty((n_all,) + bundle0.points.shape)
@@ -287,8 +319,8 @@ def _run_muscle(ctx, mspec):
     with _timed(timings, "decompose"):
         try:
             for f in range(n_all):  # one decomposition per (perturbed) frame: the plan is frozen
-                b = fibres_pkg.decompose((wrapped.vertices[f], rest.faces), wrapped.origin[f],
-                                         wrapped.insertion[f], plan=plan, **opts)
+                b = decompose((wrapped.vertices[f], faces), wrapped.origin[f], wrapped.insertion[f],
+                              plan=plan, **opts)
                 points[f] = b.points
                 bar.update(1)
         finally:
@@ -306,11 +338,13 @@ def _run_muscle(ctx, mspec):
     al_r = np.asarray(lines.moment_arms)[:, line_rows][:, :, coord_idx]
     names = tuple(ctx.model.coordinate_names[c] for c in coord_idx)
     notes = tuple(getattr(bundle0, "notes", ()) or ())
+    if getattr(wrapped, "rest_residual", 0.0):
+        notes += (f"rest pose residual {wrapped.rest_residual:.3g}",)
     result = MuscleResult(
         name=mspec.name, coordinates=names, fibre_lengths=base, fibre_moment_arms=r,
         action_lines=mspec.action_lines, action_line_lengths=al_len, action_line_moment_arms=al_r,
         rest_lengths=fibre_lengths(bundle0.points),
         fibre_points=points[:n_f] if ctx.keep_points else None,
         surface_vertices=wrapped.vertices[:n_f] if ctx.keep_surfaces else None,
-        surface_faces=rest.faces if ctx.keep_surfaces else None, notes=notes)
+        surface_faces=faces if ctx.keep_surfaces else None, notes=notes)
     return result, timings
