@@ -1,0 +1,126 @@
+"""Choosing and orienting one contour per slicing plane.
+
+A plane may cut a muscle surface into several loops (a bifid belly, a hole, a fold).
+Kohout et al. (GRAPP 2012, section 3.3) morph one rectangle into one contour per plane;
+here the loop containing the template rectangle's centre is used (the outermost one if
+several nest around it), else the loop nearest to that centre, and the choice is written
+into the result's notes. Contours are oriented **clockwise** in the plane frame (u, v),
+as in the paper, where the rectangle is ``Q0=(0,0), Q1=(0,ey), Q2=(ex,ey), Q3=(ex,0)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .slicing import Sections
+
+__all__ = ["loop_areas", "choose_loops", "clockwise_contour"]
+
+
+def loop_areas(sections: Sections) -> np.ndarray:
+    """Signed area of every loop (positive = counter-clockwise in (u, v)).
+
+    Parameters
+    ----------
+    sections : Sections
+
+    Returns
+    -------
+    (L,) float
+    """
+    p = sections.points
+    q = _next_points(sections)
+    cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
+    return 0.5 * np.add.reduceat(cross, sections.loop_start[:-1]) if p.size else np.zeros(0)
+
+
+def _next_points(sections: Sections) -> np.ndarray:
+    """(K, 2) the following vertex of each loop vertex (cyclic within its loop)."""
+    k = sections.points.shape[0]
+    nxt = np.arange(1, k + 1)
+    nxt[sections.loop_start[1:] - 1] = sections.loop_start[:-1]
+    return sections.points[nxt]
+
+
+def choose_loops(sections: Sections, centres, *, n_slices: int):
+    """Pick one loop per plane: containing the centre (outermost), else nearest to it.
+
+    Parameters
+    ----------
+    sections : Sections
+    centres : (S, 2) float
+        The rectangle centre of each plane in (u, v).
+    n_slices : int
+        S, the number of planes.
+
+    Returns
+    -------
+    chosen : (S,) int64
+        Loop index per plane, -1 where the plane cut nothing.
+    notes : tuple of str
+        One note per plane that was cut into several loops (or none).
+    """
+    centres = np.asarray(centres, dtype=float)
+    n_loops = sections.loop_slice.size
+    chosen = np.full(n_slices, -1, dtype=np.int64)
+    if n_loops == 0:
+        return chosen, tuple(f"slice {s} cut no loop" for s in range(n_slices))
+    p = sections.points
+    q = _next_points(sections)
+    counts = np.diff(sections.loop_start)
+    vert_slice = np.repeat(sections.loop_slice, counts)
+    c = centres[vert_slice]
+    # crossing number of the ray from the centre towards +u (half-open rule on v).
+    straddle = (p[:, 1] > c[:, 1]) != (q[:, 1] > c[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u_cross = p[:, 0] + (c[:, 1] - p[:, 1]) * (q[:, 0] - p[:, 0]) / (q[:, 1] - p[:, 1])
+    hits = straddle & (u_cross > c[:, 0])
+    inside = (np.add.reduceat(hits.astype(np.int64), sections.loop_start[:-1]) % 2) == 1
+    # distance from the centre to every segment, minimum per loop.
+    seg = q - p
+    L2 = np.einsum("ij,ij->i", seg, seg)
+    tt = np.clip(np.einsum("ij,ij->i", c - p, seg) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+    dist = np.hypot(*(p + tt[:, None] * seg - c).T)
+    loop_dist = np.minimum.reduceat(dist, sections.loop_start[:-1])
+    area = np.abs(loop_areas(sections))
+    # rank: containing loops first (largest area first), then by distance.
+    key_primary = np.where(inside, 0, 1)
+    key_secondary = np.where(inside, -area, loop_dist)
+    order = np.lexsort((key_secondary, key_primary, sections.loop_slice))
+    first = np.ones(n_loops, dtype=bool)
+    first[1:] = sections.loop_slice[order][1:] != sections.loop_slice[order][:-1]
+    best = order[first]
+    chosen[sections.loop_slice[best]] = best
+    notes = []
+    per_slice = np.bincount(sections.loop_slice, minlength=n_slices)
+    for s in np.flatnonzero(per_slice != 1):
+        if per_slice[s] == 0:
+            notes.append(f"slice {s} cut no loop")
+        else:
+            how = ("the outermost one containing the box centre" if inside[chosen[s]]
+                   else "the one nearest to the box centre")
+            notes.append(f"slice {s} cut {per_slice[s]} loops; used {how}")
+    return chosen, tuple(notes)
+
+
+def clockwise_contour(sections: Sections, loop: int):
+    """One loop as a clockwise polygon with the mesh edge of each vertex.
+
+    Parameters
+    ----------
+    sections : Sections
+    loop : int
+
+    Returns
+    -------
+    points : (m, 2) float
+        Clockwise in (u, v); not repeated at the end.
+    edge : (m,) int64
+        Mesh edge index of each vertex.
+    """
+    lo, hi = sections.loop_start[loop], sections.loop_start[loop + 1]
+    pts = sections.points[lo:hi]
+    edge = sections.edge[lo:hi]
+    area = 0.5 * np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
+    if area > 0:
+        pts, edge = pts[::-1], edge[::-1]
+    return np.ascontiguousarray(pts), np.ascontiguousarray(edge)

@@ -1,0 +1,131 @@
+"""Mean value coordinates of points with respect to an arbitrary planar polygon.
+
+Hormann, K. and Floater, M. S. (2006). "Mean value coordinates for arbitrary planar
+polygons". ACM Transactions on Graphics 25(4):1424-1441.
+
+For a point ``x`` and polygon vertices ``v_i`` (i = 0..K-1, closed), with
+``s_i = v_i - x``, ``r_i = |s_i|`` and ``alpha_i`` the *signed* angle between ``s_i`` and
+``s_{i+1}``, the weights are
+
+    w_i = (tan(alpha_{i-1} / 2) + tan(alpha_i / 2)) / r_i,      lambda_i = w_i / sum_j w_j.
+
+They are defined for any simple polygon (convex or not, either orientation) and every
+point not on the boundary; they sum to one and reproduce linear functions exactly
+(sum_i lambda_i v_i = x). On the boundary they extend continuously to linear
+interpolation along the edge (and to the unit vector on a vertex); that case is handled
+explicitly here, so points on edges and vertices get exact coordinates.
+
+``tan(alpha/2)`` is evaluated as ``2 A_i / (r_i r_{i+1} + D_i)`` with ``A_i`` half the
+cross product and ``D_i`` the dot product of ``s_i`` and ``s_{i+1}``: this form is
+stable for small angles (and for coincident consecutive vertices, where it is 0) and is
+singular only when ``x`` lies on the edge (alpha = pi), the case treated separately (a
+point within ~1e-14 of an edge's length from the edge counts as on it).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["mean_value_coordinates", "strict"]
+
+#: Switch on costly invariant checks (partition of unity, linear precision); tests only.
+strict = False
+
+# A point is "on" edge i when |sin(alpha_i)| <= _ON_EDGE and cos(alpha_i) < 0: alpha_i is
+# within 1e-14 rad of pi, i.e. the point is within ~1e-14 * edge length of the edge, where
+# linear interpolation along the edge is exact to rounding.
+_ON_EDGE = 1e-14
+
+
+def mean_value_coordinates(points, polygon) -> np.ndarray:
+    """Mean value coordinates of many points with respect to one closed polygon.
+
+    Parameters
+    ----------
+    points : (N, 2) float
+        Query points.
+    polygon : (K, 2) float
+        Polygon vertices in order (either orientation; convex or not), K >= 3, not
+        repeated at the end. Consecutive coincident vertices are allowed.
+
+    Returns
+    -------
+    lam : (N, K) float
+        ``lam[n] @ polygon == points[n]`` and ``lam[n].sum() == 1``. Rows for points on a
+        vertex are unit vectors; rows for points on an edge are the linear interpolation
+        weights of that edge's two vertices.
+
+    Notes
+    -----
+    One array expression for all points (Hormann & Floater 2006, eq. for ``w_i`` with the
+    half-angle tangent written as ``2A / (r r' + D)``).
+    """
+    pts = np.asarray(points, dtype=float)
+    poly = np.asarray(polygon, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
+    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3:
+        raise ValueError(f"polygon must have shape (K, 2) with K >= 3, got {poly.shape}")
+    k = poly.shape[0]
+    nxt = np.append(np.arange(1, k), 0)
+    prv = np.append(k - 1, np.arange(k - 1))
+    sx = poly[:, 0] - pts[:, 0, None]                           # (N, K)
+    sy = poly[:, 1] - pts[:, 1, None]
+    sxn = sx[:, nxt]                                            # s_{i+1}
+    syn = sy[:, nxt]
+    r = np.sqrt(sx * sx + sy * sy)
+    rr = r * r[:, nxt]
+    cross = sx * syn - sy * sxn                                 # 2 A_i
+    dot = sx * sxn + sy * syn                                   # D_i
+    denom = rr + dot                                            # r r' (1 + cos alpha)
+    on_edge = (np.abs(cross) <= _ON_EDGE * rr) & (dot < 0.0)
+    on_vertex = r == 0.0
+    if not (on_edge.any() or on_vertex.any()):
+        tan_half = cross / denom
+        w = (tan_half[:, prv] + tan_half) / r
+        return _finish(w / w.sum(axis=1, keepdims=True), pts, poly)
+    on_edge &= rr > 0.0
+    special = on_vertex.any(axis=1) | on_edge.any(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tan_half = np.where(denom > 0.0, cross / np.where(denom > 0.0, denom, 1.0), 0.0)
+        w = (tan_half[:, prv] + tan_half) / np.where(on_vertex, 1.0, r)
+        lam = w / w.sum(axis=1, keepdims=True)
+    rn = r[:, nxt]
+    lam[special] = _boundary_coordinates(on_vertex[special], on_edge[special],
+                                         r[special], rn[special])
+    return _finish(lam, pts, poly)
+
+
+def _finish(lam, pts, poly):
+    if strict:
+        assert np.allclose(lam.sum(axis=1), 1.0, atol=1e-9)
+        assert np.allclose(lam @ poly, pts, atol=1e-9 * (1.0 + np.abs(poly).max()))
+    return lam
+
+
+def _boundary_coordinates(on_vertex, on_edge, r, rn) -> np.ndarray:
+    """Exact coordinates for points on a vertex or an edge.
+
+    Parameters
+    ----------
+    on_vertex, on_edge : (M, K) bool
+    r, rn : (M, K) float
+        Distances to vertex i and vertex i+1.
+
+    Returns
+    -------
+    lam : (M, K) float
+    """
+    m, k = r.shape
+    lam = np.zeros((m, k))
+    rows = np.arange(m)
+    has_vertex = on_vertex.any(axis=1)
+    vi = np.argmax(on_vertex, axis=1)
+    ei = np.argmax(on_edge, axis=1)
+    e_rows = rows[~has_vertex]
+    e = ei[~has_vertex]
+    ra = r[e_rows, e]
+    rb = rn[e_rows, e]
+    lam[e_rows, e] = rb / (ra + rb)
+    lam[e_rows, (e + 1) % k] += ra / (ra + rb)
+    lam[rows[has_vertex], vi[has_vertex]] = 1.0
+    return lam

@@ -1,0 +1,83 @@
+"""Rectangle <-> contour correspondence (Kohout 2012 §3.3): exactness of the split."""
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from fibres.correspondence import (correspond, rectangle, split_chain, start_vertex,
+                                   subdivide_rectangle)
+
+
+def _brute_force(seg, sides):
+    """The paper's error minimised over every split (reference)."""
+    m = len(seg)
+    k = sides.sum() / seg.sum()
+    c = np.concatenate([[0.0], np.cumsum(seg)])
+    best = (np.inf, None)
+    for i1, i2, i3 in itertools.combinations(range(1, m), 3):
+        parts = np.array([c[i1], c[i2] - c[i1], c[i3] - c[i2], c[m] - c[i3]])
+        err = np.sum((sides - k * parts) ** 2)
+        if err < best[0]:
+            best = (err, (i1, i2, i3))
+    return best
+
+
+def _error(seg, sides, split):
+    k = sides.sum() / seg.sum()
+    c = np.concatenate([[0.0], np.cumsum(seg)])
+    i1, i2, i3 = split
+    parts = np.array([c[i1], c[i2] - c[i1], c[i3] - c[i2], c[-1] - c[i3]])
+    return np.sum((sides - k * parts) ** 2)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(4, 22), st.integers(0, 2**31), st.floats(0.2, 5.0))
+def test_split_is_the_exact_minimum(m, seed, aspect):
+    rng = np.random.default_rng(seed)
+    seg = rng.exponential(1.0, m) * (rng.random(m) > 0.15)     # some zero-length segments
+    if seg.sum() == 0:
+        seg[0] = 1.0
+    sides = np.array([1.0, aspect, 1.0, aspect])
+    split = split_chain(seg, sides)
+    assert 0 < split[0] < split[1] < split[2] < m
+    err_ref, _ = _brute_force(seg, sides)
+    # both are sums of the same four squares; 1e-12 relative covers the rounding
+    assert _error(seg, sides, split) <= err_ref * (1 + 1e-12) + 1e-15
+
+
+def test_square_contour_of_a_square_is_the_identity():
+    # a square contour subdivided 3 times per side, same size as the rectangle, clockwise
+    rect = rectangle(2.0, 2.0)
+    t = np.arange(3) / 3
+    contour = np.concatenate([rect[j] + t[:, None] * (rect[(j + 1) % 4] - rect[j])
+                              for j in range(4)])
+    contour = np.roll(contour, 5, axis=0)   # start anywhere
+    P, Q, start, split = correspond(contour, rect)
+    assert start == 5 and np.array_equal(split, [3, 6, 9])
+    assert np.abs(P - Q).max() <= 1e-15
+
+
+def test_circle_on_square_quarters_and_ratios():
+    th = -np.linspace(0, 2 * np.pi, 40, endpoint=False) + 5 * np.pi / 4   # clockwise
+    contour = 1.0 + np.c_[np.cos(th), np.sin(th)]
+    rect = rectangle(2.0, 2.0)
+    assert start_vertex(contour, rect[0]) == 0
+    P, Q, start, split = correspond(contour, rect)
+    assert np.array_equal(split, [10, 20, 30])
+    # corners land on the split vertices; each side keeps the part's length ratios
+    assert np.allclose(Q[[0, 10, 20, 30]], rect, atol=1e-15)
+    seg = np.hypot(*(np.roll(P, -1, 0) - P).T)
+    qseg = np.hypot(*(np.roll(Q, -1, 0) - Q).T)
+    assert np.allclose(qseg / seg, 2.0 * 4 / seg.sum(), rtol=1e-12)
+
+
+def test_subdivision_of_zero_length_part_is_uniform():
+    seg = np.array([1.0, 0.0, 0.0, 1.0, 1.0, 1.0])
+    Q = subdivide_rectangle(rectangle(1.0, 1.0), seg, np.array([1, 3, 4]))
+    assert np.allclose(Q[1:4], [[0, 1], [0.5, 1], [1, 1]])
+
+
+def test_too_short_chain_refused():
+    with pytest.raises(ValueError):
+        split_chain(np.ones(3), np.ones(4))

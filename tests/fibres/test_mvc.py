@@ -1,0 +1,103 @@
+"""Mean value coordinates (Hormann & Floater 2006): analytic and property checks."""
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from fibres import mvc
+from fibres.mvc import mean_value_coordinates
+
+
+@pytest.fixture(autouse=True)
+def _strict(monkeypatch):
+    monkeypatch.setattr(mvc, "strict", True)
+
+
+def _reference(x, poly):
+    """Direct evaluation with angles from atan2 (H&F 2006 eq. for w_i), one point at a time."""
+    s = poly - x
+    r = np.linalg.norm(s, axis=1)
+    sn = np.roll(s, -1, axis=0)
+    alpha = np.arctan2(s[:, 0] * sn[:, 1] - s[:, 1] * sn[:, 0], (s * sn).sum(axis=1))
+    w = (np.tan(np.roll(alpha, 1) / 2) + np.tan(alpha / 2)) / r
+    return w / w.sum()
+
+
+SQUARE = np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]])   # clockwise
+# a non-convex "L" / arrow shape, counter-clockwise
+ARROW = np.array([[0, 0], [4, 0], [4, 1], [1.5, 1.2], [4, 3], [0, 3], [1, 1.5]], float)
+
+
+def test_square_centre_and_closed_form():
+    lam = mean_value_coordinates(np.array([[0.5, 0.5]]), SQUARE)
+    # symmetry: the centre has equal coordinates (exact up to rounding)
+    assert np.allclose(lam, 0.25, atol=1e-15)
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(0.01, 0.99, (200, 2))
+    lam = mean_value_coordinates(pts, SQUARE)
+    ref = np.array([_reference(p, SQUARE) for p in pts])
+    # two evaluations of the same closed form, 1e-12 covers rounding in tan(alpha/2)
+    assert np.abs(lam - ref).max() <= 1e-12
+
+
+@pytest.mark.parametrize("poly", [SQUARE, ARROW, ARROW[::-1]])
+def test_linear_precision_and_partition_of_unity(poly):
+    rng = np.random.default_rng(0)
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    pts = rng.uniform(lo, hi, (500, 2))
+    lam = mean_value_coordinates(pts, poly)
+    assert np.abs(lam.sum(axis=1) - 1).max() <= 1e-12
+    assert np.abs(lam @ poly - pts).max() <= 1e-12 * np.abs(poly).max()
+    # any linear function f(x) = a.x + b is reproduced
+    a, b = np.array([0.3, -1.7]), 0.25
+    assert np.abs(lam @ (poly @ a + b) - (pts @ a + b)).max() <= 1e-12 * 10
+
+
+@pytest.mark.parametrize("poly", [SQUARE, ARROW])
+def test_exact_on_vertices_and_edges(poly):
+    lam = mean_value_coordinates(poly, poly)
+    assert np.array_equal(lam, np.eye(len(poly)))
+    t = np.array([0.0, 0.25, 0.5, 0.9])
+    nxt = np.roll(poly, -1, axis=0)
+    for i in range(len(poly)):
+        pts = poly[i] + t[1:, None] * (nxt[i] - poly[i])
+        lam = mean_value_coordinates(pts, poly)
+        expected = np.zeros((3, len(poly)))
+        expected[:, i] = 1 - t[1:]
+        expected[:, (i + 1) % len(poly)] += t[1:]
+        assert np.abs(lam - expected).max() <= 1e-15
+
+
+def test_non_convex_has_negative_weights_but_reproduces():
+    # inside the notch of the arrow some coordinates are negative (H&F 2006 fig. 5) yet
+    # the point is still reproduced exactly
+    pt = np.array([[1.2, 1.5]])
+    lam = mean_value_coordinates(pt, ARROW)
+    assert lam.min() < 0
+    assert np.abs(lam @ ARROW - pt).max() <= 1e-13
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(min_value=3, max_value=40), st.integers(min_value=0, max_value=2**31))
+def test_random_star_shaped_polygons(k, seed):
+    rng = np.random.default_rng(seed)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, k))
+    if np.diff(np.append(angles, angles[0] + 2 * np.pi)).max() >= np.pi * 0.95:
+        angles = np.linspace(0, 2 * np.pi, k, endpoint=False) + rng.uniform(0, 0.1)
+    radii = rng.uniform(0.3, 2.0, k)
+    poly = np.c_[radii * np.cos(angles), radii * np.sin(angles)]
+    # points inside: star-shaped w.r.t. the origin -> shrink random boundary points
+    j = rng.integers(0, k, 50)
+    t = rng.uniform(0, 1, 50)
+    u = rng.uniform(0.0, 0.999, 50)
+    boundary = poly[j] + t[:, None] * (np.roll(poly, -1, axis=0)[j] - poly[j])
+    pts = u[:, None] * boundary
+    lam = mean_value_coordinates(pts, poly)
+    assert np.abs(lam.sum(axis=1) - 1).max() <= 1e-12
+    assert np.abs(lam @ poly - pts).max() <= 1e-12 * 2.0 * 10
+
+
+def test_shapes_are_checked():
+    with pytest.raises(ValueError):
+        mean_value_coordinates(np.zeros((3, 3)), SQUARE)
+    with pytest.raises(ValueError):
+        mean_value_coordinates(np.zeros((3, 2)), SQUARE[:2])

@@ -1,0 +1,101 @@
+"""Plane sections of closed meshes: analytic shapes and invariants of the loops."""
+import numpy as np
+import pytest
+import trimesh
+
+from fibres.contours import choose_loops, clockwise_contour, loop_areas
+from fibres.slicing import _cycles, _first_at_or_above, mesh_topology, slice_mesh
+
+
+def _polygon_area(p):
+    return 0.5 * np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
+
+
+def test_cycles_of_random_permutation():
+    rng = np.random.default_rng(0)
+    nxt = rng.permutation(3000)
+    label, rank = _cycles(nxt)
+    # follow the permutation explicitly from every cycle's label
+    seen = np.zeros(3000, bool)
+    for lab in np.unique(label):
+        node, k = lab, 0
+        while True:
+            assert label[node] == lab and rank[node] == k
+            seen[node] = True
+            node, k = nxt[node], k + 1
+            if node == lab:
+                break
+    assert seen.all()
+
+
+def test_fast_plane_search_equals_searchsorted():
+    rng = np.random.default_rng(1)
+    h = np.linspace(-1, 1, 21)
+    h[0], h[-1] = -0.999, 0.999          # inset ends as used by the morph
+    x = np.concatenate([rng.uniform(-1.5, 1.5, 100000), h, np.nextafter(h, 5), np.nextafter(h, -5)])
+    assert np.array_equal(_first_at_or_above(h, x), np.searchsorted(h, x, side="left"))
+
+
+def test_sphere_sections_are_circles():
+    m = trimesh.creation.icosphere(subdivisions=5)
+    v = np.asarray(m.vertices)
+    top = mesh_topology(m.faces, len(v))
+    h = np.linspace(-0.95, 0.95, 20)
+    sec = slice_mesh(v, top, np.eye(4), h)
+    assert np.array_equal(sec.loop_slice, np.arange(20))          # one loop per plane
+    areas = loop_areas(sec)
+    for s in range(20):
+        p = sec.loop_points(s)
+        r = np.hypot(p[:, 0], p[:, 1])
+        # an inscribed polyhedron: section radius <= true radius, and within the
+        # icosphere's sagitta (edge ~0.04 -> depth < 1e-3 of the radius ... use 2e-3)
+        true = np.sqrt(1 - h[s] ** 2)
+        assert r.max() <= true + 1e-12 and r.min() >= true - 2e-3
+        assert 0 < areas[s] <= np.pi * true**2            # counter-clockwise, inscribed
+        # every point is on its mesh edge at the plane height
+        e = top.edges[sec.edge[sec.loop_start[s]:sec.loop_start[s + 1]]]
+        t = sec.t[sec.loop_start[s]:sec.loop_start[s + 1]]
+        q = v[e[:, 0]] + t[:, None] * (v[e[:, 1]] - v[e[:, 0]])
+        assert np.abs(q[:, :2] - p).max() <= 1e-15 and np.abs(q[:, 2] - h[s]).max() <= 1e-15
+        assert t.min() >= 0 and t.max() <= 1
+
+
+def test_torus_gives_two_loops_and_rigid_frame():
+    m = trimesh.creation.torus(major_radius=1.0, minor_radius=0.3, major_sections=64,
+                               minor_sections=32)
+    v = np.asarray(m.vertices)
+    top = mesh_topology(m.faces, len(v))
+    # planes containing the torus axis (z): frame with third axis = world x
+    rot = np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0]], float).T   # columns: y, z, x
+    tf = np.eye(4)
+    tf[:3, :3] = rot
+    tf[:3, 3] = [0.05, 0.0, 0.0]
+    sec = slice_mesh(v, top, tf, np.array([-0.1, 0.0, 0.1]))
+    assert np.array_equal(np.bincount(sec.loop_slice), [2, 2, 2])
+    # two circles of radius <= 0.3 around u = +-1 (u = world y, v = world z)
+    for loop in range(6):
+        p = sec.loop_points(loop)
+        c = p.mean(axis=0)
+        assert abs(abs(c[0]) - np.sqrt(1 - 0.0)) < 0.06 and abs(c[1]) < 1e-2
+    centres = np.array([[1.0, 0.0]] * 3)
+    chosen, notes = choose_loops(sec, centres, n_slices=3)
+    for s in range(3):
+        assert sec.loop_points(chosen[s]).mean(axis=0)[0] > 0
+    assert len(notes) == 3 and "2 loops" in notes[0]
+    # mapping back to 3D lands on the plane x = 0.05 + h
+    p3 = sec.to_world(sec.loop_points(0), sec.heights[0])
+    assert np.abs(p3[:, 0] - (0.05 - 0.1)).max() <= 1e-15
+
+
+def test_clockwise_orientation_and_open_mesh_refused():
+    m = trimesh.creation.box(extents=(2.0, 1.0, 3.0))
+    m = m.subdivide().subdivide()
+    v = np.asarray(m.vertices)
+    top = mesh_topology(m.faces, len(v))
+    sec = slice_mesh(v, top, np.eye(4), np.array([-1.0, 0.3]))
+    for loop in range(2):
+        p, e = clockwise_contour(sec, loop)
+        assert _polygon_area(p) == pytest.approx(-2.0, rel=1e-12)  # exact rectangle, cw
+        assert len(e) == len(p)
+    with pytest.raises(ValueError, match="not closed"):
+        mesh_topology(m.faces[:-1], len(v))
