@@ -194,8 +194,11 @@ def _raw_arrays(mesh):
 # --------------------------------------------------------------------------------------------
 # repair
 # --------------------------------------------------------------------------------------------
-def _repair(v, f, label):
-    """Merge duplicates, drop degenerate/duplicate faces and stray pieces; list what was done."""
+def _repair(v, f, label, *, quiet_merge=False):
+    """Merge duplicates, drop degenerate/duplicate faces and stray pieces; list what was done.
+
+    ``quiet_merge``: merging duplicate vertices is not reported (STL stores every triangle's
+    corners separately, so merging them is reading the format, not repairing the mesh)."""
     import trimesh
     from trimesh.graph import connected_components
 
@@ -207,7 +210,7 @@ def _repair(v, f, label):
     m.remove_unreferenced_vertices()
     n_before = len(m.vertices)
     m.merge_vertices(merge_tex=True, merge_norm=True)
-    if n_before - len(m.vertices):
+    if n_before - len(m.vertices) and not quiet_merge:
         repairs.append(f"merged {n_before - len(m.vertices)} duplicate vertices")
     keep = m.nondegenerate_faces()
     if not keep.all():
@@ -293,7 +296,8 @@ def as_surface(mesh, *, units: str = "m") -> Surface:
     if f.min() < 0 or f.max() >= len(v):
         raise InputError("faces refer to vertices that do not exist", file=label,
                          where="faces", fix="Re-export the mesh.")
-    v, f, repairs = _repair(v * factor, f, label)
+    quiet_merge = label is not None and Path(label).suffix.lower() == ".stl"
+    v, f, repairs = _repair(v * factor, f, label, quiet_merge=quiet_merge)
     if repairs:
         warnings.warn(f"{label or 'surface'}: repaired: " + "; ".join(repairs) + ".",
                       SurfaceRepairWarning, stacklevel=2)

@@ -62,7 +62,8 @@ def test_clean_box_roundtrip_all_file_kinds(tmp_path):
     inputs = paths + [(v, f), m, pd_]
     for item in inputs:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", SurfaceRepairWarning)  # STL duplicates vertices
+            # clean input: no repair warning (STL's per-triangle corners are merged silently)
+            warnings.simplefilter("error", SurfaceRepairWarning)
             s = as_surface(item)
         assert s.faces.shape == (12, 3), item
         assert s.volume == pytest.approx(6.0, rel=1e-6), item  # 1*2*3, float32 in STL
