@@ -12,6 +12,7 @@ EXPECTED = {
     "fibres": {
         "InputError", "MissingDependencyError",
         "Surface", "as_surface", "sobol_rs", "get_template", "TEMPLATES",
+        "decompose", "FibreBundle", "DecompositionPlan", "make_plan", "mean_value_coordinates",
     },
     "analysis": {
         "InputError", "MissingDependencyError",

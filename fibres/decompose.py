@@ -1,0 +1,240 @@
+"""`decompose`: a closed muscle surface and two attachment sets in, fibre polylines out.
+
+Kohout, Clapworthy, Martelli & Viceconti, "Muscle fibres modelling", GRAPP 2012, Fig. 3:
+
+1. the template (Blemker & Delp 2005) gives fibre polylines in the unit cube at Sobol
+   parameters (r, s) (§3.1; `fibres.templates`, `fibres.sampling`);
+2. the cube is fitted to the muscle as a principal-axis OBB whose attachment areas best
+   match the landmarks (§3.2; `fibres.fitting`);
+3. the fibres are morphed slice by slice into the muscle: planes perpendicular to the axis
+   cut the box (a rectangle) and the surface (a contour), the rectangle is subdivided to
+   correspond with the contour, and mean value coordinates (Hormann & Floater 2006) carry
+   each point from the rectangle to the contour (§3.3; `fibres.slicing`,
+   `fibres.contours`, `fibres.correspondence`, `fibres.mvc`, `fibres.morph`);
+4. the fibres are trimmed near the attachment areas and reconstructed to the surface
+   (§3.4; `fibres.filtering`), then smoothed (`fibres.smoothing`).
+
+The discrete choices are recorded in a `DecompositionPlan` (`fibres.plan`) and can be
+reused for a deformed copy of the same mesh, so that fibre ``k`` stays the same fibre.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .bundle import FibreBundle
+from .contours import choose_loops
+from .errors import InputError
+from .filtering import trim_and_reconstruct
+from .fitting import fit_box, principal_frame
+from .morph import morph_local, slice_fractions, slice_maps
+from .plan import DecompositionPlan, box_from_plan
+from .sampling import sobol_rs
+from .slicing import mesh_topology, slice_mesh
+from .smoothing import DEFAULT_ITERATIONS, smooth
+from .surface import Surface, as_points, as_surface
+from .templates import Template, get_template
+
+__all__ = ["decompose", "make_plan"]
+
+_AXES = ("auto", "attachments", "covariance")
+
+
+def _inputs(mesh, origin, insertion, units, plan):
+    """(vertices, faces, origin, insertion, notes): the surface through `as_surface`, except
+    a (vertices, faces) tuple with exactly the plan's faces (a frame of a motion), which is
+    used as is (the plan's mesh was checked and repaired already)."""
+    notes = []
+    if (plan is not None and isinstance(mesh, tuple) and len(mesh) == 2
+            and np.shape(mesh[1]) == plan.topology.faces.shape
+            and np.array_equal(mesh[1], plan.topology.faces)):
+        v = np.asarray(mesh[0], dtype=np.float64) * (1e-3 if units == "mm" else 1.0)
+        if units not in ("m", "mm"):
+            raise InputError(f"unknown units {units!r}", where="units", fix="Use 'm' or 'mm'.")
+        if v.shape != (plan.topology.n_vertices, 3) or not np.isfinite(v).all():
+            raise InputError("the deformed vertices must be finite and match the plan's mesh "
+                             f"({plan.topology.n_vertices}, 3), got {v.shape}",
+                             where="mesh", fix="Pass the same mesh, deformed.")
+        faces = plan.topology.faces
+    else:
+        surface = mesh if isinstance(mesh, Surface) and units == "m" else as_surface(mesh, units=units)
+        v, faces = surface.vertices, surface.faces
+        notes.extend(f"surface repaired: {r}" for r in surface.repairs)
+    o = as_points(origin, units=units, name="origin")
+    i = as_points(insertion, units=units, name="insertion")
+    return v, faces, o, i, notes
+
+
+def _template(template, template_params) -> Template:
+    if isinstance(template, Template):
+        if template_params:
+            raise ValueError("template_params cannot be combined with a Template instance")
+        return template
+    return get_template(template, **dict(template_params or {}))
+
+
+def _cross_section_ref(vertices, origin, insertion, axis):
+    """A reference direction for v0 derived from the muscle itself (so that the rotations
+    searched in §3.2 move rigidly with the muscle): the major axis of the vertices'
+    spread perpendicular to the principal axis (any v0 is allowed by Kohout 2012 §3.2)."""
+    frame = principal_frame(vertices, origin, insertion, axis=axis)
+    d = vertices - frame.centroid
+    d = d - np.outer(d @ frame.axis, frame.axis)
+    _, vecs = np.linalg.eigh(d.T @ d)
+    return vecs[:, -1]
+
+
+def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_step_deg,
+              topology=None):
+    """Fit the box (§3.2) and record the choices known before slicing."""
+    if axis not in _AXES:
+        raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
+    ref = _cross_section_ref(vertices, origin, insertion, axis)
+    box = fit_box(vertices, origin, insertion, tmpl, angle_step_deg=angle_step_deg, axis=axis,
+                  v_ref=ref)
+    theta = np.deg2rad(box.angle_step_deg * box.angle_index)
+    v0 = np.cos(theta) * box.axes[:, 0] - np.sin(theta) * box.axes[:, 1]
+    fr = slice_fractions(resolution)
+    return DecompositionPlan(topology if topology is not None else
+                             mesh_topology(faces, len(vertices)),
+                             np.asarray(vertices), v0, box.method, box.angle_index,
+                             box.angle_step_deg, fr, np.full((fr.size, 4), -1, np.int64))
+
+
+def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool):
+    """Box, slicing and correspondence of every plane (§3.3); returns what morphing needs."""
+    box = box_from_plan(plan, vertices, origin, insertion)
+    tf = np.eye(4)
+    tf[:3, :3] = box.axes
+    tf[:3, 3] = box.corner
+    heights = plan.fractions * box.extents[2]
+    sections = slice_mesh(vertices, plan.topology, tf, heights)
+    centres = np.broadcast_to(0.5 * box.extents[:2], (heights.size, 2))
+    chosen, notes = choose_loops(sections, centres, n_slices=heights.size)
+    planned = None
+    local_uv = None
+    if not fresh:
+        planned = plan.choice
+        local_uv = (vertices - box.corner) @ box.axes[:, :2]
+        chosen = _planned_loops(sections, chosen, planned)
+    P, Q, choice, map_notes = slice_maps(sections, chosen, box.extents, topology=plan.topology,
+                                         local_uv=local_uv, planned=planned)
+    return box, heights, P, Q, choice, notes + map_notes
+
+
+def _planned_loops(sections, chosen, planned):
+    """Use the loop holding the plan's start edge where a plane cut several loops."""
+    chosen = chosen.copy()
+    counts = np.bincount(sections.loop_slice, minlength=chosen.size)
+    for s in np.flatnonzero(counts > 1):
+        loops = sections.loops_of_slice(s)
+        lo, hi = sections.loop_start[loops[0]], sections.loop_start[loops[-1] + 1]
+        hit = np.flatnonzero(sections.edge[lo:hi] == planned[s, 0])
+        if hit.size:
+            chosen[s] = np.searchsorted(sections.loop_start, lo + hit[0], side="right") - 1
+    return chosen
+
+
+def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int = 19,
+              units: str = "m", template_params=None, axis: str = "auto",
+              angle_step_deg: float = 5.0) -> DecompositionPlan:
+    """Make every discrete choice of a decomposition once, on a rest-pose surface.
+
+    Parameters
+    ----------
+    mesh, origin, insertion, template, resolution, units, template_params
+        As for `decompose`.
+    axis : {"auto", "attachments", "covariance"}, keyword-only
+        Principal-axis rule (`fibres.fitting.principal_frame`).
+    angle_step_deg : float, keyword-only
+        Rotation step of the OBB search (5 degrees in Kohout 2012).
+
+    Returns
+    -------
+    DecompositionPlan
+        Reuse with ``decompose(deformed, o, i, plan=plan)`` for every frame.
+    """
+    v, faces, o, i, _ = _inputs(mesh, origin, insertion, units, None)
+    tmpl = _template(template, template_params)
+    plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, angle_step_deg)
+    *_, choice, _ = _sweep(plan, v, o, i, fresh=True)
+    return _with_choice(plan, choice)
+
+
+def _with_choice(plan, choice):
+    return DecompositionPlan(plan.topology, plan.rest_vertices, plan.v0, plan.axis_method,
+                             plan.angle_index, plan.angle_step_deg, plan.fractions, choice)
+
+
+def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,
+              resolution: int = 19, seed: int = 0, units: str = "m", template_params=None,
+              smoothing_iterations: int = DEFAULT_ITERATIONS, filter_attachments: bool = True,
+              plan: DecompositionPlan | None = None, axis: str = "auto") -> FibreBundle:
+    """Decompose a closed muscle surface into fibres (Kohout et al., GRAPP 2012).
+
+    Parameters
+    ----------
+    mesh : (vertices (V, 3), faces (T, 3)) tuple, Surface, trimesh/pyvista mesh or path
+        Closed surface (anything `fibres.as_surface` takes), in ``units``.
+    origin, insertion : (K, 3) float or anything `fibres.as_points` takes
+        Landmarks of the origin and insertion areas, in ``units``.
+    template : str or Template, keyword-only
+        Fibre architecture: one of `fibres.TEMPLATES`.
+    n_fibres : int, keyword-only
+        N, the number of fibres (Sobol points; fibre k is the same for any N > k).
+    resolution : int, keyword-only
+        R, segments per fibre (R + 1 points); 19 in the paper.
+    seed : int, keyword-only
+        Sobol scrambling seed.
+    units : {"m", "mm"}, keyword-only
+        Units of ``mesh`` and the landmarks; the result is in metres.
+    template_params : mapping, optional
+        Parameters of the template (`fibres.get_template`).
+    smoothing_iterations : int, keyword-only
+        Iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
+        default `fibres.smoothing.DEFAULT_ITERATIONS`); 0 switches it off.
+    filter_attachments : bool, keyword-only
+        Trim the fibres at the planes through the extreme landmarks and reconstruct their
+        ends on the attachment areas (§3.4).
+    plan : DecompositionPlan, optional
+        Choices from an earlier decomposition of the same mesh (same faces); the result is
+        then consistent with it (no orientation, start-vertex or split flips).
+    axis : {"auto", "attachments", "covariance"}, keyword-only
+        Principal-axis rule when no plan is given.
+
+    Returns
+    -------
+    FibreBundle
+    """
+    if isinstance(n_fibres, bool) or not isinstance(n_fibres, (int, np.integer)) or n_fibres < 1:
+        raise ValueError(f"n_fibres must be a positive integer, got {n_fibres!r}")
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
+            or resolution < 1:
+        raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
+    v, faces, o, i, notes = _inputs(mesh, origin, insertion, units, plan)
+    tmpl = _template(template, template_params)
+    if plan is None:
+        plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, 5.0)
+        fresh = True
+    else:
+        plan.check_mesh(v, faces)
+        fresh = False
+    box, heights, P, Q, choice, sweep_notes = _sweep(plan, v, o, i, fresh=fresh)
+    if fresh:
+        plan = _with_choice(plan, choice)
+    notes.extend(sweep_notes)
+
+    rs = sobol_rs(int(n_fibres), seed=seed)
+    unit = tmpl.fibre_points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
+    local = unit * box.extents
+    flat = local.reshape(-1, 3)
+    uv = morph_local(flat[:, :2], flat[:, 2], heights, P, Q)
+    pts = box.corner + np.concatenate([uv, flat[:, 2:]], axis=1) @ box.axes.T
+    pts = pts.reshape(unit.shape)
+
+    flags = {}
+    if filter_attachments:
+        pts, trimmed, rebuilt = trim_and_reconstruct(pts, Surface(v, faces), o, i, box.axes[:, 2])
+        flags = {"trimmed": trimmed, "reconstructed": rebuilt}
+    if smoothing_iterations:
+        pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations))
+    return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

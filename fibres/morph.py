@@ -1,0 +1,198 @@
+"""Slice-by-slice morphing of the fitted template into the muscle (Kohout et al. 2012, §3.3).
+
+A plane perpendicular to the principal axis cuts the template box in a rectangle and the
+muscle surface in a contour; after the rectangle <-> contour correspondence
+(`fibres.correspondence`), a fibre point ``F`` on that plane has mean value coordinates
+``lambda`` with respect to the subdivided rectangle ``Q`` (Hormann & Floater 2006) and is
+moved to ``sum_i lambda_i P_i`` on the contour.
+
+Slabs instead of one plane per point. The paper cuts "not only all fibre poly-line points
+lying on the cutting plane but also those in its close proximity", so that the number of
+slices is the resolution, not fibres x resolution. Here the surface is cut at S fixed
+heights (fractions of the box height, `slice_fractions`); a point at height ``w`` between
+planes ``s`` and ``s+1`` is mapped with both planes' correspondences and the two in-plane
+results are blended linearly in ``w``, and the point keeps its own height ``w``. This makes
+the result continuous in the point's height (a nearest-plane rule would jump between
+planes), exact for points lying on a plane (the parallel template at the default slice
+fractions puts every point on a plane, i.e. exactly the paper's sweep), and it costs one
+MVC evaluation per point and neighbouring plane. The two end planes are inset by
+`END_INSET` of the height (a plane through the extreme vertex cuts a degenerate section);
+points beyond them use the end plane's mapping at their own height, so fibres still reach
+the ends of the box.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .contours import clockwise_contour
+from .correspondence import correspond, rectangle, split_chain
+from .mvc import mean_value_coordinates
+from .slicing import MeshTopology, Sections
+
+__all__ = ["END_INSET", "slice_fractions", "slice_maps", "morph_local"]
+
+#: Inset of the first and last slicing planes, as a fraction of the box height.
+END_INSET = 1e-3
+
+
+def slice_fractions(resolution: int) -> np.ndarray:
+    """Default slicing heights as fractions of the box height: ``resolution + 1`` planes.
+
+    ``linspace(0, 1, resolution + 1)`` with the ends moved inside by `END_INSET`, i.e. one
+    plane per point of a fibre of the parallel template (Kohout 2012: "the minimal number
+    of slices used is equal to the specified resolution").
+
+    Parameters
+    ----------
+    resolution : int
+        Segments per fibre (R >= 1).
+
+    Returns
+    -------
+    (S,) float, S = R + 1
+    """
+    if resolution < 1:
+        raise ValueError(f"resolution must be >= 1, got {resolution}")
+    f = np.linspace(0.0, 1.0, int(resolution) + 1)
+    f[0], f[-1] = END_INSET, 1.0 - END_INSET
+    return f
+
+
+def _refine(points, edge):
+    """Insert edge midpoints until the contour has at least 4 vertices (4 rectangle sides)."""
+    while points.shape[0] < 4:
+        mid = 0.5 * (points + np.roll(points, -1, axis=0))
+        points = np.stack([points, mid], axis=1).reshape(-1, 2)
+        edge = np.stack([edge, np.full_like(edge, -1)], axis=1).reshape(-1)
+    return points, edge
+
+
+def _locate(edge_ids, wanted, points, topology: MeshTopology, local_uv):
+    """Contour position of the vertex on mesh edge ``wanted``, or the continuous fallback.
+
+    When the deformed mesh no longer crosses the plane on that edge, a mesh vertex of it
+    has passed the plane; the crossings near that vertex are on edges incident to it, so
+    the crossing (on an edge sharing a vertex with ``wanted``) nearest to the shared vertex
+    is used. At the moment of the change both lie on that vertex, so the choice stays
+    continuous. Returns -1 if nothing qualifies.
+    """
+    hit = np.flatnonzero(edge_ids == wanted)
+    if hit.size:
+        return int(hit[0])
+    a, b = topology.edges[wanted]
+    valid = edge_ids >= 0
+    ce = topology.edges[np.where(valid, edge_ids, 0)]
+    share_a = valid & ((ce[:, 0] == a) | (ce[:, 1] == a))
+    share_b = valid & ((ce[:, 0] == b) | (ce[:, 1] == b))
+    cand = np.flatnonzero(share_a | share_b)
+    if cand.size == 0:
+        return -1
+    shared = np.where(share_a[cand], a, b)
+    dist = np.hypot(*(points[cand] - local_uv[shared]).T)
+    return int(cand[np.argmin(dist)])
+
+
+def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology,
+               local_uv=None, planned=None):
+    """Correspondence of every plane: the contour ``P`` and the subdivided rectangle ``Q``.
+
+    Parameters
+    ----------
+    sections : Sections
+    chosen : (S,) int
+        Loop per plane (`fibres.contours.choose_loops`); -1 where nothing was cut.
+    extents : (3,) float
+        Box extents; the rectangle is ``[0, ex] x [0, ey]``.
+    topology : MeshTopology
+    local_uv : (V, 2) float, optional
+        Vertex positions in the plane frame (needed with ``planned``).
+    planned : (S, 4) int, optional
+        Mesh edges of the start vertex and of the three split vertices from a plan
+        (-1: decide afresh).
+
+    Returns
+    -------
+    P, Q : tuple of (m_s, 2) float arrays
+    choice : (S, 4) int64
+        Mesh edges of the start and split vertices actually used (-1 where a refined
+        midpoint was used), for `fibres.plan.DecompositionPlan`.
+    notes : tuple of str
+    """
+    rect = rectangle(float(extents[0]), float(extents[1]))
+    sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
+    n_s = len(chosen)
+    P_all, Q_all, notes = [], [], []
+    choice = np.full((n_s, 4), -1, dtype=np.int64)
+    for s in range(n_s):
+        if chosen[s] < 0:
+            raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
+        pts, edge = clockwise_contour(sections, int(chosen[s]))
+        if pts.shape[0] < 4:
+            notes.append(f"slice {s}: contour of {pts.shape[0]} vertices refined with midpoints")
+            pts, edge = _refine(pts, edge)
+        start = splits = None
+        if planned is not None and planned[s, 0] >= 0:
+            pos = [_locate(edge, planned[s, j], pts, topology, local_uv) if planned[s, j] >= 0
+                   else -1 for j in range(4)]
+            if pos[0] >= 0:
+                start = pos[0]
+                rel = [(p - start) % pts.shape[0] for p in pos[1:]]
+                if min(pos[1:]) >= 0 and 0 < rel[0] < rel[1] < rel[2]:
+                    splits = np.array(rel)
+                else:
+                    notes.append(f"slice {s}: planned side split not found; split afresh")
+            else:
+                notes.append(f"slice {s}: planned start vertex not found; chose afresh")
+        P, Q, start, splits = correspond(pts, rect, start=start, splits=splits)
+        m = pts.shape[0]
+        choice[s] = edge[[start, (start + splits[0]) % m, (start + splits[1]) % m,
+                          (start + splits[2]) % m]]
+        P_all.append(P)
+        Q_all.append(Q)
+    return tuple(P_all), tuple(Q_all), choice, tuple(notes)
+
+
+def morph_local(xy, w, heights, P, Q) -> np.ndarray:
+    """Map template points to the muscle, plane by plane (Kohout 2012 §3.3).
+
+    Parameters
+    ----------
+    xy : (M, 2) float
+        In-plane template coordinates in the box frame (``x * ex, y * ey``).
+    w : (M,) float
+        Heights in the box frame (``z * ez``).
+    heights : (S,) float
+        Plane heights, S >= 2, increasing.
+    P, Q : sequences of S (m_s, 2) float arrays
+        Contours and subdivided rectangles of the planes (`slice_maps`).
+
+    Returns
+    -------
+    (M, 2) float
+        Mapped in-plane coordinates: ``sum_i lambda_i(xy; Q_s) P_s,i`` blended linearly in
+        ``w`` between the two planes around ``w`` (the end planes beyond them).
+    """
+    xy = np.asarray(xy, dtype=float)
+    w = np.asarray(w, dtype=float)
+    h = np.asarray(heights, dtype=float)
+    n_s = h.size
+    s0 = np.clip(np.searchsorted(h, w, side="right") - 1, 0, n_s - 2)
+    a = np.clip((w - h[s0]) / (h[s0 + 1] - h[s0]), 0.0, 1.0)
+    # every (point, plane) use with its weight, grouped by plane
+    use_lo = a < 1.0
+    use_hi = a > 0.0
+    idx = np.concatenate([np.flatnonzero(use_lo), np.flatnonzero(use_hi)])
+    pl = np.concatenate([s0[use_lo], s0[use_hi] + 1])
+    wt = np.concatenate([1.0 - a[use_lo], a[use_hi]])
+    order = np.argsort(pl, kind="stable")
+    idx, pl, wt = idx[order], pl[order], wt[order]
+    bounds = np.searchsorted(pl, np.arange(n_s + 1))
+    out = np.zeros_like(xy)
+    for s in range(n_s):
+        lo, hi = bounds[s], bounds[s + 1]
+        if lo == hi:
+            continue
+        ii = idx[lo:hi]
+        lam = mean_value_coordinates(xy[ii], Q[s])
+        np.add.at(out, ii, wt[lo:hi, None] * (lam @ P[s]))
+    return out

@@ -1,0 +1,144 @@
+"""The decomposition plan: every discrete choice made once, reapplied to deformed copies.
+
+Kohout et al. (GRAPP 2012) make several discrete choices per decomposition: the 5-degree
+rotation of the box about the principal axis (§3.2), the planes of the sweep, the contour
+vertex closest to the rectangle's first vertex and the split of the contour into four
+parts (§3.3). Made afresh on every frame of a motion (or on the poses q - h and q + h of a
+finite difference), any of them can flip and fibre ``k`` would jump. A
+`DecompositionPlan` records them on the rest-pose surface, in the muscle's own terms:
+
+- the box orientation: the axis rule actually used ("attachments" or "covariance"), the
+  reference direction ``v0`` of the rest pose and the winning rotation index; on a
+  deformed copy ``v0`` is carried along by the best-fit rotation of the vertices (Kabsch:
+  exact for a rigid motion, smooth under deformation), the principal frame is re-derived
+  and the same rotation applied, and the box is the vertices' bounding box in that frame;
+- the slicing planes as fractions of the box height;
+- per plane, the start vertex and the three split vertices, each identified by the mesh
+  edge it lies on (the topology is the same in every frame);
+- the mesh topology itself (edges, face table), computed once.
+
+Kohout's own software had the same idea: an optional rest-pose "InputTemplate".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .fitting import Box, principal_frame
+from .slicing import MeshTopology
+
+__all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan"]
+
+
+def _readonly(a):
+    a = np.array(a, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True)
+class DecompositionPlan:
+    """Discrete choices of one decomposition, reusable on a deformed copy of the mesh.
+
+    Attributes
+    ----------
+    topology : MeshTopology
+        Faces, edges and face tables of the mesh (same topology required on reuse).
+    rest_vertices : (V, 3) float
+        Vertices of the surface the plan was made on (for the Kabsch rotation).
+    v0 : (3,) float
+        Reference cross-section direction used on ``rest_vertices``.
+    axis_method : str
+        "attachments" or "covariance" (the rule used, never "auto", so it cannot flip).
+    angle_index : int
+        Winning rotation of (v0, w0) about the axis.
+    angle_step_deg : float
+    fractions : (S,) float
+        Slicing heights as fractions of the box height.
+    choice : (S, 4) int64
+        Per plane, the mesh edge of the start vertex P0 and of the first vertices of the
+        2nd, 3rd and 4th parts of the contour (-1: decide afresh).
+    """
+
+    topology: MeshTopology
+    rest_vertices: np.ndarray
+    v0: np.ndarray
+    axis_method: str
+    angle_index: int
+    angle_step_deg: float
+    fractions: np.ndarray
+    choice: np.ndarray
+
+    def __post_init__(self):
+        for name in ("rest_vertices", "v0", "fractions", "choice"):
+            object.__setattr__(self, name, _readonly(getattr(self, name)))
+        if self.axis_method not in ("attachments", "covariance"):
+            raise ValueError(f"axis_method must be 'attachments' or 'covariance', "
+                             f"got {self.axis_method!r}")
+        if self.choice.shape != (self.fractions.size, 4):
+            raise ValueError("choice must be (S, 4) for S fractions")
+        if self.rest_vertices.shape != (self.topology.n_vertices, 3):
+            raise ValueError("rest_vertices do not match the topology")
+
+    @property
+    def n_slices(self) -> int:
+        """S, the number of slicing planes."""
+        return int(self.fractions.size)
+
+    def check_mesh(self, vertices, faces) -> None:
+        """Raise ValueError unless ``faces`` (and the vertex count) are the plan's mesh's."""
+        faces = np.asarray(faces)
+        if (len(vertices) != self.topology.n_vertices or faces.shape != self.topology.faces.shape
+                or not np.array_equal(faces, self.topology.faces)):
+            raise ValueError("plan: the mesh does not have the topology the plan was made on "
+                             f"({self.topology.n_vertices} vertices, "
+                             f"{self.topology.faces.shape[0]} faces); make a new plan")
+
+
+def kabsch_rotation(source, target) -> np.ndarray:
+    """Best-fit rotation R (3, 3) with ``R @ (source_i - c_s) ~ target_i - c_t``.
+
+    Kabsch (1976), "A solution for the best rotation to relate two sets of vectors",
+    Acta Cryst. A32:922-923: SVD of the cross-covariance, with the reflection removed.
+
+    Parameters
+    ----------
+    source, target : (V, 3) float
+    """
+    s = source - source.mean(axis=0)
+    t = target - target.mean(axis=0)
+    u, _, vt = np.linalg.svd(s.T @ t)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    return vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+
+
+def box_from_plan(plan: DecompositionPlan, vertices, origin, insertion) -> Box:
+    """The template box of a deformed copy, with the plan's orientation (Kohout 2012 §3.2).
+
+    The reference direction ``v0`` rides along with the muscle (Kabsch rotation from the
+    plan's rest vertices), the principal frame is re-derived with the plan's axis rule,
+    (v0, w0) is rotated by the plan's angle, and the box is the vertices' bounding box
+    in that frame.
+
+    Parameters
+    ----------
+    plan : DecompositionPlan
+    vertices : (V, 3) float
+    origin, insertion : (K, 3) float
+
+    Returns
+    -------
+    Box
+    """
+    rot = kabsch_rotation(plan.rest_vertices, vertices)
+    frame = principal_frame(vertices, origin, insertion, axis=plan.axis_method,
+                            v_ref=rot @ plan.v0)
+    theta = np.deg2rad(plan.angle_step_deg * plan.angle_index)
+    x = np.cos(theta) * frame.v0 + np.sin(theta) * frame.w0
+    y = np.cross(frame.axis, x)
+    axes = np.stack([x, y, frame.axis], axis=1)
+    local = (vertices - frame.centroid) @ axes
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    return Box(frame.centroid + axes @ lo, axes, hi - lo, plan.angle_index,
+               plan.angle_step_deg, method=frame.method)
