@@ -4,5 +4,11 @@ Never imports ``fibres`` or ``analysis``.
 """
 from .errors import InputError, MissingDependencyError
 from .motion_file import Motion, load_motion, write_sto
+from .surface_binding import SurfaceBinding, bind_surface
+from .surface_generate import fusiform_surface
+from .surface_spec import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment
+from .surface_wrap import WrappedSurface, wrap_surfaces
 
-__all__ = ["InputError", "MissingDependencyError", "Motion", "load_motion", "write_sto"]
+__all__ = ["InputError", "MissingDependencyError", "Motion", "load_motion", "write_sto",
+           "MuscleSurfaceSpec", "SurfaceAttachment", "BoneMesh", "WrappedSurface", "wrap_surfaces",
+           "SurfaceBinding", "bind_surface", "fusiform_surface"]

@@ -8,6 +8,8 @@ EXPECTED = {
     "motion": {
         "InputError", "MissingDependencyError",
         "Motion", "load_motion", "write_sto",
+        "MuscleSurfaceSpec", "SurfaceAttachment", "BoneMesh", "WrappedSurface", "wrap_surfaces",
+        "SurfaceBinding", "bind_surface", "fusiform_surface",
     },
     "fibres": {
         "InputError", "MissingDependencyError",

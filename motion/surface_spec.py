@@ -1,0 +1,139 @@
+"""What `motion.wrap_surfaces` needs to know about one muscle surface: `MuscleSurfaceSpec`.
+
+The fields mirror the fibre-model TOML (``docs/INTERFACE.md``), already read and converted to
+metres by the caller:
+
+- ``frame = "ground"``: mesh and landmarks in ground at the rest pose ``rest_pose``
+  (coordinate values, SI; unspecified coordinates take the model's default values).
+- ``frame = "<body name>"``: mesh and landmarks in that body's frame (the rest pose then only
+  matters for the action lines and the other attachment body).
+- ``frame = "bodies"``: NMSBuilder/LHDL export, one scanner frame in which every body frame is
+  the identity; see `motion.surface_rest` for how the matching pose is found.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+__all__ = ["MuscleSurfaceSpec", "SurfaceAttachment", "BoneMesh"]
+
+
+def _ro(value, shape_tail=None, dtype=float) -> np.ndarray:
+    arr = np.array(value, dtype=dtype, copy=True)
+    if shape_tail is not None and (arr.ndim != 2 or arr.shape[1] != shape_tail):
+        raise ValueError(f"expected an (n, {shape_tail}) array, got shape {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceAttachment:
+    """Attachment landmarks of one muscle end.
+
+    Attributes
+    ----------
+    body : str
+        The body the landmarks ride on.
+    points : (K, 3) float
+        Metres; in the muscle's ``frame`` or, with ``in_body_frame``, in ``body``'s own frame
+        (e.g. a path point's location).
+    in_body_frame : bool
+    """
+
+    body: str
+    points: np.ndarray
+    in_body_frame: bool = False
+
+    def __post_init__(self):
+        pts = _ro(self.points, 3)
+        if len(pts) == 0 or not np.all(np.isfinite(pts)):
+            raise ValueError("attachment points must be a non-empty finite (K, 3) array")
+        object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "body", str(self.body))
+        object.__setattr__(self, "in_body_frame", bool(self.in_body_frame))
+
+
+@dataclass(frozen=True, eq=False)
+class BoneMesh:
+    """A bone surface for collision, riding on ``body``.
+
+    Attributes
+    ----------
+    body : str
+    vertices : (V, 3) float
+        Metres; in the muscle's ``frame`` or, with ``in_body_frame``, in ``body``'s frame.
+    faces : (T, 3) int
+    in_body_frame : bool
+    """
+
+    body: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    in_body_frame: bool = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "vertices", _ro(self.vertices, 3))
+        object.__setattr__(self, "faces", _ro(self.faces, 3, np.int64))
+        object.__setattr__(self, "body", str(self.body))
+
+
+@dataclass(frozen=True, eq=False)
+class MuscleSurfaceSpec:
+    """One muscle surface to move with the model.
+
+    Attributes
+    ----------
+    name : str
+        The muscle's name (used in messages).
+    action_lines : tuple of str
+        Names of the model's paths (OpenSim muscles) that drive the surface, at least one.
+    vertices : (V, 3) float or None
+        The rest surface in ``frame``, metres; None to generate a fusiform surface around the
+        first action line at the rest pose (`motion.surface_generate`).
+    faces : (T, 3) int or None
+        Closed surface, outward normals (flipped automatically if inward).
+    frame : str
+        "ground", a body name, or "bodies".
+    rest_pose : mapping str -> float
+        Coordinate values (SI) of the rest pose; missing ones take the model default.
+    origin, insertion : SurfaceAttachment or None
+        Attachment landmarks; None: the first (last) path point of the first action line.
+    bones : tuple of BoneMesh
+        Optional bones to keep the surface out of.
+    volume : float or None
+        For a generated surface: its volume (m^3); None: from the muscle's max isometric
+        force and optimal fibre length, else a 1:5 spindle.
+    """
+
+    name: str
+    action_lines: tuple
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+    frame: str = "ground"
+    rest_pose: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    origin: SurfaceAttachment | None = None
+    insertion: SurfaceAttachment | None = None
+    bones: tuple = ()
+    volume: float | None = None
+
+    def __post_init__(self):
+        lines = (self.action_lines,) if isinstance(self.action_lines, str) else tuple(self.action_lines)
+        if not lines:
+            raise ValueError(f"muscle {self.name!r}: at least one action line is needed")
+        object.__setattr__(self, "action_lines", tuple(str(x) for x in lines))
+        if (self.vertices is None) != (self.faces is None):
+            raise ValueError(f"muscle {self.name!r}: give both vertices and faces, or neither")
+        if self.vertices is not None:
+            object.__setattr__(self, "vertices", _ro(self.vertices, 3))
+            object.__setattr__(self, "faces", _ro(self.faces, 3, np.int64))
+        object.__setattr__(self, "rest_pose",
+                           MappingProxyType({str(k): float(v) for k, v in dict(self.rest_pose).items()}))
+        object.__setattr__(self, "bones", tuple(self.bones))
+        object.__setattr__(self, "frame", str(self.frame))
+
+    @property
+    def generated(self) -> bool:
+        """True when the surface is generated around the action line."""
+        return self.vertices is None

@@ -1,0 +1,424 @@
+"""Model-level entry point: move muscle surfaces with the bones and the action lines.
+
+Signature (the analysis package calls this)::
+
+    wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples=40, margin=5e-4,
+                  bone_spacing=1.5e-3, rigid_radius=None, blend_radius=None)
+        -> tuple of WrappedSurface, one per MuscleSurfaceSpec, in order
+
+``model`` is a `motion.Model`, ``motion`` a `motion.Motion` (or any object with ``q``
+(F, C) and ``coordinate_names``), ``muscles`` a sequence of `motion.MuscleSurfaceSpec`.
+``lines`` may pass already computed wrapped paths (a mapping path name -> `WrappedPath`, or an
+object with such a ``paths`` mapping, e.g. the result of `motion.action_lines`), ``poses`` the
+(F, B, 4, 4) body poses (or a `motion.BodyPoses`); both are computed when absent.
+
+Per muscle (one muscle = its action lines, loops over muscles only):
+
+1. Rest pose (`motion.surface_rest`): coordinates and body transforms; mesh, landmarks and bones
+   to ground. A mesh farther from its action line than 0.25 m + 3 x its own size is refused as a
+   likely unit mistake (InputError naming the muscle and the ``units`` key).
+2. No mesh: a fusiform surface around the first action line at the rest pose
+   (`motion.surface_generate`; volume from ``spec.volume`` or the muscle's max isometric force
+   and optimal fibre length).
+3. Current action lines per frame, including the arc over every wrap object between its two
+   tangent points (cylinder: the helix, i.e. the geodesic; sphere: the great circle in the
+   direction the path arrives; ellipsoid: the great circle of the scaled unit sphere mapped
+   back; torus: the chord).
+4. `motion.surface_binding`: bind at rest, deform for all frames at once, with the wrap objects
+   of the muscle's action lines and its bones as obstacles (`motion.surface_collision`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .surface_binding import bind_surface
+from .surface_collision import BoneDistance, BoneObstacle, wrap_obstacle
+from .surface_generate import fusiform_surface
+from .surface_rest import rest_pose
+from .surface_volume import mesh_volume
+
+__all__ = ["WrappedSurface", "wrap_surfaces", "path_polylines"]
+
+_ARC_POINTS = 24
+_BONE_CACHE: dict = {}
+
+
+@dataclass(frozen=True, eq=False)
+class WrappedSurface:
+    """One muscle surface over a motion.
+
+    Attributes
+    ----------
+    name : str
+    vertices : (F, V, 3) float
+        In ground, metres; same topology as ``faces`` in every frame.
+    faces : (T, 3) int
+        Outward oriented.
+    origin, insertion : (F, K, 3) float
+        Attachment landmarks in ground, rigid with their bodies.
+    rest_vertices : (V, 3) float
+        The rest surface in ground (at ``rest_q``).
+    rest_origin, rest_insertion : (K, 3) float
+    rest_q : (C,) float
+        Coordinates of the rest pose.
+    radial_scale : (F,) float
+        Cross-section scale of the belly solved for volume preservation.
+    volume : (F,) float
+    rest_volume : float
+    generated : bool
+        True when the surface was generated (no mesh given).
+    rest_residual : float
+        ``frame = "bodies"``: residual of the solved all-frames-coincide pose.
+    """
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    origin: np.ndarray
+    insertion: np.ndarray
+    rest_vertices: np.ndarray
+    rest_origin: np.ndarray
+    rest_insertion: np.ndarray
+    rest_q: np.ndarray
+    radial_scale: np.ndarray
+    volume: np.ndarray
+    rest_volume: float
+    generated: bool = False
+    rest_residual: float = 0.0
+
+    def __post_init__(self):
+        for key in ("vertices", "faces", "origin", "insertion", "rest_vertices", "rest_origin",
+                    "rest_insertion", "rest_q", "radial_scale", "volume"):
+            arr = np.array(getattr(self, key), copy=True)
+            arr.setflags(write=False)
+            object.__setattr__(self, key, arr)
+
+    @property
+    def volume_error(self) -> np.ndarray:
+        """(F,) relative volume change."""
+        return self.volume / self.rest_volume - 1.0
+
+
+# ----------------------------------------------------------------------------- paths
+def _compact(points: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Points (F, K, 3) where ``mask`` (F, K), moved to the front in order, NaN-padded."""
+    perm = np.argsort(~mask, axis=1, kind="stable")
+    out = np.take_along_axis(np.where(mask[..., None], points, np.nan), perm[..., None], axis=1)
+    return out
+
+
+def _current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
+    """Mapping path name -> (F, N, 3) current polyline (with wrap arcs), NaN-padded."""
+    out = {}
+    table = getattr(lines, "muscle_names", None) if lines is not None else None
+    for name in names:
+        path = model.path(name)
+        if table is not None and name in table and not path.wraps:
+            m = table.index(name)
+            out[name] = _compact(np.asarray(lines.points)[:, m], np.asarray(lines.point_mask)[:, m])
+    missing = [n for n in names if n not in out]
+    if missing:
+        from .kinematics import body_pose_derivatives
+        from .path_points import path_points
+
+        tf, dtf, q_used, jac = body_pose_derivatives(model, motion, derivatives=True)
+        for name in missing:  # loop over paths (few)
+            path = model.path(name)
+            pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
+            if path.wraps:
+                from .path_wrapping import wrap_path
+
+                wrapped = wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
+                out[name] = path_polylines(model, wrapped, tf)
+            else:
+                out[name] = _compact(pp.points, np.asarray(pp.active, dtype=bool))
+    return out
+
+
+def _arc_points(kind, radii, t1, t2, before, u):
+    """Points (F, A, 3) strictly between tangent points t1, t2 (F, 3) in the wrap frame."""
+    if kind == "cylinder":
+        r = radii[0]
+        phi1, phi2 = np.arctan2(t1[:, 1], t1[:, 0]), np.arctan2(t2[:, 1], t2[:, 0])
+        d_in = t1 - before
+        turn = np.sign(t1[:, 0] * d_in[:, 1] - t1[:, 1] * d_in[:, 0])
+        turn = np.where(turn == 0, 1.0, turn)
+        span = np.where(turn > 0, np.mod(phi2 - phi1, 2 * np.pi), -np.mod(phi1 - phi2, 2 * np.pi))
+        phi = phi1[:, None] + u[None] * span[:, None]
+        z = t1[:, None, 2] + u[None] * (t2[:, 2] - t1[:, 2])[:, None]
+        return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+    if kind in ("sphere", "ellipsoid"):
+        s1, s2, sb = t1 / radii, t2 / radii, before / radii
+        n1 = np.linalg.norm(s1, axis=-1, keepdims=True)
+        a = s1 / n1
+        b = s2 / np.linalg.norm(s2, axis=-1, keepdims=True)
+        axis = np.cross(a, b)
+        sin = np.linalg.norm(axis, axis=-1)
+        cos = np.sum(a * b, axis=-1)
+        angle = np.arctan2(sin, cos)
+        axis = axis / np.maximum(sin, 1e-15)[:, None]
+        # the path arrives along d_in; if it points against the short way, go the long way
+        d_in = s1 - sb
+        forward = np.sum(d_in * np.cross(axis, a), axis=-1) >= 0
+        axis = np.where(forward[:, None], axis, -axis)
+        angle = np.where(forward, angle, 2 * np.pi - angle)
+        phi = u[None] * angle[:, None]
+        c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]
+        ax = axis[:, None]
+        pts = a[:, None] * c + np.cross(ax, a[:, None]) * s + ax * np.sum(ax * a[:, None], -1, keepdims=True) * (1 - c)
+        rad = n1[:, None] + u[None, :, None] * (np.linalg.norm(s2, axis=-1, keepdims=True)[:, None] - n1[:, None])
+        return pts * rad * radii
+    return t1[:, None] + u[None, :, None] * (t2 - t1)[:, None]  # torus: chord
+
+
+def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POINTS) -> np.ndarray:
+    """A wrapped path's current polyline per frame, with the arcs over the wrap objects.
+
+    Parameters
+    ----------
+    model : motion.Model
+    wrapped : motion.path_wrapping.WrappedPath
+    tf_ground_body : (F, B, 4, 4) float
+
+    Returns
+    -------
+    (F, N, 3) float
+        Points in path order, NaN-padded at the end.
+    """
+    order = np.asarray(wrapped.order)
+    pts = np.asarray(wrapped.points)
+    nf, nk = order.shape
+    valid = order >= 0
+    ordered = np.take_along_axis(pts, np.where(valid, order, 0)[..., None], axis=1)
+    ordered = np.where(valid[..., None], ordered, np.nan)
+    n_wraps = len(wrapped.wrap_objects)
+    if n_wraps == 0:
+        return ordered
+    n_points = pts.shape[1] - 2 * n_wraps
+    u = np.linspace(0.0, 1.0, arc_points + 2)[1:-1]
+    slots = np.full((nf, nk, 1 + arc_points, 3), np.nan)
+    slots[:, :, 0] = ordered
+    prev = np.concatenate([ordered[:, :1], ordered[:, :-1]], axis=1)
+    nxt_node = np.concatenate([order[:, 1:], np.full((nf, 1), -1)], axis=1)
+    for w, name in enumerate(wrapped.wrap_objects):  # loop over wrap objects (few)
+        first = (order == n_points + 2 * w) & (nxt_node == n_points + 2 * w + 1)
+        if not first.any():
+            continue
+        wo = model.wrap_object(name)
+        tf = np.asarray(tf_ground_body)[:, model.body_index(wo.body)] @ np.asarray(wo.tf_body_wrap)
+        f_idx, k_idx = np.nonzero(first)
+        tfw = tf[f_idx]
+        to_local = lambda p: np.einsum("fji,fj->fi", tfw[:, :3, :3], p - tfw[:, :3, 3])  # noqa: E731
+        t1 = to_local(ordered[f_idx, k_idx])
+        t2 = to_local(ordered[f_idx, k_idx + 1])
+        before = to_local(prev[f_idx, k_idx])
+        if wo.kind == "cylinder":
+            radii = np.array([wo.radius, wo.radius, wo.length])
+        elif wo.kind == "sphere":
+            radii = np.full(3, wo.radius)
+        elif wo.kind == "ellipsoid":
+            radii = np.asarray(wo.dimensions, dtype=float)
+        else:
+            radii = np.ones(3)
+        arc = _arc_points(wo.kind if wo.kind != "torus" else "torus", radii, t1, t2, before, u)
+        slots[f_idx, k_idx, 1:] = np.einsum("fij,faj->fai", tfw[:, :3, :3], arc) + tfw[:, None, :3, 3]
+    flat = slots.reshape(nf, -1, 3)
+    keep = np.isfinite(flat).all(axis=-1)
+    perm = np.argsort(~keep, axis=1, kind="stable")
+    return np.take_along_axis(flat, perm[..., None], axis=1)
+
+
+# ----------------------------------------------------------------------------- muscles
+def _muscle_parameters(model, name: str) -> tuple:
+    """(max_isometric_force, optimal_fiber_length) of a muscle from the model file, or (None, None)."""
+    file = getattr(model, "file", None)
+    if not file:
+        return None, None
+    key = (str(file), name)
+    if key not in _PARAM_CACHE:
+        try:
+            from defusedxml import ElementTree
+
+            root = ElementTree.parse(str(file)).getroot()
+        except Exception:  # noqa: BLE001 - no file or not XML: fall back to the 1:5 rule
+            _PARAM_CACHE[key] = (None, None)
+            return _PARAM_CACHE[key]
+        found = (None, None)
+        for el in root.iter():
+            if el.get("name") == name and el.find("max_isometric_force") is not None:
+                try:
+                    fmax = float(el.findtext("max_isometric_force"))
+                    lopt = float(el.findtext("optimal_fiber_length"))
+                except (TypeError, ValueError):
+                    break
+                found = (fmax, lopt)
+                break
+        _PARAM_CACHE[key] = found
+    return _PARAM_CACHE[key]
+
+
+_PARAM_CACHE: dict = {}
+
+
+def _apply(tf: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """tf (..., 4, 4) applied to points (K, 3) -> (..., K, 3)."""
+    return np.einsum("...ij,kj->...ki", tf[..., :3, :3], p) + tf[..., None, :3, 3]
+
+
+def _attachment(model, spec, which: str, rest, first_curve_path):
+    """(body index, (K, 3) ground points at rest) of one attachment."""
+    att = getattr(spec, which)
+    names = list(model.body_names)
+    if att is None:
+        point = first_curve_path.points[0 if which == "origin" else -1]
+        b = names.index(point.body)
+        return b, _apply(rest.tf_ground_body[b], np.asarray(point.location, dtype=float)[None])
+    if att.body not in names:
+        raise InputError(f"{which} body {att.body!r} is not a body of the model",
+                         file=getattr(model, "file", None), where=f"muscle {spec.name!r}: {which}.body",
+                         fix=f"use one of: {', '.join(names)}")
+    b = names.index(att.body)
+    tf = rest.tf_ground_body[b] if att.in_body_frame else rest.tf_ground_data
+    return b, _apply(tf, att.points)
+
+
+def _check_units(spec, vertices: np.ndarray, curves: list) -> None:
+    """Refuse a mesh that sits metres away from its action lines (likely mm read as m)."""
+    size = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+    pts = np.concatenate([c[np.isfinite(c).all(axis=1)] for c in curves])
+    centre = vertices.mean(axis=0)
+    gap = float(np.min(np.linalg.norm(pts - centre, axis=1)))
+    if gap > 0.25 + 3.0 * min(size, 1.0) or size > 3.0:
+        raise InputError(f"the mesh lies {gap:.3g} m from its action lines and is {size:.3g} m across: "
+                         "likely a unit or frame mistake", where=f"muscle {spec.name!r}: mesh",
+                         fix="set units = \"mm\" if the mesh is in millimetres, and check frame/rest_pose")
+
+
+def _bone_distance(bone, vertices_body: np.ndarray, spacing: float) -> BoneDistance:
+    """Signed distance grid of a bone in its body frame, cached per bone object and placement."""
+    key = (id(bone), float(spacing), np.round(vertices_body[:3], 12).tobytes())
+    if key not in _BONE_CACHE:
+        # the bone object is kept in the cache so that its id is not reused while cached
+        _BONE_CACHE[key] = (bone, BoneDistance.from_mesh(vertices_body, bone.faces, spacing=spacing))
+    return _BONE_CACHE[key][1]
+
+
+def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: int = 40,
+                  margin: float = 5e-4, bone_spacing: float = 1.5e-3, rigid_radius: float | None = None,
+                  blend_radius: float | None = None) -> tuple:
+    """Deform every muscle surface for every frame of ``motion`` (see the module docstring).
+
+    Parameters
+    ----------
+    model : motion.Model
+    motion : motion.Motion or Motion-like (``q`` (F, C), ``coordinate_names``)
+    muscles : sequence of MuscleSurfaceSpec
+    lines : motion.ActionLines, optional, keyword-only
+        Reused for paths without wrap objects (their current points); wrapped paths are
+        recomputed here because the arcs need the tangent points in path order.
+    poses : (F, B, 4, 4) float or motion.BodyPoses, optional, keyword-only
+    n_samples : int, keyword-only
+        Arc-length samples per action line.
+    margin : float, keyword-only
+        Push-out shell thickness (m).
+    bone_spacing : float, keyword-only
+        Grid spacing of bone distance fields (m).
+    rigid_radius, blend_radius : float, keyword-only
+        Attachment blending radii (m); default 5 % / 20 % of the action-line length.
+
+    Returns
+    -------
+    tuple of WrappedSurface
+    """
+    from .kinematics import body_poses
+
+    muscles = tuple(muscles)
+    path_names = list(model.path_names)
+    for spec in muscles:
+        for k, name in enumerate(spec.action_lines):
+            if name not in path_names:
+                raise InputError(f"action line {name!r} is not a path force of the model",
+                                 file=getattr(model, "file", None),
+                                 where=f"muscle {spec.name!r}: action_lines[{k}]",
+                                 fix=f"choose among {', '.join(path_names[:10])}"
+                                     + (" ..." if len(path_names) > 10 else ""))
+    tf = np.asarray(body_poses(model, motion).tf_ground_body if poses is None else
+                    getattr(poses, "tf_ground_body", poses), dtype=float)
+    needed = list(dict.fromkeys(n for spec in muscles for n in spec.action_lines))
+    current = _current_polylines(model, motion, needed, lines, tf)
+    out = []
+    for spec in muscles:  # loop over muscles
+        out.append(_wrap_one(model, spec, tf, current, n_samples=n_samples, margin=margin,
+                             bone_spacing=bone_spacing, rigid_radius=rigid_radius, blend_radius=blend_radius))
+    return tuple(out)
+
+
+def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigid_radius, blend_radius):
+    from .kinematics import body_poses, motion_from_array
+
+    rest = rest_pose(model, spec)
+    rest_motion = motion_from_array(model, rest.q[None])
+    tf_rest_actual = np.asarray(body_poses(model, rest_motion).tf_ground_body, dtype=float)
+    rest_lines = _current_polylines(model, rest_motion, spec.action_lines, None, tf_rest_actual)
+    rest_curves = []
+    for name in spec.action_lines:
+        c = rest_lines[name][0]
+        rest_curves.append(c[np.isfinite(c).all(axis=1)])
+    first_path = model.path(spec.action_lines[0])
+    if spec.generated:
+        fmax, lopt = _muscle_parameters(model, spec.action_lines[0])
+        volume = spec.volume
+        if volume is None and fmax and lopt and fmax > 0 and lopt > 0:
+            from .surface_generate import SPECIFIC_TENSION
+
+            volume = fmax / SPECIFIC_TENSION * lopt
+        vertices, faces = fusiform_surface(rest_curves[0], volume=volume)
+    else:
+        vertices = _apply(rest.tf_ground_data, spec.vertices)
+        faces = np.asarray(spec.faces, dtype=np.int64)
+        if mesh_volume(vertices, faces) < 0:
+            faces = faces[:, ::-1].copy()
+        _check_units(spec, vertices, rest_curves)
+    b_o, origin_rest = _attachment(model, spec, "origin", rest, first_path)
+    b_i, insertion_rest = _attachment(model, spec, "insertion", rest, first_path)
+    binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
+                           origin_rest, insertion_rest, n_samples=n_samples,
+                           rigid_radius=rigid_radius, blend_radius=blend_radius)
+    obstacles = []
+    seen = set()
+    for name in spec.action_lines:
+        for pw in model.path(name).wraps:
+            if pw.wrap_object in seen:
+                continue
+            seen.add(pw.wrap_object)
+            wo = model.wrap_object(pw.wrap_object)
+            if not wo.active:
+                continue
+            obs = wrap_obstacle(wo, tf[:, model.body_index(wo.body)], margin=margin)
+            if obs is not None:
+                obstacles.append(obs)
+    names = list(model.body_names)
+    for k, bone in enumerate(spec.bones):
+        if bone.body not in names:
+            raise InputError(f"bone body {bone.body!r} is not a body of the model",
+                             file=getattr(model, "file", None), where=f"muscle {spec.name!r}: bones[{k}]",
+                             fix=f"use one of: {', '.join(names)}")
+        b = names.index(bone.body)
+        if bone.in_body_frame:
+            local = np.asarray(bone.vertices)
+        else:
+            local = _apply(np.linalg.inv(rest.tf_ground_body[b]) @ rest.tf_ground_data, bone.vertices)
+        dist = _bone_distance(bone, local, bone_spacing)
+        obstacles.append(BoneObstacle.bind(dist, tf[:, b], vertices, rest.tf_ground_body[b], margin=margin))
+    curves = [current[name] for name in spec.action_lines]
+    res = binding.deform(curves, tf[:, b_o], tf[:, b_i], obstacles=obstacles)
+    tf_o = tf[:, b_o] @ np.linalg.inv(rest.tf_ground_body[b_o])
+    tf_i = tf[:, b_i] @ np.linalg.inv(rest.tf_ground_body[b_i])
+    return WrappedSurface(
+        name=spec.name, vertices=res.vertices, faces=binding.faces, origin=_apply(tf_o, origin_rest),
+        insertion=_apply(tf_i, insertion_rest), rest_vertices=vertices, rest_origin=origin_rest,
+        rest_insertion=insertion_rest, rest_q=rest.q, radial_scale=res.radial_scale, volume=res.volume,
+        rest_volume=res.rest_volume, generated=spec.generated, rest_residual=rest.residual)
