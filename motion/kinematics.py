@@ -12,6 +12,11 @@ Body poses (`body_poses`, `body_pose_derivatives`) compose the joints root to le
 ``tf_F_M = [R1 R2 R3 | sum_i f_i(q) a_i]`` (OpenSim's SpatialTransform / SimTK FunctionBased
 mobilizer: rotations about axes in successively rotated frames, translations in F).
 Derivatives are forward-mode (analytic product rule), not finite differences.
+
+WeldConstraints (closed loops) are assembled as OpenSim does: the free coordinates move as
+little as possible from the motion's values so that the welded frames coincide
+(`_assemble_welds`). The derivatives are then taken along the couplers only, with the weld-solved
+coordinates held (the references' ``neg_dLdq_fd`` convention).
 """
 from __future__ import annotations
 
@@ -199,6 +204,63 @@ def _joint_transform(joint, q: np.ndarray, cidx: dict) -> tuple:
     return tf, dtf
 
 
+def _weld_residual(model: Model, tf: np.ndarray, dtf: np.ndarray) -> tuple:
+    """Residuals (F, 6W) of the WeldConstraints and their Jacobian (F, 6W, C).
+
+    Per weld: position error of frame 2 relative to frame 1 in ground (3) and the orientation
+    error vee(skew(R1^T R2)) (3), both zero when the two frames coincide.
+    """
+    res, jac = [], []
+    for w in model.welds:
+        b1, b2 = model.body_index(w.body_1), model.body_index(w.body_2)
+        g1 = tf[:, b1] @ w.tf_body1_frame
+        g2 = tf[:, b2] @ w.tf_body2_frame
+        dg1 = dtf[:, b1] @ w.tf_body1_frame
+        dg2 = dtf[:, b2] @ w.tf_body2_frame
+        res.append(g2[:, :3, 3] - g1[:, :3, 3])
+        jac.append(np.swapaxes(dg2[..., :3, 3] - dg1[..., :3, 3], 1, 2))
+        rel = np.swapaxes(g1[:, :3, :3], 1, 2) @ g2[:, :3, :3]
+        drel = (np.swapaxes(dg1[..., :3, :3], -1, -2) @ g2[:, None, :3, :3]
+                + np.swapaxes(g1[:, None, :3, :3], -1, -2) @ dg2[..., :3, :3])
+        def vee(m):
+            return 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0],
+                                   m[..., 1, 0] - m[..., 0, 1]], axis=-1)
+        res.append(vee(rel))
+        jac.append(np.swapaxes(vee(drel), 1, 2))
+    return np.concatenate(res, axis=1), np.concatenate(jac, axis=1)
+
+
+def _assemble_welds(model: Model, q: np.ndarray, *, iterations: int = 50, tol: float = 1e-12) -> np.ndarray:
+    """Coordinates that satisfy the WeldConstraints, as OpenSim's assembly finds them.
+
+    OpenSim (Model::assemble, SimTK::Assembler) meets the constraints exactly; coordinates
+    that are ``free_to_satisfy_constraints`` have no goal, the other unlocked, non-coupled
+    ones stay as close as possible to their set values. Gauss-Newton, all frames at once:
+    first on the free coordinates alone (minimum-norm steps ``-J^+ r``); if that cannot close
+    the loops, on all unlocked coordinates with the minimum-change step
+    ``dq = -e + J^+ (J e - r)`` (e = distance from the set values).
+    """
+    movable = ~model.coupled_coordinates & np.array([not c.locked for c in model.coordinates])
+    free = movable & np.array([c.free_to_satisfy_constraints for c in model.coordinates])
+    q_goal = np.array(q, dtype=float)
+    for unknown in ([free] if free.any() else []) + [movable]:
+        q_now = q_goal.copy()
+        for _ in range(iterations):
+            tf, dtf, _, _ = _poses(model, q_now, derivatives=True)
+            r, jac = _weld_residual(model, tf, dtf)
+            if np.max(np.abs(r)) < tol:
+                return q_now
+            jf = jac[:, :, unknown]
+            e = (q_now - q_goal)[:, unknown]
+            if unknown is free:
+                e = np.zeros_like(e)
+            rhs = np.einsum("frc,fc->fr", jf, e) - r
+            q_now[:, unknown] += -e + np.einsum("fcr,fr->fc", np.linalg.pinv(jf, rcond=1e-10), rhs)
+    raise InputError("the WeldConstraints cannot be satisfied (assembly did not converge)",
+                     file=model.file, where="ConstraintSet",
+                     fix="check the constraint frames and the motion's coordinate values")
+
+
 def body_pose_derivatives(model: Model, motion, *, derivatives: bool = True) -> tuple:
     """Body transforms in ground and their derivatives w.r.t. every coordinate.
 
@@ -217,6 +279,12 @@ def body_pose_derivatives(model: Model, motion, *, derivatives: bool = True) -> 
     dq_dqk : (F, C, C) float
     """
     _, q = motion_coordinates(model, motion)
+    if model.welds:
+        q = _assemble_welds(model, coordinate_values(model, q)[0])
+    return _poses(model, q, derivatives=derivatives)
+
+
+def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
     q_used, jac = coordinate_values(model, q)
     n_frames, n_coords = q_used.shape
     n_bodies = len(model.bodies)

@@ -12,7 +12,7 @@ OpenSim's own names; every frame transform is a (4, 4) homogeneous matrix named
   order of the ForceSet), ``wrap_objects`` (tuple of `WrapObject`).
   Look-ups: ``coordinate_names``, ``coordinate_index(name)``, ``body_names``,
   ``body_index(name)``, ``path_names``, ``path(name)``, ``wrap_object(name)``,
-  ``independent_coordinates`` (bool (C,): not the dependent of a coupler and not locked).
+  ``coupled_coordinates`` / ``dependent_coordinates`` / ``independent_coordinates`` (bool (C,), see below).
 - `Body`: ``name``, ``geometry`` (tuple of `Geometry`: ``mesh_file``, ``scale_factors`` (3,),
   ``tf_body_geometry`` (4, 4)).
 - `Joint`: ``name``, ``kind`` (OpenSim class name, e.g. ``"CustomJoint"``, ``"PinJoint"``),
@@ -32,7 +32,9 @@ OpenSim's own names; every frame transform is a (4, 4) homogeneous matrix named
   "translation"), ``axis`` (3,) unit, ``coordinates`` (names; empty for a Constant),
   ``function`` (a `motion.functions` object of one variable).
 - `Coordinate`: ``name``, ``motion_type`` ("rotational" | "translational" | "coupled"),
-  ``default_value``, ``range`` (2,), ``clamped``, ``locked``, ``joint`` (its joint's name).
+  ``default_value``, ``range`` (2,), ``clamped``, ``locked``, ``joint`` (its joint's name),
+  ``free_to_satisfy_constraints`` (OpenSim's ``is_free_to_satisfy_constraints``: assembly may
+  move it freely to meet constraints; OpenSim then calls it dependent).
 - `CouplerConstraint`: ``name``, ``independent`` (names), ``dependent`` (name), ``function``,
   ``scale_factor``: q_dependent = scale_factor * function(q_independent).
 - `WeldConstraint`: ``name``, ``body_1``, ``body_2``, ``tf_body1_frame``, ``tf_body2_frame``
@@ -187,6 +189,7 @@ class Coordinate:
     clamped: bool
     locked: bool
     joint: str
+    free_to_satisfy_constraints: bool = False
 
     def __post_init__(self):
         if self.motion_type not in MOTION_TYPES:
@@ -381,7 +384,7 @@ class Model:
             raise KeyError(f"model {self.name!r} has no wrap object {name!r}") from None
 
     @property
-    def dependent_coordinates(self) -> np.ndarray:
+    def coupled_coordinates(self) -> np.ndarray:
         """(C,) bool: the coordinate is the dependent one of a coupler constraint."""
         dep = np.zeros(len(self.coordinates), dtype=bool)
         for c in self.couplers:
@@ -389,7 +392,14 @@ class Model:
         return dep
 
     @property
+    def dependent_coordinates(self) -> np.ndarray:
+        """(C,) bool: OpenSim's Coordinate::isDependent: a coupler's dependent, or a coordinate
+        free to satisfy constraints (set by assembly, e.g. to close a WeldConstraint loop)."""
+        free = np.array([c.free_to_satisfy_constraints for c in self.coordinates], dtype=bool)
+        return self.coupled_coordinates | free
+
+    @property
     def independent_coordinates(self) -> np.ndarray:
-        """(C,) bool: neither a coupler's dependent nor locked (the moment-arm coordinates)."""
+        """(C,) bool: not dependent (see `dependent_coordinates`) and not locked."""
         locked = np.array([c.locked for c in self.coordinates], dtype=bool)
         return ~(self.dependent_coordinates | locked)

@@ -85,7 +85,8 @@ def _read_coordinate(node: Node, joint_name: str, motion_type: str) -> Coordinat
     return Coordinate(name=node.name, motion_type=motion_type,
                       default_value=node.float("default_value", 0.0), range=rng,
                       clamped=node.bool("clamped", False), locked=node.bool("locked", False),
-                      joint=joint_name)
+                      joint=joint_name,
+                      free_to_satisfy_constraints=node.bool("is_free_to_satisfy_constraints", False))
 
 
 def _joint_from_nodes(jnode: Node, parent: str, child: str, tf_pf, tf_cf, coord_nodes: list) -> tuple:
