@@ -30,6 +30,7 @@ gives a full belly and blunt, rounded ends on which the attachment areas lie.
 """
 from __future__ import annotations
 
+import io
 import math
 import os
 import struct
@@ -88,16 +89,20 @@ def write_stl(path, vertices, faces) -> Path:
 
 def write_points_csv(path, points) -> Path:
     """CSV with header x,y,z; 9 significant digits (exact for float32 values)."""
-    rows = "".join(f"{x:.9g},{y:.9g},{z:.9g}\n" for x, y, z in np.asarray(points, dtype=float))
-    return _atomic_bytes(path, ("x,y,z\n" + rows).encode("ascii"))
+    buf = io.StringIO()
+    np.savetxt(buf, np.asarray(points, dtype=float).reshape(-1, 3), fmt="%.9g", delimiter=",",
+               header="x,y,z", comments="")
+    return _atomic_bytes(path, buf.getvalue().encode("ascii"))
 
 
 def write_mot(path, name, coordinate, times, values_deg) -> Path:
     """OpenSim motion file (version 1 header, inDegrees=yes, tab separated)."""
-    lines = [name, "version=1", f"nRows={len(times)}", "nColumns=2", "inDegrees=yes",
-             "endheader", f"time\t{coordinate}"]
-    lines += [f"{t:.8f}\t{v:.10f}" for t, v in zip(times, values_deg)]
-    return _atomic_bytes(path, ("\n".join(lines) + "\n").encode("ascii"))
+    header = "\n".join([name, "version=1", f"nRows={len(times)}", "nColumns=2", "inDegrees=yes",
+                        "endheader", f"time\t{coordinate}"])
+    buf = io.StringIO()
+    np.savetxt(buf, np.column_stack([times, values_deg]), fmt=["%.8f", "%.10f"], delimiter="\t",
+               header=header, comments="")
+    return _atomic_bytes(path, buf.getvalue().encode("ascii"))
 
 
 # --------------------------------------------------------------------------- surfaces

@@ -126,6 +126,7 @@ def _belt_length(p1, p2, radius):
 
 
 def test_opensim_loads_the_example_and_lengths_match_hand_geometry(osim):
+    osim.Logger.removeFileSink()   # no opensim.log beside the model files
     model = osim.Model(str(MODELS / "arm_example.osim"))
     state = model.initSystem()
     assert model.getNumBodies() == 2 and model.getMuscles().getSize() == 5

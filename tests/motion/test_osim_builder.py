@@ -76,6 +76,7 @@ def test_rejects_bad_calls(bad):
 
 
 def test_pulley_and_straight_lengths_match_hand_geometry_in_opensim(osim, tmp_path):
+    osim.Logger.removeFileSink()   # no opensim.log beside the model files
     path = _pulley_builder().write(tmp_path / "pulley.osim")
     model = osim.Model(str(path))
     state = model.initSystem()
@@ -94,6 +95,7 @@ def test_pulley_and_straight_lengths_match_hand_geometry_in_opensim(osim, tmp_pa
 
 
 def test_custom_joint_and_sphere_pose_in_opensim(osim, tmp_path):
+    osim.Logger.removeFileSink()   # no opensim.log beside the model files
     ax = TransformAxisSpec
     b = (ModelBuilder("cj")
          .add_body("a").add_custom_joint(
