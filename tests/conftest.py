@@ -37,5 +37,8 @@ def lhdl_dir(shared_dir) -> Path:
 
 @pytest.fixture(scope="session")
 def osim():
-    """The opensim module (the oracle), or skip."""
-    return pytest.importorskip("opensim")
+    """The opensim module (the oracle), or skip. OpenSim's log file sink is removed so that
+    loading a model does not leave ``opensim.log`` files beside it."""
+    module = pytest.importorskip("opensim")
+    module.Logger.removeFileSink()
+    return module
