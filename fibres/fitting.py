@@ -26,9 +26,10 @@ from .errors import InputError
 from .templates import Template, get_template
 
 __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
-           "AUTO_MIN_SEPARATION"]
+           "template_offset", "AUTO_MIN_SEPARATION"]
 
 AUTO_MIN_SEPARATION = 0.25
+_MAX_OBLIQUE_ITERATIONS = 200
 _AXES = ("attachments", "covariance", "auto")
 
 
@@ -67,8 +68,66 @@ def _covariance_axis(vertices, centroid):
     return evecs[:, -1]
 
 
-def principal_frame(vertices, origin, insertion, *, axis: str = "auto",
-                    v_ref=None) -> PrincipalFrame:
+def _frame_for(u, v_ref):
+    """(v0, w0) completing u to a right-handed orthonormal frame (v0 from ``v_ref``)."""
+    if v_ref is None:
+        ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+    else:
+        ref = np.asarray(v_ref, dtype=np.float64)
+        if abs(ref @ u) > 0.999 * np.linalg.norm(ref):
+            ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+    v0 = ref - (ref @ u) * u
+    v0 /= np.linalg.norm(v0)
+    return v0, np.cross(u, v0)
+
+
+def _boxes(vertices, c, u, v0, w0, theta):
+    """Minimal boxes of the vertices in the frames rotated by ``theta`` (J,) about u.
+
+    Returns axes (J, 3, 3) (columns x, y, z), corner (J, 3), extents (J, 3)."""
+    xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
+    ys = np.cross(u, xs)                                              # (J, 3)
+    d = vertices - c
+    a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
+    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V)
+    py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V)
+    n_rot = len(theta)
+    lo = np.stack([px.min(axis=1), py.min(axis=1), np.full(n_rot, z.min())], axis=1)
+    ext = np.stack([px.max(axis=1), py.max(axis=1), np.full(n_rot, z.max())], axis=1) - lo
+    axes = np.stack([xs, ys, np.broadcast_to(u, xs.shape)], axis=2)
+    corner = c + np.einsum("jkl,jl->jk", axes, lo)
+    return axes, corner, ext
+
+
+def _closest_sum(area, landmarks):
+    """Sum over area points of the distance to the closest landmark: area (J, Ka, 3)."""
+    d = np.linalg.norm(area[:, :, None, :] - landmarks[None, None, :, :], axis=-1)
+    return d.min(axis=2).sum(axis=1)
+
+
+def _scores(template, axes, corner, ext, origin, insertion):
+    """Matching error (J,) of the template areas mapped into each box (Kohout 2012 §3.2)."""
+    scale = axes * ext[:, None, :]                                    # (J, 3, 3)
+    t_ori = corner[:, None] + np.einsum("kl,jml->jkm", template.origin_area, scale)
+    t_ins = corner[:, None] + np.einsum("kl,jml->jkm", template.insertion_area, scale)
+    return _closest_sum(t_ori, origin) + _closest_sum(t_ins, insertion)
+
+
+def _thetas(step):
+    n_rot = max(int(np.floor(360.0 / step + 1e-9)), 1)
+    return np.deg2rad(step * np.arange(n_rot))
+
+
+def template_offset(template) -> np.ndarray:
+    """(2,) cross-section offset (x, y) of the template's insertion-area centroid from its
+    origin-area centroid, in unit-cube units (zero for every default template but pennate)."""
+    return (np.asarray(template.insertion_area).mean(axis=0)
+            - np.asarray(template.origin_area).mean(axis=0))[:2]
+
+
+def principal_frame(vertices, origin, insertion, *, axis: str = "auto", v_ref=None,
+                    template=None, angle_step_deg: float = 5.0,
+                    angle_index: int | None = None) -> PrincipalFrame:
     """The muscle's principal axis and reference frame (Kohout 2012 §3.2).
 
     Parameters
@@ -84,6 +143,17 @@ def principal_frame(vertices, origin, insertion, *, axis: str = "auto",
         Direction whose projection perpendicular to the axis becomes v0 (a plan passes the
         rest-pose v0 carried along with the muscle). Default: the world axis least aligned
         with u.
+    template : Template or str, optional
+        Oblique templates (attachment centroids not above one another, e.g. pennate): the
+        attachment direction is the box's z axis plus the template's cross-section offset
+        scaled by the box, ``D = ez u + ex dx x + ey dy y``; with a template the axis solves
+        this by fixed-point iteration ``u <- normalise(D - ex dx x - ey dy y)`` (boxes built
+        as in `fit_box`). Without a template (or with a centred one) u = D / |D|, as in the
+        paper.
+    angle_step_deg : float, keyword-only
+        Rotation step of the box search used by the iteration.
+    angle_index : int, optional
+        Use this rotation instead of searching (re-deriving a planned box).
 
     Returns
     -------
@@ -113,15 +183,28 @@ def principal_frame(vertices, origin, insertion, *, axis: str = "auto",
         u = direction / dist
     else:
         u = cov_axis if cov_axis @ direction >= 0 else -cov_axis
-    if v_ref is None:
-        ref = np.eye(3)[int(np.argmin(np.abs(u)))]
-    else:
-        ref = np.asarray(v_ref, dtype=np.float64)
-        if abs(ref @ u) > 0.999 * np.linalg.norm(ref):
-            ref = np.eye(3)[int(np.argmin(np.abs(u)))]
-    v0 = ref - (ref @ u) * u
-    v0 /= np.linalg.norm(v0)
-    w0 = np.cross(u, v0)
+    v0, w0 = _frame_for(u, v_ref)
+    if template is not None and method == "attachments":
+        if not isinstance(template, Template):
+            template = get_template(template)
+        off = template_offset(template)
+        if np.abs(off).max() > 1e-12:
+            theta = _thetas(float(angle_step_deg))
+            if angle_index is not None:
+                theta = theta[[int(angle_index) % len(theta)]]
+            for it in range(_MAX_OBLIQUE_ITERATIONS):
+                axes, corner, ext = _boxes(vertices, centroid, u, v0, w0, theta)
+                j = int(np.argmin(_scores(template, axes, corner, ext, origin, insertion)))
+                if it == 3:  # the rotation has settled: keep it, iterate on the axis only
+                    theta = theta[[j]]
+                new = direction - ext[j, 0] * off[0] * axes[j, :, 0] \
+                    - ext[j, 1] * off[1] * axes[j, :, 1]
+                new /= np.linalg.norm(new)
+                done = np.linalg.norm(new - u) < 1e-12
+                u = new
+                v0, w0 = _frame_for(u, v_ref)
+                if done:
+                    break
     return PrincipalFrame(centroid, u, v0, w0, method)
 
 
@@ -219,12 +302,6 @@ class Box:
         return ((np.asarray(world_pts, dtype=np.float64) - self.corner) @ self.axes) / self.extents
 
 
-def _closest_sum(area, landmarks):
-    """Sum over area points of the distance to the closest landmark: area (J, Ka, 3)."""
-    d = np.linalg.norm(area[:, :, None, :] - landmarks[None, None, :, :], axis=-1)
-    return d.min(axis=2).sum(axis=1)
-
-
 def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg: float = 5.0,
             axis: str = "auto", v_ref=None, check_units: bool = True) -> Box:
     """Fit the template cube to the muscle as the best-matching principal-axis OBB.
@@ -266,28 +343,14 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
     if check_units:
         check_landmarks(vertices, origin, name="origin")
         check_landmarks(vertices, insertion, name="insertion")
-    frame = principal_frame(vertices, origin, insertion, axis=axis, v_ref=v_ref)
-    c, u, v0, w0 = frame.centroid, frame.axis, frame.v0, frame.w0
-
-    n_rot = max(int(np.floor(360.0 / step + 1e-9)), 1)
-    theta = np.deg2rad(step * np.arange(n_rot))                       # (J,)
-    xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
-    ys = np.cross(u, xs)                                              # (J, 3)
-    d = vertices - c
-    a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
-    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V)
-    py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V)
-    lo = np.stack([px.min(axis=1), py.min(axis=1), np.full(n_rot, z.min())], axis=1)  # (J, 3)
-    ext = np.stack([px.max(axis=1), py.max(axis=1), np.full(n_rot, z.max())], axis=1) - lo
+    frame = principal_frame(vertices, origin, insertion, axis=axis, v_ref=v_ref,
+                            template=template, angle_step_deg=step)
+    axes, corner, ext = _boxes(vertices, frame.centroid, frame.axis, frame.v0, frame.w0,
+                               _thetas(step))
     size = float(np.linalg.norm(np.ptp(vertices, axis=0)))
     if (ext <= 1e-12 * max(size, 1e-300)).any():
         raise InputError("the surface is flat (zero thickness)", where="mesh",
                          fix="Pass the muscle's closed volume surface.")
-    axes = np.stack([xs, ys, np.broadcast_to(u, xs.shape)], axis=2)   # (J, 3, 3) columns
-    corner = c + np.einsum("jkl,jl->jk", axes, lo)                    # (J, 3)
-    scale = axes * ext[:, None, :]                                    # (J, 3, 3)
-    t_ori = corner[:, None] + np.einsum("kl,jml->jkm", template.origin_area, scale)
-    t_ins = corner[:, None] + np.einsum("kl,jml->jkm", template.insertion_area, scale)
-    scores = _closest_sum(t_ori, origin) + _closest_sum(t_ins, insertion)
+    scores = _scores(template, axes, corner, ext, origin, insertion)
     best = int(np.argmin(scores))
     return Box(corner[best], axes[best], ext[best], best, step, scores, frame.method)
