@@ -31,7 +31,7 @@ import numpy as np
 from .errors import InputError
 from .kinematics import body_pose_derivatives, motion_coordinates
 from .model import Model, Path
-from .path_points import path_points
+from .path_points import _local_positions, path_points
 
 __all__ = ["ActionLines", "action_lines", "spanned_coordinates", "polyline_length"]
 
@@ -158,6 +158,58 @@ def polyline_length(points: np.ndarray, active: np.ndarray, d_points: np.ndarray
     return length, d_length
 
 
+def _body_twists(tf: np.ndarray, dtf: np.ndarray) -> tuple:
+    """Angular and linear velocity of every body per unit coordinate rate.
+
+    ``dR/dq_k = [omega_k]x R`` and ``v_k = dt/dq_k``, so a point fixed in body b moves as
+    ``dp/dq_k = omega_k x (p - t_b) + v_k``. Returns omega, v : (F, B, C, 3).
+    """
+    w = dtf[..., :3, :3] @ np.swapaxes(tf[:, :, None, :3, :3], -1, -2)       # (F, B, C, 3, 3)
+    omega = 0.5 * np.stack([w[..., 2, 1] - w[..., 1, 2], w[..., 0, 2] - w[..., 2, 0],
+                            w[..., 1, 0] - w[..., 0, 1]], axis=-1)
+    return omega, dtf[..., :3, 3]
+
+
+def _unwrapped_path(path: Path, model: Model, q_used, jac, tf, omega, v) -> tuple:
+    """Length (F,) and dL/dq (F, C) of a path without wrap objects, and its points.
+
+    dL/dq_k = sum_i g_i . dp_i/dq_k with g_i = (unit vector of the segment arriving at point i)
+    - (unit vector of the segment leaving it); rigid points contribute through their body's
+    twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per body first.
+    """
+    pp = path_points(path, model, q_used, tf)
+    pts, act = pp.points, pp.active
+    n_frames, n_points = act.shape
+    rows = np.arange(n_frames)[:, None]
+    idx = np.where(act, np.arange(n_points), n_points)
+    nxt = np.minimum.accumulate(idx[:, ::-1], axis=1)[:, ::-1]
+    nxt = np.concatenate([nxt[:, 1:], np.full((n_frames, 1), n_points)], axis=1)
+    valid = act & (nxt < n_points)
+    seg = pts[rows, np.minimum(nxt, n_points - 1)] - pts
+    seg_len = np.linalg.norm(seg, axis=-1)
+    length = np.where(valid, seg_len, 0.0).sum(axis=1)
+    ok = valid & (seg_len > 0)
+    unit = np.where(ok[..., None], seg / np.where(ok, seg_len, 1.0)[..., None], 0.0)   # leaving i
+    idx_prev = np.where(act, np.arange(n_points), -1)
+    prv = np.maximum.accumulate(idx_prev, axis=1)
+    prv = np.concatenate([np.full((n_frames, 1), -1), prv[:, :-1]], axis=1)
+    has_prev = act & (prv >= 0)
+    g = np.where(has_prev[..., None], unit[rows, np.maximum(prv, 0)], 0.0) - unit
+    d_length = np.zeros((n_frames, q_used.shape[1]))
+    for b in np.unique(pp.bodies):
+        on_b = pp.bodies == b
+        trans = tf[:, b, :3, 3]
+        m_b = np.cross(pts[:, on_b] - trans[:, None], g[:, on_b]).sum(axis=1)          # (F, 3)
+        d_length += np.einsum("fck,fk->fc", omega[:, b], m_b) + np.einsum("fck,fk->fc", v[:, b], g[:, on_b].sum(axis=1))
+    moving = [i for i, p in enumerate(path.points) if p.kind == "moving"]
+    if moving:
+        _, dloc = _local_positions(path, model, q_used, jac)
+        for i in moving:
+            rot = tf[:, pp.bodies[i], :3, :3]
+            d_length += np.einsum("fk,fkj,fcj->fc", g[:, i], rot, dloc[:, i])
+    return length, d_length, pts, act, pp.names
+
+
 def _wrap_module():
     try:
         from . import path_wrapping
@@ -199,17 +251,18 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     dldq = np.zeros((n_frames, len(chosen), n_coords))
     spanned = np.zeros((len(chosen), n_coords), dtype=bool)
     per_path = []
+    omega, vel = _body_twists(tf, dtf)
     for m, path in enumerate(chosen):
-        pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
         if path.wraps:
+            pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
             wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
             lengths[:, m] = wrapped.length
             dldq[:, m] = wrapped.d_length
             per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
                              tuple(str(x) for x in wrapped.labels)))
         else:
-            lengths[:, m], dldq[:, m] = polyline_length(pp.points, pp.active, pp.d_points)
-            per_path.append((pp.points, pp.active, pp.names))
+            lengths[:, m], dldq[:, m], pts, act, names = _unwrapped_path(path, model, q_used, jac, tf, omega, vel)
+            per_path.append((pts, act, names))
         spanned[m] = spanned_coordinates(model, path)
     moment_arms = np.where(spanned[None], -dldq, 0.0)
     k_max = max((p[0].shape[1] for p in per_path), default=0)

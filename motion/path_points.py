@@ -102,13 +102,27 @@ def path_points(path: Path, model: Model, q_used: np.ndarray, tf_ground_body: np
     bodies = np.array([model.body_index(p.body) for p in path.points], dtype=int)
     want_d = jac is not None and d_tf_ground_body is not None
     loc, dloc = _local_positions(path, model, q_used, jac if want_d else None)
-    tf = tf_ground_body[:, bodies]                                    # (F, P, 4, 4)
-    pts = np.einsum("fpij,fpj->fpi", tf[..., :3, :3], loc) + tf[..., :3, 3]
-    d_pts = None
-    if want_d:
-        dtf = d_tf_ground_body[:, bodies]                             # (F, P, C, 4, 4)
-        d_pts = np.einsum("fpcij,fpj->fpci", dtf[..., :3, :3], loc) + dtf[..., :3, 3]
-        if any(p.kind == "moving" for p in path.points):
-            d_pts += np.einsum("fpij,fpcj->fpci", tf[..., :3, :3], dloc)
+    n_frames, n_points = loc.shape[:2]
+    moving = np.array([p.kind == "moving" for p in path.points])
+    pts = np.empty((n_frames, n_points, 3))
+    d_pts = np.empty((n_frames, n_points, q_used.shape[1], 3)) if want_d else None
+    for b in np.unique(bodies):                       # a path touches a few bodies
+        rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
+        fixed = np.flatnonzero((bodies == b) & ~moving)
+        if len(fixed):
+            p_body = loc[0, fixed]                                           # (P_b, 3), same every frame
+            pts[:, fixed] = p_body @ np.swapaxes(rot, 1, 2) + trans[:, None]
+            if want_d:
+                drot = d_tf_ground_body[:, b, :, :3, :3]                     # (F, C, 3, 3)
+                dtrans = d_tf_ground_body[:, b, :, :3, 3]                    # (F, C, 3)
+                # one matrix product for all frames and coordinates: (F C 3, 3) @ (3, P_b)
+                dp = (drot.reshape(-1, 3) @ p_body.T).reshape(drot.shape[:3] + (len(fixed),))
+                d_pts[:, fixed] = np.moveaxis(dp, 3, 1) + dtrans[:, None]
+        for i in np.flatnonzero((bodies == b) & moving):                     # few moving points
+            pts[:, i] = np.einsum("fij,fj->fi", rot, loc[:, i]) + trans
+            if want_d:
+                drot = d_tf_ground_body[:, b, :, :3, :3]
+                d_pts[:, i] = (np.einsum("fcij,fj->fci", drot, loc[:, i]) + d_tf_ground_body[:, b, :, :3, 3]
+                               + np.einsum("fij,fcj->fci", rot, dloc[:, i]))
     return PathPoints(pts, active_mask(path, model, q_used), d_pts,
                       tuple(p.name for p in path.points), bodies)
