@@ -87,15 +87,6 @@ def _select_muscles(model, names, model_file):
     return chosen
 
 
-def _poses_arrays(poses, model):
-    """(F, B, 4, 4) transforms and (B,) body names from `motion.body_poses`' result."""
-    tf = getattr(poses, "tf_ground_body", None)
-    if tf is None:
-        tf = getattr(poses, "transforms")
-    names = getattr(poses, "body_names", None) or model.body_names
-    return np.asarray(tf), tuple(names)
-
-
 def compute_lines(model, motion, *, muscles=None, quiet=True):
     """Body poses and action lines for every frame, in batches of `BATCH_FRAMES` frames.
 
@@ -115,7 +106,8 @@ def compute_lines(model, motion, *, muscles=None, quiet=True):
         ``moment_arms`` (F, M, C), ``spanned`` (M, C), ``muscle_names`` (M,),
         ``coordinate_names`` (C,).
     """
-    import motion as motion_pkg
+    from motion.action_lines import action_lines
+    from motion.kinematics import body_poses
 
     starts = np.arange(0, motion.n_frames, BATCH_FRAMES)
     tfs, lengths, arms = [], [], []
@@ -124,9 +116,10 @@ def compute_lines(model, motion, *, muscles=None, quiet=True):
     try:
         for start in starts:  # batches of frames, each one vectorised call
             part = motion.select_frames(slice(start, start + BATCH_FRAMES))
-            tf, body_names = _poses_arrays(motion_pkg.body_poses(model, part), model)
-            lines = motion_pkg.action_lines(model, part, muscles=muscles)
-            tfs.append(tf)
+            poses = body_poses(model, part)
+            lines = action_lines(model, part, muscles=muscles)
+            body_names = poses.body_names
+            tfs.append(np.asarray(poses.tf_ground_body))
             lengths.append(np.asarray(lines.lengths))
             arms.append(np.asarray(lines.moment_arms))
             bar.update(part.n_frames)
@@ -150,16 +143,17 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def execute(args) -> int:
     """Run ``fibres lines``; returns the exit status (errors are raised as InputError)."""
-    import motion as motion_pkg
+    from motion.motion_file import load_motion
+    from motion.osim_reader import load_model
 
     out = Path(args.out)
     _check_out_dir(out)
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         warnings.showwarning = _show_warning
-        model = motion_pkg.load_model(args.model)
+        model = load_model(args.model)
         muscles = _select_muscles(model, args.muscle, args.model)
-        mot = motion_pkg.load_motion(args.motion, model)
+        mot = load_motion(args.motion, model)
         rows = resolve_frames(args.frames, mot.n_frames, source=args.motion)
         mot = mot.select_frames(rows)
         result = compute_lines(model, mot, muscles=muscles, quiet=args.quiet)
