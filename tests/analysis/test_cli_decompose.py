@@ -185,3 +185,21 @@ def test_bad_out_suffix_and_usage(tmp_path, capsys, spindle):
               "--fibres", "0"])
     assert exc.value.code == 2
     assert "positive integer" in capsys.readouterr().err
+
+
+def test_lhdl_original_mesh_one_warning_line(tmp_path, capsys, lhdl_dir):
+    out = tmp_path / "glut_med.vtp"
+    att = lhdl_dir / "attachments"
+    code, stdout, err = _run(capsys, lhdl_dir / "muscles" / "glut_med_r.vtk",
+                             "--origin", att / "glut_med_r_origin_1.vtk",
+                             "--insertion", att / "glut_med_r_insertion_1.vtk",
+                             "--units", "mm", "--fibres", 20, "--out", out)
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "warning" in lines[0] and "repaired" in lines[0]
+    import pyvista as pv
+
+    poly = pv.read(out)
+    assert poly.n_cells == 20
+    # metres: gluteus medius is ~0.2 m long, its landmarks lie within the surface's box
+    assert 0.1 < np.linalg.norm(np.ptp(np.asarray(poly.points), axis=0)) < 0.4

@@ -170,3 +170,15 @@ def test_surface_dataclass_is_frozen_and_read_only():
         s.vertices[0, 0] = 1.0
     with pytest.raises(AttributeError):
         s.vertices = v
+
+
+def test_keeps_the_largest_closed_piece_with_one_warning():
+    big_v, big_f = _box(hi=(1, 2, 3))
+    small_v, small_f = _box(lo=(5, 5, 5), hi=(5.1, 5.1, 5.1))
+    v = np.vstack([big_v, small_v])
+    f = np.vstack([big_f, small_f + len(big_v)])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        s = as_surface((v, f))
+    assert len(caught) == 1 and "largest piece (12 faces)" in str(caught[0].message)
+    assert s.volume == pytest.approx(6.0) and len(s.vertices) == 8

@@ -165,3 +165,26 @@ def test_each_template_reproduces_itself_in_the_unit_cube(name):
                          n_fibres=40, resolution=19, smoothing_iterations=0)
     assert not filtered.flags["trimmed"].any()
     np.testing.assert_allclose(filtered.points, ref, atol=1e-9)
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_frac = st.floats(0.05, 1.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(name=st.sampled_from(TEMPLATES), ow=_frac, od=_frac, iw=_frac, idp=_frac,
+       shape=st.floats(0.0, 0.5))
+def test_any_valid_parameters_keep_fibres_inside_the_cube(name, ow, od, iw, idp, shape):
+    params = {"origin_size": (ow, od), "insertion_size": (iw, idp)}
+    extra = {"pennate": "tendon", "bipennate": "tendon", "curved": "curvature",
+             "fanned": "spread", "rectus": "aponeurosis"}
+    if name in extra:
+        params[extra[name]] = shape
+    tm = get_template(name, **params)
+    p = tm.fibre_points(RS[:64], T)
+    # convex-hull property: control points in the cube and positive weights
+    assert p.min() >= -EPS and p.max() <= 1 + EPS
+    np.testing.assert_allclose(p[:, 0, 2], 0.0, atol=EPS)
+    np.testing.assert_allclose(p[:, -1, 2], 1.0, atol=EPS)
