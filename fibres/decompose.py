@@ -73,14 +73,23 @@ def _template(template, template_params) -> Template:
 
 
 def _cross_section_ref(vertices, origin, insertion, axis):
-    """A reference direction for v0 derived from the muscle itself (so that the rotations
-    searched in §3.2 move rigidly with the muscle): the major axis of the vertices'
-    spread perpendicular to the principal axis (any v0 is allowed by Kohout 2012 §3.2)."""
+    """A reference direction for v0 derived from the muscle itself, so that the rotations
+    searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
+    the major axis of the vertices' spread perpendicular to the principal axis, its sign
+    fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along."""
     frame = principal_frame(vertices, origin, insertion, axis=axis)
     d = vertices - frame.centroid
     d = d - np.outer(d @ frame.axis, frame.axis)
     _, vecs = np.linalg.eigh(d.T @ d)
-    return vecs[:, -1]
+    ref = vecs[:, -1]
+    if np.arange(1, len(d) + 1) @ (d @ ref) < 0:
+        ref = -ref
+    return ref
+
+
+#: Scores within this relative margin of the best count as tied; the lowest rotation index
+#: wins, so that symmetric muscles do not pick a rotation by rounding noise.
+SCORE_TIE = 1e-9
 
 
 def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_step_deg,
@@ -91,12 +100,14 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
     ref = _cross_section_ref(vertices, origin, insertion, axis)
     box = fit_box(vertices, origin, insertion, tmpl, angle_step_deg=angle_step_deg, axis=axis,
                   v_ref=ref)
+    scores = box.scores
+    best = int(np.flatnonzero(scores <= scores.min() * (1 + SCORE_TIE) + 1e-300)[0])
     theta = np.deg2rad(box.angle_step_deg * box.angle_index)
     v0 = np.cos(theta) * box.axes[:, 0] - np.sin(theta) * box.axes[:, 1]
     fr = slice_fractions(resolution)
     return DecompositionPlan(topology if topology is not None else
                              mesh_topology(faces, len(vertices)),
-                             np.asarray(vertices), v0, box.method, box.angle_index,
+                             np.asarray(vertices), v0, box.method, best,
                              box.angle_step_deg, fr, np.full((fr.size, 4), -1, np.int64))
 
 

@@ -1,0 +1,251 @@
+"""`fibres.decompose` on analytic shapes: cylinders, a box, an elliptic cylinder, a bent tube.
+
+Every expected number is geometric (the shape's radius, length, walls); tolerances are
+justified next to each assertion.
+"""
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.distance import pdist
+
+from fibres import decompose, mean_value_coordinates
+from fibres.decompose import _sweep
+
+RHO, L = 0.01, 0.1
+
+
+# ---------------------------------------------------------------------------------------
+# shapes: closed tubes swept along a path, with flat caps (fans to the cap centre)
+# ---------------------------------------------------------------------------------------
+def tube(section, path, tangent, *, n_sect=64, n_path=40):
+    th = np.linspace(0, 2 * np.pi, n_sect, endpoint=False)
+    sec = section(th)
+    s = np.linspace(0, 1, n_path)
+    c, t = path(s), tangent(s)
+    t = t / np.linalg.norm(t, axis=1, keepdims=True)
+    ref = np.array([1.0, 0, 0]) if abs(t[0, 0]) < 0.9 else np.array([0, 1.0, 0])
+    n1 = ref - (t @ ref)[:, None] * t
+    n1 /= np.linalg.norm(n1, axis=1, keepdims=True)
+    n2 = np.cross(t, n1)
+    v = (c[:, None] + sec[None, :, :1] * n1[:, None] + sec[None, :, 1:] * n2[:, None]).reshape(-1, 3)
+    i, j = np.arange(n_path - 1)[:, None], np.arange(n_sect)[None]
+    a, b = i * n_sect + j, i * n_sect + (j + 1) % n_sect
+    f = np.concatenate([np.stack([a, b, b + n_sect], -1).reshape(-1, 3),
+                        np.stack([a, b + n_sect, a + n_sect], -1).reshape(-1, 3)])
+    cb, ct = len(v), len(v) + 1
+    v = np.vstack([v, c[0], c[-1]])
+    jj = np.arange(n_sect)
+    last = (n_path - 1) * n_sect
+    f = np.vstack([f, np.stack([np.full(n_sect, cb), (jj + 1) % n_sect, jj], 1),
+                   np.stack([np.full(n_sect, ct), last + jj, last + (jj + 1) % n_sect], 1)])
+    if trimesh.Trimesh(v, f, process=False).volume < 0:
+        f = f[:, ::-1]
+    m = trimesh.Trimesh(v, f, process=False)
+    assert m.is_watertight and m.volume > 0
+    return v, f
+
+
+def straight(length):
+    return (lambda s: np.c_[np.zeros_like(s), np.zeros_like(s), length * s],
+            lambda s: np.tile([0, 0, 1.0], (len(s), 1)))
+
+
+def arc(radius, phi):
+    return (lambda s: np.c_[radius * np.cos(phi * s), radius * np.sin(phi * s), np.zeros_like(s)],
+            lambda s: np.c_[-np.sin(phi * s), np.cos(phi * s), np.zeros_like(s)])
+
+
+def ellipse(a, b):
+    return lambda th: np.c_[a * np.cos(th), b * np.sin(th)]
+
+
+def cap_ring(centre, e1, e2, radius, n=12):
+    th = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return centre + radius * (np.cos(th)[:, None] * e1 + np.sin(th)[:, None] * e2)
+
+
+def rotation(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def signed_distance(v, f, points):
+    """Signed distance to the mesh, positive inside (VTK's vtkImplicitPolyDataDistance:
+    exact closest-triangle distance, so points on a face give 0)."""
+    import pyvista as pv
+    from vtkmodules.vtkFiltersCore import vtkImplicitPolyDataDistance
+
+    imp = vtkImplicitPolyDataDistance()
+    imp.SetInput(pv.PolyData(np.asarray(v, float), np.c_[np.full(len(f), 3), f].ravel()))
+    return -np.array([imp.EvaluateFunction(x) for x in np.asarray(points, float)])
+
+
+def crossings(v, f, fibres, *, eps):
+    """Number of fibre segments that meet the surface strictly between their end points."""
+    m = trimesh.Trimesh(v, f, process=False)
+    a = fibres[:, :-1].reshape(-1, 3)
+    d = fibres[:, 1:].reshape(-1, 3) - a
+    seg = np.linalg.norm(d, axis=1)
+    ok = seg > 0
+    locs, ray, _ = m.ray.intersects_location(a[ok], d[ok] / seg[ok, None], multiple_hits=True)
+    if len(ray) == 0:
+        return 0
+    dist = np.linalg.norm(locs - a[ok][ray], axis=1)
+    inner = (dist > eps) & (dist < seg[ok][ray] - eps)
+    return int(inner.sum())
+
+
+def _chord_deviation(p):
+    chord = p[:, -1] - p[:, 0]
+    u = chord / np.linalg.norm(chord, axis=1, keepdims=True)
+    d = p - p[:, :1]
+    return np.linalg.norm(d - (d * u[:, None]).sum(-1)[..., None] * u[:, None], axis=-1).max()
+
+
+@pytest.fixture(scope="module")
+def cap_landmarks():
+    o = cap_ring(np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), 0.9 * RHO, 16)
+    return o, o + [0, 0, L]
+
+
+# ---------------------------------------------------------------------------------------
+# straight circular cylinder, parallel template
+# ---------------------------------------------------------------------------------------
+def test_cylinder_fibres_are_straight_axial_full_length_and_spread(cap_landmarks):
+    # rings at the 20 slicing heights (n_path = resolution + 1): every section is the same
+    # 64-gon, so the paper's correspondence is the same in every plane
+    v, f = tube(lambda th: RHO * np.c_[np.cos(th), np.sin(th)], *straight(L), n_path=20)
+    o, i = cap_landmarks
+    b = decompose((v, f), o, i, n_fibres=100, resolution=19)
+    p = b.points
+    assert p.shape == (100, 20, 3)
+    # straight: the mapping is identical in every plane -> exact up to rounding (<< 1e-3 L)
+    assert _chord_deviation(p) <= 1e-3 * L
+    assert _chord_deviation(p) <= 1e-12 * L
+    # parallel to the axis, and the length is L (the ends lie on the caps z = 0, z = L)
+    chord = p[:, -1] - p[:, 0]
+    assert np.abs(chord[:, :2]).max() <= 1e-12 * L
+    assert np.abs(b.lengths() / L - 1).max() <= 1e-3
+    # spread over the whole cross-section at mid-length: the Sobol square covers
+    # [0,1]^2 and the map sends its centre near the axis and its border to the wall
+    r = np.hypot(p[:, 10, 0], p[:, 10, 1])
+    assert r.min() <= 0.1 * RHO and r.max() >= 0.9 * RHO and r.max() <= RHO
+    gaps = np.diff(np.sort(np.r_[0.0, r, RHO]))
+    assert gaps.max() <= 0.15 * RHO          # no empty ring either
+    # no two fibres closer than the Sobol minimum distance through the map's Jacobian:
+    # |F(a) - F(b)| >= sigma_min |A (a - b)| to first order, A = diag(2 rho, 2 rho) the
+    # box's affine map; the factor 1/2 absorbs the second-order term over such short steps.
+    box, heights, P, Q, *_ = _sweep(b.plan, v, o, i, fresh=False)
+    x = b.rs * box.extents[:2]
+    h = 1e-7
+    jac = np.stack([(mean_value_coordinates(x + h * e, Q[10]) @ P[10]
+                     - mean_value_coordinates(x - h * e, Q[10]) @ P[10]) / (2 * h)
+                    for e in np.eye(2)], axis=2)                        # (N, 2, 2)
+    sigma_min = np.linalg.svd(jac, compute_uv=False).min()
+    bound = 0.5 * sigma_min * pdist(x).min()
+    assert sigma_min > 0.3                     # the map does not collapse anything
+    assert pdist(p[:, 10, :2]).min() >= bound
+
+
+def test_cylinder_generic_mesh_wobble_is_below_one_sector(cap_landmarks):
+    # only two rings: every plane crosses the long diagonals at a different place, so the
+    # contour vertex closest to Q0 (Kohout 2012 §3.3) slides and jumps; the correspondence
+    # then shifts by at most one sector of the 64-gon, bounding the fibres' wobble by the
+    # sector chord 2 rho sin(pi / 64)
+    v, f = tube(lambda th: RHO * np.c_[np.cos(th), np.sin(th)], *straight(L), n_path=2)
+    o, i = cap_landmarks
+    b = decompose((v, f), o, i)
+    assert _chord_deviation(b.points) <= 2 * RHO * np.sin(np.pi / 64)
+    assert np.abs(b.lengths() / L - 1).max() <= 1e-3
+
+
+# ---------------------------------------------------------------------------------------
+# box, elliptic cylinder, bent tube: inside, no crossing, rigid motions
+# ---------------------------------------------------------------------------------------
+def _box():
+    m = trimesh.creation.box(extents=(0.03, 0.02, L)).subdivide().subdivide().subdivide()
+    v = np.array(m.vertices) + [0, 0, L / 2]
+    f = np.array(m.faces)
+    o = v[v[:, 2] < 1e-12][::5]
+    return v, f, o, o + [0, 0, L]
+
+
+def _elliptic():
+    v, f = tube(ellipse(0.02, 0.008), *straight(L), n_path=30)
+    th = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    o = np.c_[0.015 * np.cos(th), 0.006 * np.sin(th), np.zeros(16)]
+    return v, f, o, o + [0, 0, L]
+
+
+BEND_R, BEND_PHI = 0.1, np.pi / 3
+
+
+def _bent():
+    v, f = tube(lambda th: RHO * np.c_[np.cos(th), np.sin(th)], *arc(BEND_R, BEND_PHI),
+                n_sect=48, n_path=60)
+    z = np.array([0, 0, 1.0])
+    e0 = np.array([1.0, 0, 0])
+    e1 = np.array([np.cos(BEND_PHI), np.sin(BEND_PHI), 0])
+    o = cap_ring(BEND_R * e0, e0, z, 0.3 * RHO, 8)      # central part of the start cap
+    i = cap_ring(BEND_R * e1, e1, z, 0.3 * RHO, 8)
+    return v, f, o, i
+
+
+SHAPES = {"box": _box, "elliptic": _elliptic, "bent": _bent}
+
+
+@pytest.mark.parametrize("name", ["box", "elliptic"])
+def test_straight_shapes_fibres_inside_and_never_crossing(name):
+    v, f, o, i = SHAPES[name]()
+    b = decompose((v, f), o, i)
+    sd = signed_distance(v, f, b.points.reshape(-1, 3))
+    # inside or on the surface (end points lie on the caps): 1e-9 L is rounding
+    assert sd.min() >= -1e-9 * L
+    assert crossings(v, f, b.points, eps=1e-9 * L) == 0
+
+
+def test_bent_tube_inside_and_smoothing_bound():
+    v, f, o, i = _bent()
+    # the morph plus attachment filtering: every fibre point inside
+    b = decompose((v, f), o, i, smoothing_iterations=0)
+    sd = signed_distance(v, f, b.points.reshape(-1, 3))
+    assert sd.min() >= -1e-9 * L
+    # a straight segment between two points inside can still leave through the concave
+    # wall of the bend, by at most its sagitta h^2 kappa / 8 (kappa <= 1 / (R - rho));
+    # sample the segments densely and check that depth
+    h = np.linalg.norm(np.diff(b.points, axis=1), axis=2).max()
+    u = np.linspace(0, 1, 11)[1:-1, None, None, None]
+    along = (1 - u) * b.points[None, :, :-1] + u * b.points[None, :, 1:]
+    sd_seg = signed_distance(v, f, along.reshape(-1, 3))
+    assert sd_seg.min() >= -h**2 / (BEND_R - RHO) / 8
+    # the paper's smoothing P' = (P- + 4P + P+)/6 moves a point of a polyline with step h
+    # and curvature kappa by ~h^2 kappa / 6 per iteration towards its chord: near the
+    # concave wall of the bend (kappa <= 1 / (R - rho)) it can cut the wall by at most
+    # n h^2 kappa / 6 after n iterations.
+    n = 5
+    bs = decompose((v, f), o, i, smoothing_iterations=n)
+    bound = n * h**2 / (BEND_R - RHO) / 6
+    sd = signed_distance(v, f, bs.points.reshape(-1, 3))
+    assert sd.min() >= -bound
+    assert sd.min() < 0      # the bound is not vacuous here: smoothing does cut the wall
+
+
+@pytest.mark.parametrize("name", ["box", "elliptic", "bent"])
+def test_rigid_motion_moves_fibres_rigidly(name):
+    v, f, o, i = SHAPES[name]()
+    rot, t = rotation([1, 2, 3], 0.7), np.array([0.3, -0.2, 0.5])
+
+    def move(x):
+        return x @ rot.T + t
+
+    # Flat caps: the trimming planes pass exactly through the fibres' end points, a tie
+    # that rounding breaks either way, so the filter is tested on the bent tube only.
+    filt = name == "bent"
+    b = decompose((v, f), o, i, filter_attachments=filt)
+    moved = decompose((move(v), f), move(o), move(i), filter_attachments=filt)
+    err = np.abs(moved.points - move(b.points)).max()
+    assert err <= 1e-9 * L
+    # and with the plan carried over (the per-frame path)
+    again = decompose((move(v), f), move(o), move(i), filter_attachments=filt, plan=b.plan)
+    assert np.abs(again.points - move(b.points)).max() <= 1e-9 * L
