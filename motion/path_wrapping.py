@@ -1,0 +1,377 @@
+"""Path-level wrapping: OpenSim's GeometryPath::applyWrapObjects on all frames at once.
+
+What OpenSim 4.6 does (read from its public source, GeometryPath.cpp, WrapObject.cpp,
+PathWrap.cpp; reproduced here in numpy, not copied):
+
+- The current path starts as the active path points (conditional points may be inactive).
+- Wrap objects are applied in PathWrapSet order. For each one, its two tangent points are
+  first removed from the current path; an inactive wrap object (``active`` false) stops there.
+- The range ``(start, end)`` (1-based indices into the *defined* path points, -1 = first /
+  last) is narrowed to the first and last *active* points inside it; every segment of the
+  current path between those two points is tried, except a segment joining the two tangent
+  points of one wrap object. The points are taken into the wrap object's frame
+  (``tf_ground_body @ tf_body_wrap``, body-fixed x-y-z Euler angles).
+- The first segment whose wrap is ``mandatoryWrap`` (the straight line penetrates the object)
+  wins at once; otherwise among ``wrapped`` segments the one whose length grows least.
+- The winner's tangent points are inserted into the current path after the segment's first
+  point (OpenSim's PathWrapPoints); the path length adds the arc length between them and the
+  straight distances elsewhere.
+- With two or more wrap objects the whole pass is repeated (up to 8 times) until the length
+  changes by less than 0.5 mm; after the first pass, if the first object did not wrap
+  (``noWrap``) and the second found a point inside it, their order is swapped.
+- A path with a single wrap object skips the cylinder's tangent re-adjustment (OpenSim's
+  ``WrapResult::singleWrap``), which the references confirm to machine precision.
+
+Frames are processed together: each frame carries its own current path as an index array, and
+every wrap computation runs on all frames that need it, with masks. Values are
+`motion.wrap_autodiff.Dual` numbers seeded with the path points' derivatives with respect to
+the coordinates, so dL/dq is exact for the algorithm OpenSim runs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import wrap_autodiff as ad
+from .wrap_autodiff import Dual
+from .wrap_cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, cylinder_wrap_line
+from .wrap_ellipsoid import ellipsoid_wrap_line
+from .wrap_sphere import sphere_wrap_line
+from .wrap_torus import torus_wrap_line
+
+__all__ = ["WrappedPath", "wrap_path"]
+
+_CONVERGED = 0.0005  # m, OpenSim's length-change criterion between passes
+
+
+@dataclass(frozen=True)
+class WrappedPath:
+    """A path after wrapping, per frame.
+
+    Node layout: nodes ``0..P-1`` are the defined path points, node ``P + 2 w`` and
+    ``P + 2 w + 1`` are the first and second tangent points of the path's wrap ``w``.
+
+    Attributes
+    ----------
+    length : (F,) float
+        Path length (m).
+    d_length : (F, C) float
+        dL/dq, exact (chain rule through the wrap algorithms).
+    points : (F, N, 3) float
+        Node positions in ground (NaN where a node is absent).
+    d_points : (F, N, C, 3) float
+        Their derivatives with respect to the coordinates.
+    mask : (F, N) bool
+        Node is part of the current path.
+    order : (F, N) int
+        The current path in order as node indices, padded with -1.
+    labels : (N,) str
+        Point names, and ``"<wrap object>:1"`` / ``":2"`` for tangent points.
+    kinds : (N,) str
+        ``"point"`` or ``"wrap"``.
+    arc : (F, W) float
+        Arc length on each wrap object (0 where it does not wrap).
+    wrap_objects : (W,) str
+    """
+
+    length: np.ndarray
+    d_length: np.ndarray
+    points: np.ndarray
+    d_points: np.ndarray
+    mask: np.ndarray
+    order: np.ndarray
+    labels: tuple
+    kinds: tuple
+    arc: np.ndarray
+    wrap_objects: tuple
+
+    def __post_init__(self):
+        for name in ("length", "d_length", "points", "d_points", "mask", "order", "arc"):
+            arr = np.array(getattr(self, name), copy=True)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "labels", tuple(self.labels))
+        object.__setattr__(self, "kinds", tuple(self.kinds))
+
+    @property
+    def ordered_points(self) -> np.ndarray:
+        """(F, N, 3) the current path's points in path order, NaN-padded at the end."""
+        idx = np.where(self.order >= 0, self.order, 0)
+        out = np.take_along_axis(self.points, idx[..., None], axis=1)
+        return np.where((self.order >= 0)[..., None], out, np.nan)
+
+
+def _line_function(wrap_object, method: str, single: bool):
+    kind = wrap_object.kind
+    if kind == "cylinder":
+        return cylinder_wrap_line, dict(radius=float(wrap_object.radius),
+                                        length=float(wrap_object.length),
+                                        quadrant=wrap_object.quadrant,
+                                        adjust_tangents=not single)
+    if kind == "sphere":
+        return sphere_wrap_line, dict(radius=float(wrap_object.radius), quadrant=wrap_object.quadrant)
+    if kind == "ellipsoid":
+        return ellipsoid_wrap_line, dict(dimensions=np.asarray(wrap_object.dimensions, dtype=float),
+                                         quadrant=wrap_object.quadrant, method=method)
+    if kind == "torus":
+        return torus_wrap_line, dict(inner_radius=float(wrap_object.inner_radius),
+                                     outer_radius=float(wrap_object.outer_radius),
+                                     quadrant=wrap_object.quadrant)
+    raise ValueError(f"unknown wrap object kind {kind!r}")
+
+
+def _apply_rt(rot: Dual, v: Dual) -> Dual:
+    """R^T v for stacks: rot (F, 3, 3), v (F, 3)."""
+    return (rot * v.expand(-1)).sum(-2)
+
+
+def _apply_r(rot: Dual, v: Dual) -> Dual:
+    """R v for stacks: rot (F, 3, 3), v (F, 3)."""
+    return (rot * v.expand(-2)).sum(-1)
+
+
+def _subset(x: Dual, sel) -> Dual:
+    return Dual(x.v[sel], x.d[sel])
+
+
+def _gather(nodes: list, ids: np.ndarray) -> Dual:
+    """Per-frame node positions: nodes[k] Dual (F, 3), ids (F,) -> Dual (F, 3)."""
+    nf = ids.shape[0]
+    v = np.stack([n.v for n in nodes], axis=1)
+    d = np.stack([n.d for n in nodes], axis=1)
+    safe = np.where(ids >= 0, ids, 0)
+    fr = np.arange(nf)
+    return Dual(v[fr, safe], d[fr, safe])
+
+
+def _remove(order: np.ndarray, count: np.ndarray, ids: tuple, frames: np.ndarray):
+    """Remove node ids from the order rows of ``frames`` (keeping order)."""
+    order = order.copy()
+    drop = np.isin(order, ids) & frames[:, None]
+    keep = (order >= 0) & ~drop
+    key = np.where(keep, 0, 1)
+    perm = np.argsort(key, axis=1, kind="stable")
+    new = np.take_along_axis(np.where(keep, order, -1), perm, axis=1)
+    return new, keep.sum(axis=1)
+
+
+def _insert_after(order: np.ndarray, count: np.ndarray, pos: np.ndarray, ids: tuple, frames):
+    """Insert two node ids after column ``pos`` in the rows of ``frames``."""
+    nf, nk = order.shape
+    out = order.copy()
+    cols = np.arange(nk)[None, :]
+    shifted = np.full_like(order, -1)
+    shifted[:, 2:] = order[:, :-2]
+    p = pos[:, None]
+    new = np.where(cols <= p, order, shifted)
+    new = np.where(cols == p + 1, ids[0], new)
+    new = np.where(cols == p + 2, ids[1], new)
+    out[frames] = new[frames]
+    return out, count + 2 * frames
+
+
+def _path_length(order, nodes, arcs, n_points, n_wraps) -> Dual:
+    """Length of every frame's current path (OpenSim calcLengthAfterPathComputation)."""
+    nf, nk = order.shape
+    total = None
+    for j in range(nk - 1):
+        a, b = order[:, j], order[:, j + 1]
+        valid = (a >= 0) & (b >= 0)
+        if not valid.any():
+            break
+        seg = ad.norm(_gather(nodes, b) - _gather(nodes, a))
+        same_wrap = (a >= n_points) & (b == a + 1) & ((a - n_points) % 2 == 0)
+        if n_wraps:
+            w = np.clip((a - n_points) // 2, 0, n_wraps - 1)
+            arc_v = np.stack([x.v for x in arcs], axis=1)[np.arange(nf), w]
+            arc_d = np.stack([x.d for x in arcs], axis=1)[np.arange(nf), w]
+            seg = ad.where(same_wrap, Dual(arc_v, arc_d), seg)
+        seg = ad.where(valid, seg, 0.0)
+        total = seg if total is None else total + seg
+    if total is None:
+        total = Dual(np.zeros(nf))
+    return total
+
+
+def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground_body) -> WrappedPath:
+    """Apply a path's wrap objects on every frame, as OpenSim 4.6 does.
+
+    Parameters
+    ----------
+    path : motion.model.Path
+        The path (``path.wraps`` in PathWrapSet order).
+    model : motion.model.Model
+    points : (F, P, 3) float
+        The defined path points in ground (inactive conditional points: any finite value).
+    active : (F, P) bool
+        Which points are active.
+    d_points : (F, P, C, 3) float
+        Derivatives of the points with respect to the coordinates.
+    tf_ground_body : (F, B, 4, 4) float
+        Body poses (model body order).
+    d_tf_ground_body : (F, B, C, 4, 4) float
+        Their derivatives with respect to the coordinates.
+
+    Returns
+    -------
+    WrappedPath
+    """
+    points = np.asarray(points, dtype=float)
+    active = np.asarray(active, dtype=bool)
+    d_points = np.asarray(d_points, dtype=float)
+    nf, n_points = points.shape[:2]
+    n_coords = d_points.shape[2]
+    wraps = tuple(path.wraps)
+    n_wraps = len(wraps)
+    n_nodes = n_points + 2 * n_wraps
+
+    with np.errstate(all="ignore"):
+        nodes = [Dual(points[:, k], np.moveaxis(d_points[:, k], 1, 2)) for k in range(n_points)]
+        nan = Dual(np.full((nf, 3), np.nan), np.zeros((nf, 3, n_coords)))
+        nodes += [nan] * (2 * n_wraps)
+        arcs = [Dual(np.zeros(nf), np.zeros((nf, n_coords)))] * n_wraps
+
+        # initial current path: active points, compacted
+        order = np.full((nf, n_nodes), -1)
+        key = np.where(active, 0, 1)
+        perm = np.argsort(key, axis=1, kind="stable")
+        order[:, :n_points] = np.where(np.take_along_axis(active, perm, 1), perm, -1)
+        count = active.sum(axis=1)
+
+        setups = []
+        single = n_wraps == 1
+        for w, pw in enumerate(wraps):
+            wo = model.wrap_object(pw.wrap_object)
+            b = model.body_index(wo.body)
+            tf_bw = np.asarray(wo.tf_body_wrap)
+            tf = np.asarray(tf_ground_body)[:, b] @ tf_bw
+            dtf = np.asarray(d_tf_ground_body)[:, b] @ tf_bw  # (F, C, 4, 4)
+            rot = Dual(tf[:, :3, :3], np.moveaxis(dtf[:, :, :3, :3], 1, 3))
+            origin = Dual(tf[:, :3, 3], np.moveaxis(dtf[:, :, :3, 3], 1, 2))
+            fn, opts = _line_function(wo, pw.method, single)
+            start = 0 if pw.range[0] < 1 else pw.range[0] - 1
+            end = n_points - 1 if pw.range[1] < 1 else pw.range[1] - 1
+            setups.append((wo, rot, origin, fn, opts, start, min(end, n_points - 1)))
+
+        wrap_order = np.tile(np.arange(n_wraps), (nf, 1))
+        running = np.ones(nf, dtype=bool)
+        last_length = np.full(nf, np.inf)
+        max_iter = 1 if n_wraps < 2 else 8
+        length = _path_length(order, nodes, arcs, n_points, n_wraps)
+        for kk in range(max_iter):
+            if n_wraps == 0 or not running.any():
+                break
+            result = np.zeros((nf, n_wraps), dtype=int)
+            for i in range(n_wraps):
+                for w in range(n_wraps):
+                    frames = running & (wrap_order[:, i] == w)
+                    if not frames.any():
+                        continue
+                    ids = (n_points + 2 * w, n_points + 2 * w + 1)
+                    order, count = _remove(order, count, ids, frames)
+                    wo, rot, origin, fn, opts, start, end = setups[w]
+                    if not wo.active:
+                        continue
+                    order, count, nodes, arcs, res = _wrap_one(
+                        w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts,
+                        start, end, n_points)
+                    result[frames, i] = res[frames]
+            length = _path_length(order, nodes, arcs, n_points, n_wraps)
+            conv = running & (np.abs(length.v - last_length) < _CONVERGED)
+            last_length = np.where(running, length.v, last_length)
+            running = running & ~conv
+            if kk == 0 and n_wraps > 1:
+                swap = running & (result[:, 0] == NO_WRAP) & (result[:, 1] == INSIDE_RADIUS)
+                if swap.any():
+                    first = wrap_order[:, 0].copy()
+                    wrap_order[swap, 0] = wrap_order[swap, 1]
+                    wrap_order[swap, 1] = first[swap]
+                    # OpenSim then removes wrap object 0's points from the path
+                    ids = (n_points, n_points + 1)
+                    order, count = _remove(order, count, ids, swap)
+        # the final length is what OpenSim caches: the last pass's path
+        length = _path_length(order, nodes, arcs, n_points, n_wraps)
+
+    mask = np.zeros((nf, n_nodes), dtype=bool)
+    fr = np.repeat(np.arange(nf)[:, None], n_nodes, axis=1)
+    ok = order >= 0
+    mask[fr[ok], order[ok]] = True
+    pts = np.stack([n.v for n in nodes], axis=1)
+    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in nodes], axis=1)
+    pts = np.where(mask[..., None], pts, np.nan)
+    labels = [p.name for p in path.points]
+    kinds = ["point"] * n_points
+    for pw in wraps:
+        labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
+        kinds += ["wrap", "wrap"]
+    arc = np.stack([np.where(mask[:, n_points + 2 * w], arcs[w].v, 0.0) for w in range(n_wraps)],
+                   axis=1) if n_wraps else np.zeros((nf, 0))
+    return WrappedPath(length=length.v, d_length=np.broadcast_to(length.d, (nf, n_coords)),
+                       points=pts, d_points=np.moveaxis(dpts, 2, 3), mask=mask, order=order,
+                       labels=tuple(labels), kinds=tuple(kinds), arc=arc,
+                       wrap_objects=tuple(pw.wrap_object for pw in wraps))
+
+
+def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts, start, end,
+              n_points):
+    """Try wrap ``w`` on every eligible segment of the frames' current paths; insert the best."""
+    nf, nk = order.shape
+    n_coords = nodes[0].d.shape[-1]
+    # first / last active defined point in the range, and their positions in the current path
+    rng = np.arange(n_points)
+    in_range = (rng >= start) & (rng <= end)
+    act = active & in_range[None, :]
+    has = act.any(axis=1)
+    jfwd = np.argmax(act, axis=1)
+    jrev = n_points - 1 - np.argmax(act[:, ::-1], axis=1)
+    pos_s = np.argmax(order == jfwd[:, None], axis=1)
+    pos_e = np.argmax(order == jrev[:, None], axis=1)
+    frames = frames & has
+
+    result = np.zeros(nf, dtype=int)
+    found_mand = np.zeros(nf, dtype=bool)
+    best = np.zeros(nf, dtype=bool)
+    best_pos = np.zeros(nf, dtype=int)
+    min_change = np.full(nf, np.inf)
+    best_r1 = Dual(np.zeros((nf, 3)), np.zeros((nf, 3, n_coords)))
+    best_r2 = best_r1
+    best_arc = Dual(np.zeros(nf), np.zeros((nf, n_coords)))
+    for j in range(nk - 1):
+        a, b = order[:, j], order[:, j + 1]
+        same = (a >= n_points) & (b >= n_points) & ((a - n_points) // 2 == (b - n_points) // 2)
+        ok = frames & ~found_mand & (j >= pos_s) & (j < pos_e) & (a >= 0) & (b >= 0) & ~same
+        sel = np.nonzero(ok)[0]
+        if sel.size == 0:
+            continue
+        pa = _subset(_gather(nodes, a), sel)
+        pb = _subset(_gather(nodes, b), sel)
+        r_s, o_s = _subset(rot, sel), _subset(origin, sel)
+        p1 = _apply_rt(r_s, pa - o_s)
+        p2 = _apply_rt(r_s, pb - o_s)
+        code, r1, r2, arc = fn(p1, p2, **opts)
+        r1g = _apply_r(r_s, r1) + o_s
+        r2g = _apply_r(r_s, r2) + o_s
+        result[sel] = code
+        mand = code == MANDATORY_WRAP
+        wrapped = code == WRAPPED
+        change = (ad.norm(r1g - pa) + arc + ad.norm(pb - r2g) - ad.norm(pb - pa)).v
+        take = mand | (wrapped & (change < min_change[sel]))
+        tsel = sel[take]
+        if tsel.size:
+            best[tsel] = True
+            best_pos[tsel] = j
+            min_change[tsel] = np.where(mand[take], min_change[tsel], change[take])
+            best_r1 = ad.scatter(best_r1, tsel, _subset(r1g, take))
+            best_r2 = ad.scatter(best_r2, tsel, _subset(r2g, take))
+            best_arc = ad.scatter(best_arc, tsel, _subset(arc, take))
+        found_mand[sel[mand]] = True
+    ins = frames & best
+    if ins.any():
+        order, count = _insert_after(order, count, best_pos, (n_points + 2 * w, n_points + 2 * w + 1), ins)
+        nodes = list(nodes)
+        arcs = list(arcs)
+        nodes[n_points + 2 * w] = ad.where(ins[:, None], best_r1, nodes[n_points + 2 * w])
+        nodes[n_points + 2 * w + 1] = ad.where(ins[:, None], best_r2, nodes[n_points + 2 * w + 1])
+        arcs[w] = ad.where(ins, best_arc, arcs[w])
+    return order, count, nodes, arcs, result
