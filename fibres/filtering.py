@@ -61,14 +61,21 @@ def attachment_region(vertices, faces, landmarks) -> np.ndarray:
     return vertices[idx]
 
 
-def _closest_to_rays(candidates, start, direction):
-    """For each ray (start (N,3), direction (N,3)) the candidate (C,3) closest to it."""
+def _closest_to_rays(candidates, start, direction, *, chunk: int = 1 << 21):
+    """For each ray (start (N,3), direction (N,3)) the candidate (C,3) closest to it.
+
+    Distances of a point q to the ray s + t d (t >= 0): |q - s - max((q - s).d, 0) d|.
+    Fibres are processed in blocks of about ``chunk`` fibre-candidate pairs (bounded memory).
+    """
     dn = direction / np.linalg.norm(direction, axis=1, keepdims=True)
-    rel = candidates[None, :, :] - start[:, None, :]                  # (N, C, 3)
-    along = np.einsum("nck,nk->nc", rel, dn)
-    perp = rel - np.maximum(along, 0.0)[..., None] * dn[:, None, :]   # behind the start: |rel|
-    best = np.argmin(np.einsum("nck,nck->nc", perp, perp), axis=1)
-    return candidates[best]
+    out = np.empty_like(start)
+    step = max(1, chunk // max(len(candidates), 1))
+    for a in range(0, len(start), step):  # blocks of fibres, not single fibres
+        rel = candidates[None, :, :] - start[a:a + step, None, :]       # (n, C, 3)
+        along = np.einsum("nck,nk->nc", rel, dn[a:a + step])
+        perp = rel - np.maximum(along, 0.0)[..., None] * dn[a:a + step, None, :]
+        out[a:a + step] = candidates[np.argmin(np.einsum("nck,nck->nc", perp, perp), axis=1)]
+    return out
 
 
 def _resample(poly, n_out):
