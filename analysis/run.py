@@ -7,8 +7,18 @@ The chain (DESIGN.md), per muscle:
 2. The muscle surface wrapped at every frame (``motion.wrap_surfaces``): same topology as the rest
    surface, attachments riding their bodies.
 3. Fibres: ``fibres.decompose`` once on the rest-pose surface, which fixes the decomposition plan
-   (box orientation, slicing, contour starts, template parameters of every fibre); the plan is
-   then reapplied to every wrapped frame, so fibre k is the same material fibre everywhere.
+   (box orientation, slicing, contour starts, template parameters of every fibre). Then, per
+   frame, one of two ``transport`` modes:
+
+   - ``"bind"`` (default): the rest fibres are bound to the action lines and attachment
+     bodies exactly like the surface's own vertices (they are handed to ``motion.wrap_surfaces``
+     as extra, face-less vertices of the rest surface), so the same smooth deformation moves the
+     surface and its fibres, as Kohout et al. ("Real-time modelling of fibrous muscle", Computer
+     Graphics Forum 2014) deform the fibres with the muscle. Fibre k is by construction the same
+     material fibre in every frame, fibre ends in rigid attachment zones ride their bones
+     exactly, and all frames cost one call (no decomposition per frame).
+   - ``"decompose"``: the paper's procedure per frame, ``fibres.decompose(..., plan=plan)`` on
+     every wrapped surface (slower; fibre identity then rests on the plan's consistency).
 4. Per-fibre length = polyline arc length (sum of segment lengths).
 5. Per-fibre moment arms r = -dL/dq about every coordinate the muscle's action lines span, by
    central differences of the WHOLE chain (wrap + decompose with the frozen plan + length):
@@ -44,6 +54,8 @@ __all__ = ["run", "FD_STEP", "fibre_lengths", "select_frames"]
 
 #: central-difference step per motion type (SI): see the module docstring.
 FD_STEP = {"rotational": 1e-4, "translational": 1e-5, "coupled": 1e-4}
+#: how rest fibres reach every frame (module docstring)
+TRANSPORTS = ("bind", "decompose")
 
 
 def fibre_lengths(points) -> np.ndarray:
@@ -97,6 +109,7 @@ class _Ctx:
     keep_points: bool
     keep_surfaces: bool
     step: dict
+    transport: str = "bind"
 
 
 def _timed(timings, stage):
@@ -112,7 +125,8 @@ def _timed(timings, stage):
 
 
 def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, template=None,
-        frames=None, quiet=True, jobs=1, step=None, keep_points=True, keep_surfaces=False) -> RunResult:
+        frames=None, quiet=True, jobs=1, step=None, keep_points=True, keep_surfaces=False,
+        transport="bind") -> RunResult:
     """Run the fibre study of a fibre model over a motion.
 
     Parameters
@@ -139,6 +153,8 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         Keep the fibre polylines per frame (``MuscleResult.fibre_points``) for the 3D files.
     keep_surfaces : bool, keyword-only
         Keep the wrapped surfaces per frame.
+    transport : {"embed", "decompose"}, keyword-only
+        How the rest fibres reach each frame (module docstring).
 
     Returns
     -------
@@ -146,6 +162,8 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     """
     import motion as motion_pkg
 
+    if transport not in TRANSPORTS:
+        raise ValueError(f"transport must be one of {TRANSPORTS}, got {transport!r}")
     timings = {}
     with _timed(timings, "load"):
         spec = spec_path if isinstance(spec_path, FibreModelSpec) else load_spec(spec_path)
@@ -166,7 +184,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     with _timed(timings, "action_lines"):
         lines = _action_lines()(model, mot, muscles=names)
     ctx = _Ctx(spec=spec, model=model, motion=mot, lines=lines, quiet=quiet, keep_points=keep_points,
-               keep_surfaces=keep_surfaces, step=dict(FD_STEP, **(step or {})))
+               keep_surfaces=keep_surfaces, step=dict(FD_STEP, **(step or {})), transport=transport)
     results, muscle_timings = [None] * len(mspecs), []
     if jobs > 1 and len(mspecs) > 1:
         with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
@@ -197,7 +215,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
             if src and Path(src).is_file():
                 inputs[f"{end}:{m.name}"] = Path(src)
     settings = {
-        "motion_rows": rows.tolist(), "jobs": int(jobs), "fd_step": ctx.step,
+        "motion_rows": rows.tolist(), "jobs": int(jobs), "fd_step": ctx.step, "transport": transport,
         "motion_types": {c.name: c.motion_type for c in model.coordinates},
         "muscles": {m.name: {"action_lines": list(m.action_lines), "template": m.template,
                              "fibres": m.n_fibres, "resolution": m.resolution, "seed": m.seed,
@@ -299,32 +317,54 @@ def _wrap_surfaces():
 
 def _run_muscle(ctx, mspec):
     """Wrap, decompose, measure one muscle over all frames (+ perturbed frames)."""
+    import motion as motion_pkg
+    from motion.surface_rest import rest_pose
+
     decompose = _api("fibres", "decompose", "decompose")
+    wrap_surfaces = _wrap_surfaces()
     timings = {}
     coord_idx, line_rows = _spanned_coordinates(ctx, mspec)
     stacked, steps, n_f = _stacked_motion(ctx, coord_idx)
-    with _timed(timings, "wrap"):
-        (wrapped,) = _wrap_surfaces()(ctx.model, stacked, [_surface_spec(mspec)])
+    sspec = _surface_spec(mspec)
+    with _timed(timings, "wrap"):   # the rest surface and landmarks in ground (one frame)
+        first = motion_pkg.Motion.from_array(ctx.model, ctx.motion.time[:1], ctx.motion.q[:1])
+        (rest,) = wrap_surfaces(ctx.model, first, [sspec])
     opts = dict(template=mspec.template, n_fibres=mspec.n_fibres, resolution=mspec.resolution,
                 seed=mspec.seed)
     if mspec.template_params:
         opts["template_params"] = dict(mspec.template_params)
-    faces = wrapped.faces
+    faces = rest.faces
     with _timed(timings, "decompose_rest"):
-        bundle0 = decompose((wrapped.rest_vertices, faces), wrapped.rest_origin, wrapped.rest_insertion, **opts)
-    plan = bundle0.plan
-    n_all = wrapped.vertices.shape[0]
-    points = np.empty((n_all,) + bundle0.points.shape)
-    bar = progress(total=n_all, desc=f"fibres {mspec.name}", quiet=ctx.quiet, unit="frame")
-    with _timed(timings, "decompose"):
-        try:
-            for f in range(n_all):  # one decomposition per (perturbed) frame: the plan is frozen
-                b = decompose((wrapped.vertices[f], faces), wrapped.origin[f], wrapped.insertion[f],
-                              plan=plan, **opts)
-                points[f] = b.points
-                bar.update(1)
-        finally:
-            bar.close()
+        bundle0 = decompose((rest.rest_vertices, faces), rest.rest_origin, rest.rest_insertion, **opts)
+    shape = bundle0.points.shape                                  # (N, P, 3)
+    n_v = rest.rest_vertices.shape[0]
+    if ctx.transport == "bind":
+        # rest surface + fibre points back to the mesh's own frame, wrapped together
+        tf_data_ground = np.linalg.inv(rest_pose(ctx.model, sspec).tf_ground_data)
+        both = np.vstack([rest.rest_vertices, bundle0.points.reshape(-1, 3)])
+        both = both @ tf_data_ground[:3, :3].T + tf_data_ground[:3, 3]
+        bound = dataclasses.replace(sspec, vertices=both, faces=faces)
+        with _timed(timings, "wrap"):
+            (wrapped,) = wrap_surfaces(ctx.model, stacked, [bound])
+        n_all = wrapped.vertices.shape[0]
+        surfaces = wrapped.vertices[:, :n_v]
+        points = wrapped.vertices[:, n_v:].reshape((n_all,) + shape)
+    else:
+        with _timed(timings, "wrap"):
+            (wrapped,) = wrap_surfaces(ctx.model, stacked, [sspec])
+        n_all = wrapped.vertices.shape[0]
+        surfaces = wrapped.vertices
+        points = np.empty((n_all,) + shape)
+        bar = progress(total=n_all, desc=f"fibres {mspec.name}", quiet=ctx.quiet, unit="frame")
+        with _timed(timings, "decompose"):
+            try:
+                for f in range(n_all):  # one decomposition per (perturbed) frame, the plan frozen
+                    b = decompose((wrapped.vertices[f], faces), wrapped.origin[f], wrapped.insertion[f],
+                                  plan=bundle0.plan, **opts)
+                    points[f] = b.points
+                    bar.update(1)
+            finally:
+                bar.close()
     with _timed(timings, "lengths"):
         lengths = fibre_lengths(points)                       # (F * (1 + 2K), N)
     with _timed(timings, "moment_arms"):
@@ -338,13 +378,13 @@ def _run_muscle(ctx, mspec):
     al_r = np.asarray(lines.moment_arms)[:, line_rows][:, :, coord_idx]
     names = tuple(ctx.model.coordinate_names[c] for c in coord_idx)
     notes = tuple(getattr(bundle0, "notes", ()) or ())
-    if getattr(wrapped, "rest_residual", 0.0):
-        notes += (f"rest pose residual {wrapped.rest_residual:.3g}",)
+    if getattr(rest, "rest_residual", 0.0):
+        notes += (f"rest pose residual {rest.rest_residual:.3g}",)
     result = MuscleResult(
         name=mspec.name, coordinates=names, fibre_lengths=base, fibre_moment_arms=r,
         action_lines=mspec.action_lines, action_line_lengths=al_len, action_line_moment_arms=al_r,
         rest_lengths=fibre_lengths(bundle0.points),
         fibre_points=points[:n_f] if ctx.keep_points else None,
-        surface_vertices=wrapped.vertices[:n_f] if ctx.keep_surfaces else None,
+        surface_vertices=surfaces[:n_f] if ctx.keep_surfaces else None,
         surface_faces=faces if ctx.keep_surfaces else None, notes=notes)
     return result, timings
