@@ -1,0 +1,92 @@
+"""DecompositionPlan: reapplying the choices to the same and to deformed copies of a mesh."""
+import numpy as np
+import pytest
+import trimesh
+
+from fibres import DecompositionPlan, decompose, make_plan
+from fibres.plan import kabsch_rotation
+
+
+@pytest.fixture(scope="module")
+def muscle():
+    """A fusiform muscle-like ellipsoid (60 mm long) with landmarks at both tips."""
+    m = trimesh.creation.icosphere(subdivisions=4)
+    v, f = np.array(m.vertices), np.array(m.faces)
+    z = v[:, 2]
+    verts = np.c_[v[:, 0] * 0.0144, v[:, 1] * 0.0096, z * 0.06]
+    return verts, f, verts[z < -0.9], verts[z > 0.9]
+
+
+def deform(x, e):
+    """A smooth bend + twist + stretch of amplitude e (e = 0: identity)."""
+    zz = x[:, 2] / 0.06
+    bx = x[:, 0] + e * 0.01 * np.sin(np.pi * zz)
+    c, s = np.cos(e * zz), np.sin(e * zz)
+    return np.c_[c * bx - s * x[:, 1], s * bx + c * x[:, 1], x[:, 2] + e * 0.002 * zz**2]
+
+
+def test_plan_on_same_mesh_reproduces_bundle_exactly(muscle):
+    v, f, o, i = muscle
+    b = decompose((v, f), o, i)
+    again = decompose((v, f), o, i, plan=b.plan)
+    assert np.array_equal(again.points, b.points)
+    assert np.array_equal(again.plan.choice, b.plan.choice)
+    # make_plan makes the same choices as decompose
+    p = make_plan((v, f), o, i)
+    assert p.angle_index == b.plan.angle_index and np.array_equal(p.choice, b.plan.choice)
+    assert isinstance(p, DecompositionPlan) and p.n_slices == 20
+    assert not p.choice.flags.writeable
+
+
+def test_small_deformations_move_fibres_smoothly(muscle):
+    v, f, o, i = muscle
+    b0 = decompose((v, f), o, i)
+
+    def fib(e):
+        return decompose((deform(v, e), f), deform(o, e), deform(i, e), plan=b0.plan).points
+
+    h = 1e-4
+    p1, m1, p2, m2 = fib(h), fib(-h), fib(2 * h), fib(-2 * h)
+    d1 = (p1 - m1) / (2 * h)
+    d2 = (p2 - m2) / (4 * h)
+    # central differences at two step sizes agree to O(h^2): the map is smooth there (a
+    # flipped choice would make them differ by the size of a jump / h, i.e. > 1e-2 m)
+    scale = np.abs(d1).max()
+    assert 1e-4 < scale < 1.0
+    assert np.abs(d1 - d2).max() <= 1e-3 * scale
+    # and the motion is small: |dp| <= |dp/de| h with the measured derivative
+    assert np.abs(p1 - b0.points).max() <= 1.01 * scale * h
+
+
+def test_morph_core_continuous_over_a_large_sweep(muscle):
+    # 50 steps up to a 5 % bend/twist: with the plan frozen the morphed fibres move by
+    # the same small amount at every step (no start-vertex or split flips).  The
+    # attachment filter (§3.4) is off: its end points jump between surface vertices.
+    v, f, o, i = muscle
+    b0 = decompose((v, f), o, i, filter_attachments=False)
+    prev, steps = b0.points, []
+    for e in np.linspace(0, 0.05, 51)[1:]:
+        b = decompose((deform(v, e), f), deform(o, e), deform(i, e), plan=b0.plan,
+                      filter_attachments=False)
+        assert b.notes == ()          # every planned edge was found
+        steps.append(np.abs(b.points - prev).max())
+        prev = b.points
+    steps = np.array(steps)
+    # a smooth path sampled uniformly: consecutive steps within a factor 2 of the median
+    assert steps.max() <= 2 * np.median(steps)
+
+
+def test_plan_refuses_another_mesh(muscle):
+    v, f, o, i = muscle
+    b = decompose((v, f), o, i)
+    other = trimesh.creation.icosphere(subdivisions=3)
+    with pytest.raises(ValueError, match="topology"):
+        decompose((np.array(other.vertices) * 0.05, np.array(other.faces)), o, i, plan=b.plan)
+
+
+def test_kabsch_recovers_a_rotation():
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(50, 3))
+    ang = 0.9
+    rot = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
+    assert np.abs(kabsch_rotation(x, x @ rot.T + 3.0) - rot).max() <= 1e-12
