@@ -16,11 +16,14 @@ The six families (degree, rational?):
 
 =========  ======  =====================================================================
 parallel   2       straight fibres from the origin rectangle to the insertion rectangle.
-pennate    3       origin band at the x=0 side, insertion band at the x=1 side: fibres
-                   leave the tendons along z (tangent length ``tendon``) and cross the muscle
+pennate    3       origin band at the x=0 side, insertion band shifted across by
+                   ``pennation`` (1: at the x=1 side, 0: above the origin band): fibres leave
+                   the tendons along z (tangent length ``tendon``) and cross the muscle
                    obliquely (unipennate; pennation angle set by the band offset).
 bipennate  3       origin bands at both x sides, insertion band in the middle (central
-                   tendon): two mirrored pennate halves (r < 1/2 left, r >= 1/2 right).
+                   tendon): two mirrored pennate halves (r < 1/2 left, r >= 1/2 right);
+                   ``pennation`` moves the origin bands from above the insertion (0) to the
+                   outer faces (1).
 curved     2, rat. arcs bulging towards +x; the fibre through the cube centre is an exact
                    circular arc (weight cos(alpha), Piegl & Tiller eq. 7.33); ``curvature``
                    is the bulge of that fibre as a fraction of the room to the x=1 face.
@@ -56,9 +59,9 @@ DEFAULTS = MappingProxyType({
     "parallel": MappingProxyType({"origin_size": (1.0, 1.0), "insertion_size": (1.0, 1.0),
                                   "origin_centre": (0.5, 0.5), "insertion_centre": (0.5, 0.5)}),
     "pennate": MappingProxyType({"origin_size": (0.5, 1.0), "insertion_size": (0.5, 1.0),
-                                 "tendon": 0.25}),
+                                 "tendon": 0.25, "pennation": 1.0}),
     "bipennate": MappingProxyType({"origin_size": (0.5, 1.0), "insertion_size": (0.3, 1.0),
-                                   "tendon": 0.25}),
+                                   "tendon": 0.25, "pennation": 1.0}),
     "curved": MappingProxyType({"origin_size": (0.6, 1.0), "insertion_size": (0.6, 1.0),
                                 "curvature": 0.5}),
     "fanned": MappingProxyType({"origin_size": (1.0, 1.0), "insertion_size": (0.2, 0.2),
@@ -119,12 +122,18 @@ def _rects(name, p):
                 [_centred_rect(i, _pair("insertion_centre", p["insertion_centre"]), "insertion")])
     ylo_o, yhi_o = 0.5 - o[1] / 2, 0.5 + o[1] / 2
     ylo_i, yhi_i = 0.5 - i[1] / 2, 0.5 + i[1] / 2
-    if name == "pennate":
-        return ([np.array([0.0, o[0], ylo_o, yhi_o])], [np.array([1 - i[0], 1.0, ylo_i, yhi_i])])
+    pen = p.get("pennation", 1.0)
+    if name == "pennate":  # origin band at x=0; insertion band shifted by pennation * max
+        ci = o[0] / 2 + pen * (1 - o[0] / 2 - i[0] / 2)
+        return ([np.array([0.0, o[0], ylo_o, yhi_o])],
+                [np.array([ci - i[0] / 2, ci + i[0] / 2, ylo_i, yhi_i])])
     if name == "curved":
         return ([np.array([0.0, o[0], ylo_o, yhi_o])], [np.array([0.0, i[0], ylo_i, yhi_i])])
-    if name == "bipennate":  # outer origin bands, central insertion band
-        return ([np.array([0.0, o[0] / 2, ylo_o, yhi_o]), np.array([1 - o[0] / 2, 1.0, ylo_o, yhi_o])],
+    if name == "bipennate":  # outer origin bands (moved out by pennation), central insertion
+        above = 0.5 - i[0] / 4                      # above the left half of the insertion band
+        cl = above - pen * (above - o[0] / 4)       # pennation 1: band touches the x=0 face
+        return ([np.array([cl - o[0] / 4, cl + o[0] / 4, ylo_o, yhi_o]),
+                 np.array([1 - cl - o[0] / 4, 1 - cl + o[0] / 4, ylo_o, yhi_o])],
                 [np.array([0.5 - i[0] / 2, 0.5 + i[0] / 2, ylo_i, yhi_i])])
     if name == "rectus":  # central origin band, outer insertion bands
         return ([np.array([0.5 - o[0] / 2, 0.5 + o[0] / 2, ylo_o, yhi_o])],
@@ -237,6 +246,8 @@ class Template:
         for key in ("tendon",):
             if key in p:
                 p[key] = _frac(key, p[key], 0.0, 0.5)
+        if "pennation" in p:
+            p["pennation"] = _frac("pennation", p["pennation"], 0.0, 1.0)
         if "curvature" in p:
             p["curvature"] = _frac("curvature", p["curvature"], 0.0, 1.0, open_hi=True)
         if "spread" in p:

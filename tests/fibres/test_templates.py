@@ -188,3 +188,22 @@ def test_any_valid_parameters_keep_fibres_inside_the_cube(name, ow, od, iw, idp,
     assert p.min() >= -EPS and p.max() <= 1 + EPS
     np.testing.assert_allclose(p[:, 0, 2], 0.0, atol=EPS)
     np.testing.assert_allclose(p[:, -1, 2], 1.0, atol=EPS)
+
+
+def test_pennation_sets_the_fibre_angle():
+    # straight middle part: with tendon=0 the cubic's control points are collinear pairs, the
+    # fibre is the straight line from (x_o, 0) to (x_i, 1); offset = pennation * (1 - w)
+    w = 0.4
+    for pen in (0.0, 0.5, 1.0):
+        tm = get_template("pennate", pennation=pen, tendon=0.0, origin_size=(w, 1),
+                          insertion_size=(w, 1))
+        p = tm.fibre_points(np.array([[0.5, 0.5]]), T)[0]
+        offset = p[-1, 0] - p[0, 0]
+        assert offset == pytest.approx(pen * (1 - w), abs=1e-14)
+    bi = get_template("bipennate", pennation=0.0, origin_size=(0.3, 1),
+                      insertion_size=(0.3, 1)).fibre_points(RS, T)
+    # pennation 0 and each origin band as wide as half the insertion band: fibres rise
+    # vertically (x constant) onto the central tendon
+    np.testing.assert_allclose(bi[:, -1, 0], bi[:, 0, 0], atol=1e-14)
+    with pytest.raises(InputError, match="pennation"):
+        get_template("pennate", pennation=1.5)
