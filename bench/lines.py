@@ -51,6 +51,7 @@ def time_ours(model, mot, repeats):
 
 def time_opensim(osim, mot, lines, repeats):
     """Seconds per frame (lists over repeats) for pose, lengths, moment arms; and the values."""
+    osim.Logger.removeFileSink()  # no opensim.log in the working folder
     osim.Logger.setLevelString("error")
     model = osim.Model(str(MODEL))
     state = model.initSystem()

@@ -433,3 +433,22 @@ def test_lhdl_motion_warns_once_per_kind(lhdl_dir):
     assert motion.n_frames == 36  # the header says nRows=51; OpenSim also reads 36 rows
     np.testing.assert_allclose(motion.column("hip_flexion_r")[[0, -1]], np.radians([-10, 60]),
                                rtol=1e-15)
+
+
+def test_reads_what_opensim_sto_adapter_writes(tmp_path, toy, osim):
+    """A version-3 file written by OpenSim 4.6's own STOFileAdapter (no nRows, metadata lines)."""
+    table = osim.TimeSeriesTable()
+    table.setColumnLabels(["/jointset/hinge/rot/value", "tx"])
+    time = [0.0, 0.25, 0.5]
+    rows = [[10.0, 0.1], [20.0, 0.2], [30.0, 0.3]]
+    for t, row in zip(time, rows):
+        table.appendRow(t, osim.RowVector(row))
+    table.addTableMetaDataString("inDegrees", "yes")
+    path = tmp_path / "adapter.sto"
+    osim.STOFileAdapter.write(table, str(path))
+    assert "version=3" in path.read_text()
+    motion, _ = _load(path, toy)
+    assert motion.in_degrees
+    np.testing.assert_array_equal(motion.time, time)
+    np.testing.assert_allclose(motion.column("rot"), np.radians([10.0, 20.0, 30.0]), rtol=1e-15)
+    np.testing.assert_array_equal(motion.column("tx"), [0.1, 0.2, 0.3])
