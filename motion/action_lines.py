@@ -170,7 +170,13 @@ def _body_twists(tf: np.ndarray, dtf: np.ndarray) -> tuple:
     return omega, dtf[..., :3, 3]
 
 
-def _unwrapped_path(path: Path, model: Model, q_used, jac, tf, omega, v) -> tuple:
+def _twist_matrix(tf: np.ndarray, dtf: np.ndarray) -> np.ndarray:
+    """(F, B, C, 6) [omega, v] per body and coordinate (see `_body_twists`), contiguous."""
+    omega, v = _body_twists(tf, dtf)
+    return np.ascontiguousarray(np.concatenate([omega, v], axis=-1))
+
+
+def _unwrapped_path(path: Path, model: Model, q_used, jac, tf, twist) -> tuple:
     """Length (F,) and dL/dq (F, C) of a path without wrap objects, and its points.
 
     dL/dq_k = sum_i g_i . dp_i/dq_k with g_i = (unit vector of the segment arriving at point i)
@@ -199,8 +205,9 @@ def _unwrapped_path(path: Path, model: Model, q_used, jac, tf, omega, v) -> tupl
     for b in np.unique(pp.bodies):
         on_b = pp.bodies == b
         trans = tf[:, b, :3, 3]
-        m_b = np.cross(pts[:, on_b] - trans[:, None], g[:, on_b]).sum(axis=1)          # (F, 3)
-        d_length += np.einsum("fck,fk->fc", omega[:, b], m_b) + np.einsum("fck,fk->fc", v[:, b], g[:, on_b].sum(axis=1))
+        moment = np.concatenate([np.cross(pts[:, on_b] - trans[:, None], g[:, on_b]).sum(axis=1),
+                                 g[:, on_b].sum(axis=1)], axis=-1)                  # (F, 6)
+        d_length += (twist[:, b] @ moment[..., None])[..., 0]                          # (F, C, 6) @ (F, 6)
     moving = [i for i, p in enumerate(path.points) if p.kind == "moving"]
     if moving:
         _, dloc = _local_positions(path, model, q_used, jac)
@@ -251,7 +258,7 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     dldq = np.zeros((n_frames, len(chosen), n_coords))
     spanned = np.zeros((len(chosen), n_coords), dtype=bool)
     per_path = []
-    omega, vel = _body_twists(tf, dtf)
+    twist = _twist_matrix(tf, dtf)
     for m, path in enumerate(chosen):
         if path.wraps:
             pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
@@ -261,7 +268,7 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
             per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
                              tuple(str(x) for x in wrapped.labels)))
         else:
-            lengths[:, m], dldq[:, m], pts, act, names = _unwrapped_path(path, model, q_used, jac, tf, omega, vel)
+            lengths[:, m], dldq[:, m], pts, act, names = _unwrapped_path(path, model, q_used, jac, tf, twist)
             per_path.append((pts, act, names))
         spanned[m] = spanned_coordinates(model, path)
     moment_arms = np.where(spanned[None], -dldq, 0.0)
