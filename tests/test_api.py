@@ -10,6 +10,7 @@ EXPECTED = {
         "Motion", "load_motion", "write_sto",
         "MuscleSurfaceSpec", "SurfaceAttachment", "BoneMesh", "WrappedSurface", "wrap_surfaces",
         "SurfaceBinding", "bind_surface", "fusiform_surface",
+        "load_model", "Model", "body_poses", "BodyPoses", "body_pose_derivatives", "action_lines", "ActionLines",
     },
     "fibres": {
         "InputError", "MissingDependencyError",
