@@ -29,11 +29,12 @@ curved     2, rat. arcs bulging towards +x; the fibre through the cube centre is
                    is the bulge of that fibre as a fraction of the room to the x=1 face.
 fanned     2       a wide origin converging on a small insertion around ``fan_centre``
                    (triangular/fan-shaped muscles, e.g. gluteus medius).
-rectus     4       after Blemker's rectus femoris model (Blemker, Asakawa, Gold & Delp,
-                   J. Magn. Reson. Imaging 2007; thesis 2004/2006): fibres leave a central
-                   proximal aponeurosis that reaches ``aponeurosis`` of the length into the
-                   muscle and run obliquely to distal aponeuroses on both outer sides, which
-                   reach the same fraction down from the top.
+rectus     4       after the rectus femoris model of Blemker & Delp, "Rectus femoris and
+                   vastus intermedius fiber excursions predicted by three-dimensional muscle
+                   models", J. Biomech. 39:1383-1391 (2006): fibres leave a central proximal
+                   aponeurosis that reaches ``aponeurosis`` of the length into the muscle and
+                   run obliquely to distal aponeuroses on both outer sides, which reach the
+                   same fraction down from the top (a simplification: one symmetric layer).
 =========  ======  =====================================================================
 
 Attachment areas are axis-aligned rectangles ``(x0, x1, y0, y1)`` on the bottom/top faces; they
