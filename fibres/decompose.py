@@ -56,7 +56,8 @@ def _inputs(mesh, origin, insertion, units, plan):
                              where="mesh", fix="Pass the same mesh, deformed.")
         faces = plan.topology.faces
     else:
-        surface = mesh if isinstance(mesh, Surface) and units == "m" else as_surface(mesh, units=units)
+        # a Surface is in metres by definition; ``units`` then applies to the landmarks
+        surface = mesh if isinstance(mesh, Surface) else as_surface(mesh, units=units)
         v, faces = surface.vertices, surface.faces
         notes.extend(f"surface repaired: {r}" for r in surface.repairs)
     o = as_points(origin, units=units, name="origin")
@@ -185,7 +186,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     Parameters
     ----------
     mesh : (vertices (V, 3), faces (T, 3)) tuple, Surface, trimesh/pyvista mesh or path
-        Closed surface (anything `fibres.as_surface` takes), in ``units``.
+        Closed surface (anything `fibres.as_surface` takes), in ``units`` (a `Surface` is
+        always in metres and used as is).
     origin, insertion : (K, 3) float or anything `fibres.as_points` takes
         Landmarks of the origin and insertion areas, in ``units``.
     template : str or Template, keyword-only
