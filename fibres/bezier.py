@@ -66,7 +66,7 @@ def arc_weight(p0, p1, p2) -> np.ndarray:
 
     For an isosceles control triangle (|p1 - p0| = |p2 - p1|) the weight cos(alpha), alpha the
     angle between the chord p0->p2 and the end tangent p0->p1, gives a circular arc (Piegl &
-    Tiller, The NURBS Book, eq. 7.33).
+    Tiller, The NURBS Book, ch. 7, circular arcs as rational quadratics).
 
     Parameters
     ----------

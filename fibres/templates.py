@@ -25,8 +25,8 @@ bipennate  3       origin bands at both x sides, insertion band in the middle (c
                    ``pennation`` moves the origin bands from above the insertion (0) to the
                    outer faces (1).
 curved     2, rat. arcs bulging towards +x; the fibre through the cube centre is an exact
-                   circular arc (weight cos(alpha), Piegl & Tiller, The NURBS Book, ch. 7); ``curvature``
-                   is the bulge of that fibre as a fraction of the room to the x=1 face.
+                   circular arc (weight cos(alpha); Piegl & Tiller, The NURBS Book, ch. 7);
+                   ``curvature`` is the bulge of that fibre as a fraction of the room to the x=1 face.
 fanned     2       a wide origin converging on a small insertion around ``fan_centre``
                    (triangular/fan-shaped muscles, e.g. gluteus medius).
 rectus     4       after the rectus femoris model of Blemker & Delp, "Rectus femoris and
