@@ -52,6 +52,8 @@ class ActionLines:
     coordinate_status : (C,) tuple of str
         "independent", "dependent" (of a coupler) or "locked".
     time : (F,) float
+    q : (F, C) float
+        Coordinate values used (after locking, clamping, couplers and weld assembly).
     points : (F, M, K, 3) float
         Current path points in ground (active points and wrap tangent points), padded with NaN.
     point_mask : (F, M, K) bool
@@ -67,12 +69,13 @@ class ActionLines:
     coordinate_names: tuple
     coordinate_status: tuple
     time: np.ndarray
+    q: np.ndarray
     points: np.ndarray
     point_mask: np.ndarray
     point_labels: tuple
 
     def __post_init__(self):
-        for key in ("lengths", "moment_arms", "spanned", "time", "points", "point_mask"):
+        for key in ("lengths", "moment_arms", "spanned", "time", "q", "points", "point_mask"):
             arr = np.array(getattr(self, key), copy=True)
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
@@ -285,4 +288,4 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     status = tuple("dependent" if dep[i] else ("locked" if c.locked else "independent")
                    for i, c in enumerate(model.coordinates))
     return ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
-                       status, time, points, mask, tuple(labels))
+                       status, time, q_used, points, mask, tuple(labels))

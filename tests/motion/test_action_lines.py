@@ -13,6 +13,7 @@ import pytest
 
 from motion.action_lines import action_lines, polyline_length, spanned_coordinates
 from motion.kinematics import body_poses, motion_from_array
+from motion.moment_arms import opensim_moment_arms
 from motion.osim_reader import load_model
 
 from reference import CASES, ReferenceCase, case_id
@@ -63,6 +64,10 @@ def test_unwrapped_paths_match_opensim(opensim_dir, case):
     ball = {c for j in model.joints if j.kind == "BallJoint" for c in j.coordinates}
     sel = ((ma.coord_status == "independent") & ~ma.coordinate.isin(ball)).to_numpy()
     np.testing.assert_allclose(mine[sel], ma.moment_arm.to_numpy()[sel], rtol=0, atol=1e-6)
+    # OpenSim's own convention, BallJoint mobilities included, for every independent coordinate
+    ours_osim = opensim_moment_arms(model, lines)[ma.frame.to_numpy(), m_idx, c_idx]
+    sel = (ma.coord_status == "independent").to_numpy()
+    np.testing.assert_allclose(ours_osim[sel], ma.moment_arm.to_numpy()[sel], rtol=0, atol=1e-6)
     # not spanned: exactly zero
     assert np.all(lines.moment_arms[:, ~lines.spanned] == 0.0)
 
