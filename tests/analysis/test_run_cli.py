@@ -126,3 +126,37 @@ def test_ctrl_c_in_the_middle_leaves_nothing(example, tmp_path, capsys, monkeypa
     assert code == 130
     assert "interrupted" in capsys.readouterr().err
     assert list(out.iterdir()) == []        # the folder was checked/created, nothing else
+    # a rerun works and writes the whole set
+    monkeypatch.undo()
+    code = cli.main(["run", str(example / "arm_example.toml"), "--out", str(out), "--quiet", "--frames", "0:2",
+                     "--fibres", "8", "--resolution", "6", "--muscle", "brachialis"])
+    assert code == 0, capsys.readouterr().err
+    names = {p.name for p in out.iterdir()}
+    assert {"fibre_lengths.csv", "fibre_moment_arms.csv", "action_lines.csv", "action_line_moment_arms.csv",
+            "summary.csv", "run.json", "plots", "fibres"} <= names
+    assert not [n for n in names if n.startswith(".")]
+
+
+def test_full_example_run_writes_the_contract(example, tmp_path, capsys):
+    """`fibres run` on the bundled example: every table has the INTERFACE columns, one row per
+    (frame, fibre[, coordinate]); summary medians equal the fibre table's medians."""
+    import pandas as pd
+
+    out = tmp_path / "out"
+    code = cli.main(["run", str(example / "arm_example.toml"), "--out", str(out), "--quiet", "--frames", "0:27:13",
+                     "--fibres", "12", "--resolution", "8", "--sto"])
+    assert code == 0, capsys.readouterr().err
+    fl = pd.read_csv(out / "fibre_lengths.csv")
+    assert list(fl.columns) == ["frame", "time", "muscle", "fibre", "length"]
+    assert len(fl) == 3 * 3 * 12 and set(fl.frame) == {0, 1, 2}
+    fr = pd.read_csv(out / "fibre_moment_arms.csv")
+    assert list(fr.columns) == ["frame", "time", "muscle", "fibre", "coordinate", "moment_arm"]
+    assert set(fr.coordinate) == {"elbow_flexion"} and len(fr) == len(fl)
+    s = pd.read_csv(out / "summary.csv")
+    row = s[(s.frame == 1) & (s.muscle == "biceps") & (s.quantity == "length")].iloc[0]
+    assert row["median"] == pytest.approx(fl[(fl.frame == 1) & (fl.muscle == "biceps")].length.median(), rel=1e-9)
+    record = __import__("json").loads((out / "run.json").read_text())
+    assert set(record["inputs"]) >= {"spec", "model", "motion", "mesh:biceps"}
+    assert {"wrap", "decompose_rest", "moment_arms"} <= set(record["timings_s"])
+    assert (out / "fibres" / "biceps.pvd").is_file() and (out / "plots" / "biceps_lengths.png").is_file()
+    assert (out / "MuscleAnalysis_Length.sto").is_file()
