@@ -229,6 +229,31 @@ def _wrap_module():
     return path_wrapping
 
 
+FRAME_BLOCK = 512   # frames per block in `action_lines` (bounds memory, keeps arrays vectorised)
+
+
+def _block(model: Model, chosen: list, q: np.ndarray) -> tuple:
+    """Lengths (F, M), dL/dq (F, M, C), q_used and per-path (points, mask, labels) of a frame block."""
+    tf, dtf, q_used, jac = body_pose_derivatives(model, q)
+    n_frames, n_coords = q_used.shape
+    lengths = np.zeros((n_frames, len(chosen)))
+    dldq = np.zeros((n_frames, len(chosen), n_coords))
+    per_path = []
+    twist = _twist_matrix(tf, dtf)
+    for m, path in enumerate(chosen):
+        if path.wraps:
+            pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
+            wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
+            lengths[:, m] = wrapped.length
+            dldq[:, m] = wrapped.d_length
+            per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
+                             tuple(str(x) for x in wrapped.labels)))
+        else:
+            lengths[:, m], dldq[:, m], pts, act, names = _unwrapped_path(path, model, q_used, jac, tf, twist)
+            per_path.append((pts, act, names))
+    return lengths, dldq, q_used, per_path
+
+
 def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     """Lengths, moment arms and current points of the model's path forces over a motion.
 
@@ -254,26 +279,16 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
                              where="ForceSet", fix=f"choose among {', '.join(model.path_names[:8])}"
                              + (" ..." if len(model.path_names) > 8 else ""))
         chosen = [model.path(m) for m in muscles]
-    time, _ = motion_coordinates(model, motion)
-    tf, dtf, q_used, jac = body_pose_derivatives(model, motion)
-    n_frames, n_coords = q_used.shape
-    lengths = np.zeros((n_frames, len(chosen)))
-    dldq = np.zeros((n_frames, len(chosen), n_coords))
-    spanned = np.zeros((len(chosen), n_coords), dtype=bool)
-    per_path = []
-    twist = _twist_matrix(tf, dtf)
-    for m, path in enumerate(chosen):
-        if path.wraps:
-            pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
-            wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
-            lengths[:, m] = wrapped.length
-            dldq[:, m] = wrapped.d_length
-            per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
-                             tuple(str(x) for x in wrapped.labels)))
-        else:
-            lengths[:, m], dldq[:, m], pts, act, names = _unwrapped_path(path, model, q_used, jac, tf, twist)
-            per_path.append((pts, act, names))
-        spanned[m] = spanned_coordinates(model, path)
+    time, q = motion_coordinates(model, motion)
+    n_frames, n_coords = q.shape
+    spanned = np.array([spanned_coordinates(model, path) for path in chosen], dtype=bool).reshape(len(chosen), n_coords)
+    # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
+    blocks = [_block(model, chosen, q[i:i + FRAME_BLOCK]) for i in range(0, max(n_frames, 1), FRAME_BLOCK)]
+    lengths = np.concatenate([b[0] for b in blocks])
+    dldq = np.concatenate([b[1] for b in blocks])
+    q_used = np.concatenate([b[2] for b in blocks])
+    per_path = [(np.concatenate([b[3][m][0] for b in blocks]), np.concatenate([b[3][m][1] for b in blocks]),
+                 blocks[0][3][m][2]) for m in range(len(chosen))]
     moment_arms = np.where(spanned[None], -dldq, 0.0)
     k_max = max((p[0].shape[1] for p in per_path), default=0)
     points = np.full((n_frames, len(chosen), k_max, 3), np.nan)

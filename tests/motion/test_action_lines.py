@@ -287,3 +287,19 @@ def test_live_opensim_models(osim, live_model):
     np.testing.assert_allclose(lines.lengths, np.array(len_ref), rtol=0, atol=1e-12)
     cols = [model.coordinate_index(c) for c in indep]
     np.testing.assert_allclose(lines.moment_arms[:, :, cols], np.array(ma_ref), rtol=0, atol=1e-12)
+
+
+def test_frame_blocks_give_the_same_answer(opensim_dir, monkeypatch):
+    import importlib
+
+    al_mod = importlib.import_module("motion.action_lines")   # the module (motion.action_lines is the function)
+
+    rc = ReferenceCase(opensim_dir, *CASES[0])            # Arm26: wrapped and unwrapped paths
+    model = load_model(rc.model_file)
+    q = rc.q_used(model)[:40]
+    whole = action_lines(model, q)
+    monkeypatch.setattr(al_mod, "FRAME_BLOCK", 7)
+    parts = action_lines(model, q)
+    for key in ("lengths", "moment_arms", "q", "points", "point_mask"):
+        np.testing.assert_array_equal(getattr(parts, key), getattr(whole, key), err_msg=key)
+    assert parts.point_labels == whole.point_labels
