@@ -26,7 +26,7 @@ import numpy as np
 
 from .contours import clockwise_contour
 from .correspondence import correspond, rectangle, split_chain
-from .mvc import mean_value_coordinates
+from .mvc import mvc_map
 from .slicing import MeshTopology, Sections
 
 __all__ = ["END_INSET", "slice_fractions", "slice_maps", "morph_local"]
@@ -178,21 +178,13 @@ def morph_local(xy, w, heights, P, Q) -> np.ndarray:
     n_s = h.size
     s0 = np.clip(np.searchsorted(h, w, side="right") - 1, 0, n_s - 2)
     a = np.clip((w - h[s0]) / (h[s0 + 1] - h[s0]), 0.0, 1.0)
-    # every (point, plane) use with its weight, grouped by plane
+    # every (point, plane) use with its weight; one compiled pass over all of them
     use_lo = a < 1.0
     use_hi = a > 0.0
     idx = np.concatenate([np.flatnonzero(use_lo), np.flatnonzero(use_hi)])
     pl = np.concatenate([s0[use_lo], s0[use_hi] + 1])
     wt = np.concatenate([1.0 - a[use_lo], a[use_hi]])
-    order = np.argsort(pl, kind="stable")
-    idx, pl, wt = idx[order], pl[order], wt[order]
-    bounds = np.searchsorted(pl, np.arange(n_s + 1))
+    mapped = mvc_map(xy[idx], pl, Q, P, weights=wt)
     out = np.zeros_like(xy)
-    for s in range(n_s):
-        lo, hi = bounds[s], bounds[s + 1]
-        if lo == hi:
-            continue
-        ii = idx[lo:hi]
-        lam = mean_value_coordinates(xy[ii], Q[s])
-        np.add.at(out, ii, wt[lo:hi, None] * (lam @ P[s]))
+    np.add.at(out, idx, mapped)
     return out

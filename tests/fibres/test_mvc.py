@@ -101,3 +101,27 @@ def test_shapes_are_checked():
         mean_value_coordinates(np.zeros((3, 3)), SQUARE)
     with pytest.raises(ValueError):
         mean_value_coordinates(np.zeros((3, 2)), SQUARE[:2])
+
+
+def test_mvc_map_equals_coordinates_times_targets():
+    from fibres.mvc import mvc_map
+
+    rng = np.random.default_rng(5)
+    polys = [SQUARE * 2.0, ARROW, ARROW[::-1] * 0.5]
+    targets = [p + 0.1 * np.sin(3 * p[:, ::-1]) for p in polys]
+    groups = rng.integers(0, 3, 400)
+    pts = np.empty((400, 2))
+    for g, p in enumerate(polys):
+        sel = groups == g
+        pts[sel] = rng.uniform(p.min(axis=0), p.max(axis=0), (sel.sum(), 2))
+    # include exact vertices and edge points of group 1
+    pts[:7], groups[:7] = ARROW, 1
+    pts[7], groups[7] = 0.25 * ARROW[2] + 0.75 * ARROW[3], 1
+    weights = rng.uniform(0, 1, 400)
+    got = mvc_map(pts, groups, polys, targets, weights=weights)
+    for g, p in enumerate(polys):
+        sel = groups == g
+        ref = weights[sel, None] * (mean_value_coordinates(pts[sel], p) @ targets[g])
+        # the compiled loop and the array expression sum the same terms in another order
+        assert np.abs(got[sel] - ref).max() <= 1e-12
+    assert np.array_equal(got[:7], weights[:7, None] * targets[1])
