@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import itertools
 import os
 import tempfile
 import warnings
@@ -333,9 +334,9 @@ def _read_numbers(lines, label_line, labels, path):
         raise InputError(f"a ragged row: {widths[i]} values but {len(labels)} column labels",
                          file=path, where=f"line {numbers[i]}",
                          fix="Give every row one value per column label (tab-separated).")
-    flat = np.array([token for row in rows for token in row])
-    try:
-        data = flat.astype(float)
+    try:  # float() per token is the fastest exact parse here (numpy's str->float is slower)
+        data = np.fromiter(map(float, itertools.chain.from_iterable(rows)), dtype=float,
+                           count=len(rows) * len(labels))
     except ValueError:
         data = None
     if data is None:

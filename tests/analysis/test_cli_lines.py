@@ -419,3 +419,29 @@ def test_lhdl_hip_flexion_matches_live_opensim(lhdl_dir, osim, tmp_path, capsys)
                 ours = ours_arm[(muscle.getName(), name)]
                 assert ours == pytest.approx(neg_dldq, abs=1e-7)
                 assert ours == pytest.approx(muscle.computeMomentArm(state, coord), abs=1e-9)
+
+
+def test_failure_while_writing_leaves_no_file(opensim_dir, tmp_path, capsys, monkeypatch):
+    """The third table fails to write (disk full): none of the three files may be left."""
+    real = pd.DataFrame.to_csv
+
+    def failing(self, path, *args, **kwargs):
+        if "action_line_moment_arms" in str(path):
+            raise OSError(28, "No space left on device")
+        return real(self, path, *args, **kwargs)
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", failing)
+    out = tmp_path / "out"
+    code, _, err = _run([opensim_dir / "Arm26" / "arm26.osim",
+                         opensim_dir / "Arm26" / "arm26_elbow_flexion_sweep.mot", "--out", out,
+                         "--quiet"], capsys)
+    assert code == 1 and err.count("\n") == 1 and "No space left" in err
+    assert not out.exists()  # created by this run, removed again (empty)
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "notes.txt").write_text("mine")
+    code, _, _ = _run([opensim_dir / "Arm26" / "arm26.osim",
+                       opensim_dir / "Arm26" / "arm26_elbow_flexion_sweep.mot", "--out", kept,
+                       "--quiet"], capsys)
+    assert code == 1
+    assert sorted(p.name for p in kept.iterdir()) == ["notes.txt"]
