@@ -194,6 +194,9 @@ def _joint_transform(joint, q: np.ndarray, cidx: dict) -> tuple:
         mats = [rots[0], rots[1], rots[2]]
         mats[i] = drots[i]
         dtf[:, owner[0], :3, :3] += owner[1][:, None, None] * (mats[0] @ mats[1] @ mats[2])
+    if joint.radii is not None:     # EllipsoidJoint: origin of M on the ellipsoid at radii * z_M
+        tf[:, :3, 3] += joint.radii * tf[:, :3, 2]
+        dtf[:, :, :3, 3] += joint.radii * dtf[:, :, :3, 2]
     for ax in joint.axes[3:]:
         if ax.coordinates:
             x = q[:, cidx[ax.coordinates[0]]]

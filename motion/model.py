@@ -23,7 +23,8 @@ OpenSim's own names; every frame transform is a (4, 4) homogeneous matrix named
   OpenSim's SpatialTransform, a tuple of `TransformAxis` — three rotations then three
   translations. Every supported joint type is converted to this form on reading (PinJoint =
   rotation about the frame's z axis, BallJoint = body-fixed x-y-z rotations, ...), so that
-  kinematics has one code path: ``tf_F_M = [R1 R2 R3 | t]`` with each rotation about its
+  kinematics has one code path (plus ``radii`` for an EllipsoidJoint, whose M origin is at
+  ``radii * z_M`` in F, SimTK's Ellipsoid mobilizer): ``tf_F_M = [R1 R2 R3 | t]`` with each rotation about its
   axis expressed in the frame rotated by the previous ones (OpenSim's CustomJoint /
   SimTK::MobilizedBody::FunctionBased) and the translation ``t = sum_k f_k(q) axis_k``
   expressed in F. The body pose is ``tf_ground_child = tf_ground_parent @
@@ -170,8 +171,11 @@ class Joint:
     tf_child_jointframe: np.ndarray
     coordinates: tuple
     axes: tuple
+    radii: np.ndarray | None = None
 
     def __post_init__(self):
+        if self.radii is not None:
+            object.__setattr__(self, "radii", _ro(self.radii, (3,)))
         object.__setattr__(self, "tf_parent_jointframe", _ro(self.tf_parent_jointframe, (4, 4)))
         object.__setattr__(self, "tf_child_jointframe", _ro(self.tf_child_jointframe, (4, 4)))
         object.__setattr__(self, "coordinates", tuple(self.coordinates))

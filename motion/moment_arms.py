@@ -5,11 +5,12 @@
 path tension in the mobilizer's *generalized speeds* u. For most joints u = qdot and the two
 agree. They differ in three places:
 
-1. BallJoint and FreeJoint rotations: SimTK's Ball/Free mobilizers (with Euler angles) use the
+1. BallJoint, FreeJoint and EllipsoidJoint rotations: SimTK's Ball/Free/Ellipsoid mobilizers use the
    angular velocity of M in F, expressed in F, as u; with ``w = E(q) qdot`` (E's columns are
    the rotation axes carried by the preceding rotations, ``[a1, R1 a2, R1 R2 a3]``) the
    generalized force is ``E(q)^-T (-dL/dq)``. `opensim_moment_arms` reproduces this exactly
-   (to 1e-16 on the P2PBallJoint reference). GimbalJoint and CustomJoint use u = qdot.
+   (to 1e-16 on the P2PBallJoint reference and on a live OpenSim EllipsoidJoint). GimbalJoint
+   and CustomJoint use u = qdot.
 2. Wrapped paths: OpenSim's MomentArmSolver treats the wrap tangent points as fixed in the
    wrap object's body for the instant (0.05-4 mm off -dL/dq on Arm26). That is an
    approximation of -dL/dq, not another convention; it is not imitated here.
@@ -27,7 +28,7 @@ from .model import Model
 
 __all__ = ["opensim_moment_arms", "EULER_SPEED_JOINTS"]
 
-EULER_SPEED_JOINTS = ("BallJoint", "FreeJoint")
+EULER_SPEED_JOINTS = ("BallJoint", "FreeJoint", "EllipsoidJoint")
 
 
 def _euler_rate_matrix(joint, q: np.ndarray, cidx: dict) -> np.ndarray:
@@ -54,7 +55,7 @@ def opensim_moment_arms(model: Model, lines: ActionLines) -> np.ndarray:
     Returns
     -------
     (F, M, C) float
-        ``lines.moment_arms`` with the rotational coordinates of BallJoints and FreeJoints
+        ``lines.moment_arms`` with the rotational coordinates of Ball, Free and Ellipsoid joints
         mapped to OpenSim's angular-velocity mobilities (see the module docstring); NaN at
         an Euler-angle singularity (middle angle +-pi/2).
     """

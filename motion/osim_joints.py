@@ -8,7 +8,8 @@ joint frame F). The other joint types are the SimTK mobilizers OpenSim builds fo
 - PinJoint: rotation about z.  SliderJoint: translation along x.
 - UniversalJoint: rotation about x, then about the new y.
 - BallJoint, GimbalJoint: body-fixed x-y-z rotations (OpenSim uses Euler angles, SimTK
-  BodyRotationSequence 1-2-3).  FreeJoint: those three, then translations x, y, z in F.
+  BodyRotationSequence 1-2-3).  EllipsoidJoint: the same rotations, and M's origin at
+  ``radii * z_M`` in F (SimTK::MobilizedBody::Ellipsoid; checked against OpenSim 4.6).  FreeJoint: those three, then translations x, y, z in F.
 - PlanarJoint: rotation about z, translations along x and y of F.
 - WeldJoint: no coordinates.
 
@@ -39,6 +40,7 @@ _JOINT_DOFS = {
     "UniversalJoint": [("rotation", 0), ("rotation", 1)],
     "BallJoint": [("rotation", 0), ("rotation", 1), ("rotation", 2)],
     "GimbalJoint": [("rotation", 0), ("rotation", 1), ("rotation", 2)],
+    "EllipsoidJoint": [("rotation", 0), ("rotation", 1), ("rotation", 2)],
     "FreeJoint": [("rotation", 0), ("rotation", 1), ("rotation", 2),
                   ("translation", 0), ("translation", 1), ("translation", 2)],
     "PlanarJoint": [("rotation", 2), ("translation", 0), ("translation", 1)],

@@ -29,7 +29,7 @@ from .osim_xml import Node, function_child, parse_function, read_document
 
 __all__ = ["load_model"]
 
-_UNSUPPORTED_JOINTS = ("EllipsoidJoint", "ScapulothoracicJoint", "ConstantCurvatureJoint")
+_UNSUPPORTED_JOINTS = ("ScapulothoracicJoint", "ConstantCurvatureJoint")
 
 
 def load_model(path) -> Model:
@@ -116,8 +116,15 @@ def _joint_from_nodes(jnode: Node, parent: str, child: str, tf_pf, tf_cf, coord_
     mtypes = motion_types(kind, axes, tuple(order))
     by_name = {c.name: c for c in coord_nodes}
     coords = [_read_coordinate(by_name[n], jnode.name, mtypes[n]) for n in order]
+    radii = None
+    if kind == "EllipsoidJoint":
+        radii = jnode.floats("radii_x_y_z", 3, default=[np.nan] * 3)
+        if not np.all(radii > 0):
+            raise jnode.error(f"EllipsoidJoint <radii_x_y_z> must be three positive numbers, got {radii.tolist()}",
+                              "give the ellipsoid's three semi-axes", where=f"{jnode.path}/radii_x_y_z")
     joint = Joint(name=jnode.name or f"{parent}_to_{child}", kind=kind, parent=parent, child=child,
-                  tf_parent_jointframe=tf_pf, tf_child_jointframe=tf_cf, coordinates=tuple(order), axes=axes)
+                  tf_parent_jointframe=tf_pf, tf_child_jointframe=tf_cf, coordinates=tuple(order), axes=axes,
+                  radii=radii)
     return joint, coords
 
 

@@ -303,3 +303,60 @@ def test_frame_blocks_give_the_same_answer(opensim_dir, monkeypatch):
     for key in ("lengths", "moment_arms", "q", "points", "point_mask"):
         np.testing.assert_array_equal(getattr(parts, key), getattr(whole, key), err_msg=key)
     assert parts.point_labels == whole.point_labels
+
+
+ELLIPSOID_SCRIPT = textwrap.dedent('''
+    import os, sys
+    import opensim as osim
+    osim.Logger.setLevelString("error")
+    m = osim.Model(); m.setName("ellipsoid")
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.1)); m.addBody(b)
+    m.addJoint(osim.EllipsoidJoint("ell", m.getGround(), osim.Vec3(0.1, 0.2, 0.3), osim.Vec3(0.2, -0.1, 0.3),
+                                   b, osim.Vec3(0.01, 0.02, 0.03), osim.Vec3(0.1, 0.0, -0.2),
+                                   osim.Vec3(0.07, 0.05, 0.12)))
+    a = osim.PathActuator(); a.setName("act")
+    a.addNewPathPoint("p0", m.getGround(), osim.Vec3(0.3, 0.1, -0.1))
+    a.addNewPathPoint("p1", b, osim.Vec3(0.05, -0.1, 0.02))
+    m.addForce(a)
+    m.initSystem()
+    m.printToXML(sys.argv[1])
+    sys.stdout.flush()
+    os._exit(0)
+''')
+
+
+def test_live_opensim_ellipsoid_joint(osim, tmp_path):
+    """EllipsoidJoint: M's origin at radii * z_M; OpenSim's moment arms in angular-velocity mobilities."""
+    path = tmp_path / "ellipsoid.osim"
+    subprocess.run([sys.executable, "-c", ELLIPSOID_SCRIPT, str(path)], check=True, timeout=120)
+    model = load_model(path)
+    np.testing.assert_array_equal(model.joints[0].radii, [0.07, 0.05, 0.12])
+    om = osim.Model(str(path))
+    state = om.initSystem()
+    cs = om.getCoordinateSet()
+    body = om.getBodySet().get(0)
+    gp = osim.PathActuator.safeDownCast(om.getForceSet().get(0)).getGeometryPath()
+    q = np.random.default_rng(5).uniform(-1.0, 1.0, (5, 3))
+    tf_ref, len_ref, ma_ref = [], [], []
+    for row in q:
+        for i in range(3):
+            cs.get(i).setValue(state, float(row[i]), False)
+        om.realizePosition(state)
+        x = body.getTransformInGround(state)
+        tf = np.eye(4)
+        tf[:3, 3] = [x.p()[i] for i in range(3)]
+        tf[:3, :3] = [[x.R().get(i, j) for j in range(3)] for i in range(3)]
+        tf_ref.append(tf)
+        len_ref.append(gp.getLength(state))
+        ma_ref.append([gp.computeMomentArm(state, cs.get(i)) for i in range(3)])
+    np.testing.assert_allclose(body_poses(model, q).tf_ground_body[:, 1], np.array(tf_ref), rtol=0, atol=1e-12)
+    lines = action_lines(model, q)
+    np.testing.assert_allclose(lines.lengths[:, 0], len_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(opensim_moment_arms(model, lines)[:, 0], np.array(ma_ref), rtol=0, atol=1e-12)
+    # and -dL/dq itself is the derivative of the length (central differences, h = 1e-6)
+    h = 1e-6
+    for k in range(3):
+        dq = np.zeros(3)
+        dq[k] = h
+        fd = -(action_lines(model, q + dq).lengths - action_lines(model, q - dq).lengths)[:, 0] / (2 * h)
+        np.testing.assert_allclose(lines.moment_arms[:, 0, k], fd, rtol=0, atol=1e-8)
