@@ -124,27 +124,28 @@ def _merge(ours, ref, keys, value, ref_value=None):
 
 
 @pytest.fixture(scope="module")
-def arm26_out(tmp_path_factory, opensim_dir):
-    out = tmp_path_factory.mktemp("arm26")
-    code = main(["lines", str(opensim_dir / "Arm26" / "arm26.osim"),
-                 str(opensim_dir / "Arm26" / "arm26_InverseKinematics.mot"), "--out", str(out),
-                 "--quiet"])
+def gait_out(tmp_path_factory, opensim_dir):
+    out = tmp_path_factory.mktemp("gait")
+    folder = opensim_dir / "Gait2392_Simbody"
+    code = main(["lines", str(folder / "gait2392_thelen2003muscle.osim"),
+                 str(folder / "subject01_walk1_ik.mot"), "--out", str(out), "--quiet"])
     assert code == 0
     return out
 
 
-def test_arm26_writes_the_interface_columns(arm26_out):
-    assert sorted(p.name for p in arm26_out.iterdir()) == sorted(
+def test_writes_the_interface_columns(gait_out):
+    assert sorted(p.name for p in gait_out.iterdir()) == sorted(
         ["body_poses.csv", "action_lines.csv", "action_line_moment_arms.csv"])
-    poses = pd.read_csv(arm26_out / "body_poses.csv")
-    lines = pd.read_csv(arm26_out / "action_lines.csv")
-    arms = pd.read_csv(arm26_out / "action_line_moment_arms.csv")
+    poses = pd.read_csv(gait_out / "body_poses.csv")
+    lines = pd.read_csv(gait_out / "action_lines.csv")
+    arms = pd.read_csv(gait_out / "action_line_moment_arms.csv")
     assert list(poses.columns) == ["frame", "time", "body", *POSE]
     assert list(lines.columns) == ["frame", "time", "muscle", "length"]
     assert list(arms.columns) == ["frame", "time", "muscle", "coordinate", "moment_arm"]
-    assert poses.frame.min() == 0 and poses.frame.max() == 120  # 121 rows in the motion
+    assert poses.frame.min() == 0 and poses.frame.max() == 210  # 211 rows in the motion
+    assert len(lines) == 211 * 92 and len(arms) == 211 * 262
     # >= 9 significant digits: the text of a length has at least 9 digits
-    text = (arm26_out / "action_lines.csv").read_text().splitlines()[1]
+    text = (gait_out / "action_lines.csv").read_text().splitlines()[1]
     assert len(re.sub(r"\D", "", text.split(",")[-1]).lstrip("0")) >= 9
 
 
@@ -431,17 +432,18 @@ def test_failure_while_writing_leaves_no_file(opensim_dir, tmp_path, capsys, mon
         return real(self, path, *args, **kwargs)
 
     monkeypatch.setattr(pd.DataFrame, "to_csv", failing)
+    gait = opensim_dir / "Gait2392_Simbody"
     out = tmp_path / "out"
-    code, _, err = _run([opensim_dir / "Arm26" / "arm26.osim",
-                         opensim_dir / "Arm26" / "arm26_elbow_flexion_sweep.mot", "--out", out,
-                         "--quiet"], capsys)
+    code, _, err = _run([gait / "gait2392_thelen2003muscle.osim",
+                         gait / "subject01_walk1_ik.mot", "--out", out,
+                         "--frames", "0:3", "--quiet"], capsys)
     assert code == 1 and err.count("\n") == 1 and "No space left" in err
     assert not out.exists()  # created by this run, removed again (empty)
     kept = tmp_path / "kept"
     kept.mkdir()
     (kept / "notes.txt").write_text("mine")
-    code, _, _ = _run([opensim_dir / "Arm26" / "arm26.osim",
-                       opensim_dir / "Arm26" / "arm26_elbow_flexion_sweep.mot", "--out", kept,
-                       "--quiet"], capsys)
+    code, _, _ = _run([gait / "gait2392_thelen2003muscle.osim",
+                       gait / "subject01_walk1_ik.mot", "--out", kept,
+                       "--frames", "0:3", "--quiet"], capsys)
     assert code == 1
     assert sorted(p.name for p in kept.iterdir()) == ["notes.txt"]
