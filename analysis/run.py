@@ -34,7 +34,9 @@ error of double precision is ~1e-16 * 0.1 / 1e-4 ~ 1e-13 m, and even if the chai
 numerical noise were 1e-9 relative (iterative steps in wrapping), it contributes ~1e-6 m. The
 step is also far below the 1-2 degree scale on which wrapping contact or the path geometry
 change, so the quotient is a derivative, not a secant (checked by the smoothness test against a
-2-degree difference quotient).
+2-degree difference quotient). Where the +h or -h pose switches a ConditionalPathPoint of the
+muscle's action lines on or off (a step in the path, as in OpenSim), the quotient is one-sided on
+the side that keeps the frame's own path (error ~ h/2 * L'' instead of a spike of the step / 2h).
 """
 from __future__ import annotations
 
@@ -315,6 +317,42 @@ def _wrap_surfaces():
     return _api("motion", "wrap_surfaces", "surface_wrap")
 
 
+def _active_set_changes(model, mspec, q_stacked, n_f):
+    """(K, F) bool masks: the +h (-h) pose switches a ConditionalPathPoint of the muscle's action
+    lines on or off relative to the frame's own pose (OpenSim's rule: active when
+    ``range_min - 1e-5 <= q <= range_max + 1e-5``)."""
+    q = np.asarray(q_stacked, dtype=float)
+    n_k = q.shape[0] // n_f // 2
+    blocks = q.reshape(1 + 2 * n_k, n_f, -1)
+    plus = np.zeros((n_k, n_f), dtype=bool)
+    minus = np.zeros((n_k, n_f), dtype=bool)
+    for name in mspec.action_lines:
+        for pt in model.path(name).points:
+            if pt.kind != "conditional" or pt.coordinate not in model.coordinate_names:
+                continue
+            c = model.coordinate_index(pt.coordinate)
+            lo, hi = pt.range[0] - 1e-5, pt.range[1] + 1e-5
+            active = (blocks[..., c] >= lo) & (blocks[..., c] <= hi)      # (1 + 2K, F)
+            plus |= active[1::2] != active[0]
+            minus |= active[2::2] != active[0]
+    return plus, minus
+
+
+def _difference_quotients(base, plus, minus, steps, plus_switch, minus_switch):
+    """r = -dL/dq per fibre: central differences, one-sided where the +h or -h pose switches a
+    conditional path point (a step in the path, as in OpenSim, that a central difference would
+    turn into a spike; the exact action-line derivative is likewise one-sided there).
+
+    base (F, N), plus/minus (K, F, N), steps (K,), switches (K, F) -> (F, N, K)."""
+    h = steps[:, None, None]
+    central = -(plus - minus) / (2.0 * h)
+    forward = -(plus - base[None]) / h
+    backward = -(base[None] - minus) / h
+    r = np.where(plus_switch[..., None] & ~minus_switch[..., None], backward, central)
+    r = np.where(minus_switch[..., None] & ~plus_switch[..., None], forward, r)
+    return np.moveaxis(r, 0, -1)
+
+
 def _run_muscle(ctx, mspec):
     """Wrap, decompose, measure one muscle over all frames (+ perturbed frames)."""
     import motion as motion_pkg
@@ -370,9 +408,8 @@ def _run_muscle(ctx, mspec):
     with _timed(timings, "moment_arms"):
         blocks = lengths.reshape(1 + 2 * len(coord_idx), n_f, -1)
         base = blocks[0]
-        plus, minus = blocks[1::2], blocks[2::2]              # (K, F, N)
-        r = -(plus - minus) / (2.0 * steps[:, None, None])
-        r = np.moveaxis(r, 0, -1)                             # (F, N, K)
+        r = _difference_quotients(base, blocks[1::2], blocks[2::2], steps,
+                                  *_active_set_changes(ctx.model, mspec, stacked.q, n_f))
     lines = ctx.lines
     al_len = np.asarray(lines.lengths)[:, line_rows]
     al_r = np.asarray(lines.moment_arms)[:, line_rows][:, :, coord_idx]
