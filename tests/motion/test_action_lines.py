@@ -360,3 +360,63 @@ def test_live_opensim_ellipsoid_joint(osim, tmp_path):
         dq[k] = h
         fd = -(action_lines(model, q + dq).lengths - action_lines(model, q - dq).lengths)[:, 0] / (2 * h)
         np.testing.assert_allclose(lines.moment_arms[:, 0, k], fd, rtol=0, atol=1e-8)
+
+
+JOINTS_SCRIPT = """
+import os, sys
+import opensim as osim
+osim.Logger.setLevelString("error")
+m = osim.Model(); m.setName("joints")
+B = [osim.Body(f"b{i}", 1.0, osim.Vec3(0), osim.Inertia(0.1)) for i in range(5)]
+for b in B: m.addBody(b)
+g = m.getGround()
+V = osim.Vec3
+m.addJoint(osim.FreeJoint("free", g, V(0.1, 0.2, 0.3), V(0.2, -0.1, 0.3), B[0], V(0.01, 0.02, 0.03), V(0.1, 0.0, -0.2)))
+m.addJoint(osim.GimbalJoint("gimbal", B[0], V(0.0, -0.2, 0.1), V(0.3, 0.1, -0.2), B[1], V(0.02, 0.01, 0.0), V(0.0, 0.2, 0.1)))
+m.addJoint(osim.SliderJoint("slider", B[1], V(0.05, -0.1, 0.0), V(0.1, 0.4, -0.3), B[2], V(0.0, 0.03, 0.01), V(0.2, 0.0, 0.0)))
+m.addJoint(osim.PlanarJoint("planar", B[2], V(0.0, -0.15, 0.02), V(-0.2, 0.1, 0.3), B[3], V(0.01, 0.0, 0.02), V(0.0, -0.1, 0.2)))
+m.addJoint(osim.BallJoint("ball", B[3], V(0.02, -0.1, 0.0), V(0.1, 0.1, 0.1), B[4], V(0.0, 0.05, 0.0), V(-0.1, 0.2, 0.0)))
+a = osim.PathActuator(); a.setName("act")
+a.addNewPathPoint("p0", g, V(0.3, 0.1, -0.1))
+for i, b in enumerate(B):
+    a.addNewPathPoint(f"p{i + 1}", b, V(0.03 * (i + 1), -0.05, 0.02 * (-1) ** i))
+m.addForce(a)
+m.initSystem()
+m.printToXML(sys.argv[1])
+sys.stdout.flush()
+os._exit(0)
+"""
+
+
+def test_live_opensim_every_joint_type(osim, tmp_path):
+    """Free, Gimbal, Slider, Planar and Ball joints in one chain: poses, length and OpenSim's own
+    moment arms (Free and Ball rotations in angular-velocity mobilities) to rounding."""
+    path = tmp_path / "joints.osim"
+    subprocess.run([sys.executable, "-c", JOINTS_SCRIPT, str(path)], check=True, timeout=120)
+    model = load_model(path)
+    om = osim.Model(str(path))
+    state = om.initSystem()
+    cs = om.getCoordinateSet()
+    assert [cs.get(i).getName() for i in range(cs.getSize())] == list(model.coordinate_names)
+    gp = osim.PathActuator.safeDownCast(om.getForceSet().get(0)).getGeometryPath()
+    bodies = [om.getBodySet().get(i) for i in range(om.getBodySet().getSize())]
+    q = np.random.default_rng(2).uniform(-0.8, 0.8, (4, len(model.coordinates)))
+    tf_ref, len_ref, ma_ref = [], [], []
+    for row in q:
+        for i, v in enumerate(row):
+            cs.get(i).setValue(state, float(v), False)
+        om.realizePosition(state)
+        frames = []
+        for b in bodies:
+            x = b.getTransformInGround(state)
+            tf = np.eye(4)
+            tf[:3, 3] = [x.p()[i] for i in range(3)]
+            tf[:3, :3] = [[x.R().get(i, j) for j in range(3)] for i in range(3)]
+            frames.append(tf)
+        tf_ref.append(frames)
+        len_ref.append(gp.getLength(state))
+        ma_ref.append([gp.computeMomentArm(state, cs.get(i)) for i in range(cs.getSize())])
+    np.testing.assert_allclose(body_poses(model, q).tf_ground_body[:, 1:], np.array(tf_ref), rtol=0, atol=1e-12)
+    lines = action_lines(model, q)
+    np.testing.assert_allclose(lines.lengths[:, 0], len_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(opensim_moment_arms(model, lines)[:, 0], np.array(ma_ref), rtol=0, atol=1e-12)
