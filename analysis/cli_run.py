@@ -1,5 +1,6 @@
 """``fibres run [SPEC] [--motion FILE] [--out DIR] [--muscle NAME]... [--fibres N] [--resolution R]
-[--template NAME] [--frames START:STOP:STEP] [--jobs N] [--no-plots] [--sto] [--quiet]``.
+[--template NAME] [--frames START:STOP:STEP] [--jobs N] [--transport bind|decompose] [--no-plots]
+[--sto] [--quiet]``.
 
 Runs `analysis.run` and writes into DIR (default ``fibres-out/``) the files of INTERFACE.md:
 the four CSV tables, ``summary.csv``, ``run.json``, ``plots/*.png`` and ``fibres/<muscle>.pvd`` +
@@ -57,6 +58,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--template", default=None, metavar="NAME", help="fibre template for every muscle")
     add_frames_argument(parser)
     parser.add_argument("--jobs", type=int, default=1, metavar="N", help="muscles in parallel (default 1)")
+    parser.add_argument("--transport", choices=("bind", "decompose"), default="bind",
+                        help="how the rest fibres reach each frame: bound to the action lines with the "
+                             "surface (default) or decomposed again per frame with the rest plan")
     parser.add_argument("--no-plots", action="store_true", help="do not draw plots/*.png")
     parser.add_argument("--sto", action="store_true",
                         help="also write OpenSim .sto copies of the action-line and fibre-summary tables")
@@ -73,7 +77,8 @@ def execute(args) -> int:
             raise InputError(f"{key} must be >= 1, got {val}", where=key, fix=f"Give {key} a whole number >= 1.")
     out = prepare_out_dir(args.out)
     result = run(spec, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
-                 template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs)
+                 template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
+                 transport=args.transport)
     command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
     write_outputs(result, out, plots=not args.no_plots, sto=args.sto, quiet=args.quiet, command=command)
     if not args.quiet:

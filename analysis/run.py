@@ -188,21 +188,27 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     ctx = _Ctx(spec=spec, model=model, motion=mot, lines=lines, quiet=quiet, keep_points=keep_points,
                keep_surfaces=keep_surfaces, step=dict(FD_STEP, **(step or {})), transport=transport)
     results, muscle_timings = [None] * len(mspecs), []
-    if jobs > 1 and len(mspecs) > 1:
-        with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
-            futures = [pool.submit(_run_muscle, ctx, m) for m in mspecs]
-            try:
-                for i, fut in enumerate(futures):
-                    results[i], t = fut.result()
-                    muscle_timings.append(t)
-            except BaseException:
-                for fut in futures:
-                    fut.cancel()
-                raise
-    else:
-        for i, m in enumerate(mspecs):
-            results[i], t = _run_muscle(ctx, m)
-            muscle_timings.append(t)
+    bar = progress(total=len(mspecs), desc="wrap + fibres", quiet=quiet, unit="muscle")
+    try:
+        if jobs > 1 and len(mspecs) > 1:
+            with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
+                futures = [pool.submit(_run_muscle, ctx, m) for m in mspecs]
+                try:
+                    for i, fut in enumerate(futures):
+                        results[i], t = fut.result()
+                        muscle_timings.append(t)
+                        bar.update(1)
+                except BaseException:
+                    for fut in futures:
+                        fut.cancel()
+                    raise
+        else:
+            for i, m in enumerate(mspecs):
+                results[i], t = _run_muscle(ctx, m)
+                muscle_timings.append(t)
+                bar.update(1)
+    finally:
+        bar.close()
     for t in muscle_timings:
         for k, v in t.items():
             timings[k] = timings.get(k, 0.0) + v
