@@ -73,19 +73,29 @@ def _template(template, template_params) -> Template:
     return get_template(template, **dict(template_params or {}))
 
 
-def _cross_section_ref(vertices, origin, insertion, axis):
+def _cross_section_ref(vertices, origin, insertion, axis, template):
     """A reference direction for v0 derived from the muscle itself, so that the rotations
     searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
     the major axis of the vertices' spread perpendicular to the principal axis, its sign
-    fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along."""
-    frame = principal_frame(vertices, origin, insertion, axis=axis)
+    fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
+
+    Returns None (the fitting's default, a world axis) when that spread is isotropic
+    (eigenvalues within `ISOTROPIC` of each other: a circular cylinder, a cube), where no
+    direction is defined by the shape and a world axis keeps axis-aligned shapes exact."""
+    frame = principal_frame(vertices, origin, insertion, axis=axis, template=template)
     d = vertices - frame.centroid
     d = d - np.outer(d @ frame.axis, frame.axis)
-    _, vecs = np.linalg.eigh(d.T @ d)
+    vals, vecs = np.linalg.eigh(d.T @ d)
+    if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
+        return None
     ref = vecs[:, -1]
     if np.arange(1, len(d) + 1) @ (d @ ref) < 0:
         ref = -ref
     return ref
+
+
+#: Relative eigenvalue gap below which a cross-section's spread counts as isotropic.
+ISOTROPIC = 1e-6
 
 
 #: Scores within this relative margin of the best count as tied; the lowest rotation index
@@ -98,7 +108,7 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
     """Fit the box (§3.2) and record the choices known before slicing."""
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
-    ref = _cross_section_ref(vertices, origin, insertion, axis)
+    ref = _cross_section_ref(vertices, origin, insertion, axis, tmpl)
     box = fit_box(vertices, origin, insertion, tmpl, angle_step_deg=angle_step_deg, axis=axis,
                   v_ref=ref)
     scores = box.scores
@@ -109,7 +119,7 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
     return DecompositionPlan(topology if topology is not None else
                              mesh_topology(faces, len(vertices)),
                              np.asarray(vertices), v0, box.method, best,
-                             box.angle_step_deg, fr, np.full((fr.size, 4), -1, np.int64))
+                             box.angle_step_deg, fr, np.full((fr.size, 4), -1, np.int64), tmpl)
 
 
 def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool):
@@ -174,7 +184,8 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
 
 def _with_choice(plan, choice):
     return DecompositionPlan(plan.topology, plan.rest_vertices, plan.v0, plan.axis_method,
-                             plan.angle_index, plan.angle_step_deg, plan.fractions, choice)
+                             plan.angle_index, plan.angle_step_deg, plan.fractions, choice,
+                             plan.template)
 
 
 def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,

@@ -59,6 +59,9 @@ class DecompositionPlan:
     choice : (S, 4) int64
         Per plane, the mesh edge of the start vertex P0 and of the first vertices of the
         2nd, 3rd and 4th parts of the contour (-1: decide afresh).
+    template : fibres.templates.Template, optional
+        The template whose attachment areas oriented the box (oblique templates such as
+        pennate tilt the principal axis, `fibres.fitting.principal_frame`).
     """
 
     topology: MeshTopology
@@ -69,6 +72,7 @@ class DecompositionPlan:
     angle_step_deg: float
     fractions: np.ndarray
     choice: np.ndarray
+    template: object = None
 
     def __post_init__(self):
         for name in ("rest_vertices", "v0", "fractions", "choice"):
@@ -113,6 +117,18 @@ def kabsch_rotation(source, target) -> np.ndarray:
     return vt.T @ np.diag([1.0, 1.0, d]) @ u.T
 
 
+#: at most this many vertices (evenly spread over the vertex list) enter the Kabsch fit
+KABSCH_VERTICES = 2000
+
+
+def _kabsch_subset(n: int):
+    """Vertex indices for the Kabsch fit: every vertex up to `KABSCH_VERTICES`, else an
+    evenly strided subset (fixed by the topology, so exact for rigid motions and smooth)."""
+    if n <= KABSCH_VERTICES:
+        return slice(None)
+    return np.linspace(0, n - 1, KABSCH_VERTICES).astype(np.int64)
+
+
 def box_from_plan(plan: DecompositionPlan, vertices, origin, insertion) -> Box:
     """The template box of a deformed copy, with the plan's orientation (Kohout 2012 §3.2).
 
@@ -131,14 +147,20 @@ def box_from_plan(plan: DecompositionPlan, vertices, origin, insertion) -> Box:
     -------
     Box
     """
-    rot = kabsch_rotation(plan.rest_vertices, vertices)
-    frame = principal_frame(vertices, origin, insertion, axis=plan.axis_method,
-                            v_ref=rot @ plan.v0)
+    v = np.asarray(vertices, dtype=np.float64)
+    if v is plan.rest_vertices or np.array_equal(v, plan.rest_vertices):
+        rot = np.eye(3)
+    else:
+        sub = _kabsch_subset(len(v))
+        rot = kabsch_rotation(plan.rest_vertices[sub], v[sub])
+    frame = principal_frame(v, origin, insertion, axis=plan.axis_method, v_ref=rot @ plan.v0,
+                            template=plan.template, angle_step_deg=plan.angle_step_deg,
+                            angle_index=plan.angle_index)
     theta = np.deg2rad(plan.angle_step_deg * plan.angle_index)
     x = np.cos(theta) * frame.v0 + np.sin(theta) * frame.w0
     y = np.cross(frame.axis, x)
     axes = np.stack([x, y, frame.axis], axis=1)
-    local = (vertices - frame.centroid) @ axes
+    local = (v - frame.centroid) @ axes
     lo, hi = local.min(axis=0), local.max(axis=0)
     return Box(frame.centroid + axes @ lo, axes, hi - lo, plan.angle_index,
                plan.angle_step_deg, method=frame.method)
