@@ -122,3 +122,28 @@ def test_bad_knots_raise():
         SimmSpline([0.0, 2.0, 1.0], [0.0, 1.0, 2.0])
     with pytest.raises(ValueError, match="at least 2"):
         PiecewiseLinearFunction([0.0], [1.0])
+
+
+def test_polynomial_matches_opensim(osim):
+    coefficients = [2.0, -1.0, 0.5, 0.3]          # OpenSim: highest power first
+    vec = osim.Vector(len(coefficients), 0.0)
+    for i, c in enumerate(coefficients):
+        vec.set(i, c)
+    theirs = osim.PolynomialFunction(vec)
+    t = np.array([-1.3, 0.2, 1.7])
+    val, der = _osim_eval(osim, theirs, t)
+    np.testing.assert_allclose(PolynomialFunction(coefficients).value(t), val, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(PolynomialFunction(coefficients).derivative(t), der, rtol=0, atol=1e-13)
+
+
+def test_multiplier_function_xml_is_read(tmp_path):
+    """The XML OpenSim 4.6 prints for a MultiplierFunction (checked with MultiplierFunction.printToXML)."""
+    from motion.osim_xml import Node, parse_function
+    import xml.etree.ElementTree as ET
+
+    el = ET.fromstring("<MultiplierFunction><function><SimmSpline><x> -2 -1 0</x><y> 0.01 0.03 0</y>"
+                       "</SimmSpline></function><scale>1.7</scale></MultiplierFunction>")
+    f = parse_function(Node(el, "/MultiplierFunction", "x.osim"))
+    ref = SimmSpline([-2, -1, 0], [0.01, 0.03, 0])
+    t = np.linspace(-3, 1, 9)
+    np.testing.assert_allclose(f.value(t), 1.7 * ref.value(t), rtol=0, atol=1e-16)
