@@ -19,8 +19,6 @@ import os
 
 import numpy as np
 
-from .errors import InputError
-from .functions import Constant
 from .model import (Body, Coordinate, CouplerConstraint, Geometry, Joint, Model, WeldConstraint,
                     frame_transform)
 from .osim_joints import JOINT_TYPES, coordinate_order, custom_joint_axes, joint_axes, motion_types
