@@ -420,3 +420,42 @@ def test_live_opensim_every_joint_type(osim, tmp_path):
     lines = action_lines(model, q)
     np.testing.assert_allclose(lines.lengths[:, 0], len_ref, rtol=0, atol=1e-12)
     np.testing.assert_allclose(opensim_moment_arms(model, lines)[:, 0], np.array(ma_ref), rtol=0, atol=1e-12)
+
+
+def test_live_opensim_lhdl_3x_model(osim, lhdl_dir):
+    """The LHDL hip (a 3.x file with Latin-1 bytes) against OpenSim 4.6 loading the same file."""
+    import warnings
+
+    import motion
+
+    path = lhdl_dir / "model" / "LHDL_hip_r.osim"
+    model = load_model(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")             # the file's extra columns and missing pelvis
+        mot = motion.load_motion(lhdl_dir / "model" / "motions" / "hip_flexion.mot", model)
+    q = mot.q[::5]
+    om = osim.Model(str(path))
+    state = om.initSystem()
+    cs = om.getCoordinateSet()
+    muscles = [om.getMuscles().get(n) for n in model.path_names]
+    bodies = [om.getBodySet().get(i) for i in range(om.getBodySet().getSize())]
+    assert [b.getName() for b in bodies] == list(model.body_names[1:])
+    tf_ref, len_ref, ma_ref = [], [], []
+    for row in q:
+        for name, v in zip(model.coordinate_names, row):
+            cs.get(name).setValue(state, float(v), False)
+        om.realizePosition(state)
+        frames = []
+        for b in bodies:
+            x = b.getTransformInGround(state)
+            tf = np.eye(4)
+            tf[:3, 3] = [x.p()[i] for i in range(3)]
+            tf[:3, :3] = [[x.R().get(i, j) for j in range(3)] for i in range(3)]
+            frames.append(tf)
+        tf_ref.append(frames)
+        len_ref.append([mus.getLength(state) for mus in muscles])
+        ma_ref.append([[mus.computeMomentArm(state, cs.get(c)) for c in model.coordinate_names] for mus in muscles])
+    np.testing.assert_allclose(body_poses(model, q).tf_ground_body[:, 1:], np.array(tf_ref), rtol=0, atol=1e-12)
+    lines = action_lines(model, q)
+    np.testing.assert_allclose(lines.lengths, np.array(len_ref), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(opensim_moment_arms(model, lines), np.array(ma_ref), rtol=0, atol=1e-12)
