@@ -19,11 +19,14 @@ vertices inside those windows are enumerated exhaustively, so the minimum is exa
 """
 from __future__ import annotations
 
+from bisect import bisect_left, bisect_right
+from math import sqrt
+
 import numpy as np
 
 __all__ = ["rectangle", "start_vertex", "split_chain", "subdivide_rectangle", "correspond"]
 
-_AINV_DIAG = np.array([0.75, 1.0, 0.75])
+_AINV_DIAG = (0.75, 1.0, 0.75)
 
 
 def rectangle(ex: float, ey: float) -> np.ndarray:
@@ -75,31 +78,40 @@ def split_chain(seg_lengths, sides) -> np.ndarray:
         ``sum_j (sides_j - k * length_j)**2`` exactly, ``k = sum(sides) / sum(seg_lengths)``.
     """
     seg = np.asarray(seg_lengths, dtype=float)
-    a = np.asarray(sides, dtype=float)
     m = seg.size
     if m < 4:
         raise ValueError(f"a chain of {m} segments cannot be split into four parts")
-    perimeter = seg.sum()
-    k = a.sum() / perimeter if perimeter > 0 else 0.0
-    x = k * np.concatenate([[0.0], np.cumsum(seg)])             # (m+1,)
-    X = np.cumsum(a)[:3]
-    inner = x[1:m]                                              # candidates i = 1..m-1
-    guess = np.argmin(np.abs(inner[:, None] - X[None, :]), axis=0) + 1
-    i1 = min(max(guess[0], 1), m - 3)
-    i2 = min(max(guess[1], i1 + 1), m - 2)
-    i3 = min(max(guess[2], i2 + 1), m - 1)
-    e0 = _error(x, X, np.array([[i1, i2, i3]]))[0]
-    radius = np.sqrt(e0 * _AINV_DIAG) * (1.0 + 1e-12) + 1e-300
-    cands = [np.flatnonzero(np.abs(inner - X[j]) <= radius[j]) + 1 for j in range(3)]
-    g1, g2, g3 = np.meshgrid(*cands, indexing="ij")
-    trip = np.stack([g1.ravel(), g2.ravel(), g3.ravel()], axis=1)
-    trip = trip[(trip[:, 0] < trip[:, 1]) & (trip[:, 1] < trip[:, 2])]
-    trip = np.vstack([trip, [[i1, i2, i3]]])
-    err = _error(x, X, trip)
-    best = np.flatnonzero(err == err.min())
-    winners = trip[best]
-    pick = np.lexsort(winners.T[::-1])[0]
-    return winners[pick].astype(np.int64)
+    a = [float(v) for v in np.asarray(sides, dtype=float)]
+    cum = np.cumsum(seg)
+    perimeter = float(cum[-1])
+    k = sum(a) / perimeter if perimeter > 0 else 0.0
+    xs = [0.0] + (k * cum).tolist()                  # x_i, i = 0..m, nondecreasing
+    X = (a[0], a[0] + a[1], a[0] + a[1] + a[2])
+
+    def err(c):
+        y1, y2, y3 = xs[c[0]] - X[0], xs[c[1]] - X[1], xs[c[2]] - X[2]
+        return y1 * y1 + (y2 - y1) ** 2 + (y3 - y2) ** 2 + y3 * y3
+
+    # a feasible start: the vertex nearest to each ideal position, made strictly increasing
+    near = []
+    for t in X:
+        i = min(max(bisect_left(xs, t), 1), m - 1)
+        near.append(i - 1 if abs(xs[i - 1] - t) <= abs(xs[i] - t) else i)
+    i1 = min(max(near[0], 1), m - 3)
+    i2 = min(max(near[1], i1 + 1), m - 2)
+    i3 = min(max(near[2], i2 + 1), m - 1)
+    best = (i1, i2, i3)
+    best_err = err(best)
+    win = [sqrt(best_err * d) * (1.0 + 1e-12) + 1e-300 for d in _AINV_DIAG]
+    lo = [max(bisect_left(xs, X[j] - win[j]), 1) for j in range(3)]
+    hi = [min(bisect_right(xs, X[j] + win[j]), m) for j in range(3)]
+    for c1 in range(lo[0], hi[0]):                  # lexicographic: first minimum wins
+        for c2 in range(max(lo[1], c1 + 1), hi[1]):
+            for c3 in range(max(lo[2], c2 + 1), hi[2]):
+                e = err((c1, c2, c3))
+                if e < best_err or (e == best_err and (c1, c2, c3) < best):
+                    best, best_err = (c1, c2, c3), e
+    return np.array(best, dtype=np.int64)
 
 
 def _error(x, X, trip) -> np.ndarray:

@@ -96,6 +96,129 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology,
                local_uv=None, planned=None):
     """Correspondence of every plane: the contour ``P`` and the subdivided rectangle ``Q``.
 
+    All planes at once on the concatenated contours (orientation, start vertex closest to
+    ``Q0``, rolling, arc lengths, side subdivision); only the split search
+    (`fibres.correspondence.split_chain`) runs per plane, and only where no plan gives it.
+    Same result as applying `fibres.correspondence.correspond` to each plane.
+
+    Parameters
+    ----------
+    sections : Sections
+    chosen : (S,) int
+        Loop per plane (`fibres.contours.choose_loops`); -1 where nothing was cut.
+    extents : (3,) float
+        Box extents; the rectangle is ``[0, ex] x [0, ey]``.
+    topology : MeshTopology
+    local_uv : (V, 2) float, optional
+        Vertex positions in the plane frame (needed with ``planned``).
+    planned : (S, 4) int, optional
+        Mesh edges of the start vertex and of the three split vertices from a plan
+        (-1: decide afresh).
+
+    Returns
+    -------
+    P, Q : tuple of (m_s, 2) float arrays
+    choice : (S, 4) int64
+        Mesh edges of the start and split vertices actually used (-1 where a refined
+        midpoint was used), for `fibres.plan.DecompositionPlan`.
+    notes : tuple of str
+    """
+    chosen = np.asarray(chosen, dtype=np.int64)
+    n_s = chosen.size
+    if (chosen < 0).any():
+        s = int(np.flatnonzero(chosen < 0)[0])
+        raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
+    rect = rectangle(float(extents[0]), float(extents[1]))
+    sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
+    notes = []
+    # clockwise contours, concatenated
+    lo = sections.loop_start[chosen]
+    m = sections.loop_start[chosen + 1] - lo
+    offs = np.concatenate([[0], np.cumsum(m)])
+    sl = np.repeat(np.arange(n_s), m)
+    j = np.arange(offs[-1]) - offs[sl]
+    raw = sections.points[lo[sl] + j]
+    nx = raw[offs[sl] + (j + 1) % m[sl]]
+    flip = np.add.reduceat(raw[:, 0] * nx[:, 1] - nx[:, 0] * raw[:, 1], offs[:-1]) > 0
+    idx = np.where(flip[sl], lo[sl] + m[sl] - 1 - j, lo[sl] + j)
+    pts = sections.points[idx]
+    edge = sections.edge[idx]
+    if (m < 4).any():
+        pl, el = np.split(pts, offs[1:-1]), np.split(edge, offs[1:-1])
+        for s in np.flatnonzero(m < 4):
+            notes.append(f"slice {s}: contour of {m[s]} vertices refined with midpoints")
+            pl[s], el[s] = _refine(pl[s], el[s])
+        pts, edge = np.concatenate(pl), np.concatenate(el)
+        m = np.array([len(p) for p in pl])
+        offs = np.concatenate([[0], np.cumsum(m)])
+        sl = np.repeat(np.arange(n_s), m)
+        j = np.arange(offs[-1]) - offs[sl]
+    # start vertex: closest to Q0 (first one on ties), unless planned
+    dx, dy = pts[:, 0] - rect[0, 0], pts[:, 1] - rect[0, 1]
+    d2 = dx * dx + dy * dy
+    closest = np.flatnonzero(d2 == np.minimum.reduceat(d2, offs[:-1])[sl])
+    start = j[closest[np.searchsorted(sl[closest], np.arange(n_s))]]
+    split = np.full((n_s, 3), -1, dtype=np.int64)
+    if planned is not None:
+        pos = _locate_all(edge, sl, offs, planned, topology.edges.shape[0])
+        for s in np.flatnonzero((pos < 0).any(axis=1) & (planned >= 0).all(axis=1)):
+            seg = slice(offs[s], offs[s + 1])
+            pos[s] = [_locate(edge[seg], e, pts[seg], topology, local_uv) for e in planned[s]]
+        has_start = pos[:, 0] >= 0
+        for s in np.flatnonzero(~has_start & (planned[:, 0] >= 0)):
+            notes.append(f"slice {s}: planned start vertex not found; chose afresh")
+        start = np.where(has_start, pos[:, 0], start)
+        rel = (pos[:, 1:] - start[:, None]) % m[:, None]
+        ok = has_start & (pos[:, 1:] >= 0).all(axis=1) & (0 < rel[:, 0]) \
+            & (rel[:, 0] < rel[:, 1]) & (rel[:, 1] < rel[:, 2])
+        for s in np.flatnonzero(has_start & ~ok):
+            notes.append(f"slice {s}: planned side split not found; split afresh")
+        split[ok] = rel[ok]
+    # roll every contour to its start; arc lengths within each contour
+    roll = offs[sl] + (start[sl] + j) % m[sl]
+    P = pts[roll]
+    P_edge = edge[roll]
+    nxt = offs[sl] + (j + 1) % m[sl]
+    seg = np.hypot(*(P[nxt] - P).T)
+    cum = np.cumsum(seg)
+    base = np.concatenate([[0.0], cum])[offs[:-1]]
+    c_incl = cum - base[sl]                         # arc length from P0 to P_{j+1}
+    c_excl = c_incl - seg                           # ... to P_j
+    for s in np.flatnonzero(split[:, 0] < 0):
+        split[s] = split_chain(seg[offs[s]:offs[s + 1]], sides)
+    # subdivide each rectangle side like its part
+    bounds = np.concatenate([np.zeros((n_s, 1), np.int64), split, m[:, None]], axis=1)
+    arc = np.concatenate([np.zeros((n_s, 1)), np.zeros((n_s, 3)), c_incl[offs[1:] - 1, None]],
+                         axis=1)
+    arc[:, 1:4] = c_excl[offs[:-1, None] + split]
+    part = (j[:, None] >= split[sl]).sum(axis=1)
+    b0, b1 = bounds[sl, part], bounds[sl, part + 1]
+    a0, a1 = arc[sl, part], arc[sl, part + 1]
+    span = a1 - a0
+    frac = np.where(span > 0, (c_excl - a0) / np.where(span > 0, span, 1.0),
+                    (j - b0) / (b1 - b0))
+    Q = rect[part] + frac[:, None] * (rect[(part + 1) % 4] - rect[part])
+    pick = offs[:-1, None] + np.concatenate([np.zeros((n_s, 1), np.int64), split], axis=1)
+    choice = P_edge[pick]
+    cut = offs[1:-1]
+    return tuple(np.split(P, cut)), tuple(np.split(Q, cut)), choice, tuple(notes)
+
+
+def _locate_all(edge, sl, offs, planned, n_edges):
+    """Contour positions (S, 4) of the planned mesh edges in their planes (-1: absent)."""
+    key = np.where(edge >= 0, sl * n_edges + edge, -1)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    want = np.arange(planned.shape[0])[:, None] * n_edges + planned
+    hit = np.clip(np.searchsorted(ks, want), 0, ks.size - 1)
+    found = (ks[hit] == want) & (planned >= 0)
+    return np.where(found, order[hit] - offs[:-1, None], -1)
+
+
+def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopology,
+               local_uv=None, planned=None):
+    """`slice_maps` one plane at a time (reference implementation for the tests).
+
     Parameters
     ----------
     sections : Sections

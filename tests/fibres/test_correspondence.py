@@ -81,3 +81,35 @@ def test_subdivision_of_zero_length_part_is_uniform():
 def test_too_short_chain_refused():
     with pytest.raises(ValueError):
         split_chain(np.ones(3), np.ones(4))
+
+
+def test_all_planes_at_once_equals_plane_by_plane():
+    # fibres.morph.slice_maps (vectorised over planes) against correspond() per plane,
+    # fresh and with a plan, on an irregular closed surface (a bumpy ellipsoid)
+    import trimesh
+
+    from fibres.contours import choose_loops
+    from fibres.morph import _slice_maps_loop, slice_maps
+    from fibres.slicing import mesh_topology, slice_mesh
+
+    m = trimesh.creation.icosphere(subdivisions=4)
+    v = np.asarray(m.vertices) * [0.03, 0.015, 0.1]
+    v = v * (1 + 0.1 * np.sin(7 * m.vertices[:, [1]]) * np.cos(5 * m.vertices[:, [2]]))
+    top = mesh_topology(m.faces, len(v))
+    lo = v.min(axis=0)
+    ext = v.max(axis=0) - lo
+    tf = np.eye(4)
+    tf[:3, 3] = lo
+    sec = slice_mesh(v, top, tf, np.linspace(0.001, 0.999, 25) * ext[2])
+    chosen, _ = choose_loops(sec, np.tile(ext[:2] / 2, (25, 1)), n_slices=25)
+    uv = (v - lo)[:, :2]
+    fresh = slice_maps(sec, chosen, ext, topology=top)
+    ref = _slice_maps_loop(sec, chosen, ext, topology=top)
+    planned = slice_maps(sec, chosen, ext, topology=top, local_uv=uv, planned=fresh[2])
+    for got in (fresh, planned):
+        assert np.array_equal(got[2], ref[2]) and got[3] == ref[3]
+        for a, b in zip(got[0], ref[0]):
+            assert np.array_equal(a, b)
+        for a, b in zip(got[1], ref[1]):
+            # arc lengths from one running sum instead of per plane: rounding only
+            assert np.abs(a - b).max() <= 1e-12 * ext.max()

@@ -4,7 +4,8 @@ import pytest
 import trimesh
 
 from fibres.contours import choose_loops, clockwise_contour, loop_areas
-from fibres.slicing import _cycles, _first_at_or_above, mesh_topology, slice_mesh
+from fibres.slicing import (_cycles, _cycles_doubling, _first_at_or_above, mesh_topology,
+                            slice_mesh)
 
 
 def _polygon_area(p):
@@ -26,6 +27,9 @@ def test_cycles_of_random_permutation():
             if node == lab:
                 break
     assert seen.all()
+    # the compiled walk and the pointer doubling agree exactly
+    label2, rank2 = _cycles_doubling(nxt)
+    assert np.array_equal(label, label2) and np.array_equal(rank, rank2)
 
 
 def test_fast_plane_search_equals_searchsorted():
