@@ -191,17 +191,17 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     bar = progress(total=len(mspecs), desc="wrap + fibres", quiet=quiet, unit="muscle")
     try:
         if jobs > 1 and len(mspecs) > 1:
-            with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
-                futures = [pool.submit(_run_muscle, ctx, m) for m in mspecs]
-                try:
-                    for i, fut in enumerate(futures):
-                        results[i], t = fut.result()
-                        muscle_timings.append(t)
-                        bar.update(1)
-                except BaseException:
-                    for fut in futures:
-                        fut.cancel()
-                    raise
+            pool = concurrent.futures.ThreadPoolExecutor(max_workers=jobs)
+            futures = [pool.submit(_run_muscle, ctx, m) for m in mspecs]
+            try:
+                for i, fut in enumerate(futures):
+                    results[i], t = fut.result()
+                    muscle_timings.append(t)
+                    bar.update(1)
+            except BaseException:   # Ctrl-C or a failed muscle: do not wait for the others
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+            pool.shutdown(wait=True)
         else:
             for i, m in enumerate(mspecs):
                 results[i], t = _run_muscle(ctx, m)

@@ -178,3 +178,10 @@ def test_jobs_and_transport_options(example, tmp_path):
     dec = run(toml, transport="decompose", **kw)
     assert dec.settings["transport"] == "decompose"
     assert np.isfinite(dec.muscle("biceps").fibre_moment_arms).all()
+
+
+def test_unknown_muscle_option(example, tmp_path, capsys):
+    out = tmp_path / "out"
+    _fails(capsys, ["run", str(example / "arm_example.toml"), "--muscle", "deltoid", "--out", str(out), "--quiet"],
+           "--muscle", "deltoid", "biceps")
+    _no_output(out)
