@@ -59,3 +59,15 @@ def test_fibre_ends_ride_their_bones_and_moment_arms_are_plausible(sweep):
     assert (np.median(r, axis=1) > 0.01).all() and (np.median(r, axis=1) < 0.05).all()
     line = m.action_line_moment_arms[:, 0, m.coordinates.index("hip_flexion_r")]
     assert np.abs(np.median(r, axis=1) - line).max() < 0.01
+
+
+def test_moment_arms_do_not_depend_on_the_step(sweep):
+    """h = 1e-4 rad (default) vs 1e-5 rad: truncation error ~h^2 L'''/6 and round-off
+    ~eps L / h are both far below 1 micrometre, so the two must agree to 1e-6 m."""
+    from motion import Motion
+
+    spec = load_spec(TOML)
+    mot = Motion.from_array(spec.model, sweep.time, sweep.q)
+    fine = run(spec, mot, muscles=["iliacus_r"], fibres=60, step={"rotational": 1e-5})
+    np.testing.assert_allclose(fine.muscle("iliacus_r").fibre_moment_arms,
+                               sweep.muscle("iliacus_r").fibre_moment_arms, atol=1e-6)
