@@ -155,7 +155,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         Keep the fibre polylines per frame (``MuscleResult.fibre_points``) for the 3D files.
     keep_surfaces : bool, keyword-only
         Keep the wrapped surfaces per frame.
-    transport : {"embed", "decompose"}, keyword-only
+    transport : {"bind", "decompose"}, keyword-only
         How the rest fibres reach each frame (module docstring).
 
     Returns
@@ -167,6 +167,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     if transport not in TRANSPORTS:
         raise ValueError(f"transport must be one of {TRANSPORTS}, got {transport!r}")
     timings = {}
+    t_start = _time.perf_counter()
     with _timed(timings, "load"):
         spec = spec_path if isinstance(spec_path, FibreModelSpec) else load_spec(spec_path)
         model = spec.model
@@ -209,9 +210,10 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
                 bar.update(1)
     finally:
         bar.close()
-    for t in muscle_timings:
+    for t in muscle_timings:   # per-muscle stages summed (thread time when jobs > 1)
         for k, v in t.items():
             timings[k] = timings.get(k, 0.0) + v
+    timings["total"] = _time.perf_counter() - t_start
     inputs = {"spec": spec.file, "model": spec.model_path}
     if mot_path is not None:
         inputs["motion"] = Path(mot_path).resolve()

@@ -2,6 +2,7 @@
 file/element and the fix, no traceback, no output file. Ctrl-C: status 130, nothing written."""
 from __future__ import annotations
 
+import importlib
 import os
 import shutil
 from pathlib import Path
@@ -9,7 +10,6 @@ from pathlib import Path
 import pytest
 
 from analysis import cli
-import importlib
 
 run_module = importlib.import_module("analysis.run")  # the module (analysis.run is the function)
 
