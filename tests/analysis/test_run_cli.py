@@ -185,3 +185,18 @@ def test_unknown_muscle_option(example, tmp_path, capsys):
     _fails(capsys, ["run", str(example / "arm_example.toml"), "--muscle", "deltoid", "--out", str(out), "--quiet"],
            "--muscle", "deltoid", "biceps")
     _no_output(out)
+
+
+def test_muscle_without_mesh_gets_a_generated_surface(example):
+    """No `mesh`: a fusiform surface is generated around the action line; its fibres span the
+    line, so at the rest pose (frame 0) their median length is the line's within 10 %."""
+    import numpy as np
+
+    from analysis import run
+
+    toml = example / "arm_example.toml"
+    toml.write_text(toml.read_text().replace('mesh = "meshes/brachialis.ply"\n', "", 1))
+    res = run(toml, frames="0:27:13", muscles=["brachialis"], fibres=12, resolution=8)
+    m = res.muscle("brachialis")
+    assert np.isfinite(m.fibre_moment_arms).all()
+    assert np.median(m.fibre_lengths[0]) == pytest.approx(m.action_line_lengths[0, 0], rel=0.1)
