@@ -69,14 +69,18 @@ def add_arguments(parser) -> None:
 
 def execute(args) -> int:
     from .output_files import prepare_out_dir
-    from .run import run
+    from .run import _select_muscles, run
+    from .spec import load_spec
 
     spec = Path(args.spec) if args.spec is not None else default_spec()
     for key, val in (("--fibres", args.fibres), ("--resolution", args.resolution), ("--jobs", args.jobs)):
         if val is not None and val < 1:
             raise InputError(f"{key} must be >= 1, got {val}", where=key, fix=f"Give {key} a whole number >= 1.")
+    # bad input is reported before the output folder is created
+    loaded = load_spec(spec)
+    _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution, template=args.template)
     out = prepare_out_dir(args.out)
-    result = run(spec, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
+    result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
                  template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
                  transport=args.transport)
     command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
