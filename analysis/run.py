@@ -220,6 +220,8 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     for m in mspecs:
         if m.mesh is not None:
             inputs[f"mesh:{m.name}"] = m.mesh
+        for k, (_, bone) in enumerate(m.bones):
+            inputs[f"bone:{m.name}:{k}"] = bone
         for end in ("origin", "insertion"):
             src = getattr(m, end).source
             if src and Path(src).is_file():
@@ -294,7 +296,7 @@ def _stacked_motion(ctx, coord_idx):
 def _surface_spec(mspec):
     """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres."""
     from fibres import as_surface
-    from motion.surface_spec import MuscleSurfaceSpec, SurfaceAttachment
+    from motion.surface_spec import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment
 
     vertices = faces = None
     if mspec.mesh is not None:
@@ -302,8 +304,13 @@ def _surface_spec(mspec):
         vertices, faces = surf.vertices, surf.faces
     ends = {end: SurfaceAttachment(body=a.body, points=a.points, in_body_frame=a.in_body_frame)
             for end, a in (("origin", mspec.origin), ("insertion", mspec.insertion))}
+    bones = []
+    for body, path in mspec.bones:
+        bone = as_surface(path, units=mspec.units)
+        bones.append(BoneMesh(body=body, vertices=bone.vertices, faces=bone.faces))
     return MuscleSurfaceSpec(name=mspec.name, action_lines=tuple(mspec.action_lines), vertices=vertices,
-                             faces=faces, frame=mspec.frame, rest_pose=dict(mspec.rest_pose), **ends)
+                             faces=faces, frame=mspec.frame, rest_pose=dict(mspec.rest_pose),
+                             bones=tuple(bones), volume=mspec.volume, **ends)
 
 
 def _api(package: str, name: str, module: str):

@@ -21,7 +21,9 @@ Format (``docs/INTERFACE.md``; paths are relative to the TOML file)::
 
 Muscle keys: ``action_lines``, ``mesh``, ``frame``, ``rest_pose``, ``origin``, ``insertion``,
 ``template``, ``fibres``, ``resolution``, ``seed``, ``template_params`` (a table handed to the
-template), ``units`` (overrides the top-level units for this muscle).
+template), ``units`` (overrides the top-level units for this muscle), ``bones`` (a list of
+``{ body = "femur_r", mesh = "femur.vtk" }`` in the muscle's frame and units: obstacles the
+wrapped surface keeps out of), ``volume`` (m^3, for a generated surface).
 
 ``frame = "bodies"`` is for NMSBuilder/LHDL exports: mesh and landmark coordinates are in one
 scanner frame in which every body frame is the identity, so a landmark's coordinates are already
@@ -66,7 +68,8 @@ __all__ = ["load_spec", "FibreModelSpec", "MuscleSpec", "AttachmentSpec", "TEMPL
 TEMPLATE_NAMES = ("parallel", "pennate", "bipennate", "curved", "fanned", "rectus")
 _TOP_KEYS = ("model", "motion", "units", "defaults", "muscles")
 _MUSCLE_KEYS = ("action_lines", "mesh", "frame", "rest_pose", "origin", "insertion", "template",
-                "fibres", "resolution", "seed", "template_params", "units")
+                "fibres", "resolution", "seed", "template_params", "units", "bones", "volume")
+_BONE_KEYS = ("body", "mesh")
 _ATTACH_KEYS = ("body", "points", "file", "where", "columns", "units")
 _UNITS = {"m": 1.0, "mm": 1e-3}
 _DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0}
@@ -138,6 +141,10 @@ class MuscleSpec:
         Segments per fibre (resolution + 1 points).
     seed : int
     template_params : mapping
+    bones : tuple of (body, Path)
+        Bone meshes (in the muscle's frame and units) that the wrapped surface keeps out of.
+    volume : float or None
+        Volume (m^3) of a generated surface (no mesh); None: motion's default rule.
     """
 
     name: str
@@ -153,6 +160,8 @@ class MuscleSpec:
     resolution: int = 19
     seed: int = 0
     template_params: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    bones: tuple = ()
+    volume: float | None = None
 
     @property
     def scale(self) -> float:
@@ -354,6 +363,23 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             ctx.fail(src[key], f"expected an integer >= {lo}, got {v!r}", f"Set {key} to a whole number >= {lo}.")
         ints[key] = v
+    bones = []
+    raw_bones = d.get("bones", [])
+    if not isinstance(raw_bones, list):
+        ctx.fail(src["bones"], "expected a list of tables",
+                 "Write bones = [{ body = \"femur_r\", mesh = \"femur.vtk\" }].")
+    for k, bone in enumerate(raw_bones):
+        key = f"{src['bones']}[{k}]"
+        if not isinstance(bone, dict) or "body" not in bone or "mesh" not in bone:
+            ctx.fail(key, "expected { body = ..., mesh = ... }", "Give the bone's body and mesh file.")
+        ctx.check_keys(bone, _BONE_KEYS, key)
+        if bone["body"] not in bodies:
+            ctx.fail(f"{key}.body", f"'{bone['body']}' is not a body of the model", f"Use one of: {', '.join(bodies)}.")
+        bones.append((bone["body"], ctx.file_path(bone["mesh"], f"{key}.mesh", "bone mesh")))
+    volume = d.get("volume")
+    if volume is not None and (isinstance(volume, bool) or not isinstance(volume, (int, float)) or not volume > 0):
+        ctx.fail(src["volume"], f"expected a positive number (m^3), got {volume!r}",
+                 "Give the generated surface's volume in cubic metres, or remove the key.")
     params = d.get("template_params", {})
     if not isinstance(params, dict):
         ctx.fail(src["template_params"], "expected a table", "Write template_params = { name = value }.")
@@ -365,7 +391,8 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
                       rest_pose=MappingProxyType({k: float(v) for k, v in rest.items()}),
                       origin=ends["origin"], insertion=ends["insertion"], template=template,
                       n_fibres=ints["fibres"], resolution=ints["resolution"], seed=ints["seed"],
-                      template_params=MappingProxyType(dict(params)))
+                      template_params=MappingProxyType(dict(params)), bones=tuple(bones),
+                      volume=None if volume is None else float(volume))
 
 
 def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:

@@ -200,3 +200,28 @@ def test_muscle_without_mesh_gets_a_generated_surface(example):
     m = res.muscle("brachialis")
     assert np.isfinite(m.fibre_moment_arms).all()
     assert np.median(m.fibre_lengths[0]) == pytest.approx(m.action_line_lengths[0, 0], rel=0.1)
+
+
+def test_bones_are_handed_to_the_wrapping(example, tmp_path):
+    """`bones` (the example's humerus and forearm meshes, ground at rest = body frames) reach
+    motion.wrap_surfaces; the run completes and run.json lists and hashes them."""
+    import json
+
+    import numpy as np
+
+    toml = example / "arm_example.toml"
+    text = toml.read_text().replace(
+        'mesh = "meshes/brachialis.ply"',
+        'mesh = "meshes/brachialis.ply"\nbones = [{ body = "humerus", mesh = "meshes/humerus.stl" }, '
+        '{ body = "forearm", mesh = "meshes/forearm.stl" }]', 1)
+    toml.write_text(text)
+    out = tmp_path / "out"
+    code = cli.main(["run", str(toml), "--out", str(out), "--quiet", "--frames", "0:27:13", "--fibres", "8",
+                     "--resolution", "6", "--muscle", "brachialis", "--no-plots"])
+    assert code == 0
+    record = json.loads((out / "run.json").read_text())
+    assert record["inputs"]["bone:brachialis:1"]["path"].endswith("forearm.stl")
+    assert len(record["inputs"]["bone:brachialis:0"]["sha256"]) == 64
+    import pandas as pd
+
+    assert np.isfinite(pd.read_csv(out / "fibre_moment_arms.csv").moment_arm).all()

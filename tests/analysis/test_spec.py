@@ -77,6 +77,15 @@ def test_good_spec_loads_with_defaults_units_and_selected_rows(tmp_path):
     np.testing.assert_allclose(o.origin.points, [[0.0, 0.01, 0.2]])
     np.testing.assert_allclose(o.insertion.points, [[0.0, 0.02, -0.05]])
     assert b.origin.points.flags.writeable is False
+    assert b.bones == () and b.volume is None
+
+
+def test_bones_and_volume_keys(tmp_path):
+    text = GOOD.replace('frame = "upper"', 'frame = "upper"\nbones = [{ body = "upper", mesh = "biceps.stl" }]')
+    text = text.replace('template = "fanned"', 'template = "fanned"\nvolume = 2.5e-4')
+    spec = load_spec(_write(tmp_path, text), model=_model())
+    assert spec.muscles[0].bones == (("upper", (tmp_path / "biceps.stl").resolve()),)
+    assert spec.muscles[1].volume == 2.5e-4
 
 
 @pytest.mark.parametrize("old,new,key,fix", [
@@ -104,6 +113,11 @@ def test_good_spec_loads_with_defaults_units_and_selected_rows(tmp_path):
     ('file = "lm.csv", where', 'points = [[0,0,0]], file = "lm.csv", where',
      "muscles.biceps.insertion", "exactly one"),
     ('units = "mm"', 'units = "inch"', "units", '"mm"'),
+    ('frame = "upper"', 'frame = "upper"\nbones = [{ body = "femur", mesh = "biceps.stl" }]',
+     "muscles.biceps.bones[0].body", "Use one of"),
+    ('frame = "upper"', 'frame = "upper"\nbones = [{ body = "upper", mesh = "nobone.stl" }]',
+     "muscles.biceps.bones[0].mesh", "relative to the TOML"),
+    ('frame = "upper"', 'frame = "upper"\nvolume = -1.0', "muscles.biceps.volume", "cubic metres"),
 ])
 def test_each_mistake_is_one_input_error_naming_file_key_and_fix(tmp_path, old, new, key, fix):
     assert old in GOOD
