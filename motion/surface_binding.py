@@ -42,7 +42,7 @@ import scipy.sparse as sp
 
 from .surface_curves import (any_perpendicular, curve_tangents, resample_polylines,
                              rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
-from .surface_volume import mesh_volume, solve_radial_scale, volume_cubic
+from .surface_volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
 __all__ = ["SurfaceBinding", "SurfaceFrames", "bind_surface", "smoothstep"]
 
@@ -114,7 +114,12 @@ class SurfaceFrames:
 
     def __post_init__(self):
         for name in ("vertices", "radial_scale", "volume"):
-            object.__setattr__(self, name, _ro(getattr(self, name)))
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.flags.writeable and arr.flags.owndata:
+                arr.setflags(write=False)   # built here: freeze without copying
+            else:
+                arr = _ro(arr)
+            object.__setattr__(self, name, arr)
 
     @property
     def volume_error(self) -> np.ndarray:
@@ -138,7 +143,7 @@ class SurfaceBinding:
     weight_origin: np.ndarray        # (V,)
     weight_insertion: np.ndarray     # (V,)
     weight_belly: np.ndarray         # (V,)
-    fixed_matrix: sp.csr_matrix      # (V, 2 n L): rows act on [centres; tangents] of all lines
+    fixed_matrix: sp.csr_matrix      # (V, 2 n L + 8): [centres; tangents; origin R|t; insertion R|t]
     radial_matrix: sp.csr_matrix     # (V, 2 n L): rows act on [normals; binormals]
     rest_volume: float
     rest_lengths: np.ndarray         # (L,)
@@ -185,41 +190,32 @@ class SurfaceBinding:
 
     # ------------------------------------------------------------------------- deform
     def affine_parts(self, curves, tf_origin, tf_insertion):
-        """The two parts of ``v(k) = P + k Q`` for every frame.
+        """The two parts of ``v(k) = P + k Q`` for every frame, vertex-major.
 
         Returns
         -------
-        p, q : (F, V, 3) float
+        p, q : (V, F, 3) float
         """
         centres, frames = self.line_frames(curves, tf_origin, tf_insertion)
         f_count = centres.shape[0]
         n_v = self.rest_vertices.shape[0]
-        # features, rows = [all lines' centres; all lines' tangents], columns = (frame, xyz)
-        fixed_feat = np.concatenate([centres.reshape(f_count, -1, 3),
-                                     frames[..., 2].reshape(f_count, -1, 3)], axis=1)
+        tf_o = np.broadcast_to(_check_tf(tf_origin, "tf_origin", f_count), (f_count, 4, 4))
+        tf_i = np.broadcast_to(_check_tf(tf_insertion, "tf_insertion", f_count), (f_count, 4, 4))
+        # feature rows (each an (F, 3) series): all lines' centres and tangents, then the columns
+        # of the origin and insertion body transforms (rigid parts); one sparse product each
+        fixed_feat = np.concatenate([centres.reshape(f_count, -1, 3), frames[..., 2].reshape(f_count, -1, 3),
+                                     tf_o[:, :3, :].transpose(0, 2, 1), tf_i[:, :3, :].transpose(0, 2, 1)],
+                                    axis=1)
         radial_feat = np.concatenate([frames[..., 0].reshape(f_count, -1, 3),
                                       frames[..., 1].reshape(f_count, -1, 3)], axis=1)
-        fixed_feat = fixed_feat.transpose(1, 0, 2).reshape(fixed_feat.shape[1], -1)
-        radial_feat = radial_feat.transpose(1, 0, 2).reshape(radial_feat.shape[1], -1)
-        belly = np.asarray(self.fixed_matrix @ fixed_feat).reshape(n_v, f_count, 3).transpose(1, 0, 2)
-        radial = np.asarray(self.radial_matrix @ radial_feat).reshape(n_v, f_count, 3).transpose(1, 0, 2)
-        tf_o = _check_tf(tf_origin, "tf_origin", f_count)
-        tf_i = _check_tf(tf_insertion, "tf_insertion", f_count)
-        p = belly  # already weighted by w_b inside the sparse matrices
-        if np.any(self.weight_origin > 0):
-            local_o = self.rest_vertices @ np.linalg.inv(self.tf_rest_origin)[:3, :3].T \
-                + np.linalg.inv(self.tf_rest_origin)[:3, 3]
-            rig_o = np.einsum("fij,vj->fvi", tf_o[:, :3, :3], local_o) + tf_o[:, None, :3, 3]
-            p = p + self.weight_origin[None, :, None] * rig_o
-        if np.any(self.weight_insertion > 0):
-            local_i = self.rest_vertices @ np.linalg.inv(self.tf_rest_insertion)[:3, :3].T \
-                + np.linalg.inv(self.tf_rest_insertion)[:3, 3]
-            rig_i = np.einsum("fij,vj->fvi", tf_i[:, :3, :3], local_i) + tf_i[:, None, :3, 3]
-            p = p + self.weight_insertion[None, :, None] * rig_i
-        return np.ascontiguousarray(p), np.ascontiguousarray(radial)
+        fixed_feat = np.ascontiguousarray(fixed_feat.transpose(1, 0, 2)).reshape(fixed_feat.shape[1], -1)
+        radial_feat = np.ascontiguousarray(radial_feat.transpose(1, 0, 2)).reshape(radial_feat.shape[1], -1)
+        p = np.asarray(self.fixed_matrix @ fixed_feat).reshape(n_v, f_count, 3)
+        q = np.asarray(self.radial_matrix @ radial_feat).reshape(n_v, f_count, 3)
+        return p, q
 
     def deform(self, curves, tf_origin, tf_insertion, *, obstacles=(), preserve_volume: bool = True,
-               push_iterations: int = 3) -> SurfaceFrames:
+               push_iterations: int = 5) -> SurfaceFrames:
         """Deform the rest surface for every frame of a motion.
 
         Parameters
@@ -243,16 +239,22 @@ class SurfaceBinding:
         """
         if len(curves) != self.n_lines:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
-        p, q = self.affine_parts(curves, tf_origin, tf_insertion)
+        p, q = self.affine_parts(curves, tf_origin, tf_insertion)   # (V, F, 3)
         target = self.rest_volume
         if preserve_volume:
-            coeffs = volume_cubic(p, q, self.faces)
+            coeffs = volume_cubic_vf(p, q, self.faces)
             k = solve_radial_scale(coeffs, target)
         else:
-            k = np.ones(p.shape[0])
-        vertices = p + k[:, None, None] * q
+            k = np.ones(p.shape[1])
+        vertices = combine_vf(p, q, k)
         if not obstacles:
-            return SurfaceFrames(vertices, k, mesh_volume(vertices, self.faces), target)
+            if preserve_volume:
+                volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
+            else:
+                volume = mesh_volume(vertices, self.faces)
+            return SurfaceFrames(vertices, k, volume, target)
+        p = np.ascontiguousarray(p.transpose(1, 0, 2))
+        q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
         def pushed(kk):
             v = p + kk[:, None, None] * q
@@ -381,11 +383,22 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
             vals_t.append(w * share * local[:, 2])
     rows = np.concatenate(rows)
     cols = np.concatenate(cols)
-    shape = (n_v, 2 * n * n_l)
-    fixed = sp.csr_matrix((np.concatenate(vals_c + vals_t),
-                           (np.concatenate([rows, rows]), np.concatenate([cols, cols + n * n_l]))), shape=shape)
+    # rigid parts: w * (R local + t) = sum_j (w local_j) R[:, j] + w t, on 8 extra feature rows
+    rig_rows, rig_cols, rig_vals = [], [], []
+    for slot, (w, tf) in enumerate(((w_o, tf_o), (w_i, tf_i))):
+        inv = np.linalg.inv(tf)
+        local = verts @ inv[:3, :3].T + inv[:3, 3]
+        sel = np.nonzero(w > 0)[0]
+        for j, val in enumerate((local[sel, 0], local[sel, 1], local[sel, 2], np.ones(len(sel)))):
+            rig_rows.append(sel)
+            rig_cols.append(np.full(len(sel), 2 * n * n_l + 4 * slot + j))
+            rig_vals.append(w[sel] * val)
+    fixed = sp.csr_matrix((np.concatenate(vals_c + vals_t + rig_vals),
+                           (np.concatenate([rows, rows] + rig_rows),
+                            np.concatenate([cols, cols + n * n_l] + rig_cols))), shape=(n_v, 2 * n * n_l + 8))
     radial = sp.csr_matrix((np.concatenate(vals_n + vals_b),
-                            (np.concatenate([rows, rows]), np.concatenate([cols, cols + n * n_l]))), shape=shape)
+                            (np.concatenate([rows, rows]), np.concatenate([cols, cols + n * n_l]))),
+                           shape=(n_v, 2 * n * n_l))
     volume = mesh_volume(verts, tri)
     if not volume > 0:
         raise ValueError(f"the rest surface must be closed with outward normals (volume {volume:.3g})")

@@ -27,6 +27,7 @@ cross-section scale so the volume is kept.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,15 +52,14 @@ def _to_local(tf: np.ndarray, v: np.ndarray) -> np.ndarray:
     tf = np.asarray(tf, dtype=float)
     if tf.ndim == 2:
         tf = tf[None]
-    rot = tf[:, :3, :3]
-    return np.einsum("fji,fvj->fvi", rot, v - tf[:, None, :3, 3])
+    return np.matmul(v - tf[:, None, :3, 3], tf[:, :3, :3])   # row vectors: (v - t) R = R^T (v - t)
 
 
 def _to_ground_dir(tf: np.ndarray, d: np.ndarray) -> np.ndarray:
     tf = np.asarray(tf, dtype=float)
     if tf.ndim == 2:
         tf = tf[None]
-    return np.einsum("fij,fvj->fvi", tf[:, :3, :3], d)
+    return np.matmul(d, tf[:, :3, :3].transpose(0, 2, 1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,6 +115,14 @@ class WrapObstacle:
     def push_out(self, vertices) -> np.ndarray:
         """Vertices (F, V, 3) in ground, pushed out of the object (see the module docstring)."""
         v = np.asarray(vertices, dtype=float)
+        kernel = _push_kernel()
+        if kernel is not None and v.ndim == 3:
+            tf = self.tf_ground_obstacle if self.tf_ground_obstacle.ndim == 3 else self.tf_ground_obstacle[None]
+            tf = np.ascontiguousarray(np.broadcast_to(tf, (v.shape[0], 4, 4)))
+            out = np.empty_like(v)
+            kind = ("cylinder", "sphere", "ellipsoid").index(self.kind)
+            kernel(kind, np.ascontiguousarray(v), tf, np.ascontiguousarray(self.radii), float(self.margin), out)
+            return out
         p = _to_local(self.tf_ground_obstacle, v)
         d, n, window = self._distance_direction(p)
         move = (soft_floor(d, self.margin) - d) * window
@@ -130,6 +138,69 @@ class WrapObstacle:
         else:
             delta = move[..., None] * n
         return v + _to_ground_dir(self.tf_ground_obstacle, delta)
+
+
+_PUSH: dict = {}
+
+
+def _push_kernel():
+    """The compiled analytic push-out (same formulas as `WrapObstacle.push_out`), or None."""
+    if "kernel" in _PUSH:
+        return _PUSH["kernel"]
+    try:
+        import numba
+    except ImportError:  # pragma: no cover - numpy path
+        _PUSH["kernel"] = None
+        return None
+
+    @numba.njit(cache=False)
+    def kernel(kind, v, tf, radii, m, out):  # pragma: no cover - compiled
+        r_min = min(radii[0], min(radii[1], radii[2]))
+        for f in range(v.shape[0]):
+            for i in range(v.shape[1]):
+                dx = v[f, i, 0] - tf[f, 0, 3]
+                dy = v[f, i, 1] - tf[f, 1, 3]
+                dz = v[f, i, 2] - tf[f, 2, 3]
+                x = tf[f, 0, 0] * dx + tf[f, 1, 0] * dy + tf[f, 2, 0] * dz
+                y = tf[f, 0, 1] * dx + tf[f, 1, 1] * dy + tf[f, 2, 1] * dz
+                z = tf[f, 0, 2] * dx + tf[f, 1, 2] * dy + tf[f, 2, 2] * dz
+                out[f, i, 0] = v[f, i, 0]
+                out[f, i, 1] = v[f, i, 1]
+                out[f, i, 2] = v[f, i, 2]
+                if kind == 0:
+                    rad = math.sqrt(x * x + y * y)
+                    d = rad - radii[0]
+                elif kind == 1:
+                    rad = math.sqrt(x * x + y * y + z * z)
+                    d = rad - radii[0]
+                else:
+                    sx, sy, sz = x / radii[0], y / radii[1], z / radii[2]
+                    rad = math.sqrt(sx * sx + sy * sy + sz * sz)
+                    d = (rad - 1.0) * r_min
+                if d >= m:
+                    continue
+                window = 1.0
+                if kind == 0 and math.isfinite(radii[2]):
+                    over = abs(z) - 0.5 * radii[2]
+                    if over > 0.0:
+                        t = min(over / radii[0], 1.0)
+                        window = 1.0 - t * t * t * (t * (6.0 * t - 15.0) + 10.0)
+                move = (m * math.exp((d - m) / m) - d) * window
+                if rad < 1e-12 or move == 0.0:
+                    continue
+                if kind == 0:
+                    lx, ly, lz = move * x / rad, move * y / rad, 0.0
+                elif kind == 1:
+                    lx, ly, lz = move * x / rad, move * y / rad, move * z / rad
+                else:
+                    scale = ((d + move) / r_min + 1.0) / rad - 1.0
+                    lx, ly, lz = x * scale, y * scale, z * scale
+                out[f, i, 0] += tf[f, 0, 0] * lx + tf[f, 0, 1] * ly + tf[f, 0, 2] * lz
+                out[f, i, 1] += tf[f, 1, 0] * lx + tf[f, 1, 1] * ly + tf[f, 1, 2] * lz
+                out[f, i, 2] += tf[f, 2, 0] * lx + tf[f, 2, 1] * ly + tf[f, 2, 2] * lz
+
+    _PUSH["kernel"] = kernel
+    return kernel
 
 
 def wrap_obstacle(wrap, tf_ground_body, *, margin: float = 5e-4) -> WrapObstacle | None:
@@ -164,9 +235,16 @@ class BoneDistance:
     _cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
-    def from_mesh(cls, vertices, faces, *, spacing: float = 1.5e-3, pad: float = 0.02) -> "BoneDistance":
-        """Signed distance grid of a closed bone surface (V, 3) in its body frame, metres."""
-        from scipy.ndimage import spline_filter
+    def from_mesh(cls, vertices, faces, *, spacing: float = 1.5e-3, pad: float = 0.02,
+                  band: float = 0.015) -> "BoneDistance":
+        """Signed distance grid of a closed bone surface (V, 3) in its body frame, metres.
+
+        Inside/outside away from the surface comes from a flood fill of the voxelised surface
+        (``scipy.ndimage.binary_fill_holes``), near it from the nearest face's normal; distances
+        beyond ``band`` are clamped to +-``band`` (a truncated distance field: only the shell
+        near the bone matters for the push-out).
+        """
+        from scipy.ndimage import binary_dilation, binary_fill_holes, spline_filter
         from scipy.spatial import cKDTree
 
         v = np.asarray(vertices, dtype=float)
@@ -180,24 +258,44 @@ class BoneDistance:
         circum = np.max(np.stack([np.linalg.norm(x - centroid, axis=-1) for x in (a, b, c)]), axis=0)
         lo = v.min(axis=0) - pad
         hi = v.max(axis=0) + pad
-        shape = np.ceil((hi - lo) / spacing).astype(int) + 1
+        shape = tuple(int(n) for n in np.ceil((hi - lo) / spacing).astype(int) + 1)
         axes = [lo[i] + spacing * np.arange(shape[i]) for i in range(3)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        # voxelise the surface with samples finer than the grid, then flood-fill the outside
+        n_sub = int(np.clip(np.ceil(2.0 * np.max(circum) / spacing), 1, 6))
+        w = np.array([(i, j, n_sub - i - j) for i in range(n_sub + 1) for j in range(n_sub + 1 - i)],
+                     dtype=float) / n_sub
+        samples = (w[:, 0, None, None] * a[None] + w[:, 1, None, None] * b[None]
+                   + w[:, 2, None, None] * c[None]).reshape(-1, 3)
+        cell = np.clip(np.rint((samples - lo) / spacing).astype(int), 0, np.array(shape) - 1)
+        shell = np.zeros(shape, dtype=bool)
+        shell[cell[:, 0], cell[:, 1], cell[:, 2]] = True
+        shell = binary_dilation(shell)
+        inside = binary_fill_holes(shell) & ~shell
+        # unsigned distance: nearest face (plane distance, or centroid distance minus circumradius)
         tree = cKDTree(centroid)
-        sdf = np.empty(len(grid))
-        step = 400_000
-        for s in range(0, len(grid), step):  # chunks of grid points
-            p = grid[s:s + step]
-            dist, idx = tree.query(p, k=4)
+        sdf = np.where(inside.reshape(-1), -band, band)
+        d1, _ = tree.query(grid, k=1, distance_upper_bound=band + np.max(circum))
+        near = np.nonzero(np.isfinite(d1))[0]
+        step = 200_000
+        for s in range(0, len(near), step):  # chunks of grid points
+            sel = near[s:s + step]
+            p = grid[sel]
+            dist, idx = tree.query(p, k=6)
             rel = p[:, None, :] - centroid[idx]
             plane = np.einsum("pkj,pkj->pk", rel, normal[idx])
             unsigned = np.maximum(np.abs(plane), dist - circum[idx])
             best = np.argmin(unsigned, axis=1)
             rows = np.arange(len(p))
-            sdf[s:s + step] = np.sign(plane[rows, best]) * unsigned[rows, best]
-        sdf = sdf.reshape(tuple(shape))
+            mag = np.minimum(unsigned[rows, best], band)
+            sign_near = np.sign(plane[rows, best])
+            # far from the surface the flood fill decides; on the shell the face normal does
+            on_shell = shell.reshape(-1)[sel]
+            sign = np.where(on_shell, sign_near, np.where(inside.reshape(-1)[sel], -1.0, 1.0))
+            sdf[sel] = sign * mag
+        sdf = sdf.reshape(shape)
         coeffs = spline_filter(sdf, order=3, mode="nearest")
-        return cls(origin=lo, spacing=float(spacing), coefficients=coeffs, far=float(pad))
+        return cls(origin=lo, spacing=float(spacing), coefficients=coeffs, far=float(band))
 
     def evaluate(self, points, *, gradient: bool = False):
         """Signed distance (...,) at body-frame points (..., 3); with ``gradient`` also (..., 3)."""
@@ -260,14 +358,20 @@ class BoneObstacle:
 
     def push_out(self, vertices) -> np.ndarray:
         """Vertices (F, V, 3) in ground pushed out to ``allowed`` (module docstring)."""
-        v = np.asarray(vertices, dtype=float)
+        v = np.array(vertices, dtype=float)
+        tf = self.tf_ground_body if self.tf_ground_body.ndim == 3 else self.tf_ground_body[None]
+        tf = np.broadcast_to(tf, (v.shape[0], 4, 4))
         for _ in range(int(self.iterations)):
-            local = _to_local(self.tf_ground_body, v)
-            d, g = self.distance.evaluate(local, gradient=True)
+            local = _to_local(tf, v)
+            d = self.distance.evaluate(local)
             x = d - self.allowed[None, :]
-            move = soft_floor(x, self.margin) - x
-            if not np.any(move):
+            f_idx, v_idx = np.nonzero(x < self.margin)
+            if len(f_idx) == 0:
                 break
+            # only the vertices that move need the gradient
+            _, g = self.distance.evaluate(local[f_idx, v_idx], gradient=True)
+            xs = x[f_idx, v_idx]
+            move = soft_floor(xs, self.margin) - xs
             n = g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-12)
-            v = v + _to_ground_dir(self.tf_ground_body, move[..., None] * n)
+            v[f_idx, v_idx] += np.einsum("pij,pj->pi", tf[f_idx, :3, :3], move[:, None] * n)
         return v

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["mesh_volume", "volume_cubic", "solve_radial_scale"]
+__all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "solve_radial_scale"]
 
 _CHUNK = 8  # frames per numpy chunk: bounds the temporaries to a few (8, T, 3) arrays
 
@@ -91,8 +91,53 @@ def _kernels():
                 out[f, 2] = c2 / 6.0
                 out[f, 3] = c3 / 6.0
 
+        @numba.njit(cache=False, fastmath=False)
+        def cubic_kernel_vf(p, q, faces, out):  # pragma: no cover - compiled
+            # layout (V, F, 3): faces outer, frames inner, so each vertex row is read contiguously
+            n_f = p.shape[1]
+            for t in range(faces.shape[0]):
+                i0 = faces[t, 0]
+                i1 = faces[t, 1]
+                i2 = faces[t, 2]
+                for f in range(n_f):
+                    p0x, p0y, p0z = p[i0, f, 0], p[i0, f, 1], p[i0, f, 2]
+                    p1x, p1y, p1z = p[i1, f, 0], p[i1, f, 1], p[i1, f, 2]
+                    p2x, p2y, p2z = p[i2, f, 0], p[i2, f, 1], p[i2, f, 2]
+                    q0x, q0y, q0z = q[i0, f, 0], q[i0, f, 1], q[i0, f, 2]
+                    q1x, q1y, q1z = q[i1, f, 0], q[i1, f, 1], q[i1, f, 2]
+                    q2x, q2y, q2z = q[i2, f, 0], q[i2, f, 1], q[i2, f, 2]
+                    ax = p1y * p2z - p1z * p2y
+                    ay = p1z * p2x - p1x * p2z
+                    az = p1x * p2y - p1y * p2x
+                    bx = p1y * q2z - p1z * q2y + q1y * p2z - q1z * p2y
+                    by = p1z * q2x - p1x * q2z + q1z * p2x - q1x * p2z
+                    bz = p1x * q2y - p1y * q2x + q1x * p2y - q1y * p2x
+                    cx = q1y * q2z - q1z * q2y
+                    cy = q1z * q2x - q1x * q2z
+                    cz = q1x * q2y - q1y * q2x
+                    out[f, 0] += p0x * ax + p0y * ay + p0z * az
+                    out[f, 1] += q0x * ax + q0y * ay + q0z * az + p0x * bx + p0y * by + p0z * bz
+                    out[f, 2] += q0x * bx + q0y * by + q0z * bz + p0x * cx + p0y * cy + p0z * cz
+                    out[f, 3] += q0x * cx + q0y * cy + q0z * cz
+
+        @numba.njit(cache=False)
+        def combine_kernel_vf(p, q, k, out):  # pragma: no cover - compiled
+            # out (F, V, 3) = p (V, F, 3) + k (F,) q: blocks of vertices keep the reads in cache
+            n_v, n_f = p.shape[0], p.shape[1]
+            block = 64
+            for v0 in range(0, n_v, block):
+                v1 = min(v0 + block, n_v)
+                for f in range(n_f):
+                    kf = k[f]
+                    for v in range(v0, v1):
+                        out[f, v, 0] = p[v, f, 0] + kf * q[v, f, 0]
+                        out[f, v, 1] = p[v, f, 1] + kf * q[v, f, 1]
+                        out[f, v, 2] = p[v, f, 2] + kf * q[v, f, 2]
+
         _KERNELS["volume"] = volume_kernel
         _KERNELS["cubic"] = cubic_kernel
+        _KERNELS["combine_vf"] = combine_kernel_vf
+        _KERNELS["cubic_vf"] = cubic_kernel_vf
     _KERNELS["done"] = True
     return _KERNELS.get("volume"), _KERNELS.get("cubic")
 
@@ -176,6 +221,39 @@ def volume_cubic(p, q, faces) -> np.ndarray:
         dot = lambda x, y: np.einsum("ftk,ftk->f", x, y)  # noqa: E731
         out[s:s + _CHUNK] = np.stack(
             [dot(p0, a), dot(q0, a) + dot(p0, b), dot(q0, b) + dot(p0, c), dot(q0, c)], axis=-1) / 6.0
+    return out
+
+
+def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
+    """`volume_cubic` for vertex-major arrays ``(V, F, 3)`` (the binding's internal layout).
+
+    Returns
+    -------
+    (F, 4) float
+    """
+    p = np.ascontiguousarray(p_vf, dtype=float)
+    q = np.ascontiguousarray(q_vf, dtype=float)
+    f = _check_faces(faces, p.shape[0])
+    _kernels()
+    kernel = _KERNELS.get("cubic_vf")
+    if kernel is None:
+        return volume_cubic(p.transpose(1, 0, 2), q.transpose(1, 0, 2), f)
+    out = np.zeros((p.shape[1], 4))
+    kernel(p, q, f, out)
+    return out / 6.0
+
+
+def combine_vf(p_vf, q_vf, k) -> np.ndarray:
+    """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)."""
+    p = np.ascontiguousarray(p_vf, dtype=float)
+    q = np.ascontiguousarray(q_vf, dtype=float)
+    k = np.ascontiguousarray(k, dtype=float)
+    _kernels()
+    kernel = _KERNELS.get("combine_vf")
+    if kernel is None:
+        return np.ascontiguousarray((p + k[None, :, None] * q).transpose(1, 0, 2))
+    out = np.empty((p.shape[1], p.shape[0], 3))
+    kernel(p, q, k, out)
     return out
 
 

@@ -299,15 +299,20 @@ def _check_units(spec, vertices: np.ndarray, curves: list) -> None:
 
 def _bone_distance(bone, vertices_body: np.ndarray, spacing: float) -> BoneDistance:
     """Signed distance grid of a bone in its body frame, cached per bone object and placement."""
-    key = (id(bone), float(spacing), np.round(vertices_body[:3], 12).tobytes())
+    import hashlib
+
+    digest = hashlib.sha1(np.ascontiguousarray(vertices_body).tobytes()
+                          + np.ascontiguousarray(bone.faces).tobytes()).hexdigest()
+    key = (digest, float(spacing))
     if key not in _BONE_CACHE:
-        # the bone object is kept in the cache so that its id is not reused while cached
-        _BONE_CACHE[key] = (bone, BoneDistance.from_mesh(vertices_body, bone.faces, spacing=spacing))
-    return _BONE_CACHE[key][1]
+        if len(_BONE_CACHE) >= 16:  # a few bones per model; bound the memory
+            _BONE_CACHE.pop(next(iter(_BONE_CACHE)))
+        _BONE_CACHE[key] = BoneDistance.from_mesh(vertices_body, bone.faces, spacing=spacing)
+    return _BONE_CACHE[key]
 
 
 def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: int = 40,
-                  margin: float = 5e-4, bone_spacing: float = 1.5e-3, rigid_radius: float | None = None,
+                  margin: float = 5e-4, bone_spacing: float = 2e-3, rigid_radius: float | None = None,
                   blend_radius: float | None = None) -> tuple:
     """Deform every muscle surface for every frame of ``motion`` (see the module docstring).
 

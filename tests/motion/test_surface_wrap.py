@@ -1,0 +1,148 @@
+"""motion.wrap_surfaces on OpenSim 4.0 models built in the test: pin-joint cylinder and pulley."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from motion import InputError, MuscleSurfaceSpec, SurfaceAttachment, wrap_surfaces
+from motion.kinematics import motion_from_array
+from motion.osim_builder import ModelBuilder
+from motion.osim_reader import load_model
+from motion.surface_volume import mesh_volume
+
+R_PULLEY, D, A, B = 0.02, 0.03, 0.15, 0.12   # pulley radius, line offset, attachment distances
+R_MUSCLE = 0.008                             # < D - R_PULLEY: the rest surface clears the pulley
+
+
+def tube(start, end, radius, n_around=48, n_rings=61):
+    """Closed capped cylinder from ``start`` to ``end`` (outward faces)."""
+    start, end = np.asarray(start, float), np.asarray(end, float)
+    axis = end - start
+    u = axis / np.linalg.norm(axis)
+    e1 = np.cross(u, [0, 0, 1.0] if abs(u[2]) < 0.9 else [1.0, 0, 0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    s = np.linspace(0, 1, n_rings)
+    phi = 2 * np.pi * np.arange(n_around) / n_around
+    ring = (start + s[:, None, None] * axis
+            + radius * (np.cos(phi)[None, :, None] * e1 + np.sin(phi)[None, :, None] * e2))
+    verts = np.concatenate([start[None], ring.reshape(-1, 3), end[None]])
+    idx = 1 + np.arange(n_rings * n_around).reshape(n_rings, n_around)
+    nxt = np.roll(idx, -1, axis=1)
+    last = len(verts) - 1
+    faces = np.concatenate([
+        np.stack([np.zeros(n_around, int), nxt[0], idx[0]], 1),
+        np.stack([idx[:-1], nxt[:-1], nxt[1:]], -1).reshape(-1, 3),
+        np.stack([idx[:-1], nxt[1:], idx[1:]], -1).reshape(-1, 3),
+        np.stack([np.full(n_around, last), idx[-1], nxt[-1]], 1)])
+    if mesh_volume(verts, faces) < 0:
+        faces = faces[:, ::-1]
+    return verts, faces
+
+
+def build(tmp_path, *, pulley: bool):
+    side = -D if pulley else D
+    b = (ModelBuilder("pulley" if pulley else "pin")
+         .add_body("upper")
+         .add_weld_joint("fix", "ground", "upper")
+         .add_body("lower")
+         .add_pin_joint("knee", "upper", "lower", "q", range=(-1.0, 2.5)))
+    wraps = []
+    if pulley:
+        b = b.add_wrap_cylinder("upper", "cyl", radius=R_PULLEY, length=0.1, quadrant="-x")
+        wraps = ["cyl"]
+    b = b.add_muscle("m", [("upper", (side, A, 0)), ("lower", (side, -B, 0))], wraps=wraps)
+    return load_model(b.write(tmp_path / "model.osim"))
+
+
+def spec_for(side):
+    origin, insertion = np.array([side, A, 0.0]), np.array([side, -B, 0.0])
+    v, f = tube(origin, insertion, R_MUSCLE)
+    return MuscleSurfaceSpec("m", ("m",), v, f, frame="ground", rest_pose={"q": 0.0},
+                             origin=SurfaceAttachment("upper", origin[None]),
+                             insertion=SurfaceAttachment("lower", insertion[None]))
+
+
+def sweep(model, degrees):
+    return motion_from_array(model, np.deg2rad(np.asarray(degrees, float))[:, None])
+
+
+def test_pin_joint_cylinder_stays_a_cylinder(tmp_path):
+    model = build(tmp_path, pulley=False)
+    deg = np.linspace(-30, 120, 31)
+    out = wrap_surfaces(model, sweep(model, deg), [spec_for(D)])[0]
+    # current action line: origin fixed, insertion on the lower body rotating about z
+    th = np.deg2rad(deg)
+    ins = np.stack([D * np.cos(th) + B * np.sin(th), D * np.sin(th) - B * np.cos(th), 0 * th], -1)
+    org = np.array([D, A, 0.0])
+    np.testing.assert_allclose(out.insertion[:, 0], ins, atol=1e-9)      # rigid with the lower body
+    np.testing.assert_allclose(out.origin[:, 0], np.broadcast_to(org, ins.shape), atol=1e-9)
+    u = (ins - org) / np.linalg.norm(ins - org, axis=1, keepdims=True)
+    rel = out.vertices - org
+    along = np.einsum("fvk,fk->fv", rel, u)
+    radial = np.linalg.norm(rel - along[..., None] * u[:, None], axis=-1)
+    # the belly: vertices beyond the attachment blend zone (20 % of the 0.27 m line from each end)
+    rest_along = out.rest_vertices[:, 1]
+    belly = (rest_along < A - 0.06) & (rest_along > -B + 0.06)
+    r_f = radial[:, belly]
+    r_mean = r_f.mean(axis=1)
+    # a 48-gon cylinder is exact at its vertices: any deviation is the deformation's error
+    assert np.max(np.abs(r_f - r_mean[:, None])) / R_MUSCLE < 0.01
+    # volume kept (exact cubic solve); requirement 0.5 %
+    assert np.abs(out.volume_error).max() < 1e-9
+    # the belly thins as the line lengthens and thickens as it shortens (volume redistribution)
+    length = np.linalg.norm(ins - org, axis=1)
+    # (up to 1e-5 m = 0.1 % of the radius: the rigid end regions tilt against the line with the
+    # angle, which changes their volume slightly at equal line lengths)
+    order = np.argsort(length)
+    assert np.all(np.diff(r_mean[order]) < 1e-5)
+    assert r_mean[order[0]] > 1.5 * r_mean[order[-1]]
+
+
+def test_pulley_bends_and_stays_outside(tmp_path):
+    model = build(tmp_path, pulley=True)
+    deg = np.linspace(0, 120, 25)
+    out = wrap_surfaces(model, sweep(model, deg), [spec_for(-D)])[0]
+    rad = np.hypot(out.vertices[..., 0], out.vertices[..., 1])   # pulley axis = ground z
+    assert rad.min() > R_PULLEY - 1e-4
+    assert np.abs(out.volume_error).max() < 5e-3
+    th = np.deg2rad(deg)
+    ins = np.stack([-D * np.cos(th) + B * np.sin(th), -D * np.sin(th) - B * np.cos(th), 0 * th], -1)
+    np.testing.assert_allclose(out.insertion[:, 0], ins, atol=1e-9)
+    np.testing.assert_allclose(out.origin[:, 0], np.broadcast_to([-D, A, 0.0], ins.shape), atol=1e-9)
+    # it bends around the pulley: at 120 degrees the surface touches the pulley (within 2 mm)
+    # on the -x side and no vertex crosses to the straight chord's side of the pulley
+    assert rad[-1].min() < R_PULLEY + 2e-3
+    # and the surface is continuous in the angle (no jumps between 5-degree steps)
+    step = np.linalg.norm(np.diff(out.vertices, axis=0), axis=-1).max()
+    assert step < 0.03
+
+
+def test_generated_surface_when_no_mesh(tmp_path):
+    model = build(tmp_path, pulley=False)
+    spec = MuscleSurfaceSpec("m", ("m",), volume=2e-5)
+    out = wrap_surfaces(model, sweep(model, [0, 45, 90]), [spec])[0]
+    assert out.generated
+    np.testing.assert_allclose(out.rest_volume, 2e-5, rtol=1e-9)
+    assert np.abs(out.volume_error).max() < 1e-9
+
+
+def test_input_errors_name_the_muscle(tmp_path):
+    model = build(tmp_path, pulley=False)
+    mot = sweep(model, [0, 10])
+    good = spec_for(D)
+    bad_pose = MuscleSurfaceSpec("m", ("m",), good.vertices, good.faces, rest_pose={"knee_angle": 0.1})
+    with pytest.raises(InputError, match="muscle 'm'.*rest_pose.knee_angle"):
+        wrap_surfaces(model, mot, [bad_pose])
+    bad_body = MuscleSurfaceSpec("m", ("m",), good.vertices, good.faces, frame="femur")
+    with pytest.raises(InputError, match="muscle 'm': frame"):
+        wrap_surfaces(model, mot, [bad_body])
+    bad_att = MuscleSurfaceSpec("m", ("m",), good.vertices, good.faces,
+                                origin=SurfaceAttachment("femur", [[0, 0, 0]]))
+    with pytest.raises(InputError, match="origin.body"):
+        wrap_surfaces(model, mot, [bad_att])
+    in_mm = MuscleSurfaceSpec("m", ("m",), good.vertices * 1000, good.faces)
+    with pytest.raises(InputError, match="units"):
+        wrap_surfaces(model, mot, [in_mm])
+    with pytest.raises(InputError, match="action_lines"):
+        wrap_surfaces(model, mot, [MuscleSurfaceSpec("m", ("nope",), good.vertices, good.faces)])
