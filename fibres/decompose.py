@@ -137,7 +137,10 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool)
     if not fresh:
         planned = plan.choice
         local_uv = (vertices - box.corner) @ box.axes[:, :2]
-        chosen = _planned_loops(sections, chosen, planned)
+        replanned = _planned_loops(sections, chosen, planned)
+        notes = notes + tuple(f"slice {s}: used the loop holding the planned start vertex"
+                              for s in np.flatnonzero(replanned != chosen))
+        chosen = replanned
     P, Q, choice, map_notes = slice_maps(sections, chosen, box.extents, topology=plan.topology,
                                          local_uv=local_uv, planned=planned)
     return box, heights, P, Q, choice, notes + map_notes

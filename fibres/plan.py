@@ -9,8 +9,9 @@ finite difference), any of them can flip and fibre ``k`` would jump. A
 
 - the box orientation: the axis rule actually used ("attachments" or "covariance"), the
   reference direction ``v0`` of the rest pose and the winning rotation index; on a
-  deformed copy ``v0`` is carried along by the best-fit rotation of the vertices (Kabsch:
-  exact for a rigid motion, smooth under deformation), the principal frame is re-derived
+  deformed copy ``v0`` is carried along by the best-fit rotation of the vertices (Kabsch,
+  on at most `KABSCH_VERTICES` evenly strided vertices: exact for a rigid motion, smooth
+  under deformation), the principal frame is re-derived
   and the same rotation applied, and the box is the vertices' bounding box in that frame;
 - the slicing planes as fractions of the box height;
 - per plane, the start vertex and the three split vertices, each identified by the mesh
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import InputError
 from .fitting import Box, principal_frame
 from .slicing import MeshTopology
 
@@ -91,13 +93,16 @@ class DecompositionPlan:
         return int(self.fractions.size)
 
     def check_mesh(self, vertices, faces) -> None:
-        """Raise ValueError unless ``faces`` (and the vertex count) are the plan's mesh's."""
+        """Raise InputError unless ``faces`` (and the vertex count) are the plan's mesh's."""
         faces = np.asarray(faces)
         if (len(vertices) != self.topology.n_vertices or faces.shape != self.topology.faces.shape
                 or not np.array_equal(faces, self.topology.faces)):
-            raise ValueError("plan: the mesh does not have the topology the plan was made on "
+            raise InputError(f"the mesh ({len(vertices)} vertices, {faces.shape[0]} faces) does "
+                             "not have the topology the plan was made on "
                              f"({self.topology.n_vertices} vertices, "
-                             f"{self.topology.faces.shape[0]} faces); make a new plan")
+                             f"{self.topology.faces.shape[0]} faces)", where="plan",
+                             fix="Pass a deformed copy of the plan's mesh (same faces), or "
+                                 "make a new plan (decompose without plan=).")
 
 
 def kabsch_rotation(source, target) -> np.ndarray:
