@@ -137,17 +137,26 @@ def _unary(x, f, df):
 
 
 def sqrt(x) -> Dual:
+    """Square root; at 0 the derivative is taken as 0 (a zero-length vector's norm)."""
     x = lift(x)
     s = np.sqrt(x.v)
-    return Dual(s, (0.5 / s)[..., None] * x.d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.where(s > 0.0, 0.5 / s, 0.0)
+    return Dual(s, g[..., None] * x.d)
+
+
+def _asin_slope(v):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.abs(v) < 1.0, 1.0 / np.sqrt(1.0 - v * v), 0.0)
 
 
 def arccos(x) -> Dual:
-    return _unary(x, np.arccos, lambda v: -1.0 / np.sqrt(1.0 - v * v))
+    """arccos; at +-1 (coincident directions) the derivative is taken as 0."""
+    return _unary(x, np.arccos, lambda v: -_asin_slope(v))
 
 
 def arcsin(x) -> Dual:
-    return _unary(x, np.arcsin, lambda v: 1.0 / np.sqrt(1.0 - v * v))
+    return _unary(x, np.arcsin, _asin_slope)
 
 
 def sin(x) -> Dual:

@@ -152,6 +152,10 @@ def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust):
         w2 = _spiral_point(r1a, axial_vec, uu, ax, sense, 1.0 - t, theta, radius)
         new1, adj1 = _adjust_tangent_point(p1, r1, w1)
         new2, adj2 = _adjust_tangent_point(p2, r2, w2)
+        # Measured against OpenSim 4.6: r2 is only re-adjusted in a pass where r1 was not
+        # (the published source adjusts both; the binary behaves as if r1 restarts first).
+        adj2 = adj2 & ~adj1
+        new2 = ad.where(adj2[..., None], new2, r2)
         changed = can & (adj1 | adj2)
         if not changed.any():
             return r1, r2, length

@@ -388,32 +388,34 @@ def _wrap_subset(p1, p2, p1p2, r1, r2, p1e, p2e, a, dims, axis, sign, method, fa
     fr = np.arange(nf)
     r1r2 = r2 - r1
     mu_vec, _ = ad.normalize_or_zero(p1p2)
-    mu = np.abs(mu_vec.v)
+    mu = _abs(mu_vec)  # (F, 3), with derivatives: the blend weights below depend on it
     t = -r1 / r1r2  # (F, 3): chord parameter where coordinate i is zero
     t_sv = [r1 + r1r2 * t[:, i].expand(-1) for i in range(3)]
     t_c1 = [_closest3(a, t_sv[i], special_axis=i) for i in range(3)]
     best = np.zeros(nf, dtype=int)
     for i in (1, 2):
-        best = np.where(mu[fr, i] > mu[fr, best], i, best)
+        best = np.where(mu.v[fr, i] > mu.v[fr, best], i, best)
     mu_b = mu[fr, best]
     t_b = t[fr, best]
     sv_f = _pick(t_sv, best)
     c1_f = _pick(t_c1, best)
-    fan_weight = np.full(nf, -np.inf)
+    # fan weight: None (OpenSim's -infinity: no fan solution) or a Dual (F,) with a mask
+    has_fan = np.zeros(nf, dtype=bool)
+    fan_weight = Dual(np.zeros(nf))
     if method in ("hybrid", "axial"):
         if method == "hybrid":
-            s = np.ones(nf)
             tb = t_b.v
-            s = np.where(tb > 1.0 - _SV_BLEND, (1.0 - tb) / _SV_BLEND, s)
-            s = np.where(tb < _SV_BLEND, tb / _SV_BLEND, s)
-            s = np.where((tb < 0.0) | (tb > 1.0), 0.0, s)
-            blend = (mu_b > _MU_MIN) & (s < 1.0)
-            mu_b = np.where(blend, _MU_MIN + s * (mu_b - _MU_MIN), mu_b)
-        use_frans = np.full(nf, method == "axial") | (mu_b > _MU_MIN)
+            s = ad.lift(np.ones(nf))
+            s = ad.where(tb > 1.0 - _SV_BLEND, (1.0 - t_b) / _SV_BLEND, s)
+            s = ad.where(tb < _SV_BLEND, t_b / _SV_BLEND, s)
+            s = ad.where((tb < 0.0) | (tb > 1.0), 0.0, s)
+            blend = (mu_b.v > _MU_MIN) & (s.v < 1.0)
+            mu_b = ad.where(blend, (mu_b - _MU_MIN) * s + _MU_MIN, mu_b)
+        use_frans = np.full(nf, method == "axial") | (mu_b.v > _MU_MIN)
         c1 = ad.where(use_frans[:, None], c1_f, Dual(np.full((nf, 3), np.nan)))
         sv = ad.where(use_frans[:, None], sv_f, Dual(np.full((nf, 3), np.nan)))
         if method == "hybrid":
-            fan = mu_b < _MU_MAX
+            fan = mu_b.v < _MU_MAX
             if fan.any():
                 mid = r1 + r1r2 * 0.5
                 tt = np.arange(1, _FAN - 1) / _FAN
@@ -423,13 +425,14 @@ def _wrap_subset(p1, p2, p1p2, r1, r2, p1e, p2e, a, dims, axis, sign, method, fa
                 vsum, _ = ad.normalize_or_zero(blade.sum(-2))
                 c_fan = _closest3(a, mid + vsum)
                 w = (mu_b - _MU_MIN) / (_MU_MAX - _MU_MIN)
-                mixed = c1 * w[:, None] + c_fan * (1.0 - w)[:, None]
-                sv_mixed = sv * w[:, None] + mid * (1.0 - w)[:, None]
-                c_mixed = _closest3(a, ad.where((mu_b <= _MU_MIN)[:, None], c_fan, mixed))
-                pure = mu_b <= _MU_MIN
+                pure = mu_b.v <= _MU_MIN
+                mixed = c1 * w.expand(-1) + c_fan * (1.0 - w).expand(-1)
+                sv_mixed = sv * w.expand(-1) + mid * (1.0 - w).expand(-1)
+                c_mixed = _closest3(a, ad.where(pure[:, None], c_fan, mixed))
                 c1 = ad.where(fan[:, None], ad.where(pure[:, None], c_fan, c_mixed), c1)
                 sv = ad.where(fan[:, None], ad.where(pure[:, None], mid, sv_mixed), sv)
-                fan_weight = np.where(fan, np.where(pure, 1.0, 1.0 - w), fan_weight)
+                fan_weight = ad.where(fan, ad.where(pure, 1.0, 1.0 - w), fan_weight)
+                has_fan = fan
         use_c1 = (t_b.v > 0.0) & (t_b.v < 1.0) if method == "axial" else np.ones(nf, dtype=bool)
     else:
         sv = r1 + (r2 - r1) * 0.5
@@ -445,12 +448,13 @@ def _wrap_subset(p1, p2, p1p2, r1, r2, p1e, p2e, a, dims, axis, sign, method, fa
             c1m = c1 * mirror
             tr1 = ad.where(flip[:, None], c1m, tr1)
             tr2 = ad.where(flip[:, None], c1m, tr2)
-            # OpenSim's EQUAL_WITHIN_ERROR(fanWeight, -inf) is never true: stays -inf
-            fw = np.minimum(fan_weight, 1.0)
-            pull = flip & (fw > 0.0)
+            # OpenSim's EQUAL_WITHIN_ERROR(fanWeight, -inf) is never true, so a pure Frans
+            # solution (no fan weight) is never pulled towards the bisecting plane.
+            fw = ad.where(fan_weight.v > 1.0, 1.0, fan_weight)
+            pull = flip & has_fan & (fw.v > 0.0)
             onehot = np.eye(3)[axis]
             comp = c1m[:, axis]
-            moved = c1m + (comp * (1.0 - np.where(pull, fw, 0.0)) - comp).expand(-1) * onehot
+            moved = c1m - (comp * ad.where(pull, fw, 0.0)).expand(-1) * onehot
             pulled = _closest3(a, moved)
             c1 = ad.where(flip[:, None], ad.where(pull[:, None], pulled, c1m), c1)
     vs, _ = ad.normalize_or_zero(ad.cross(p1p2, p1 - c1))
