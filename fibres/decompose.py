@@ -27,7 +27,7 @@ from .errors import InputError
 from .filtering import trim_and_reconstruct
 from .fitting import fit_box, principal_frame
 from .morph import morph_local, slice_fractions, slice_maps
-from .plan import DecompositionPlan, box_from_plan
+from .plan import DecompositionPlan, box_and_local
 from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
 from .smoothing import DEFAULT_ITERATIONS, smooth
@@ -124,19 +124,19 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
 
 def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool):
     """Box, slicing and correspondence of every plane (§3.3); returns what morphing needs."""
-    box = box_from_plan(plan, vertices, origin, insertion)
+    box, local_t = box_and_local(plan, vertices, origin, insertion)
     tf = np.eye(4)
     tf[:3, :3] = box.axes
     tf[:3, 3] = box.corner
     heights = plan.fractions * box.extents[2]
-    sections = slice_mesh(vertices, plan.topology, tf, heights)
+    sections = slice_mesh(vertices, plan.topology, tf, heights, local_t=local_t)
     centres = np.broadcast_to(0.5 * box.extents[:2], (heights.size, 2))
     chosen, notes = choose_loops(sections, centres, n_slices=heights.size)
     planned = None
     local_uv = None
     if not fresh:
         planned = plan.choice
-        local_uv = (vertices - box.corner) @ box.axes[:, :2]
+        local_uv = local_t[:2].T
         replanned = _planned_loops(sections, chosen, planned)
         notes = notes + tuple(f"slice {s}: used the loop holding the planned start vertex"
                               for s in np.flatnonzero(replanned != chosen))

@@ -30,7 +30,7 @@ from .errors import InputError
 from .fitting import Box, principal_frame
 from .slicing import MeshTopology
 
-__all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan"]
+__all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_local"]
 
 
 def _readonly(a):
@@ -152,20 +152,67 @@ def box_from_plan(plan: DecompositionPlan, vertices, origin, insertion) -> Box:
     -------
     Box
     """
+    return box_and_local(plan, vertices, origin, insertion)[0]
+
+
+def box_and_local(plan: DecompositionPlan, vertices, origin, insertion):
+    """`box_from_plan` and the vertices in the box frame, transposed.
+
+    Returns
+    -------
+    box : Box
+    local_t : (3, V) float
+        Rows x, y, z of every vertex in the box frame (``corner`` at the origin), for
+        `fibres.slicing.slice_mesh` (rows keep the reductions over V contiguous).
+    """
     v = np.asarray(vertices, dtype=np.float64)
+    vt = np.ascontiguousarray(v.T)                                    # (3, V)
     if v is plan.rest_vertices or np.array_equal(v, plan.rest_vertices):
         rot = np.eye(3)
     else:
         sub = _kabsch_subset(len(v))
         rot = kabsch_rotation(plan.rest_vertices[sub], v[sub])
-    frame = principal_frame(v, origin, insertion, axis=plan.axis_method, v_ref=rot @ plan.v0,
-                            template=plan.template, angle_step_deg=plan.angle_step_deg,
-                            angle_index=plan.angle_index)
+    v_ref = rot @ plan.v0
+    centroid = vt.mean(axis=1)
+    u = None
+    if plan.axis_method == "attachments" and not _oblique(plan.template):
+        # Kohout 2012 §3.2 with the attachment direction (as principal_frame computes it)
+        direction = np.mean(insertion, axis=0) - np.mean(origin, axis=0)
+        dist = float(np.linalg.norm(direction))
+        if dist > 0:
+            u = direction / dist
+            v0, w0 = _complete_frame(u, v_ref)
+    if u is None:
+        frame = principal_frame(v, origin, insertion, axis=plan.axis_method, v_ref=v_ref,
+                                template=plan.template, angle_step_deg=plan.angle_step_deg,
+                                angle_index=plan.angle_index)
+        centroid, u, v0, w0 = frame.centroid, frame.axis, frame.v0, frame.w0
     theta = np.deg2rad(plan.angle_step_deg * plan.angle_index)
-    x = np.cos(theta) * frame.v0 + np.sin(theta) * frame.w0
-    y = np.cross(frame.axis, x)
-    axes = np.stack([x, y, frame.axis], axis=1)
-    local = (v - frame.centroid) @ axes
-    lo, hi = local.min(axis=0), local.max(axis=0)
-    return Box(frame.centroid + axes @ lo, axes, hi - lo, plan.angle_index,
-               plan.angle_step_deg, method=frame.method)
+    x = np.cos(theta) * v0 + np.sin(theta) * w0
+    y = np.cross(u, x)
+    axes = np.stack([x, y, u], axis=1)
+    local_t = axes.T @ (vt - centroid[:, None])                       # (3, V)
+    lo, hi = local_t.min(axis=1), local_t.max(axis=1)
+    local_t -= lo[:, None]
+    box = Box(centroid + axes @ lo, axes, hi - lo, plan.angle_index, plan.angle_step_deg,
+              method=plan.axis_method)
+    return box, local_t
+
+
+def _oblique(template) -> bool:
+    """Whether the template's attachment centroids are offset across the cube (pennate)."""
+    if template is None:
+        return False
+    off = np.mean(template.insertion_area, axis=0) - np.mean(template.origin_area, axis=0)
+    return bool(np.abs(off[:2]).max() > 1e-12)
+
+
+def _complete_frame(u, v_ref):
+    """(v0, w0) completing u (the same rule as `fibres.fitting.principal_frame`: v_ref
+    projected perpendicular to u, a world axis if v_ref is nearly parallel to u)."""
+    ref = np.asarray(v_ref, dtype=np.float64)
+    if abs(ref @ u) > 0.999 * np.linalg.norm(ref):
+        ref = np.eye(3)[int(np.argmin(np.abs(u)))]
+    v0 = ref - (ref @ u) * u
+    v0 /= np.linalg.norm(v0)
+    return v0, np.cross(u, v0)

@@ -171,7 +171,8 @@ class Sections:
         return local @ self.tf_world_plane[:3, :3].T + self.tf_world_plane[:3, 3]
 
 
-def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights) -> Sections:
+def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
+               local_t=None) -> Sections:
     """Cut a closed mesh with the planes ``h = heights[s]`` of a frame, all at once.
 
     Parameters
@@ -183,6 +184,8 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights) -> Sec
         Rigid frame; its third axis is the plane normal, its first two span the planes.
     heights : (S,) float
         Strictly increasing plane heights along the third axis.
+    local_t : (3, V) float, optional
+        The vertices already in the plane frame (rows u, v, height), if known.
 
     Returns
     -------
@@ -194,8 +197,9 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights) -> Sec
     h = np.asarray(heights, dtype=float)
     if h.ndim != 1 or h.size == 0 or np.any(np.diff(h) <= 0):
         raise ValueError("heights must be a non-empty strictly increasing (S,) array")
-    local = (v - tf[:3, 3]) @ tf[:3, :3]                       # (V, 3): u, v, height
-    d = local[:, 2]
+    if local_t is None:
+        local_t = tf[:3, :3].T @ (v - tf[:3, 3]).T               # (3, V): u, v, height
+    d = local_t[2]
     faces, face_edges = topology.faces, topology.face_edges
 
     # (plane, face) crossings: face crosses plane s iff min d <= h_s < max d. Each is one
@@ -234,7 +238,8 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights) -> Sec
     a = faces[node_face, down]                                 # above end of the edge
     b = faces[node_face, (down + 1) % 3]                       # below end
     t = (h[node_slice] - d[a]) / (d[b] - d[a])
-    pts = local[a, :2] + t[:, None] * (local[b, :2] - local[a, :2])
+    ua, va = local_t[0, a], local_t[1, a]
+    pts = np.stack([ua + t * (local_t[0, b] - ua), va + t * (local_t[1, b] - va)], axis=1)
     flip = a > b                                               # t measured from edges[:, 0]
     t = np.where(flip, 1.0 - t, t)
     return Sections(h.copy(), pts, node_edge, t, loop_start, node_slice[loop_start[:-1]], tf)

@@ -90,3 +90,14 @@ def test_kabsch_recovers_a_rotation():
     ang = 0.9
     rot = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
     assert np.abs(kabsch_rotation(x, x @ rot.T + 3.0) - rot).max() <= 1e-12
+
+
+def test_plan_fast_path_in_millimetres(muscle):
+    # a frame given as a (vertices, faces) tuple in mm with the plan's faces skips the
+    # surface repair; the result must equal the metre version to rounding of the scaling
+    v, f, o, i = muscle
+    b = decompose((v, f), o, i)
+    mm = decompose((deform(v, 0.01) * 1e3, f), deform(o, 0.01) * 1e3, deform(i, 0.01) * 1e3,
+                   units="mm", plan=b.plan)
+    m = decompose((deform(v, 0.01), f), deform(o, 0.01), deform(i, 0.01), plan=b.plan)
+    assert np.abs(mm.points - m.points).max() <= 1e-12
