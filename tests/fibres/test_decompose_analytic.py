@@ -153,10 +153,15 @@ def test_cylinder_generic_mesh_wobble_is_below_one_sector(cap_landmarks):
     # contour vertex closest to Q0 (Kohout 2012 §3.3) slides and jumps; the correspondence
     # then shifts by at most one sector of the 64-gon, bounding the fibres' wobble by the
     # sector chord 2 rho sin(pi / 64)
-    v, f = tube(lambda th: RHO * np.c_[np.cos(th), np.sin(th)], *straight(L), n_path=2)
+    # (the mesh is turned by 3 degrees so that no contour vertex sits exactly at the
+    # rectangle corner Q0's angle; measured wobble 7.5e-3 L, bound 9.8e-3 L)
+    turn = np.deg2rad(3.0)
+    v, f = tube(lambda th: RHO * np.c_[np.cos(th + turn), np.sin(th + turn)], *straight(L),
+                n_path=2)
     o, i = cap_landmarks
     b = decompose((v, f), o, i)
-    assert _chord_deviation(b.points) <= 2 * RHO * np.sin(np.pi / 64)
+    dev = _chord_deviation(b.points)
+    assert 1e-3 * L < dev <= 2 * RHO * np.sin(np.pi / 64)
     assert np.abs(b.lengths() / L - 1).max() <= 1e-3
 
 
