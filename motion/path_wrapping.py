@@ -145,6 +145,36 @@ def _gather(nodes: list, ids: np.ndarray) -> Dual:
     return Dual(v[fr, safe], d[fr, safe])
 
 
+class _GroundCache:
+    """OpenSim's Point::getLocationInGround cache, per frame and node.
+
+    A tangent point's ground position is cached (Stage::Position) the first time it is read
+    in a realised state; later ``setLocation`` calls in further passes of applyWrapObjects
+    change the point's location property -- which the wrapping itself uses -- but not the
+    cached ground position, which path lengths, length changes and reported points use. With
+    two or more wrap objects whose tangent points move between passes, OpenSim's length is
+    therefore built from first-pass positions and last-pass arc lengths; this reproduces it.
+    """
+
+    def __init__(self, nodes: list, n_points: int):
+        nf = nodes[0].v.shape[0]
+        self.seen = list(nodes)
+        self.ok = np.zeros((nf, len(nodes)), dtype=bool)
+        self.ok[:, :n_points] = True   # defined points never move within a state
+
+    def see(self, nodes: list, ids: np.ndarray, mask: np.ndarray):
+        """Read nodes ``ids`` (F,) in the frames of ``mask``: cache first reads."""
+        fr = np.arange(ids.shape[0])
+        safe = np.where(ids >= 0, ids, 0)
+        first = mask & (ids >= 0) & ~self.ok[fr, safe]
+        if not first.any():
+            return
+        for k in np.unique(safe[first]):
+            m = first & (safe == k)
+            self.seen[k] = ad.where(m[:, None], nodes[k], self.seen[k])
+        self.ok[fr[first], safe[first]] = True
+
+
 def _remove(order: np.ndarray, count: np.ndarray, ids: tuple, frames: np.ndarray):
     """Remove node ids from the order rows of ``frames`` (keeping order)."""
     order = order.copy()
@@ -171,7 +201,7 @@ def _insert_after(order: np.ndarray, count: np.ndarray, pos: np.ndarray, ids: tu
     return out, count + 2 * frames
 
 
-def _path_length(order, nodes, arcs, n_points, n_wraps) -> Dual:
+def _path_length(order, nodes, arcs, n_points, n_wraps, cache) -> Dual:
     """Length of every frame's current path (OpenSim calcLengthAfterPathComputation)."""
     nf, nk = order.shape
     total = None
@@ -180,8 +210,10 @@ def _path_length(order, nodes, arcs, n_points, n_wraps) -> Dual:
         valid = (a >= 0) & (b >= 0)
         if not valid.any():
             break
-        seg = ad.norm(_gather(nodes, b) - _gather(nodes, a))
         same_wrap = (a >= n_points) & (b == a + 1) & ((a - n_points) % 2 == 0)
+        cache.see(nodes, a, valid & ~same_wrap)
+        cache.see(nodes, b, valid & ~same_wrap)
+        seg = ad.norm(_gather(cache.seen, b) - _gather(cache.seen, a))
         if n_wraps:
             w = np.clip((a - n_points) // 2, 0, n_wraps - 1)
             arc_v = np.stack([x.v for x in arcs], axis=1)[np.arange(nf), w]
@@ -231,6 +263,7 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
         nan = Dual(np.full((nf, 3), np.nan), np.zeros((nf, 3, n_coords)))
         nodes += [nan] * (2 * n_wraps)
         arcs = [Dual(np.zeros(nf), np.zeros((nf, n_coords)))] * n_wraps
+        cache = _GroundCache(nodes, n_points)
 
         # initial current path: active points, compacted
         order = np.full((nf, n_nodes), -1)
@@ -258,7 +291,7 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
         running = np.ones(nf, dtype=bool)
         last_length = np.full(nf, np.inf)
         max_iter = 1 if n_wraps < 2 else 8
-        length = _path_length(order, nodes, arcs, n_points, n_wraps)
+        length = _path_length(order, nodes, arcs, n_points, n_wraps, cache)
         for kk in range(max_iter):
             if n_wraps == 0 or not running.any():
                 break
@@ -275,9 +308,9 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
                         continue
                     order, count, nodes, arcs, res = _wrap_one(
                         w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts,
-                        start, end, n_points)
+                        start, end, n_points, cache)
                     result[frames, i] = res[frames]
-            length = _path_length(order, nodes, arcs, n_points, n_wraps)
+            length = _path_length(order, nodes, arcs, n_points, n_wraps, cache)
             conv = running & (np.abs(length.v - last_length) < _CONVERGED)
             last_length = np.where(running, length.v, last_length)
             running = running & ~conv
@@ -291,14 +324,15 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
                     ids = (n_points, n_points + 1)
                     order, count = _remove(order, count, ids, swap)
         # the final length is what OpenSim caches: the last pass's path
-        length = _path_length(order, nodes, arcs, n_points, n_wraps)
+        length = _path_length(order, nodes, arcs, n_points, n_wraps, cache)
 
     mask = np.zeros((nf, n_nodes), dtype=bool)
     fr = np.repeat(np.arange(nf)[:, None], n_nodes, axis=1)
     ok = order >= 0
     mask[fr[ok], order[ok]] = True
-    pts = np.stack([n.v for n in nodes], axis=1)
-    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in nodes], axis=1)
+    # reported points are what OpenSim's getLocationInGround returns: the cached positions
+    pts = np.stack([n.v for n in cache.seen], axis=1)
+    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in cache.seen], axis=1)
     pts = np.where(mask[..., None], pts, np.nan)
     labels = [p.name for p in path.points]
     kinds = ["point"] * n_points
@@ -314,7 +348,7 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
 
 
 def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts, start, end,
-              n_points):
+              n_points, cache):
     """Try wrap ``w`` on every eligible segment of the frames' current paths; insert the best."""
     nf, nk = order.shape
     n_coords = nodes[0].d.shape[-1]
@@ -355,7 +389,16 @@ def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, fn, opt
         result[sel] = code
         mand = code == MANDATORY_WRAP
         wrapped = code == WRAPPED
-        change = (ad.norm(r1g - pa) + arc + ad.norm(pb - r2g) - ad.norm(pb - pa)).v
+        # GeometryPath::calcPathLengthChange (only for "wrapped") reads the end points' cached
+        # ground positions
+        if wrapped.any():
+            m = np.zeros(nf, dtype=bool)
+            m[sel[wrapped]] = True
+            cache.see(nodes, a, m)
+            cache.see(nodes, b, m)
+        sa = _subset(_gather(cache.seen, a), sel)
+        sb = _subset(_gather(cache.seen, b), sel)
+        change = (ad.norm(r1g - sa) + arc + ad.norm(sb - r2g) - ad.norm(sb - sa)).v
         take = mand | (wrapped & (change < min_change[sel]))
         tsel = sel[take]
         if tsel.size:
