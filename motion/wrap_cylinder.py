@@ -122,47 +122,113 @@ def _adjust_tangent_point(pt, r, w):
     return ad.where(adjust[..., None], new, r), adjust
 
 
+def _helix(r1, r2, long_wrap, radius):
+    """Helix from r1 to r2 on the cylinder: (r1a, axial_vec, uu, ax, theta, length)."""
+    zero = 0.0 * r1[..., 0]
+    r1a = _vec(zero, zero, r1[..., 2])
+    r2a = _vec(zero, zero, r2[..., 2])
+    axial_vec = r2a - r1a
+    axial_dist = ad.norm(axial_vec)
+    uu = (r1 - r1a) / radius
+    vv = (r2 - r2a) / radius
+    cos_t = ad.dot(uu, vv) / (ad.norm(uu) * ad.norm(vv))
+    cos_t = ad.where(np.abs(cos_t.v) <= 1.0, cos_t, np.sign(cos_t.v))
+    theta = ad.arccos(cos_t)
+    theta = ad.where(long_wrap, 2.0 * np.pi - theta, theta)
+    x = theta * radius
+    length = ad.sqrt(x * x + axial_dist * axial_dist)
+    ax, _ = ad.normalize_or_zero(ad.cross(uu, vv))
+    return r1a, axial_vec, uu, ax, theta, length
+
+
 def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust):
-    """WrapCylinder::_make_spiral_path: helix length, with OpenSim's tangent re-adjustment."""
-    sense = np.where(long_wrap, -1.0, 1.0)
-    iterations = np.zeros(long_wrap.shape, dtype=int)
-    active = np.ones(long_wrap.shape, dtype=bool)
-    while True:
-        r1a = _vec(0.0 * r1[..., 0], 0.0 * r1[..., 0], r1[..., 2])
-        r2a = _vec(0.0 * r2[..., 0], 0.0 * r2[..., 0], r2[..., 2])
-        axial_vec = r2a - r1a
-        axial_dist = ad.norm(axial_vec)
-        uu = (r1 - r1a) / radius
-        vv = (r2 - r2a) / radius
-        cos_t = ad.dot(uu, vv) / (ad.norm(uu) * ad.norm(vv))
-        cos_t = ad.where(np.abs(cos_t.v) <= 1.0, cos_t, np.sign(cos_t.v))
-        theta = ad.arccos(cos_t)
-        theta = ad.where(long_wrap, 2.0 * np.pi - theta, theta)
-        x = theta * radius
-        length = ad.sqrt(x * x + axial_dist * axial_dist)
-        if not adjust:
-            return r1, r2, length
-        ax, _ = ad.normalize_or_zero(ad.cross(uu, vv))
-        n_seg = np.maximum((length.v / 0.002).astype(int), 1)
-        can = active & (n_seg >= 2) & (iterations < _MAX_ITERATIONS)
-        if not can.any():
-            return r1, r2, length
-        t = 1.0 / n_seg
-        w1 = _spiral_point(r1a, axial_vec, uu, ax, sense, t, theta, radius)
-        w2 = _spiral_point(r1a, axial_vec, uu, ax, sense, 1.0 - t, theta, radius)
-        new1, adj1 = _adjust_tangent_point(p1, r1, w1)
-        new2, adj2 = _adjust_tangent_point(p2, r2, w2)
-        # Measured against OpenSim 4.6: r2 is only re-adjusted in a pass where r1 was not
-        # (the published source adjusts both; the binary behaves as if r1 restarts first).
-        adj2 = adj2 & ~adj1
-        new2 = ad.where(adj2[..., None], new2, r2)
-        changed = can & (adj1 | adj2)
-        if not changed.any():
-            return r1, r2, length
-        r1 = ad.where(changed[..., None], new1, r1)
-        r2 = ad.where(changed[..., None], new2, r2)
-        iterations = iterations + changed
-        active = changed
+    """WrapCylinder::_make_spiral_path: helix length, with OpenSim's tangent re-adjustment.
+
+    The re-adjustment only slides r1 and r2 along the axis, so the loop carries their z
+    coordinates: the helix's angle, the radial directions and hence the rotation of the
+    spiral points stay fixed (rotation about the z axis). The loop runs on the frames that
+    still adjust only. Each step is OpenSim's: compare the angles to the axis of p->r and of
+    r->w (w the spiral point 1/n of the way from r), and if they differ by more than 0.1 degree
+    move r 1.5 times the way to the point of r's axial line closest to the line p->w.
+    """
+    if adjust:
+        z1, z2 = r1[:, 2], r2[:, 2]
+        xy1, xy2 = r1[:, :2], r2[:, :2]
+        *_, theta, _ = _helix(r1, r2, long_wrap, radius)
+        # direction of rotation from r1 towards r2 about z (OpenSim: ax = uu x vv, sense)
+        turn = np.sign(xy1.v[:, 0] * xy2.v[:, 1] - xy1.v[:, 1] * xy2.v[:, 0])
+        turn = np.where(turn == 0.0, 1.0, turn) * np.where(long_wrap, -1.0, 1.0)
+        iterations = np.zeros(long_wrap.shape, dtype=int)
+        active = np.ones(long_wrap.shape, dtype=bool)
+        while active.any():
+            idx = np.nonzero(active)[0]
+            a1, a2, th = _rows(z1, idx), _rows(z2, idx), _rows(theta, idx)
+            c1, c2 = _rows(xy1, idx), _rows(xy2, idx)
+            q1, q2 = _rows(p1, idx), _rows(p2, idx)
+            dz = a2 - a1
+            x = th * radius
+            length = ad.sqrt(x * x + dz * dz)
+            n_seg = np.maximum((length.v / 0.002).astype(int), 1)
+            can = (n_seg >= 2) & (iterations[idx] < _MAX_ITERATIONS)
+            t = 1.0 / n_seg
+            w1 = _spiral_xyz(c1, a1, dz, th * (turn[idx] * t), t)
+            w2 = _spiral_xyz(c1, a1, dz, th * (turn[idx] * (1.0 - t)), 1.0 - t)
+            new1, adj1 = _slide(q1, c1, a1, w1)
+            new2, adj2 = _slide(q2, c2, a2, w2)
+            # Measured against OpenSim 4.6: r2 is only re-adjusted in a pass where r1 was not
+            # (the published source adjusts both; the binary behaves as if r1 restarts first).
+            adj2 = adj2 & ~adj1
+            changed = can & (adj1 | adj2)
+            active[idx[~changed]] = False
+            if not changed.any():
+                break
+            new1 = ad.where(adj1, new1, a1)
+            new2 = ad.where(adj2, new2, a2)
+            z1 = ad.scatter(z1, idx[changed], _rows(new1, changed))
+            z2 = ad.scatter(z2, idx[changed], _rows(new2, changed))
+            iterations[idx[changed]] += 1
+        r1 = ad.stack([xy1[:, 0], xy1[:, 1], z1])
+        r2 = ad.stack([xy2[:, 0], xy2[:, 1], z2])
+    *_, length = _helix(r1, r2, long_wrap, radius)
+    return r1, r2, length
+
+
+def _spiral_xyz(xy1, z1, dz, angle, t):
+    """Spiral point: r1's radial direction turned by ``angle`` about z, axial fraction t."""
+    c, s = ad.cos(angle), ad.sin(angle)
+    x = xy1[:, 0] * c - xy1[:, 1] * s
+    y = xy1[:, 0] * s + xy1[:, 1] * c
+    return ad.stack([x, y, z1 + dz * np.asarray(t)])
+
+
+def _slide(pt, xy, z, w):
+    """WrapCylinder::_adjust_tangent_point for r = (xy, z): (new z, adjusted mask)."""
+    # the tangency test needs values only
+    r = np.concatenate([xy.v, z.v[:, None]], axis=1)
+    pr = r - pt.v
+    rw = w.v - r
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos_a = pr[:, 2] / np.linalg.norm(pr, axis=1)
+        cos_o = rw[:, 2] / np.linalg.norm(rw, axis=1)
+    alpha = np.arccos(np.clip(np.nan_to_num(cos_a), -1.0, 1.0))
+    omega = np.arccos(np.clip(np.nan_to_num(cos_o), -1.0, 1.0))
+    adjust = np.abs(alpha - omega) > _TANGENCY_THRESHOLD
+    # closest point of r's axial line (x, y fixed) to the line pt -> w (WrapMath::IntersectLines)
+    d = w - pt
+    w0x, w0y, w0z = pt[:, 0] - xy[:, 0], pt[:, 1] - xy[:, 1], pt[:, 2]
+    a = ad.dot(d, d)
+    b = d[:, 2]
+    dd = d[:, 0] * w0x + d[:, 1] * w0y + d[:, 2] * w0z
+    denom = a - b * b
+    ok = np.abs(denom.v) > 1e-300
+    zint = (a * w0z - b * dd) / ad.where(ok, denom, 1.0)
+    new = z + (zint - z) * 1.5
+    return new, adjust & ok
+
+
+def _rows(x, idx):
+    x = ad.lift(x)
+    return Dual(x.v[idx], x.d[idx] if x.d.shape[0] == x.v.shape[0] else x.d)
 
 
 def _prelim_tangents(p, radius):
