@@ -93,35 +93,6 @@ def _dist2(a, b) -> Dual:
     return ad.dot(d, d)
 
 
-def _rotate_about(vec, axis, angle) -> Dual:
-    """Rotate ``vec`` about unit ``axis`` by ``angle`` (right hand), Rodrigues' formula."""
-    c = ad.cos(angle).expand(-1)
-    s = ad.sin(angle).expand(-1)
-    k = ad.lift(axis)
-    return vec * c + ad.cross(k, vec) * s + k * (ad.dot(k, vec).expand(-1) * (1.0 - c))
-
-
-def _spiral_point(r1a, axial_vec, uu, ax, sense, t, theta, radius) -> Dual:
-    """WrapCylinder::_calc_spiral_wrap_point: r1a + R(sense t theta, ax) uu radius + t axial."""
-    angle = theta * (sense * t)
-    return r1a + _rotate_about(uu, ax, angle) * radius + axial_vec * np.asarray(t)[..., None]
-
-
-def _adjust_tangent_point(pt, r, w):
-    """WrapCylinder::_adjust_tangent_point: returns (new r, adjusted mask)."""
-    dn = np.array([0.0, 0.0, 1.0])
-    pr, _ = ad.normalize_or_zero(ad.lift(r) - pt)
-    rw, _ = ad.normalize_or_zero(ad.lift(w) - r)
-    alpha = np.arccos(np.clip(pr.v[..., 2], -1.0, 1.0))
-    omega = np.arccos(np.clip(rw.v[..., 2], -1.0, 1.0))
-    adjust = np.abs(alpha - omega) > _TANGENCY_THRESHOLD
-    p1a = closest_point_on_line(pt, r, dn)
-    w1a = closest_point_on_line(w, r, dn)
-    _, _, pint2, _, _ = intersect_lines(pt, w, p1a, w1a)
-    new = ad.lift(r) + (pint2 - r) * 1.5
-    return ad.where(adjust[..., None], new, r), adjust
-
-
 def _helix(r1, r2, long_wrap, radius):
     """Helix from r1 to r2 on the cylinder: (r1a, axial_vec, uu, ax, theta, length)."""
     zero = 0.0 * r1[..., 0]
