@@ -21,6 +21,12 @@ PathWrap.cpp; reproduced here in numpy, not copied):
   (``noWrap``) and the second found a point inside it, their order is swapped.
 - A path with a single wrap object skips the cylinder's tangent re-adjustment (OpenSim's
   ``WrapResult::singleWrap``), which the references confirm to machine precision.
+- Lengths and reported points use each tangent point's ground position as first read in the
+  state (OpenSim caches ``Point::getLocationInGround`` at Stage::Position), while the wrapping
+  itself and the arc lengths use the latest pass: with several wrap objects whose tangent
+  points move between passes OpenSim's length mixes passes, and so does this (`_GroundCache`).
+- Not reproduced: when a range holds no active point OpenSim abandons all remaining wrap
+  objects of that pass; here only that wrap object is skipped (such a range is a model error).
 
 Frames are processed together: each frame carries its own current path as an index array, and
 every wrap computation runs on all frames that need it, with masks. Values are
