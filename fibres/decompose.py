@@ -83,13 +83,14 @@ def _cross_section_ref(vertices, origin, insertion, axis, template):
     (eigenvalues within `ISOTROPIC` of each other: a circular cylinder, a cube), where no
     direction is defined by the shape and a world axis keeps axis-aligned shapes exact."""
     frame = principal_frame(vertices, origin, insertion, axis=axis, template=template)
-    d = vertices - frame.centroid
-    d = d - np.outer(d @ frame.axis, frame.axis)
-    vals, vecs = np.linalg.eigh(d.T @ d)
+    u = frame.axis
+    dt = np.ascontiguousarray(vertices.T) - frame.centroid[:, None]     # (3, V)
+    dt -= np.outer(u, u @ dt)
+    vals, vecs = np.linalg.eigh(dt @ dt.T)
     if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
         return None
     ref = vecs[:, -1]
-    if np.arange(1, len(d) + 1) @ (d @ ref) < 0:
+    if np.arange(1, dt.shape[1] + 1) @ (ref @ dt) < 0:
         ref = -ref
     return ref
 
