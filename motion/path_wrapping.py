@@ -244,11 +244,11 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
         The defined path points in ground (inactive conditional points: any finite value).
     active : (F, P) bool
         Which points are active.
-    d_points : (F, P, C, 3) float
-        Derivatives of the points with respect to the coordinates.
+    d_points : (F, P, C, 3) float or None
+        Derivatives of the points with respect to the coordinates (None: lengths only, C = 0).
     tf_ground_body : (F, B, 4, 4) float
         Body poses (model body order).
-    d_tf_ground_body : (F, B, C, 4, 4) float
+    d_tf_ground_body : (F, B, C, 4, 4) float or None
         Their derivatives with respect to the coordinates.
 
     Returns
@@ -257,7 +257,15 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     """
     points = np.asarray(points, dtype=float)
     active = np.asarray(active, dtype=bool)
+    tf_ground_body = np.asarray(tf_ground_body, dtype=float)
+    if d_points is None or d_tf_ground_body is None:   # lengths only: no coordinates to follow
+        d_points = np.zeros(points.shape[:2] + (0, 3))
+        d_tf_ground_body = np.zeros(tf_ground_body.shape[:2] + (0, 4, 4))
     d_points = np.asarray(d_points, dtype=float)
+    if points.ndim != 3 or points.shape[-1] != 3 or active.shape != points.shape[:2]:
+        raise ValueError(f"points must be (F, P, 3) and active (F, P); got {points.shape}, {active.shape}")
+    if len(path.points) != points.shape[1]:
+        raise ValueError(f"path {path.name!r} has {len(path.points)} points, got {points.shape[1]}")
     nf, n_points = points.shape[:2]
     n_coords = d_points.shape[2]
     wraps = tuple(path.wraps)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["Dual", "lift", "where", "sqrt", "arccos", "arcsin", "sin", "cos", "arctan2",
-           "stack", "dot", "cross", "norm", "normalize_or_zero", "value", "solve", "scatter",
+           "stack", "dot", "cross", "norm", "normalize_or_zero", "value", "solve", "scatter", "dsize",
            "SegmentWrap", "segment_wrap", "seed_points"]
 
 
@@ -114,6 +114,11 @@ class Dual:
         return f"Dual(v={self.v!r}, d.shape={self.d.shape})"
 
 
+def dsize(*items) -> int:
+    """Common number of derivative directions (a constant's 1 broadcasts, also to 0)."""
+    return int(np.broadcast_shapes(*[(lift(i).d.shape[-1],) for i in items])[0])
+
+
 def value(x):
     """The value array of a Dual, or ``x`` itself."""
     return x.v if isinstance(x, Dual) else np.asarray(x, dtype=float)
@@ -179,9 +184,9 @@ def stack(items, axis=-1) -> Dual:
         raise ValueError("only axis=-1 is supported")
     items = [lift(i) for i in items]
     shape = np.broadcast_shapes(*[i.v.shape for i in items])
-    dsize = max(i.d.shape[-1] for i in items)
+    nd = dsize(*items)
     v = np.stack([np.broadcast_to(i.v, shape) for i in items], axis=-1)
-    d = np.stack([np.broadcast_to(i.d, shape + (dsize,)) for i in items], axis=-2)
+    d = np.stack([np.broadcast_to(i.d, shape + (nd,)) for i in items], axis=-2)
     return Dual(v, d)
 
 
@@ -216,7 +221,7 @@ def normalize_or_zero(a, tiny=0.0):
 def scatter(full: Dual, sel, part: Dual) -> Dual:
     """Copy of ``full`` with the leading-axis rows ``sel`` replaced by ``part``."""
     full, part = lift(full), lift(part)
-    nd = max(full.d.shape[-1], part.d.shape[-1])
+    nd = dsize(full, part)
     v = full.v.copy()
     d = np.array(np.broadcast_to(full.d, full.v.shape + (nd,)))
     v[sel] = part.v

@@ -261,7 +261,7 @@ def _tangent_point(pe, r1, p1, a, vs, vs4):
 def _stack_rows(rows) -> Dual:
     """Stack row Duals (F, 4) into (F, 4, 4)."""
     v = np.stack([r.v for r in rows], axis=1)
-    nd = max(r.d.shape[-1] for r in rows)
+    nd = ad.dsize(*rows)
     d = np.stack([np.broadcast_to(r.d, r.v.shape + (nd,)) for r in rows], axis=1)
     return Dual(v, d)
 
@@ -300,7 +300,7 @@ def _arc(r1, r2, a, vs, vs4, factor, far):
     # polyline r1, s_1..s_{N-1}, r2 ; pad beyond N with r2
     kk = np.arange(kmax + 1)[None, :]
     pts_v = np.concatenate([r1.v[:, None], s.v, r2.v[:, None]], axis=1)
-    nd = max(r1.d.shape[-1], s.d.shape[-1], r2.d.shape[-1])
+    nd = ad.dsize(r1, s, r2)
     bd = lambda x: np.broadcast_to(x.d, x.v.shape + (nd,))  # noqa: E731
     pts_d = np.concatenate([bd(r1)[:, None], bd(s), bd(r2)[:, None]], axis=1)
     pts = Dual(pts_v, pts_d)

@@ -110,3 +110,15 @@ def test_tangent_points_and_path_order(case):
             for _, row in wl.iterrows():
                 w = res.wrap_objects.index(row["wrap_object"])
                 assert abs(res.arc[frame, w] - row["wrap_length"]) < 1e-5
+
+
+def test_lengths_only_mode_gives_the_same_lengths(case):
+    # without derivatives (d_points = d_tf = None) the algorithm takes the same branches
+    ref, model, q, names, lines = case
+    tf, _, q_used, _ = body_pose_derivatives(model, q)
+    for name in names:
+        path = model.path(name)
+        pp = path_points(path, model, q_used, tf)
+        res = wrap_path(path, model, pp.points, pp.active, None, tf, None)
+        assert res.d_length.shape == (len(q), 0)
+        np.testing.assert_array_equal(res.length, lines.length(name))
