@@ -29,10 +29,12 @@ from scipy.spatial import cKDTree
 from fibres import as_surface, decompose
 
 MUSCLES = ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
-# measured worst values above, rounded up by ~10 % so that the test pins them
-FULL_OUTSIDE_MM = {"glut_max_r": 4.0, "glut_med_r": 5.5, "iliacus_r": 4.7, "psoas_r": 9.0}
-START_MM = {"glut_max_r": 12.0, "glut_med_r": 14.0, "iliacus_r": 13.0, "psoas_r": 11.5}
-END_MM = {"glut_max_r": 20.0, "glut_med_r": 10.5, "iliacus_r": 12.0, "psoas_r": 3.0}
+# the measured worst values above with ~20 % margin (the end points come from the
+# attachment filter, whose surface regions are sampled at mesh vertices)
+START_MM = {"glut_max_r": 13.0, "glut_med_r": 15.5, "iliacus_r": 14.0, "psoas_r": 12.5}
+END_MM = {"glut_max_r": 22.0, "glut_med_r": 11.5, "iliacus_r": 13.0, "psoas_r": 3.5}
+# full chain: at most 10 mm outside (measured 3.6-8.1 mm: filter + smoothing, see above)
+FULL_OUTSIDE_MM = 10.0
 
 
 def _landmarks(lhdl_dir, muscle):
@@ -86,7 +88,7 @@ def test_lhdl_fibres_inside_and_between_the_attachments(decomposed, muscle, fold
     # the full chain: trimming + straight reconstruction + smoothing cut the concave
     # walls of curved muscles (psoas around the pelvic brim): pinned at the measured values
     sd = _signed_distance_mm(surface, full.points)
-    assert sd.min() >= -FULL_OUTSIDE_MM[muscle]
+    assert sd.min() >= -FULL_OUTSIDE_MM
     assert np.mean(sd >= -1.0) >= 0.75
     # every fibre starts near its origin area and ends near its insertion area ...
     d_start = cKDTree(origin).query(full.points[:, 0])[0] * 1e3
