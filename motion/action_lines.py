@@ -60,6 +60,11 @@ class ActionLines:
         True where ``points`` holds a point of the current path.
     point_labels : (M, K) tuple of tuples of str
         Point names ('' for padding; wrap tangent points as the wrap helper labels them).
+        ``points`` is stored by point (node), not in path order: where a path wraps, its tangent
+        points stand after the defined points.
+    point_order : (F, M, K) int
+        The current path in path order per frame, as indices into axis K of ``points``, padded
+        with -1. ``ordered_points`` applies it.
     """
 
     lengths: np.ndarray
@@ -73,9 +78,11 @@ class ActionLines:
     points: np.ndarray
     point_mask: np.ndarray
     point_labels: tuple
+    point_order: np.ndarray
 
     def __post_init__(self):
-        for key in ("lengths", "moment_arms", "spanned", "time", "q", "points", "point_mask"):
+        for key in ("lengths", "moment_arms", "spanned", "time", "q", "points", "point_mask",
+                    "point_order"):
             arr = np.array(getattr(self, key), copy=True)
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
@@ -85,6 +92,19 @@ class ActionLines:
             raise ValueError(f"moment_arms must be (F, M, C) = {(n_frames, n_paths, n_coords)}")
         if self.spanned.shape != (n_paths, n_coords) or len(self.muscle_names) != n_paths:
             raise ValueError("spanned must be (M, C) and muscle_names (M,)")
+
+    @property
+    def ordered_points(self) -> np.ndarray:
+        """(F, M, K, 3) the current path points in path order per frame, NaN-padded at the end."""
+        idx = np.where(self.point_order >= 0, self.point_order, 0)
+        out = np.take_along_axis(self.points, idx[..., None], axis=2)
+        return np.where((self.point_order >= 0)[..., None], out, np.nan)
+
+    def polyline(self, muscle: str) -> list:
+        """The current path of one muscle per frame: a list of F arrays (K_f, 3) in path order."""
+        m = self.muscle_names.index(muscle)
+        pts, order = self.ordered_points[:, m], self.point_order[:, m]
+        return [pts[f, order[f] >= 0] for f in range(pts.shape[0])]
 
     def length(self, muscle: str) -> np.ndarray:
         """(F,) length of one path."""
@@ -247,10 +267,14 @@ def _block(model: Model, chosen: list, q: np.ndarray) -> tuple:
             lengths[:, m] = wrapped.length
             dldq[:, m] = wrapped.d_length
             per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
-                             tuple(str(x) for x in wrapped.labels)))
+                             tuple(str(x) for x in wrapped.labels), np.asarray(wrapped.order)))
         else:
             lengths[:, m], dldq[:, m], pts, act, names = _unwrapped_path(path, model, q_used, jac, tf, twist)
-            per_path.append((pts, act, names))
+            n_points = act.shape[1]
+            # active points keep their order; inactive ones move to the end as -1 (stable sort)
+            order = np.take_along_axis(np.where(act, np.arange(n_points), -1),
+                                       np.argsort(~act, axis=1, kind="stable"), axis=1)
+            per_path.append((pts, act, names, order))
     return lengths, dldq, q_used, per_path
 
 
@@ -288,19 +312,22 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     dldq = np.concatenate([b[1] for b in blocks])
     q_used = np.concatenate([b[2] for b in blocks])
     per_path = [(np.concatenate([b[3][m][0] for b in blocks]), np.concatenate([b[3][m][1] for b in blocks]),
-                 blocks[0][3][m][2]) for m in range(len(chosen))]
+                 blocks[0][3][m][2], np.concatenate([b[3][m][3] for b in blocks]))
+                for m in range(len(chosen))]
     moment_arms = np.where(spanned[None], -dldq, 0.0)
     k_max = max((p[0].shape[1] for p in per_path), default=0)
     points = np.full((n_frames, len(chosen), k_max, 3), np.nan)
     mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
+    order = np.full((n_frames, len(chosen), k_max), -1, dtype=np.int64)
     labels = []
-    for m, (pts, msk, lab) in enumerate(per_path):
+    for m, (pts, msk, lab, ordr) in enumerate(per_path):
         k = pts.shape[1]
         points[:, m, :k] = np.where(msk[..., None], pts, np.nan)
         mask[:, m, :k] = msk
+        order[:, m, :ordr.shape[1]] = ordr
         labels.append(tuple(lab) + ("",) * (k_max - k))
     dep = model.dependent_coordinates
     status = tuple("dependent" if dep[i] else ("locked" if c.locked else "independent")
                    for i, c in enumerate(model.coordinates))
     return ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
-                       status, time, q_used, points, mask, tuple(labels))
+                       status, time, q_used, points, mask, tuple(labels), order)
