@@ -130,7 +130,10 @@ def compute_lines(model, motion, *, muscles=None, quiet=True):
         "body_names": body_names,
         "lengths": np.concatenate(lengths),
         "moment_arms": np.concatenate(arms),
-        "spanned": np.asarray(lines.spanned, dtype=bool),
+        # INTERFACE.md: a coupler-dependent coordinate is reported against its independent one
+        # (whose row holds the total derivative along the coupler), so it gets no rows of its own.
+        "spanned": np.asarray(lines.spanned, dtype=bool)
+        & (np.asarray(lines.coordinate_status) != "dependent")[None, :],
         "muscle_names": tuple(lines.muscle_names),
         "coordinate_names": tuple(lines.coordinate_names),
     }
