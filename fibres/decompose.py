@@ -26,7 +26,7 @@ from .contours import choose_loops
 from .errors import InputError
 from .filtering import trim_and_reconstruct
 from .fitting import fit_box, principal_frame
-from .morph import morph_local, slice_fractions, slice_maps
+from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local
 from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
@@ -117,47 +117,39 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
     theta = np.deg2rad(box.angle_step_deg * box.angle_index)
     v0 = np.cos(theta) * box.axes[:, 0] - np.sin(theta) * box.axes[:, 1]
     fr = slice_fractions(resolution)
+    n_s = fr.size
     return DecompositionPlan(topology if topology is not None else
                              mesh_topology(faces, len(vertices)),
                              np.asarray(vertices), v0, box.method, best,
-                             box.angle_step_deg, fr, np.full((fr.size, 4), -1, np.int64), tmpl)
+                             box.angle_step_deg, fr, np.full((n_s, 4), -1, np.int64),
+                             np.zeros((n_s, 4, 4), np.int64), np.zeros((n_s, 4, 4)), tmpl)
 
 
 def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool):
-    """Box, slicing and correspondence of every plane (§3.3); returns what morphing needs."""
+    """Box, slicing and correspondence of every plane (§3.3); returns what morphing needs.
+
+    ``fresh``: the paper's choices (and the plan's record of them); otherwise the plan's
+    anchors are carried along (`fibres.morph.anchored_maps`) -- except on the plan's own
+    vertices, where the fresh choices are the plan's and are reproduced exactly."""
     box, local_t = box_and_local(plan, vertices, origin, insertion)
     tf = np.eye(4)
     tf[:3, :3] = box.axes
     tf[:3, 3] = box.corner
     heights = plan.fractions * box.extents[2]
     sections = slice_mesh(vertices, plan.topology, tf, heights, local_t=local_t)
-    centres = np.broadcast_to(0.5 * box.extents[:2], (heights.size, 2))
-    chosen, notes = choose_loops(sections, centres, n_slices=heights.size)
-    planned = None
-    local_uv = None
-    if not fresh:
-        planned = plan.choice
-        local_uv = local_t[:2].T
-        replanned = _planned_loops(sections, chosen, planned)
-        notes = notes + tuple(f"slice {s}: used the loop holding the planned start vertex"
-                              for s in np.flatnonzero(replanned != chosen))
-        chosen = replanned
-    P, Q, choice, map_notes = slice_maps(sections, chosen, box.extents, topology=plan.topology,
-                                         local_uv=local_uv, planned=planned)
-    return box, heights, P, Q, choice, notes + map_notes
-
-
-def _planned_loops(sections, chosen, planned):
-    """Use the loop holding the plan's start edge where a plane cut several loops."""
-    chosen = chosen.copy()
-    counts = np.bincount(sections.loop_slice, minlength=chosen.size)
-    for s in np.flatnonzero(counts > 1):
-        loops = sections.loops_of_slice(s)
-        lo, hi = sections.loop_start[loops[0]], sections.loop_start[loops[-1] + 1]
-        hit = np.flatnonzero(sections.edge[lo:hi] == planned[s, 0])
-        if hit.size:
-            chosen[s] = np.searchsorted(sections.loop_start, lo + hit[0], side="right") - 1
-    return chosen
+    n_s = heights.size
+    centres = np.broadcast_to(0.5 * box.extents[:2], (n_s, 2))
+    chosen, notes = choose_loops(sections, centres, n_slices=n_s)
+    if fresh or vertices is plan.rest_vertices or np.array_equal(vertices, plan.rest_vertices):
+        P, Q, choice, anchors, map_notes = slice_maps(sections, chosen, box.extents,
+                                                      topology=plan.topology)
+        return box, heights, P, Q, (choice, anchors), notes + map_notes
+    # material anchors (S, 4) in the plane frame, projected along the axis
+    uv = np.einsum("skn,dskn->dsk", plan.anchor_weights, local_t[:2, plan.anchor_vertices])
+    anchors_uv = np.moveaxis(uv, 0, -1)                                     # (S, 4, 2)
+    P, Q, map_notes = anchored_maps(sections, chosen, box.extents, anchors_uv,
+                                    topology=plan.topology)
+    return box, heights, P, Q, None, notes + map_notes
 
 
 def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int = 19,
@@ -187,9 +179,10 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
 
 
 def _with_choice(plan, choice):
+    edges, (anchor_v, anchor_w) = choice
     return DecompositionPlan(plan.topology, plan.rest_vertices, plan.v0, plan.axis_method,
-                             plan.angle_index, plan.angle_step_deg, plan.fractions, choice,
-                             plan.template)
+                             plan.angle_index, plan.angle_step_deg, plan.fractions, edges,
+                             anchor_v, anchor_w, plan.template)
 
 
 def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,

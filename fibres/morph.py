@@ -16,6 +16,11 @@ the result continuous in the point's height (a nearest-plane rule would jump bet
 planes), exact for points lying on a plane (the parallel template at the default slice
 fractions puts every point on a plane, i.e. exactly the paper's sweep), and it costs one
 MVC evaluation per point and neighbouring plane (`fibres.mvc.mvc_map`, compiled).
+Plans. `slice_maps` makes the paper's choices (start vertex closest to ``Q0``, minimal
+split) and records them as material points of the surface; `anchored_maps` re-inserts
+those points, carried along with a deformed copy, as start and split points, which keeps
+the correspondence continuous in the vertex positions (`fibres.plan`).
+
 The two end planes are inset by `END_INSET` of the height (a plane through the extreme
 vertex cuts a degenerate section); points beyond them use the end plane's mapping at their
 own height, so fibres still reach the ends of the box. On a flat end (a cap) that is exact;
@@ -32,7 +37,7 @@ from .correspondence import correspond, rectangle, split_chain
 from .mvc import mvc_map
 from .slicing import MeshTopology, Sections
 
-__all__ = ["END_INSET", "slice_fractions", "slice_maps", "morph_local"]
+__all__ = ["END_INSET", "slice_fractions", "slice_maps", "anchored_maps", "morph_local"]
 
 #: Inset of the first and last slicing planes, as a fraction of the box height.
 END_INSET = 1e-4
@@ -61,80 +66,25 @@ def slice_fractions(resolution: int) -> np.ndarray:
     return f
 
 
-def _refine(points, edge):
-    """Insert edge midpoints until the contour has at least 4 vertices (4 rectangle sides)."""
+def _refine(points, edge, av, aw):
+    """Insert edge midpoints until the contour has at least 4 vertices (4 rectangle sides);
+    a midpoint's material anchor is the mean of its two neighbours' anchors."""
     while points.shape[0] < 4:
-        mid = 0.5 * (points + np.roll(points, -1, axis=0))
+        nxt = np.roll(np.arange(points.shape[0]), -1)
+        mid = 0.5 * (points + points[nxt])
+        mid_v = np.concatenate([av[:, :2], av[nxt, :2]], axis=1)
+        mid_w = 0.5 * np.concatenate([aw[:, :2], aw[nxt, :2]], axis=1)
         points = np.stack([points, mid], axis=1).reshape(-1, 2)
         edge = np.stack([edge, np.full_like(edge, -1)], axis=1).reshape(-1)
-    return points, edge
+        av = np.stack([av, mid_v], axis=1).reshape(-1, 4)
+        aw = np.stack([aw, mid_w], axis=1).reshape(-1, 4)
+    return points, edge, av, aw
 
 
-def _locate(edge_ids, wanted, points, topology: MeshTopology, local_uv):
-    """Contour position of the vertex on mesh edge ``wanted``, or the continuous fallback.
-
-    When the deformed mesh no longer crosses the plane on that edge, a mesh vertex of it
-    has passed the plane; the crossings near that vertex are on edges incident to it, so
-    the crossing (on an edge sharing a vertex with ``wanted``) nearest to the shared vertex
-    is used. At the moment of the change both lie on that vertex, so the choice stays
-    continuous. Returns -1 if nothing qualifies.
-    """
-    hit = np.flatnonzero(edge_ids == wanted)
-    if hit.size:
-        return int(hit[0])
-    a, b = topology.edges[wanted]
-    valid = edge_ids >= 0
-    ce = topology.edges[np.where(valid, edge_ids, 0)]
-    share_a = valid & ((ce[:, 0] == a) | (ce[:, 1] == a))
-    share_b = valid & ((ce[:, 0] == b) | (ce[:, 1] == b))
-    cand = np.flatnonzero(share_a | share_b)
-    if cand.size == 0:
-        return -1
-    shared = np.where(share_a[cand], a, b)
-    dist = np.hypot(*(points[cand] - local_uv[shared]).T)
-    return int(cand[np.argmin(dist)])
-
-
-def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology,
-               local_uv=None, planned=None):
-    """Correspondence of every plane: the contour ``P`` and the subdivided rectangle ``Q``.
-
-    All planes at once on the concatenated contours (orientation, start vertex closest to
-    ``Q0``, rolling, arc lengths, side subdivision); only the split search
-    (`fibres.correspondence.split_chain`) runs per plane, and only where no plan gives it.
-    Same result as applying `fibres.correspondence.correspond` to each plane.
-
-    Parameters
-    ----------
-    sections : Sections
-    chosen : (S,) int
-        Loop per plane (`fibres.contours.choose_loops`); -1 where nothing was cut.
-    extents : (3,) float
-        Box extents; the rectangle is ``[0, ex] x [0, ey]``.
-    topology : MeshTopology
-    local_uv : (V, 2) float, optional
-        Vertex positions in the plane frame (needed with ``planned``).
-    planned : (S, 4) int, optional
-        Mesh edges of the start vertex and of the three split vertices from a plan
-        (-1: decide afresh).
-
-    Returns
-    -------
-    P, Q : tuple of (m_s, 2) float arrays
-    choice : (S, 4) int64
-        Mesh edges of the start and split vertices actually used (-1 where a refined
-        midpoint was used), for `fibres.plan.DecompositionPlan`.
-    notes : tuple of str
-    """
-    chosen = np.asarray(chosen, dtype=np.int64)
+def _clockwise_all(sections: Sections, chosen, topology: MeshTopology):
+    """The chosen loops, clockwise and concatenated, with each vertex's mesh edge and its
+    material anchor (the two edge vertices and weights ``1 - t, t``, padded to 4)."""
     n_s = chosen.size
-    if (chosen < 0).any():
-        s = int(np.flatnonzero(chosen < 0)[0])
-        raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
-    rect = rectangle(float(extents[0]), float(extents[1]))
-    sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
-    notes = []
-    # clockwise contours, concatenated
     lo = sections.loop_start[chosen]
     m = sections.loop_start[chosen + 1] - lo
     offs = np.concatenate([[0], np.cumsum(m)])
@@ -146,81 +96,31 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology,
     idx = np.where(flip[sl], lo[sl] + m[sl] - 1 - j, lo[sl] + j)
     pts = sections.points[idx]
     edge = sections.edge[idx]
+    t = sections.t[idx]
+    ends = topology.edges[edge]
+    av = np.concatenate([ends, ends], axis=1)
+    aw = np.stack([1.0 - t, t, np.zeros_like(t), np.zeros_like(t)], axis=1)
+    notes = []
     if (m < 4).any():
-        pl, el = np.split(pts, offs[1:-1]), np.split(edge, offs[1:-1])
+        parts = [np.split(x, offs[1:-1]) for x in (pts, edge, av, aw)]
         for s in np.flatnonzero(m < 4):
             notes.append(f"slice {s}: contour of {m[s]} vertices refined with midpoints")
-            pl[s], el[s] = _refine(pl[s], el[s])
-        pts, edge = np.concatenate(pl), np.concatenate(el)
-        m = np.array([len(p) for p in pl])
+            (parts[0][s], parts[1][s], parts[2][s], parts[3][s]) = _refine(
+                parts[0][s], parts[1][s], parts[2][s], parts[3][s])
+        pts, edge, av, aw = (np.concatenate(x) for x in parts)
+        m = np.array([len(x) for x in parts[0]])
         offs = np.concatenate([[0], np.cumsum(m)])
-        sl = np.repeat(np.arange(n_s), m)
-        j = np.arange(offs[-1]) - offs[sl]
-    # start vertex: closest to Q0 (first one on ties), unless planned
-    dx, dy = pts[:, 0] - rect[0, 0], pts[:, 1] - rect[0, 1]
-    d2 = dx * dx + dy * dy
-    closest = np.flatnonzero(d2 == np.minimum.reduceat(d2, offs[:-1])[sl])
-    start = j[closest[np.searchsorted(sl[closest], np.arange(n_s))]]
-    split = np.full((n_s, 3), -1, dtype=np.int64)
-    if planned is not None:
-        pos = _locate_all(edge, sl, offs, planned, topology.edges.shape[0])
-        for s in np.flatnonzero((pos < 0).any(axis=1) & (planned >= 0).all(axis=1)):
-            seg = slice(offs[s], offs[s + 1])
-            pos[s] = [_locate(edge[seg], e, pts[seg], topology, local_uv) for e in planned[s]]
-        has_start = pos[:, 0] >= 0
-        for s in np.flatnonzero(~has_start & (planned[:, 0] >= 0)):
-            notes.append(f"slice {s}: planned start vertex not found; chose afresh")
-        start = np.where(has_start, pos[:, 0], start)
-        rel = (pos[:, 1:] - start[:, None]) % m[:, None]
-        ok = has_start & (pos[:, 1:] >= 0).all(axis=1) & (0 < rel[:, 0]) \
-            & (rel[:, 0] < rel[:, 1]) & (rel[:, 1] < rel[:, 2])
-        for s in np.flatnonzero(has_start & ~ok):
-            notes.append(f"slice {s}: planned side split not found; split afresh")
-        split[ok] = rel[ok]
-    # roll every contour to its start; arc lengths within each contour
-    roll = offs[sl] + (start[sl] + j) % m[sl]
-    P = pts[roll]
-    P_edge = edge[roll]
-    nxt = offs[sl] + (j + 1) % m[sl]
-    seg = np.hypot(*(P[nxt] - P).T)
-    cum = np.cumsum(seg)
-    base = np.concatenate([[0.0], cum])[offs[:-1]]
-    c_incl = cum - base[sl]                         # arc length from P0 to P_{j+1}
-    c_excl = c_incl - seg                           # ... to P_j
-    for s in np.flatnonzero(split[:, 0] < 0):
-        split[s] = split_chain(seg[offs[s]:offs[s + 1]], sides)
-    # subdivide each rectangle side like its part
-    bounds = np.concatenate([np.zeros((n_s, 1), np.int64), split, m[:, None]], axis=1)
-    arc = np.concatenate([np.zeros((n_s, 1)), np.zeros((n_s, 3)), c_incl[offs[1:] - 1, None]],
-                         axis=1)
-    arc[:, 1:4] = c_excl[offs[:-1, None] + split]
-    part = (j[:, None] >= split[sl]).sum(axis=1)
-    b0, b1 = bounds[sl, part], bounds[sl, part + 1]
-    a0, a1 = arc[sl, part], arc[sl, part + 1]
-    span = a1 - a0
-    frac = np.where(span > 0, (c_excl - a0) / np.where(span > 0, span, 1.0),
-                    (j - b0) / (b1 - b0))
-    Q = rect[part] + frac[:, None] * (rect[(part + 1) % 4] - rect[part])
-    pick = offs[:-1, None] + np.concatenate([np.zeros((n_s, 1), np.int64), split], axis=1)
-    choice = P_edge[pick]
-    cut = offs[1:-1]
-    return tuple(np.split(P, cut)), tuple(np.split(Q, cut)), choice, tuple(notes)
+    return pts, edge, av, aw, m, offs, notes
 
 
-def _locate_all(edge, sl, offs, planned, n_edges):
-    """Contour positions (S, 4) of the planned mesh edges in their planes (-1: absent)."""
-    key = np.where(edge >= 0, sl * n_edges + edge, -1)
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    want = np.arange(planned.shape[0])[:, None] * n_edges + planned
-    hit = np.clip(np.searchsorted(ks, want), 0, ks.size - 1)
-    found = (ks[hit] == want) & (planned >= 0)
-    return np.where(found, order[hit] - offs[:-1, None], -1)
+def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
+    """Correspondence of every plane (Kohout 2012 §3.3): contour ``P``, subdivided rectangle
+    ``Q``, with the paper's choices (start vertex closest to ``Q0``, minimal-error split).
 
-
-def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopology,
-               local_uv=None, planned=None):
-    """`slice_maps` one plane at a time (reference implementation for the tests).
+    All planes at once on the concatenated contours (orientation, start vertex, rolling,
+    arc lengths, side subdivision); only the split search
+    (`fibres.correspondence.split_chain`) runs per plane. Same result as applying
+    `fibres.correspondence.correspond` to each plane.
 
     Parameters
     ----------
@@ -230,49 +130,148 @@ def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopol
     extents : (3,) float
         Box extents; the rectangle is ``[0, ex] x [0, ey]``.
     topology : MeshTopology
-    local_uv : (V, 2) float, optional
-        Vertex positions in the plane frame (needed with ``planned``).
-    planned : (S, 4) int, optional
-        Mesh edges of the start vertex and of the three split vertices from a plan
-        (-1: decide afresh).
 
     Returns
     -------
     P, Q : tuple of (m_s, 2) float arrays
     choice : (S, 4) int64
-        Mesh edges of the start and split vertices actually used (-1 where a refined
-        midpoint was used), for `fibres.plan.DecompositionPlan`.
+        Mesh edges of the start vertex and of the first vertices of parts 2-4 (-1 for a
+        refined midpoint).
+    anchors : ((S, 4, 4) int64, (S, 4, 4) float)
+        The same four points as material points of the mesh: vertex indices and weights
+        (``X = sum_k w_k V_k``), for `anchored_maps` on deformed copies.
     notes : tuple of str
     """
+    chosen = np.asarray(chosen, dtype=np.int64)
+    n_s = chosen.size
+    if (chosen < 0).any():
+        s = int(np.flatnonzero(chosen < 0)[0])
+        raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
     rect = rectangle(float(extents[0]), float(extents[1]))
     sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
-    n_s = len(chosen)
+    pts, edge, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology)
+    sl = np.repeat(np.arange(n_s), m)
+    j = np.arange(offs[-1]) - offs[sl]
+    # start vertex: closest to Q0 (the first one on ties)
+    dx, dy = pts[:, 0] - rect[0, 0], pts[:, 1] - rect[0, 1]
+    d2 = dx * dx + dy * dy
+    closest = np.flatnonzero(d2 == np.minimum.reduceat(d2, offs[:-1])[sl])
+    start = j[closest[np.searchsorted(sl[closest], np.arange(n_s))]]
+    # roll every contour to its start; arc lengths within each contour
+    roll = offs[sl] + (start[sl] + j) % m[sl]
+    P = pts[roll]
+    nxt = offs[sl] + (j + 1) % m[sl]
+    seg = np.hypot(*(P[nxt] - P).T)
+    cum = np.cumsum(seg)
+    base = np.concatenate([[0.0], cum])[offs[:-1]]
+    c_incl = cum - base[sl]                         # arc length from P0 to P_{j+1}
+    c_excl = c_incl - seg                           # ... to P_j
+    split = np.stack([split_chain(seg[offs[s]:offs[s + 1]], sides) for s in range(n_s)])
+    # subdivide each rectangle side like its part
+    bounds = np.concatenate([np.zeros((n_s, 1), np.int64), split, m[:, None]], axis=1)
+    arc = np.concatenate([np.zeros((n_s, 1)), c_excl[offs[:-1, None] + split],
+                          c_incl[offs[1:] - 1, None]], axis=1)
+    part = (j[:, None] >= split[sl]).sum(axis=1)
+    b0, b1 = bounds[sl, part], bounds[sl, part + 1]
+    a0, a1 = arc[sl, part], arc[sl, part + 1]
+    span = a1 - a0
+    frac = np.where(span > 0, (c_excl - a0) / np.where(span > 0, span, 1.0),
+                    (j - b0) / (b1 - b0))
+    Q = rect[part] + frac[:, None] * (rect[(part + 1) % 4] - rect[part])
+    pick = roll[offs[:-1, None] + np.concatenate([np.zeros((n_s, 1), np.int64), split], axis=1)]
+    cut = offs[1:-1]
+    return (tuple(np.split(P, cut)), tuple(np.split(Q, cut)), edge[pick], (av[pick], aw[pick]),
+            tuple(notes))
+
+
+def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
+                  topology: MeshTopology):
+    """Correspondence of every plane with a plan's start and split points carried along.
+
+    A plan's four correspondence points of each plane (start ``P0`` and the first points
+    of parts 2-4) are material points of the rest surface. On a deformed copy each is
+    projected along the axis onto its plane (``anchors_uv``), the closest point of the
+    contour to it is inserted into the contour, and the inserted points serve as ``P0``
+    and the split points. The result depends continuously on the vertex positions (no
+    vertex snapping, no re-minimised split), which a finite difference across a plan needs;
+    where the inserted points are out of order (a twist of more than a quarter turn) the
+    paper's fresh choice is used and noted.
+
+    Parameters
+    ----------
+    sections : Sections
+    chosen : (S,) int
+    extents : (3,) float
+    anchors_uv : (S, 4, 2) float
+        Projected anchors, in the plane frame.
+    topology : MeshTopology
+
+    Returns
+    -------
+    P, Q : tuple of (m_s, 2) float arrays
+    notes : tuple of str
+    """
+    chosen = np.asarray(chosen, dtype=np.int64)
+    if (chosen < 0).any():
+        s = int(np.flatnonzero(chosen < 0)[0])
+        raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
+    rect = rectangle(float(extents[0]), float(extents[1]))
+    pts, _, _, _, m, offs, notes = _clockwise_all(sections, chosen, topology)
+    P_all, Q_all = [], []
+    for s in range(chosen.size):
+        contour = pts[offs[s]:offs[s + 1]]
+        new, start, split = _insert_anchors(contour, anchors_uv[s])
+        if split is None:
+            notes.append(f"slice {s}: planned start/split points out of order; chose afresh")
+            P, Q, _, _ = correspond(contour, rect)
+        else:
+            P, Q, _, _ = correspond(new, rect, start=start, splits=split)
+        P_all.append(P)
+        Q_all.append(Q)
+    return tuple(P_all), tuple(Q_all), tuple(notes)
+
+
+def _insert_anchors(contour, anchors):
+    """Insert the closest contour points to the 4 anchors; their indices as start/split.
+
+    Returns (new contour (m+4, 2), start, split (3,)) or (contour, None, None) when the
+    inserted points are not in the cyclic order start < split1 < split2 < split3.
+    """
+    a = contour
+    d = np.roll(a, -1, axis=0) - a                                   # (m, 2)
+    dd = np.einsum("ij,ij->i", d, d)
+    rel = anchors[:, None, :] - a[None, :, :]                        # (4, m, 2)
+    tau = np.clip(np.einsum("kij,ij->ki", rel, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    gap = rel - tau[..., None] * d[None]
+    seg = np.argmin(np.einsum("kij,kij->ki", gap, gap), axis=1)     # (4,)
+    tk = tau[np.arange(4), seg]
+    order = np.lexsort((np.arange(4), tk, seg))
+    points = a[seg] + tk[:, None] * d[seg]
+    new = np.insert(a, seg[order] + 1, points[order], axis=0)
+    index = np.empty(4, dtype=np.int64)
+    index[order] = seg[order] + 1 + np.arange(4)
+    m = new.shape[0]
+    rel_idx = (index[1:] - index[0]) % m
+    if not (0 < rel_idx[0] < rel_idx[1] < rel_idx[2]):
+        return a, None, None
+    return new, int(index[0]), rel_idx
+
+
+def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopology):
+    """`slice_maps` one plane at a time with `fibres.correspondence.correspond`
+    (reference implementation for the tests)."""
+    rect = rectangle(float(extents[0]), float(extents[1]))
     P_all, Q_all, notes = [], [], []
-    choice = np.full((n_s, 4), -1, dtype=np.int64)
-    for s in range(n_s):
-        if chosen[s] < 0:
-            raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
+    choice = np.full((len(chosen), 4), -1, dtype=np.int64)
+    for s in range(len(chosen)):
         pts, edge = clockwise_contour(sections, int(chosen[s]))
         if pts.shape[0] < 4:
             notes.append(f"slice {s}: contour of {pts.shape[0]} vertices refined with midpoints")
-            pts, edge = _refine(pts, edge)
-        start = splits = None
-        if planned is not None and planned[s, 0] >= 0:
-            pos = [_locate(edge, planned[s, j], pts, topology, local_uv) if planned[s, j] >= 0
-                   else -1 for j in range(4)]
-            if pos[0] >= 0:
-                start = pos[0]
-                rel = [(p - start) % pts.shape[0] for p in pos[1:]]
-                if min(pos[1:]) >= 0 and 0 < rel[0] < rel[1] < rel[2]:
-                    splits = np.array(rel)
-                else:
-                    notes.append(f"slice {s}: planned side split not found; split afresh")
-            else:
-                notes.append(f"slice {s}: planned start vertex not found; chose afresh")
-        P, Q, start, splits = correspond(pts, rect, start=start, splits=splits)
+            z = np.zeros((len(edge), 4))
+            pts, edge, _, _ = _refine(pts, edge, z.astype(np.int64), z)
+        P, Q, start, splits = correspond(pts, rect)
         m = pts.shape[0]
-        choice[s] = edge[[start, (start + splits[0]) % m, (start + splits[1]) % m,
-                          (start + splits[2]) % m]]
+        choice[s] = edge[(start + np.concatenate([[0], splits])) % m]
         P_all.append(P)
         Q_all.append(Q)
     return tuple(P_all), tuple(Q_all), choice, tuple(notes)

@@ -15,7 +15,12 @@ finite difference), any of them can flip and fibre ``k`` would jump. A
   and the same rotation applied, and the box is the vertices' bounding box in that frame;
 - the slicing planes as fractions of the box height;
 - per plane, the start vertex and the three split vertices, each identified by the mesh
-  edge it lies on (the topology is the same in every frame);
+  edge it lies on and as a material point of the surface (its edge's two vertices and
+  weights; the topology is the same in every frame). On a deformed copy these material
+  points are carried along, projected onto their planes and inserted into the contours
+  as the start and split points (`fibres.morph.anchored_maps`): the correspondence then
+  depends continuously on the vertices, with no vertex snapping or re-minimisation that
+  could flip between two nearby poses;
 - the mesh topology itself (edges, face table), computed once.
 
 Kohout's own software had the same idea: an optional rest-pose "InputTemplate".
@@ -60,7 +65,12 @@ class DecompositionPlan:
         Slicing heights as fractions of the box height.
     choice : (S, 4) int64
         Per plane, the mesh edge of the start vertex P0 and of the first vertices of the
-        2nd, 3rd and 4th parts of the contour (-1: decide afresh).
+        2nd, 3rd and 4th parts of the contour (-1: a refined midpoint).
+    anchor_vertices : (S, 4, 4) int64
+    anchor_weights : (S, 4, 4) float
+        The same four points per plane as material points of the mesh,
+        ``X = sum_k w_k V[v_k]``; on a deformed copy they are carried along with the
+        vertices and re-inserted into the contours (`fibres.morph.anchored_maps`).
     template : fibres.templates.Template, optional
         The template whose attachment areas oriented the box (oblique templates such as
         pennate tilt the principal axis, `fibres.fitting.principal_frame`).
@@ -74,16 +84,22 @@ class DecompositionPlan:
     angle_step_deg: float
     fractions: np.ndarray
     choice: np.ndarray
+    anchor_vertices: np.ndarray
+    anchor_weights: np.ndarray
     template: object = None
 
     def __post_init__(self):
-        for name in ("rest_vertices", "v0", "fractions", "choice"):
+        for name in ("rest_vertices", "v0", "fractions", "choice", "anchor_vertices",
+                     "anchor_weights"):
             object.__setattr__(self, name, _readonly(getattr(self, name)))
         if self.axis_method not in ("attachments", "covariance"):
             raise ValueError(f"axis_method must be 'attachments' or 'covariance', "
                              f"got {self.axis_method!r}")
-        if self.choice.shape != (self.fractions.size, 4):
+        n_s = self.fractions.size
+        if self.choice.shape != (n_s, 4):
             raise ValueError("choice must be (S, 4) for S fractions")
+        if self.anchor_vertices.shape != (n_s, 4, 4) or self.anchor_weights.shape != (n_s, 4, 4):
+            raise ValueError("anchor_vertices and anchor_weights must be (S, 4, 4)")
         if self.rest_vertices.shape != (self.topology.n_vertices, 3):
             raise ValueError("rest_vertices do not match the topology")
 

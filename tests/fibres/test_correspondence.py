@@ -7,6 +7,7 @@ from hypothesis import given, settings, strategies as st
 
 from fibres.correspondence import (correspond, rectangle, split_chain, start_vertex,
                                    subdivide_rectangle)
+from fibres.mvc import mean_value_coordinates
 
 
 def _brute_force(seg, sides):
@@ -84,12 +85,13 @@ def test_too_short_chain_refused():
 
 
 def test_all_planes_at_once_equals_plane_by_plane():
-    # fibres.morph.slice_maps (vectorised over planes) against correspond() per plane,
-    # fresh and with a plan, on an irregular closed surface (a bumpy ellipsoid)
+    # fibres.morph.slice_maps (vectorised over planes) against correspond() per plane on
+    # an irregular closed surface (a bumpy ellipsoid); and anchored_maps with the anchors
+    # of the same surface reproduces the same correspondence
     import trimesh
 
     from fibres.contours import choose_loops
-    from fibres.morph import _slice_maps_loop, slice_maps
+    from fibres.morph import _slice_maps_loop, anchored_maps, slice_maps
     from fibres.slicing import mesh_topology, slice_mesh
 
     m = trimesh.creation.icosphere(subdivisions=4)
@@ -102,14 +104,22 @@ def test_all_planes_at_once_equals_plane_by_plane():
     tf[:3, 3] = lo
     sec = slice_mesh(v, top, tf, np.linspace(0.001, 0.999, 25) * ext[2])
     chosen, _ = choose_loops(sec, np.tile(ext[:2] / 2, (25, 1)), n_slices=25)
-    uv = (v - lo)[:, :2]
-    fresh = slice_maps(sec, chosen, ext, topology=top)
-    ref = _slice_maps_loop(sec, chosen, ext, topology=top)
-    planned = slice_maps(sec, chosen, ext, topology=top, local_uv=uv, planned=fresh[2])
-    for got in (fresh, planned):
-        assert np.array_equal(got[2], ref[2]) and got[3] == ref[3]
-        for a, b in zip(got[0], ref[0]):
-            assert np.array_equal(a, b)
-        for a, b in zip(got[1], ref[1]):
-            # arc lengths from one running sum instead of per plane: rounding only
-            assert np.abs(a - b).max() <= 1e-12 * ext.max()
+    P, Q, choice, (av, aw), notes = slice_maps(sec, chosen, ext, topology=top)
+    P_ref, Q_ref, choice_ref, notes_ref = _slice_maps_loop(sec, chosen, ext, topology=top)
+    assert np.array_equal(choice, choice_ref) and notes == notes_ref
+    for a, b in zip(P, P_ref):
+        assert np.array_equal(a, b)
+    for a, b in zip(Q, Q_ref):
+        # arc lengths from one running sum instead of per plane: rounding only
+        assert np.abs(a - b).max() <= 1e-12 * ext.max()
+    # anchors are the material points of the chosen vertices: X = sum w V
+    x = np.einsum("skn,sknd->skd", aw, v[av] - lo)[..., :2]
+    assert np.abs(x[:, 0] - np.stack([p[0] for p in P])).max() <= 1e-15
+    # inserting them again (same surface) gives the same map up to duplicate vertices
+    P2, Q2, notes2 = anchored_maps(sec, chosen, ext, x, topology=top)
+    assert notes2 == notes
+    for s in range(25):
+        pts = np.linspace(0.05, 0.95, 7)[:, None] * ext[:2]
+        f1 = mean_value_coordinates(pts, Q[s]) @ P[s]
+        f2 = mean_value_coordinates(pts, Q2[s]) @ P2[s]
+        assert np.abs(f1 - f2).max() <= 1e-12 * ext.max()

@@ -58,22 +58,24 @@ def test_small_deformations_move_fibres_smoothly(muscle):
     assert np.abs(p1 - b0.points).max() <= 1.01 * scale * h
 
 
-def test_morph_core_continuous_over_a_large_sweep(muscle):
-    # 50 steps up to a 5 % bend/twist: with the plan frozen the morphed fibres move by
-    # the same small amount at every step (no start-vertex or split flips).  The
-    # attachment filter (§3.4) is off: its end points jump between surface vertices.
+def test_morph_continuous_over_a_large_sweep(muscle):
+    # 60 steps up to a bend of 3 mm, a 17-degree twist and a stretch: with the plan the
+    # start/split points are material points carried along (no vertex snapping, no
+    # re-minimised split), so the fibres move by the same small amount at every step
     v, f, o, i = muscle
     b0 = decompose((v, f), o, i, filter_attachments=False)
     prev, steps = b0.points, []
-    for e in np.linspace(0, 0.05, 51)[1:]:
+    for e in np.linspace(0, 0.3, 61)[1:]:
         b = decompose((deform(v, e), f), deform(o, e), deform(i, e), plan=b0.plan,
                       filter_attachments=False)
-        assert b.notes == ()          # every planned edge was found
+        assert b.notes == ()          # no fallback to fresh choices
         steps.append(np.abs(b.points - prev).max())
         prev = b.points
     steps = np.array(steps)
-    # a smooth path sampled uniformly: consecutive steps within a factor 2 of the median
-    assert steps.max() <= 2 * np.median(steps)
+    # a smooth path sampled uniformly: consecutive steps within a factor 1.5 of the median
+    # (a flipped start vertex or split would give a step of a contour segment, ~1 mm,
+    # against a median of ~0.06 mm)
+    assert steps.max() <= 1.5 * np.median(steps)
 
 
 def test_plan_refuses_another_mesh(muscle):
