@@ -81,7 +81,7 @@ def _refine(points, edge, av, aw):
     return points, edge, av, aw
 
 
-def _clockwise_all(sections: Sections, chosen, topology: MeshTopology):
+def _clockwise_all(sections: Sections, chosen, topology: MeshTopology, *, anchors=True):
     """The chosen loops, clockwise and concatenated, with each vertex's mesh edge and its
     material anchor (the two edge vertices and weights ``1 - t, t``, padded to 4)."""
     n_s = chosen.size
@@ -96,10 +96,14 @@ def _clockwise_all(sections: Sections, chosen, topology: MeshTopology):
     idx = np.where(flip[sl], lo[sl] + m[sl] - 1 - j, lo[sl] + j)
     pts = sections.points[idx]
     edge = sections.edge[idx]
-    t = sections.t[idx]
-    ends = topology.edges[edge]
-    av = np.concatenate([ends, ends], axis=1)
-    aw = np.stack([1.0 - t, t, np.zeros_like(t), np.zeros_like(t)], axis=1)
+    if anchors:
+        t = sections.t[idx]
+        ends = topology.edges[edge]
+        av = np.concatenate([ends, ends], axis=1)
+        aw = np.stack([1.0 - t, t, np.zeros_like(t), np.zeros_like(t)], axis=1)
+    else:
+        av = np.zeros((idx.size, 4), dtype=np.int64)
+        aw = np.zeros((idx.size, 4))
     notes = []
     if (m < 4).any():
         parts = [np.split(x, offs[1:-1]) for x in (pts, edge, av, aw)]
@@ -148,7 +152,6 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
         s = int(np.flatnonzero(chosen < 0)[0])
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
     rect = rectangle(float(extents[0]), float(extents[1]))
-    sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
     pts, edge, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology)
     sl = np.repeat(np.arange(n_s), m)
     j = np.arange(offs[-1]) - offs[sl]
@@ -157,7 +160,38 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     d2 = dx * dx + dy * dy
     closest = np.flatnonzero(d2 == np.minimum.reduceat(d2, offs[:-1])[sl])
     start = j[closest[np.searchsorted(sl[closest], np.arange(n_s))]]
-    # roll every contour to its start; arc lengths within each contour
+    split = None
+    P, Q, roll, split = _roll_and_subdivide(pts, m, offs, start, split, rect)
+    pick = roll[offs[:-1, None] + np.concatenate([np.zeros((n_s, 1), np.int64), split], axis=1)]
+    cut = offs[1:-1]
+    return (tuple(np.split(P, cut)), tuple(np.split(Q, cut)), edge[pick], (av[pick], aw[pick]),
+            tuple(notes))
+
+
+def _roll_and_subdivide(pts, m, offs, start, split, rect):
+    """Roll each concatenated contour to its start and subdivide the rectangle like it.
+
+    Parameters
+    ----------
+    pts : (K, 2) float
+        Clockwise contours back to back (``offs`` (S+1,), lengths ``m`` (S,)).
+    start : (S,) int
+        Local index of ``P0`` in each contour.
+    split : (S, 3) int or None
+        Split of each rolled chain; None: minimise it (`split_chain`, per plane).
+    rect : (4, 2) float
+
+    Returns
+    -------
+    P, Q : (K, 2) float
+        Rolled contours and subdivided rectangles, back to back.
+    roll : (K,) int
+        ``P = pts[roll]``.
+    split : (S, 3) int64
+    """
+    n_s = m.size
+    sl = np.repeat(np.arange(n_s), m)
+    j = np.arange(offs[-1]) - offs[sl]
     roll = offs[sl] + (start[sl] + j) % m[sl]
     P = pts[roll]
     nxt = offs[sl] + (j + 1) % m[sl]
@@ -166,22 +200,23 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     base = np.concatenate([[0.0], cum])[offs[:-1]]
     c_incl = cum - base[sl]                         # arc length from P0 to P_{j+1}
     c_excl = c_incl - seg                           # ... to P_j
-    split = np.stack([split_chain(seg[offs[s]:offs[s + 1]], sides) for s in range(n_s)])
-    # subdivide each rectangle side like its part
+    if split is None:
+        sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
+        split = np.stack([split_chain(seg[offs[s]:offs[s + 1]], sides) for s in range(n_s)])
+    split = np.asarray(split, dtype=np.int64)
+    # subdivide each rectangle side like its part (same length ratios)
     bounds = np.concatenate([np.zeros((n_s, 1), np.int64), split, m[:, None]], axis=1)
     arc = np.concatenate([np.zeros((n_s, 1)), c_excl[offs[:-1, None] + split],
                           c_incl[offs[1:] - 1, None]], axis=1)
-    part = (j[:, None] >= split[sl]).sum(axis=1)
+    sp = split[sl]
+    part = (j >= sp[:, 0]).astype(np.int64) + (j >= sp[:, 1]) + (j >= sp[:, 2])
     b0, b1 = bounds[sl, part], bounds[sl, part + 1]
     a0, a1 = arc[sl, part], arc[sl, part + 1]
     span = a1 - a0
     frac = np.where(span > 0, (c_excl - a0) / np.where(span > 0, span, 1.0),
                     (j - b0) / (b1 - b0))
     Q = rect[part] + frac[:, None] * (rect[(part + 1) % 4] - rect[part])
-    pick = roll[offs[:-1, None] + np.concatenate([np.zeros((n_s, 1), np.int64), split], axis=1)]
-    cut = offs[1:-1]
-    return (tuple(np.split(P, cut)), tuple(np.split(Q, cut)), edge[pick], (av[pick], aw[pick]),
-            tuple(notes))
+    return P, Q, roll, split
 
 
 def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
@@ -216,45 +251,52 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
         s = int(np.flatnonzero(chosen < 0)[0])
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
     rect = rectangle(float(extents[0]), float(extents[1]))
-    pts, _, _, _, m, offs, notes = _clockwise_all(sections, chosen, topology)
-    P_all, Q_all = [], []
-    for s in range(chosen.size):
-        contour = pts[offs[s]:offs[s + 1]]
-        new, start, split = _insert_anchors(contour, anchors_uv[s])
-        if split is None:
-            notes.append(f"slice {s}: planned start/split points out of order; chose afresh")
-            P, Q, _, _ = correspond(contour, rect)
-        else:
-            P, Q, _, _ = correspond(new, rect, start=start, splits=split)
-        P_all.append(P)
-        Q_all.append(Q)
+    pts, _, _, _, m, offs, notes = _clockwise_all(sections, chosen, topology, anchors=False)
+    n_s = m.size
+    sl = np.repeat(np.arange(n_s), m)
+    j = np.arange(offs[-1]) - offs[sl]
+    # closest point of every contour to each of its 4 anchors: segment j -> j+1, tau
+    d = pts[offs[sl] + (j + 1) % m[sl]] - pts                         # (K, 2)
+    dx, dy = d[:, 0:1], d[:, 1:2]
+    dd = dx * dx + dy * dy
+    rx = anchors_uv[sl, :, 0] - pts[:, 0:1]                           # (K, 4)
+    ry = anchors_uv[sl, :, 1] - pts[:, 1:2]
+    tau = np.clip((rx * dx + ry * dy) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    gx, gy = rx - tau * dx, ry - tau * dy
+    g2 = gx * gx + gy * gy
+    best = g2 == np.minimum.reduceat(g2, offs[:-1], axis=0)[sl]
+    seg = np.empty((n_s, 4), dtype=np.int64)
+    for k in range(4):                                                # first minimum
+        hit = np.flatnonzero(best[:, k])
+        seg[:, k] = hit[np.searchsorted(sl[hit], np.arange(n_s))]
+    tk = tau[seg, np.arange(4)]                                       # (S, 4)
+    point = pts[seg] + tk[..., None] * d[seg]                         # (S, 4, 2)
+    seg -= offs[:-1, None]
+    # insert them (after vertex seg, in the order (seg, tau, k)) into each contour
+    kk = np.arange(4)
+    before = ((seg[:, None, :] < seg[:, :, None])
+              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] < tk[:, :, None]))
+              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] == tk[:, :, None])
+                 & (kk[None, None, :] < kk[None, :, None])))
+    new_idx = seg + 1 + before.sum(axis=2)                            # (S, 4) local
+    m2 = m + 4
+    offs2 = np.concatenate([[0], np.cumsum(m2)])
+    ss = seg[sl]
+    shift = ((ss[:, 0] < j).astype(np.int64) + (ss[:, 1] < j) + (ss[:, 2] < j)
+             + (ss[:, 3] < j))                                       # anchors before j
+    new = np.empty((offs2[-1], 2))
+    new[offs2[sl] + j + shift] = pts
+    new[(offs2[:-1, None] + new_idx).ravel()] = point.reshape(-1, 2)
+    start = new_idx[:, 0]
+    split = (new_idx[:, 1:] - start[:, None]) % m2[:, None]
+    ok = (0 < split[:, 0]) & (split[:, 0] < split[:, 1]) & (split[:, 1] < split[:, 2])
+    P, Q, _, _ = _roll_and_subdivide(new, m2, offs2, start, np.where(ok[:, None], split, 1),
+                                     rect)
+    P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
+    for s in np.flatnonzero(~ok):
+        notes.append(f"slice {s}: planned start/split points out of order; chose afresh")
+        P_all[s], Q_all[s], _, _ = correspond(pts[offs[s]:offs[s + 1]], rect)
     return tuple(P_all), tuple(Q_all), tuple(notes)
-
-
-def _insert_anchors(contour, anchors):
-    """Insert the closest contour points to the 4 anchors; their indices as start/split.
-
-    Returns (new contour (m+4, 2), start, split (3,)) or (contour, None, None) when the
-    inserted points are not in the cyclic order start < split1 < split2 < split3.
-    """
-    a = contour
-    d = np.roll(a, -1, axis=0) - a                                   # (m, 2)
-    dd = np.einsum("ij,ij->i", d, d)
-    rel = anchors[:, None, :] - a[None, :, :]                        # (4, m, 2)
-    tau = np.clip(np.einsum("kij,ij->ki", rel, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    gap = rel - tau[..., None] * d[None]
-    seg = np.argmin(np.einsum("kij,kij->ki", gap, gap), axis=1)     # (4,)
-    tk = tau[np.arange(4), seg]
-    order = np.lexsort((np.arange(4), tk, seg))
-    points = a[seg] + tk[:, None] * d[seg]
-    new = np.insert(a, seg[order] + 1, points[order], axis=0)
-    index = np.empty(4, dtype=np.int64)
-    index[order] = seg[order] + 1 + np.arange(4)
-    m = new.shape[0]
-    rel_idx = (index[1:] - index[0]) % m
-    if not (0 < rel_idx[0] < rel_idx[1] < rel_idx[2]):
-        return a, None, None
-    return new, int(index[0]), rel_idx
 
 
 def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopology):
