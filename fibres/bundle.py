@@ -6,7 +6,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .plan import DecompositionPlan
+from .plan import DecompositionPlan, template_from_spec, template_spec
 
 __all__ = ["FibreBundle"]
 
@@ -63,6 +63,11 @@ class FibreBundle:
         object.__setattr__(self, "flags", MappingProxyType(flags))
         object.__setattr__(self, "notes", tuple(str(n) for n in self.notes))
 
+    def __reduce__(self):
+        # mappingproxy fields (flags, the Template's params) are not picklable
+        return (_unpickle_bundle, (self.points, self.rs, template_spec(self.template),
+                                   self.plan, dict(self.flags), self.notes, self.box))
+
     @property
     def n_fibres(self) -> int:
         """N."""
@@ -76,3 +81,8 @@ class FibreBundle:
     def lengths(self) -> np.ndarray:
         """(N,) polyline length of every fibre, metres."""
         return np.linalg.norm(np.diff(self.points, axis=1), axis=2).sum(axis=1)
+
+
+def _unpickle_bundle(points, rs, spec, plan, flags, notes, box):
+    template = template_from_spec(spec) if isinstance(spec, tuple) else spec
+    return FibreBundle(points, rs, template, plan, flags, notes, box)

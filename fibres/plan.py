@@ -27,7 +27,7 @@ Kohout's own software had the same idea: an optional rest-pose "InputTemplate".
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -103,6 +103,12 @@ class DecompositionPlan:
         if self.rest_vertices.shape != (self.topology.n_vertices, 3):
             raise ValueError("rest_vertices do not match the topology")
 
+    def __reduce__(self):
+        # Template holds a mappingproxy (not picklable): pickle it as (name, params)
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        state["template"] = template_spec(self.template)
+        return (_unpickle_plan, (state,))
+
     @property
     def n_slices(self) -> int:
         """S, the number of slicing planes."""
@@ -119,6 +125,26 @@ class DecompositionPlan:
                              f"{self.topology.faces.shape[0]} faces)", where="plan",
                              fix="Pass a deformed copy of the plan's mesh (same faces), or "
                                  "make a new plan (decompose without plan=).")
+
+
+def template_spec(template):
+    """(name, params dict) of a Template, or None: its picklable description."""
+    return None if template is None else (template.name, dict(template.params))
+
+
+def template_from_spec(spec):
+    """The Template of `template_spec`'s description (or None)."""
+    if spec is None:
+        return None
+    from .templates import get_template
+
+    return get_template(spec[0], **spec[1])
+
+
+def _unpickle_plan(state):
+    state = dict(state)
+    state["template"] = template_from_spec(state["template"])
+    return DecompositionPlan(**state)
 
 
 def kabsch_rotation(source, target) -> np.ndarray:

@@ -103,3 +103,20 @@ def test_plan_fast_path_in_millimetres(muscle):
                    units="mm", plan=b.plan)
     m = decompose((deform(v, 0.01), f), deform(o, 0.01), deform(i, 0.01), plan=b.plan)
     assert np.abs(mm.points - m.points).max() <= 1e-12
+
+
+def test_plan_and_bundle_pickle(muscle):
+    # runs with --jobs send plans and bundles to worker processes
+    import pickle
+
+    v, f, o, i = muscle
+    b = decompose((v, f), o, i, template="fanned", template_params={"spread": 0.3})
+    b2 = pickle.loads(pickle.dumps(b))
+    assert np.array_equal(b2.points, b.points) and b2.template.name == b.template.name
+    assert dict(b2.template.params) == dict(b.template.params)
+    assert np.array_equal(b2.flags["trimmed"], b.flags["trimmed"]) and b2.notes == b.notes
+    again = decompose((deform(v, 0.01), f), deform(o, 0.01), deform(i, 0.01), template="fanned",
+                      template_params={"spread": 0.3}, plan=b2.plan)
+    ref = decompose((deform(v, 0.01), f), deform(o, 0.01), deform(i, 0.01), template="fanned",
+                    template_params={"spread": 0.3}, plan=b.plan)
+    assert np.array_equal(again.points, ref.points)
