@@ -55,14 +55,61 @@ def _inputs(mesh, origin, insertion, units, plan):
                              f"({plan.topology.n_vertices}, 3), got {v.shape}",
                              where="mesh", fix="Pass the same mesh, deformed.")
         faces = plan.topology.faces
+        topology = plan.topology
     else:
-        # a Surface is in metres by definition; ``units`` then applies to the landmarks
-        surface = mesh if isinstance(mesh, Surface) else as_surface(mesh, units=units)
-        v, faces = surface.vertices, surface.faces
-        notes.extend(f"surface repaired: {r}" for r in surface.repairs)
+        clean = _clean_tuple(mesh, units)
+        if clean is not None:
+            v, faces, topology = clean
+        else:
+            # a Surface is in metres by definition; ``units`` then applies to the landmarks
+            surface = mesh if isinstance(mesh, Surface) else as_surface(mesh, units=units)
+            v, faces, topology = surface.vertices, surface.faces, None
+            notes.extend(f"surface repaired: {r}" for r in surface.repairs)
     o = as_points(origin, units=units, name="origin")
     i = as_points(insertion, units=units, name="insertion")
-    return v, faces, o, i, notes
+    return v, faces, o, i, notes, topology
+
+
+def _clean_tuple(mesh, units):
+    """(vertices, faces, topology) of a (vertices, faces) tuple that `as_surface` would
+    return unchanged -- closed, manifold, consistently and outward wound, one piece, every
+    vertex used, no duplicate vertices or zero-area faces -- else None (then `as_surface`
+    repairs or refuses it). Skips the general repair for the common clean input."""
+    if not (isinstance(mesh, tuple) and len(mesh) == 2) or units not in ("m", "mm"):
+        return None
+    v = np.asarray(mesh[0], dtype=np.float64)
+    f = np.asarray(mesh[1])
+    if (v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < 4
+            or not np.issubdtype(f.dtype, np.integer) or not np.isfinite(v).all()):
+        return None
+    f = f.astype(np.int64)
+    n_v = len(v)
+    if f.min() < 0 or f.max() >= n_v or np.bincount(f.ravel(), minlength=n_v).min() == 0:
+        return None
+    tri = v[f]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    if area2.min() <= 1e-12 * size * size:
+        return None
+    order = np.lexsort(v.T)
+    sv = v[order]
+    if (np.diff(sv, axis=0) == 0).all(axis=1).any():
+        return None
+    try:
+        topology = mesh_topology(f, n_v)
+    except ValueError:
+        return None
+    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
+    if not topology.oriented or volume <= 0:
+        return None
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    e = topology.edges
+    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n_v, n_v))
+    if connected_components(graph, directed=False, return_labels=False) != 1:
+        return None
+    return (v * 1e-3 if units == "mm" else v), f, topology
 
 
 def _template(template, template_params) -> Template:
@@ -171,9 +218,9 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
     DecompositionPlan
         Reuse with ``decompose(deformed, o, i, plan=plan)`` for every frame.
     """
-    v, faces, o, i, _ = _inputs(mesh, origin, insertion, units, None)
+    v, faces, o, i, _, topology = _inputs(mesh, origin, insertion, units, None)
     tmpl = _template(template, template_params)
-    plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, angle_step_deg)
+    plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, angle_step_deg, topology)
     *_, choice, _ = _sweep(plan, v, o, i, fresh=True)
     return _with_choice(plan, choice)
 
@@ -231,10 +278,10 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
             or resolution < 1:
         raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
-    v, faces, o, i, notes = _inputs(mesh, origin, insertion, units, plan)
+    v, faces, o, i, notes, topology = _inputs(mesh, origin, insertion, units, plan)
     tmpl = _template(template, template_params)
     if plan is None:
-        plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, 5.0)
+        plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, 5.0, topology)
         fresh = True
     else:
         plan.check_mesh(v, faces)

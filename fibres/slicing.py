@@ -48,6 +48,8 @@ class MeshTopology:
     neighbours : (T, 3) int64
         The other face sharing ``face_edges[t, j]``.
     n_vertices : int
+    oriented : bool
+        Whether the faces are wound consistently (each edge used once in each direction).
     """
 
     faces: np.ndarray
@@ -55,6 +57,7 @@ class MeshTopology:
     face_edges: np.ndarray
     neighbours: np.ndarray
     n_vertices: int
+    oriented: bool = True
 
     def __post_init__(self):
         _readonly(self.faces, self.edges, self.face_edges, self.neighbours)
@@ -104,7 +107,9 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
     twin[order[0::2]] = order[1::2]
     twin[order[1::2]] = order[0::2]
     neighbours = (twin // 3).reshape(-1, 3)
-    return MeshTopology(f, edges, face_edges.reshape(-1, 3), neighbours, int(n_vertices))
+    oriented = bool(np.array_equal(a[order[0::2]], b[order[1::2]]))
+    return MeshTopology(f, edges, face_edges.reshape(-1, 3), neighbours, int(n_vertices),
+                        oriented)
 
 
 @dataclass(frozen=True)

@@ -120,3 +120,23 @@ def test_plan_and_bundle_pickle(muscle):
     ref = decompose((deform(v, 0.01), f), deform(o, 0.01), deform(i, 0.01), template="fanned",
                     template_params={"spread": 0.3}, plan=b.plan)
     assert np.array_equal(again.points, ref.points)
+
+
+def test_clean_tuple_skips_repair_with_the_same_result(muscle):
+    import warnings
+
+    from fibres import as_surface
+    from fibres.decompose import _clean_tuple
+
+    v, f, o, i = muscle
+    assert _clean_tuple((v, f), "m") is not None
+    direct = decompose((v, f), o, i)
+    via = decompose(as_surface((v, f)), o, i)
+    assert np.array_equal(direct.points, via.points)
+    # inside-out faces are not "clean": as_surface flips them (one warning) and the
+    # contours are oriented geometrically, so the fibres are the same to rounding
+    assert _clean_tuple((v, f[:, ::-1]), "m") is None
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        flipped = decompose((v, f[:, ::-1]), o, i)
+    assert np.abs(flipped.points - direct.points).max() <= 1e-12
