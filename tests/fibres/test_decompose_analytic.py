@@ -27,7 +27,8 @@ def tube(section, path, tangent, *, n_sect=64, n_path=40):
     n1 = ref - (t @ ref)[:, None] * t
     n1 /= np.linalg.norm(n1, axis=1, keepdims=True)
     n2 = np.cross(t, n1)
-    v = (c[:, None] + sec[None, :, :1] * n1[:, None] + sec[None, :, 1:] * n2[:, None]).reshape(-1, 3)
+    v = c[:, None] + sec[None, :, :1] * n1[:, None] + sec[None, :, 1:] * n2[:, None]
+    v = v.reshape(-1, 3)
     i, j = np.arange(n_path - 1)[:, None], np.arange(n_sect)[None]
     a, b = i * n_sect + j, i * n_sect + (j + 1) % n_sect
     f = np.concatenate([np.stack([a, b, b + n_sect], -1).reshape(-1, 3),
