@@ -18,12 +18,18 @@ cross-section scale so the volume is kept.
   cylinder is treated as infinite along its axis inside its length and the push fades out
   smoothly (quintic) over one radius beyond the ends; the ellipsoid uses the scaled-radius
   approximation ``d = (|p / r| - 1) min(r)``, exact on the surface. WrapTorus is not pushed.
-- Bones: a signed distance grid in the bone's body frame (spacing ``h``, default 1.5 mm),
-  computed once per mesh from the nearest face (unsigned: max of the plane distance and the
-  centroid distance minus the face's circumradius; sign from the face normal) and read with
-  tricubic B-spline interpolation (``scipy.ndimage.map_coordinates``, order 3), whose gradient
-  gives ``n``. ``allowed`` is ``min(0, d_rest)`` per vertex: a vertex that already overlaps the
-  bone at rest (segmentation overlap in LHDL) may stay as deep as it was, but not go deeper.
+- Bones: a truncated signed distance grid in the bone's body frame (spacing ``h``, 2 mm in
+  `motion.wrap_surfaces`), built once per mesh: inside/outside from a flood fill of the
+  voxelised surface (``scipy.ndimage.binary_fill_holes``; on the surface shell, the nearest
+  face's normal), magnitude from the nearest of six faces (max of the plane distance and the
+  centroid distance minus the face's circumradius), clamped to +-15 mm. It is read with
+  tricubic B-spline interpolation (``scipy.ndimage.map_coordinates``, order 3, C2), whose
+  gradient gives ``n``; up to four push steps per call (the field is not linear over deep
+  penetrations). ``allowed`` is ``min(0, d_rest)`` per vertex: a vertex that already overlaps
+  the bone at rest (segmentation overlap in LHDL: 561 iliacus vertices start inside the hip
+  bone) may stay as deep as it was but not go deeper; vertices rigid with that bone keep their
+  distance anyway. Measured against VTK's exact distance on LHDL bones: |error| < 1 mm within
+  10 mm of the surface (p99 0.3-0.7 mm).
 """
 from __future__ import annotations
 
@@ -33,6 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["WrapObstacle", "BoneDistance", "BoneObstacle", "soft_floor", "wrap_obstacle"]
+
+#: Weight of the rest-side direction in the bone push direction (see `BoneObstacle`).
+SIDE_WEIGHT = 4.0
 
 
 def soft_floor(x, margin: float) -> np.ndarray:
@@ -336,6 +345,15 @@ class BoneObstacle:
     tf_ground_body : (F, 4, 4) float
     allowed : (V,) float
         Per-vertex floor of the signed distance: ``min(0, d_rest)``.
+    side : (V, 3) float
+        Outward direction of the field at each vertex's rest position, in the body frame (zero
+        beyond the truncation band). The push goes along ``normalize(SIDE_WEIGHT side + n)`` (weight 4): a vertex
+        keeps to the side of the bone it started on instead of flipping to the nearest surface
+        when it is driven past the bone's medial axis (where ``n`` turns over), which keeps the
+        pushed surface a well-conditioned function of the poses.
+    strength : (V,) float
+        1 for vertices that start outside the bone, fading to 0 for those that start more
+        than 1 mm inside (those are left alone).
     margin : float
     iterations : int
         Push steps (the field is not exactly linear over deep penetrations).
@@ -344,8 +362,10 @@ class BoneObstacle:
     distance: BoneDistance
     tf_ground_body: np.ndarray
     allowed: np.ndarray
+    side: np.ndarray
+    strength: np.ndarray
     margin: float = 5e-4
-    iterations: int = 2
+    iterations: int = 6
 
     @classmethod
     def bind(cls, distance: BoneDistance, tf_ground_body, rest_vertices, tf_rest_body, *,
@@ -353,8 +373,15 @@ class BoneObstacle:
         """Obstacle for a surface whose rest vertices (V, 3, ground) start where they start."""
         tf_rest = np.asarray(tf_rest_body, dtype=float)
         local = _to_local(tf_rest, np.asarray(rest_vertices, dtype=float)[None])[0]
-        allowed = np.minimum(distance.evaluate(local), 0.0)
-        return cls(distance, np.asarray(tf_ground_body, dtype=float), allowed, margin)
+        d, g = distance.evaluate(local, gradient=True)
+        norm = np.linalg.norm(g, axis=-1, keepdims=True)
+        side = np.where(norm > 0.5, g / np.maximum(norm, 1e-12), 0.0)
+        # vertices that start inside the bone (segmentation overlap) are not pushed: their rest
+        # position is already inconsistent with the bone, and pushing them from deep inside a
+        # thin part of the bone is ill-conditioned; the strength fades in over 1 mm of depth
+        strength = _quintic(d / 1e-3 + 1.0)
+        return cls(distance, np.asarray(tf_ground_body, dtype=float), np.minimum(d, 0.0), side,
+                   strength, margin)
 
     def push_out(self, vertices) -> np.ndarray:
         """Vertices (F, V, 3) in ground pushed out to ``allowed`` (module docstring)."""
@@ -365,13 +392,17 @@ class BoneObstacle:
             local = _to_local(tf, v)
             d = self.distance.evaluate(local)
             x = d - self.allowed[None, :]
-            f_idx, v_idx = np.nonzero(x < self.margin)
+            f_idx, v_idx = np.nonzero((x < self.margin) & (self.strength[None, :] > 0))
             if len(f_idx) == 0:
                 break
             # only the vertices that move need the gradient
             _, g = self.distance.evaluate(local[f_idx, v_idx], gradient=True)
             xs = x[f_idx, v_idx]
-            move = soft_floor(xs, self.margin) - xs
+            move = (soft_floor(xs, self.margin) - xs) * self.strength[v_idx]
             n = g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-12)
-            v[f_idx, v_idx] += np.einsum("pij,pj->pi", tf[f_idx, :3, :3], move[:, None] * n)
+            u = SIDE_WEIGHT * self.side[v_idx] + n
+            u /= np.linalg.norm(u, axis=-1, keepdims=True)   # >= 3: |w side| is 0 or 4, |n| = 1
+            # a step along u changes d by about (g . u) per metre; at most move / 0.7
+            rate = np.maximum(np.sum(g * u, axis=-1), 0.7)
+            v[f_idx, v_idx] += np.einsum("pij,pj->pi", tf[f_idx, :3, :3], (move / rate)[:, None] * u)
         return v

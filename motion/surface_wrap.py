@@ -3,14 +3,15 @@
 Signature (the analysis package calls this)::
 
     wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples=40, margin=5e-4,
-                  bone_spacing=1.5e-3, rigid_radius=None, blend_radius=None)
+                  bone_spacing=2e-3, rigid_radius=None, blend_radius=None)
         -> tuple of WrappedSurface, one per MuscleSurfaceSpec, in order
 
 ``model`` is a `motion.Model`, ``motion`` a `motion.Motion` (or any object with ``q``
 (F, C) and ``coordinate_names``), ``muscles`` a sequence of `motion.MuscleSurfaceSpec`.
-``lines`` may pass already computed wrapped paths (a mapping path name -> `WrappedPath`, or an
-object with such a ``paths`` mapping, e.g. the result of `motion.action_lines`), ``poses`` the
-(F, B, 4, 4) body poses (or a `motion.BodyPoses`); both are computed when absent.
+``lines`` may pass the `motion.action_lines` result: its current points are reused for paths
+without wrap objects (wrapped paths are recomputed here, since the arcs need the tangent points
+in path order, which `ActionLines.points` does not keep). ``poses`` may pass the (F, B, 4, 4)
+body poses (or a `BodyPoses`); both are computed when absent.
 
 Per muscle (one muscle = its action lines, loops over muscles only):
 
