@@ -19,15 +19,17 @@ reused for a deformed copy of the same mesh, so that fibre ``k`` stays the same 
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .bundle import FibreBundle
 from .contours import choose_loops
 from .errors import InputError
-from .filtering import trim_and_reconstruct
+from .filtering import apply_filter, filter_choices
 from .fitting import fit_box, principal_frame
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
-from .plan import DecompositionPlan, box_and_local
+from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
 from .smoothing import DEFAULT_ITERATIONS, smooth
@@ -169,7 +171,8 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
                              mesh_topology(faces, len(vertices)),
                              np.asarray(vertices), v0, box.method, best,
                              box.angle_step_deg, fr, np.full((n_s, 4), -1, np.int64),
-                             np.zeros((n_s, 4, 4), np.int64), np.zeros((n_s, 4, 4)), tmpl)
+                             np.zeros((n_s, 4, 4), np.int64), np.zeros((n_s, 4, 4)), tmpl,
+                             rest_origin=origin, rest_insertion=insertion)
 
 
 def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool):
@@ -227,9 +230,52 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
 
 def _with_choice(plan, choice):
     edges, (anchor_v, anchor_w) = choice
-    return DecompositionPlan(plan.topology, plan.rest_vertices, plan.v0, plan.axis_method,
-                             plan.angle_index, plan.angle_step_deg, plan.fractions, edges,
-                             anchor_v, anchor_w, plan.template)
+    return dataclasses.replace(plan, choice=edges, anchor_vertices=anchor_v,
+                               anchor_weights=anchor_w)
+
+
+def _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed):
+    """Template fibres at the Sobol parameters, morphed into the muscle (§3.1, §3.3).
+    Returns (rs (N, 2), points (N, R + 1, 3))."""
+    rs = sobol_rs(int(n_fibres), seed=seed)
+    unit = tmpl.fibre_points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
+    flat = (unit * box.extents).reshape(-1, 3)
+    uv = morph_local(flat[:, :2], flat[:, 2], heights, P, Q)
+    pts = box.corner + np.concatenate([uv, flat[:, 2:]], axis=1) @ box.axes.T
+    return rs, pts.reshape(unit.shape)
+
+
+def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
+    """The attachment filter's rest-pose choices for these fibres: the plan's own record if
+    it covers them (same seed, template and resolution, at least as many fibres), else made
+    once on the plan's rest pose and cached on the plan object (not a field: a frozen plan
+    stays equal to itself)."""
+    spec = template_spec(tmpl)
+    key = (spec[0], repr(sorted(spec[1].items())), int(seed), int(resolution) + 1)
+
+    def covers(fc):
+        return (fc is not None and fc.n_fibres >= n_fibres
+                and (fc.template is None or fc.template[0] == key[0]
+                     and repr(sorted(dict(fc.template[1]).items())) == key[1])
+                and fc.seed == key[2] and fc.n_points == key[3])
+
+    if covers(plan.filter_choice):
+        return plan.filter_choice
+    cache = plan.__dict__.setdefault("_filter_cache", {})
+    fc = cache.get(key)
+    if covers(fc):
+        return fc
+    if plan.rest_origin is None or plan.rest_insertion is None:
+        return None
+    v = plan.rest_vertices
+    box, heights, P, Q, _, _ = _sweep(plan, v, plan.rest_origin, plan.rest_insertion, fresh=True)
+    _, pts = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
+    fc = filter_choices(pts, (v, plan.topology.faces), plan.rest_origin, plan.rest_insertion,
+                        box.axes[:, 2], seed=seed, template=spec)
+    cache[key] = fc
+    notes.append("attachment filter: choices made on the plan's rest pose (the plan had none "
+                 "for these fibres)")
+    return fc
 
 
 def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,
@@ -291,17 +337,22 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         plan = _with_choice(plan, choice)
     notes.extend(sweep_notes)
 
-    rs = sobol_rs(int(n_fibres), seed=seed)
-    unit = tmpl.fibre_points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
-    local = unit * box.extents
-    flat = local.reshape(-1, 3)
-    uv = morph_local(flat[:, :2], flat[:, 2], heights, P, Q)
-    pts = box.corner + np.concatenate([uv, flat[:, 2:]], axis=1) @ box.axes.T
-    pts = pts.reshape(unit.shape)
+    rs, pts = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
 
     flags = {}
     if filter_attachments:
-        pts, trimmed, rebuilt = trim_and_reconstruct(pts, Surface(v, faces), o, i, box.axes[:, 2])
+        fc = None
+        if fresh:
+            fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2], seed=seed,
+                                template=template_spec(tmpl))
+            plan = dataclasses.replace(plan, filter_choice=fc)
+        else:
+            fc = _plan_filter_choice(plan, tmpl, int(n_fibres), int(resolution), seed, notes)
+            if fc is None:  # a plan without rest landmarks: choices made on this frame
+                notes.append("attachment filter: choices made on this frame (the plan has "
+                             "no rest landmarks)")
+                fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2])
+        pts, trimmed, rebuilt = apply_filter(pts, v, o, i, box.axes[:, 2], fc)
         flags = {"trimmed": trimmed, "reconstructed": rebuilt}
     if smoothing_iterations:
         pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations))

@@ -16,12 +16,115 @@ neighbourhood of radius r = mean edge length.
 
 Fibres that were cut are resampled uniformly by arc length so every fibre keeps P points;
 untouched fibres are returned unchanged.
+
+Ties. A fibre end lying ON a cutting plane (flat end caps: a cube, a cylinder) is not beyond
+it: heights within ``TIE`` times the surface's bounding-box diagonal of a plane count as on
+it, so rounding cannot decide whether a fibre is trimmed.
+
+Frozen decisions (our addition for motions). The filter makes discrete choices: the extreme
+landmark of each set, which fibres are cut and in which segment, the attachment-area vertex
+each new end goes to, and which piece (new end segment or kept fibre) each resampled point
+falls on. `filter_choices` makes them on the rest pose and returns them as a `FilterChoice`;
+`apply_filter` re-applies them to a deformed copy (same topology, same fibres): the planes
+go through the SAME landmarks along the current axis, each cut stays in its rest segment
+(its position in it follows the current plane), the new end is the same material point
+(mesh vertex) and every resampled point keeps its piece and its parameter there (a fraction
+of the new segment, or a fractional fibre index between the two cuts). Every output point is
+then a smooth function of the morphed fibre, the surface and the landmarks; on the rest pose
+it is the paper's arc-length resampling (to rounding).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["trim_and_reconstruct", "attachment_region"]
+__all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
+           "apply_filter", "TIE"]
+
+#: heights within TIE x (bounding-box diagonal of the surface) of a cutting plane are on it
+TIE = 1e-9
+#: on a deformed copy the cut may move past the ends of its rest segment by at most this
+#: fraction of the segment (extrapolated along it) -- a guard for segments turning parallel
+#: to the plane; the rest pose always has 0 <= s <= 1
+CUT_SLACK = 0.5
+
+
+def _readonly(a, dtype):
+    a = np.array(a, dtype=dtype, copy=True)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True)
+class FilterChoice:
+    """The discrete choices of the attachment filter for N fibres of P points (rest pose).
+
+    Attributes
+    ----------
+    landmarks : (2,) int
+        Index of the extreme origin landmark and of the extreme insertion landmark (the
+        cutting planes pass through them).
+    cut : (N, 2) bool
+        The origin (column 0) / insertion (column 1) end of the fibre is cut and rebuilt.
+    segment : (N, 2) int
+        First point index of the fibre segment containing the cut.
+    cut_param : (N, 2) float
+        Position of the cut in its segment on the rest pose (0..1).
+    target : (N, 2) int
+        Surface vertex the rebuilt end goes to (-1 where not cut).
+    piece : (N, P) int8
+        Where each output point lies: 0 on the new origin segment, 1 on the kept fibre,
+        2 on the new insertion segment.
+    param : (N, P) float
+        Fraction along the new segment (0: surface end for piece 0, cut point for piece 2),
+        or along the kept fibre from the origin cut (0) to the insertion cut (1), measured
+        in fibre-index units.
+    seed : int
+        Sobol seed of the fibres (the choices hold for fibres 0..N-1 of that seed).
+    template : tuple or None
+        ``(name, params)`` of the fibre template.
+    """
+
+    landmarks: np.ndarray
+    cut: np.ndarray
+    segment: np.ndarray
+    cut_param: np.ndarray
+    target: np.ndarray
+    piece: np.ndarray
+    param: np.ndarray
+    seed: int = 0
+    template: tuple | None = None
+
+    def __post_init__(self):
+        for name, dt in (("landmarks", np.int64), ("cut", bool), ("segment", np.int64),
+                         ("cut_param", np.float64), ("target", np.int64), ("piece", np.int8),
+                         ("param", np.float64)):
+            object.__setattr__(self, name, _readonly(getattr(self, name), dt))
+        n = self.cut.shape[0]
+        if self.landmarks.shape != (2,):
+            raise ValueError("landmarks must be (2,)")
+        for name in ("cut", "segment", "cut_param", "target"):
+            if getattr(self, name).shape != (n, 2):
+                raise ValueError(f"{name} must be (N, 2) = ({n}, 2)")
+        if self.piece.ndim != 2 or self.piece.shape[0] != n or self.param.shape != self.piece.shape:
+            raise ValueError("piece and param must be (N, P)")
+
+    @property
+    def n_fibres(self) -> int:
+        """N."""
+        return int(self.cut.shape[0])
+
+    @property
+    def n_points(self) -> int:
+        """P."""
+        return int(self.piece.shape[1])
+
+    def head(self, n: int) -> "FilterChoice":
+        """The choices of the first ``n`` fibres (Sobol fibre k is the same for any N > k)."""
+        return FilterChoice(self.landmarks, self.cut[:n], self.segment[:n], self.cut_param[:n],
+                            self.target[:n], self.piece[:n], self.param[:n], self.seed,
+                            self.template)
 
 
 def _vertices_faces(surface):
@@ -29,6 +132,24 @@ def _vertices_faces(surface):
         return np.asarray(surface.vertices, float), np.asarray(surface.faces, np.int64)
     v, f = surface
     return np.asarray(v, float), np.asarray(f, np.int64)
+
+
+def _region_indices(vertices, faces, landmarks, tree=None) -> np.ndarray:
+    """Vertex indices of an attachment area (module docstring)."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(vertices) if tree is None else tree
+    _, nearest = tree.query(landmarks)
+    proj = vertices[np.unique(nearest)]
+    edges = vertices[faces[:, [1, 2, 0]]] - vertices[faces]
+    mean_edge = float(np.linalg.norm(edges, axis=-1).mean()) if len(faces) else 0.0
+    radius = mean_edge
+    if len(landmarks) > 1:
+        d, _ = cKDTree(landmarks).query(landmarks, k=2)
+        radius = max(radius, float(np.median(d[:, 1])))
+    near = tree.query_ball_point(proj, r=radius)
+    return np.unique(np.concatenate([np.asarray(n, dtype=np.int64) for n in near]
+                                    + [np.asarray(nearest, np.int64)]))
 
 
 def attachment_region(vertices, faces, landmarks) -> np.ndarray:
@@ -45,59 +166,255 @@ def attachment_region(vertices, faces, landmarks) -> np.ndarray:
     (C, 3) float
         Surface vertices belonging to the area.
     """
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(vertices)
-    _, nearest = tree.query(landmarks)
-    proj = vertices[np.unique(nearest)]
-    edges = vertices[faces[:, [1, 2, 0]]] - vertices[faces]
-    mean_edge = float(np.linalg.norm(edges, axis=-1).mean()) if len(faces) else 0.0
-    radius = mean_edge
-    if len(landmarks) > 1:
-        d, _ = cKDTree(landmarks).query(landmarks, k=2)
-        radius = max(radius, float(np.median(d[:, 1])))
-    near = tree.query_ball_point(proj, r=radius)
-    idx = np.unique(np.concatenate([np.asarray(n, dtype=np.int64) for n in near] + [nearest]))
-    return vertices[idx]
+    vertices = np.asarray(vertices, float)
+    return vertices[_region_indices(vertices, np.asarray(faces, np.int64),
+                                    np.asarray(landmarks, float).reshape(-1, 3))]
 
 
 def _closest_to_rays(candidates, start, direction, *, chunk: int = 1 << 21):
-    """For each ray (start (N,3), direction (N,3)) the candidate (C,3) closest to it.
-
-    Distances of a point q to the ray s + t d (t >= 0): |q - s - max((q - s).d, 0) d|.
+    """For each ray (start (N,3), direction (N,3)) the index of the candidate (C,3) closest
+    to it. Distance of q to the ray s + t d (t >= 0): |q - s - max((q - s).d, 0) d|.
     Fibres are processed in blocks of about ``chunk`` fibre-candidate pairs (bounded memory).
     """
     dn = direction / np.linalg.norm(direction, axis=1, keepdims=True)
-    out = np.empty_like(start)
+    out = np.empty(len(start), np.int64)
     step = max(1, chunk // max(len(candidates), 1))
     for a in range(0, len(start), step):  # blocks of fibres, not single fibres
         rel = candidates[None, :, :] - start[a:a + step, None, :]       # (n, C, 3)
         along = np.einsum("nck,nk->nc", rel, dn[a:a + step])
         perp = rel - np.maximum(along, 0.0)[..., None] * dn[a:a + step, None, :]
-        out[a:a + step] = candidates[np.argmin(np.einsum("nck,nck->nc", perp, perp), axis=1)]
+        out[a:a + step] = np.argmin(np.einsum("nck,nck->nc", perp, perp), axis=1)
     return out
 
 
-def _resample(poly, n_out):
-    """Resample poly-lines (M, Q, 3) uniformly by arc length to (M, n_out, 3)."""
+def _at_index(pts, tau):
+    """Points at fractional fibre indices: pts (N, P, 3), tau (N, M) -> (N, M, 3), linear
+    along the poly-line (extrapolated along the first/last segment outside 0..P-1)."""
+    p = pts.shape[1]
+    i0 = np.clip(np.floor(tau).astype(np.int64), 0, p - 2)
+    f = (tau - i0)[..., None]
+    rows = np.arange(len(pts))[:, None]
+    a = pts[rows, i0]
+    return a + f * (pts[rows, i0 + 1] - a)
+
+
+def _planes(origin, insertion, u, landmarks=None):
+    """Heights of the two cutting planes along u and the landmarks they pass through."""
+    if landmarks is None:
+        landmarks = np.array([np.argmax(origin @ u), np.argmin(insertion @ u)])
+    return float(origin[landmarks[0]] @ u), float(insertion[landmarks[1]] @ u), landmarks
+
+
+def _cuts(pts, h, segment, level, fallback, slack):
+    """Cut parameter s in each fibre's segment (level - h_a) / (h_b - h_a) and the cut point
+    p_a + s (p_b - p_a); s within [-slack, 1 + slack], ``fallback`` for a segment parallel to
+    the plane. Returns (s (N,), point (N, 3))."""
+    rows = np.arange(len(pts))
+    ha, hb = h[rows, segment], h[rows, segment + 1]
+    dh = hb - ha
+    ok = np.abs(dh) > 1e-12 * (np.abs(ha) + np.abs(hb) + 1e-300)
+    s = np.where(ok, (level - ha) / np.where(ok, dh, 1.0), fallback)
+    s = np.clip(s, -slack, 1.0 + slack)
+    a = pts[rows, segment]
+    return s, a + s[:, None] * (pts[rows, segment + 1] - a)
+
+
+def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
+                   template=None) -> FilterChoice:
+    """Make the attachment filter's choices on one (rest-pose) decomposition.
+
+    Kohout et al. (GRAPP 2012) §3.4: cutting planes through the extreme landmarks, the
+    attachment-area vertex closest to the ray of the last kept segment, uniform arc-length
+    resampling of [new end, cut, kept points, cut, new end] (module docstring).
+
+    Parameters
+    ----------
+    points : (N, P, 3) float
+        Fibres from the origin (index 0) to the insertion (index P-1).
+    surface : Surface or (vertices (V, 3), faces (T, 3))
+    origin, insertion : (K, 3) float
+        Attachment landmarks.
+    axis : (3,) float
+        Principal axis pointing from origin to insertion.
+    seed : int, keyword-only
+    template : (name, params) or None, keyword-only
+        Recorded with the choices (which fibres they belong to).
+
+    Returns
+    -------
+    FilterChoice
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    n, p = pts.shape[:2]
+    u = np.asarray(axis, dtype=np.float64)
+    u = u / np.linalg.norm(u)
+    origin = np.asarray(origin, float).reshape(-1, 3)
+    insertion = np.asarray(insertion, float).reshape(-1, 3)
+    verts, faces = _vertices_faces(surface)
+    h_o, h_i, lms = _planes(origin, insertion, u)
+    cut = np.zeros((n, 2), bool)
+    segment = np.zeros((n, 2), np.int64)
+    cut_param = np.zeros((n, 2))
+    target = np.full((n, 2), -1, np.int64)
+    piece = np.ones((n, p), np.int8)
+    param = np.broadcast_to(np.linspace(0.0, 1.0, p), (n, p)).copy()
+    piece[:, 0], param[:, 0] = 0, 0.0
+    if p > 1:
+        piece[:, -1], param[:, -1] = 2, 1.0
+
+    def done():
+        return FilterChoice(lms, cut, segment, cut_param, target, piece, param, int(seed),
+                            template)
+
+    if n == 0 or p < 2 or h_o >= h_i:  # overlapping attachment bands: nothing sensible to cut
+        return done()
+    tol = TIE * float(np.linalg.norm(verts.max(axis=0) - verts.min(axis=0)))
+    h = pts @ u                                                       # (N, P)
+    idx = np.arange(p)[None, :]
+    below = h < h_o - tol    # beyond the origin plane (not on it)
+    above = h > h_i + tol    # beyond the insertion plane
+    j_o = np.where(below.any(axis=1), np.where(below, idx, -1).max(axis=1), -1)
+    j_i = np.where(above.any(axis=1), np.where(above, idx, p).min(axis=1), p)
+    # cut where the fibre truly passes between the planes: at least one point inside
+    inside = (h >= h_o - tol) & (h <= h_i + tol)
+    ok = inside.any(axis=1) & (j_o < j_i - 1)
+    cut[:, 0] = ok & (j_o >= 0)
+    cut[:, 1] = ok & (j_i <= p - 1)
+    if not cut.any():
+        return done()
+    segment[:, 0] = np.clip(j_o, 0, p - 2)
+    segment[:, 1] = np.clip(j_i, 1, p - 1) - 1
+    s_o, c_o = _cuts(pts, h, segment[:, 0], h_o, 0.0, 0.0)
+    s_i, c_i = _cuts(pts, h, segment[:, 1], h_i, 0.0, 0.0)
+    cut_param[:] = np.stack([s_o, s_i], axis=1)
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(verts)
+    rows = np.arange(n)
+    for end, (landmarks, c, a, b) in enumerate((
+            (origin, c_o, segment[:, 0] + 1, segment[:, 0]),     # ray towards the origin
+            (insertion, c_i, segment[:, 1], segment[:, 1] + 1))):  # ray towards the insertion
+        sel = cut[:, end]
+        if sel.any():  # two ends, not a loop over fibres
+            region = _region_indices(verts, faces, landmarks, tree)
+            d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
+            target[sel, end] = region[_closest_to_rays(verts[region], c[sel], d)]
+    _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param)
+    return done()
+
+
+def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param):
+    """Piece and parameter of every point of the uniform arc-length resampling of
+    [end_o, c_o, kept points..., c_i, end_i] (dropped points collapse onto the cuts), in place."""
+    sel = cut.any(axis=1)
+    fib = pts[sel]
+    m, p = fib.shape[:2]
+    tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut[sel], segment[sel],
+                                                     cut_param[sel], target[sel])
+    body_tau = np.clip(np.arange(p, dtype=float)[None, :], tau_o[:, None], tau_i[:, None])
+    body = np.where((body_tau == np.arange(p))[..., None], fib, _at_index(fib, body_tau))
+    poly = np.concatenate([end_o[:, None], c_o[:, None], body, c_i[:, None], end_i[:, None]], 1)
+    tau = np.concatenate([tau_o[:, None], tau_o[:, None], body_tau, tau_i[:, None],
+                          tau_i[:, None]], axis=1)
     seg = np.linalg.norm(np.diff(poly, axis=1), axis=-1)              # (M, Q-1)
-    cum = np.concatenate([np.zeros((len(poly), 1)), np.cumsum(seg, axis=1)], axis=1)
-    target = cum[:, -1:] * np.linspace(0.0, 1.0, n_out)[None, :]      # (M, n_out)
-    idx = (cum[:, None, 1:] <= target[:, :, None]).sum(axis=2)        # segment index
-    idx = np.clip(idx, 0, poly.shape[1] - 2)
-    rows = np.arange(len(poly))[:, None]
-    c0, c1 = cum[rows, idx], cum[rows, idx + 1]
-    frac = np.where(c1 > c0, (target - c0) / np.where(c1 > c0, c1 - c0, 1.0), 0.0)
-    p0, p1 = poly[rows, idx], poly[rows, idx + 1]
-    out = p0 + frac[..., None] * (p1 - p0)
-    out[:, 0], out[:, -1] = poly[:, 0], poly[:, -1]
-    return out
+    cum = np.concatenate([np.zeros((m, 1)), np.cumsum(seg, axis=1)], axis=1)
+    t = cum[:, -1:] * np.linspace(0.0, 1.0, p)[None, :]               # (M, P)
+    k = np.clip((cum[:, None, 1:] <= t[:, :, None]).sum(axis=2), 0, poly.shape[1] - 2)
+    rows = np.arange(m)[:, None]
+    c0, c1 = cum[rows, k], cum[rows, k + 1]
+    frac = np.where(c1 > c0, (t - c0) / np.where(c1 > c0, c1 - c0, 1.0), 0.0)
+    q = poly.shape[1]
+    pc = np.where(k == 0, 0, np.where(k == q - 2, 2, 1)).astype(np.int8)
+    tk = tau[rows, k] + frac * (tau[rows, k + 1] - tau[rows, k])
+    alpha = (tk - tau_o[:, None]) / (tau_i - tau_o)[:, None]
+    pr = np.where(pc == 1, alpha, frac)
+    pc[:, 0], pr[:, 0] = 0, 0.0
+    pc[:, -1], pr[:, -1] = 2, 1.0
+    piece[sel], param[sel] = pc, pr
+
+
+def _geometry(pts, verts, cut, segment, s, target):
+    """Fractional indices and points of the two cuts and the two new ends (uncut ends: the
+    fibre's own end, index 0 / P-1)."""
+    p = pts.shape[1]
+    rows = np.arange(len(pts))
+    cuts = []
+    for end in (0, 1):  # the two ends
+        a = pts[rows, segment[:, end]]
+        c = a + s[:, end, None] * (pts[rows, segment[:, end] + 1] - a)
+        own = pts[:, 0] if end == 0 else pts[:, -1]
+        cuts.append((np.where(cut[:, end], segment[:, end] + s[:, end], 0.0 if end == 0 else p - 1),
+                     np.where(cut[:, end, None], c, own),
+                     np.where(cut[:, end, None], verts[np.maximum(target[:, end], 0)], own)))
+    (tau_o, c_o, end_o), (tau_i, c_i, end_i) = cuts
+    return tau_o, tau_i, c_o, c_i, end_o, end_i
+
+
+def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice):
+    """Re-apply recorded filter choices to a (deformed) copy of the fibres and surface.
+
+    The planes pass through the recorded landmarks, perpendicular to the current axis; each
+    cut lies where the current plane crosses the recorded segment's line (within
+    `CUT_SLACK`); the new ends are the recorded surface vertices; each output point keeps
+    its recorded piece and parameter (module docstring). Smooth in every input.
+
+    Parameters
+    ----------
+    points : (N, P, 3) float
+        Morphed fibres (N <= choice.n_fibres; the first N choices are used).
+    vertices : (V, 3) float
+        The surface's vertices (same topology as when the choices were made).
+    origin, insertion : (K, 3) float
+    axis : (3,) float
+    choice : FilterChoice
+
+    Returns
+    -------
+    points : (N, P, 3) float64
+    trimmed, reconstructed : (N,) bool
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    n, p = pts.shape[:2]
+    if n > choice.n_fibres or p != choice.n_points:
+        raise ValueError(f"the choices are for {choice.n_fibres} fibres x {choice.n_points} "
+                         f"points, got {n} x {p}")
+    ch = choice.head(n) if n < choice.n_fibres else choice
+    sel = ch.cut.any(axis=1)
+    out = np.array(pts, copy=True)
+    if not sel.any():
+        return out, sel.copy(), sel.copy()
+    u = np.asarray(axis, dtype=np.float64)
+    u = u / np.linalg.norm(u)
+    origin = np.asarray(origin, float).reshape(-1, 3)
+    insertion = np.asarray(insertion, float).reshape(-1, 3)
+    h_o, h_i, _ = _planes(origin, insertion, u, ch.landmarks)
+    fib = pts[sel]
+    seg, cutf = ch.segment[sel], ch.cut[sel]
+    h = fib @ u
+    s_o, _ = _cuts(fib, h, seg[:, 0], h_o, ch.cut_param[sel, 0], CUT_SLACK)
+    s_i, _ = _cuts(fib, h, seg[:, 1], h_i, ch.cut_param[sel, 1], CUT_SLACK)
+    s = np.stack([s_o, s_i], axis=1)
+    out[sel] = _evaluate(fib, np.asarray(vertices, float), cutf, seg, s, ch.target[sel],
+                         ch.piece[sel], ch.param[sel])
+    return out, sel.copy(), sel.copy()
+
+
+def _evaluate(fib, verts, cut, segment, s, target, piece, param):
+    """Output points from the recorded pieces and parameters."""
+    tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut, segment, s, target)
+    lam = param[..., None]
+    on_o = end_o[:, None] + lam * (c_o - end_o)[:, None]
+    on_i = c_i[:, None] + lam * (end_i - c_i)[:, None]
+    body = _at_index(fib, tau_o[:, None] + param * (tau_i - tau_o)[:, None])
+    pc = piece[..., None]
+    return np.where(pc == 0, on_o, np.where(pc == 2, on_i, body))
 
 
 def trim_and_reconstruct(points, surface, origin, insertion, axis):
     """Cut fibres at the extreme-landmark planes and rebuild their ends on the attachment areas.
 
-    Kohout et al. (GRAPP 2012) §3.4, vectorised over fibres.
+    Kohout et al. (GRAPP 2012) §3.4, vectorised over fibres: `filter_choices` on these
+    fibres, then `apply_filter`.
 
     Parameters
     ----------
@@ -120,68 +437,8 @@ def trim_and_reconstruct(points, surface, origin, insertion, axis):
         A new end segment was added on an attachment area.
     """
     pts = np.array(points, dtype=np.float64, copy=True)
-    n, p = pts.shape[:2]
-    trimmed = np.zeros(n, bool)
-    recon = np.zeros(n, bool)
-    if n == 0 or p < 2:
-        return pts, trimmed, recon
-    u = np.asarray(axis, dtype=np.float64)
-    u = u / np.linalg.norm(u)
-    origin = np.asarray(origin, float).reshape(-1, 3)
-    insertion = np.asarray(insertion, float).reshape(-1, 3)
-    h_o = float((origin @ u).max())       # origin plane: the origin landmark farthest along u
-    h_i = float((insertion @ u).min())    # insertion plane: the least far insertion landmark
-    if h_o >= h_i:  # the attachment bands overlap along the axis: nothing sensible to cut
-        return pts, trimmed, recon
-    h = pts @ u                                                       # (N, P)
-    idx = np.arange(p)[None, :]
-    below = h < h_o    # strictly beyond the origin plane
-    above = h > h_i    # strictly beyond the insertion plane
-    j_o = np.where(below.any(axis=1), np.where(below, idx, -1).max(axis=1), -1)
-    j_i = np.where(above.any(axis=1), np.where(above, idx, p).min(axis=1), p)
-    # cut where the fibre truly passes between the planes: at least one point strictly inside
-    inside = (h >= h_o) & (h <= h_i)
-    ok = inside.any(axis=1) & (j_o < j_i - 1)
-    cut_o = ok & (j_o >= 0)
-    cut_i = ok & (j_i <= p - 1)
-    if not (cut_o.any() or cut_i.any()):
-        return pts, trimmed, recon
-    rows = np.arange(n)
-    verts, faces = _vertices_faces(surface)
-
-    # cut points on the planes (segments j_o -> j_o+1 and j_i-1 -> j_i)
-    a_o, b_o = np.clip(j_o, 0, p - 2), np.clip(j_o, 0, p - 2) + 1
-    a_i, b_i = np.clip(j_i, 1, p - 1) - 1, np.clip(j_i, 1, p - 1)
-
-    def cut(a, b, level):
-        ha, hb = h[rows, a], h[rows, b]
-        s = np.where(hb != ha, (level - ha) / np.where(hb != ha, hb - ha, 1.0), 0.0)
-        return pts[rows, a] + np.clip(s, 0, 1)[:, None] * (pts[rows, b] - pts[rows, a])
-
-    c_o, c_i = cut(a_o, b_o, h_o), cut(a_i, b_i, h_i)
-    end_o, end_i = pts[:, 0].copy(), pts[:, -1].copy()
-    if cut_o.any():
-        region = attachment_region(verts, faces, origin)
-        d = pts[cut_o, a_o[cut_o]] - pts[cut_o, b_o[cut_o]]          # pointing to the origin
-        end_o[cut_o] = _closest_to_rays(region, c_o[cut_o], d)
-    if cut_i.any():
-        region = attachment_region(verts, faces, insertion)
-        d = pts[cut_i, b_i[cut_i]] - pts[cut_i, a_i[cut_i]]          # pointing to the insertion
-        end_i[cut_i] = _closest_to_rays(region, c_i[cut_i], d)
-
-    # assemble [end_o, c_o, kept points..., c_i, end_i]; dropped points collapse onto the cut
-    # points (zero-length segments), then resample by arc length
-    body = pts.copy()
-    body = np.where((cut_o[:, None] & (idx <= j_o[:, None]))[..., None], c_o[:, None], body)
-    body = np.where((cut_i[:, None] & (idx >= j_i[:, None]))[..., None], c_i[:, None], body)
-    start = np.where(cut_o[:, None], end_o, pts[:, 0])
-    stop = np.where(cut_i[:, None], end_i, pts[:, -1])
-    first = np.where(cut_o[:, None], c_o, pts[:, 0])
-    last = np.where(cut_i[:, None], c_i, pts[:, -1])
-    poly = np.concatenate([start[:, None], first[:, None], body, last[:, None], stop[:, None]],
-                          axis=1)
-    sel = cut_o | cut_i
-    pts[sel] = _resample(poly[sel], p)
-    trimmed[sel] = True
-    recon[sel] = True
-    return pts, trimmed, recon
+    if pts.shape[0] == 0 or pts.shape[1] < 2:
+        z = np.zeros(pts.shape[0], bool)
+        return pts, z, z.copy()
+    choice = filter_choices(pts, surface, origin, insertion, axis)
+    return apply_filter(pts, _vertices_faces(surface)[0], origin, insertion, axis, choice)

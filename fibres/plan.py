@@ -74,6 +74,13 @@ class DecompositionPlan:
     template : fibres.templates.Template, optional
         The template whose attachment areas oriented the box (oblique templates such as
         pennate tilt the principal axis, `fibres.fitting.principal_frame`).
+    rest_origin, rest_insertion : (K, 3) float, optional
+        The landmarks of the rest pose (metres), to make the attachment filter's choices on
+        the rest pose when `filter_choice` does not cover a request.
+    filter_choice : fibres.filtering.FilterChoice, optional
+        The attachment filter's choices (Kohout 2012 §3.4) made on the rest pose for the
+        fibres of the decomposition that made the plan; reapplied on deformed copies
+        (`fibres.filtering.apply_filter`) so that trimming and reconstruction do not flip.
     """
 
     topology: MeshTopology
@@ -87,11 +94,20 @@ class DecompositionPlan:
     anchor_vertices: np.ndarray
     anchor_weights: np.ndarray
     template: object = None
+    rest_origin: np.ndarray | None = None
+    rest_insertion: np.ndarray | None = None
+    filter_choice: object = None
 
     def __post_init__(self):
         for name in ("rest_vertices", "v0", "fractions", "choice", "anchor_vertices",
                      "anchor_weights"):
             object.__setattr__(self, name, _readonly(getattr(self, name)))
+        for name in ("rest_origin", "rest_insertion"):
+            if getattr(self, name) is not None:
+                value = _readonly(np.asarray(getattr(self, name), dtype=np.float64))
+                if value.ndim != 2 or value.shape[1] != 3:
+                    raise ValueError(f"{name} must be (K, 3), got {value.shape}")
+                object.__setattr__(self, name, value)
         if self.axis_method not in ("attachments", "covariance"):
             raise ValueError(f"axis_method must be 'attachments' or 'covariance', "
                              f"got {self.axis_method!r}")

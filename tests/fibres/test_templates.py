@@ -142,12 +142,7 @@ def _unit_cube_mesh():
     return np.asarray(m.vertices), np.asarray(m.faces)
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.xfail(
-        strict=True, reason="pennate's attachment centroids are offset across the box, so the "
-                            "box axis needs principal_frame(template=...); decompose's v_ref and "
-                            "plan.box_from_plan do not pass the template yet (integration)"))
-    if n == "pennate" else n for n in TEMPLATES])
+@pytest.mark.parametrize("name", TEMPLATES)
 def test_each_template_reproduces_itself_in_the_unit_cube(name):
     # decompose the unit cube with the template's own attachment areas: the fitted box IS the
     # cube, every slice is the unit square and the morph is the identity, so the fibres must
