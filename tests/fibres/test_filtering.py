@@ -111,3 +111,94 @@ def test_attachment_region_of_one_landmark_is_its_neighbourhood(cube):
     # all within one mean edge length of the projected landmark
     edges = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean()
     assert (np.linalg.norm(reg - [0.0, 0.5, 0.5], axis=1) <= edges + 1e-12).all()
+
+
+# --- ties, frozen choices (apply_filter) -------------------------------------------------
+
+def test_fibre_ends_on_the_planes_are_not_trimmed(cube):
+    # flat caps: the fibres run from the bottom face to the top face and the landmarks lie
+    # on those faces, so every end is ON its plane; rounding noise of 1e-15 (far below the
+    # tie tolerance TIE * diagonal = 1.7e-9) must not decide that they are beyond it
+    from fibres.filtering import TIE
+
+    v, f = cube
+    xy = np.random.default_rng(1).uniform(0.1, 0.9, (20, 2))
+    t = np.linspace(0, 1, P)
+    fib = np.concatenate([np.broadcast_to(xy[:, None], (20, P, 2)),
+                          np.broadcast_to(t[None, :, None], (20, P, 1))], axis=2).copy()
+    fib[::2, 0, 2] = -1e-15
+    fib[1::2, -1, 2] = 1.0 + 1e-15
+    origin = np.array([[0.2, 0.2, 0.0], [0.8, 0.7, 0.0]])
+    insertion = np.array([[0.3, 0.6, 1.0], [0.7, 0.2, 1.0]])
+    assert 1e-15 < TIE * np.sqrt(3) * 1e-3
+    out, trimmed, _ = trim_and_reconstruct(fib, (v, f), origin, insertion, [0, 0, 1])
+    assert not trimmed.any()
+    np.testing.assert_array_equal(out, fib)
+
+
+def _wide_case(cube):
+    v, f = cube
+    return v, f, _converging_fibres(), _grid_on_x0(0.0, 0.3), _grid_on_x0(0.7, 1.0)
+
+
+def test_recorded_choices_reproduce_the_paper_filter_exactly(cube):
+    from fibres.filtering import apply_filter, filter_choices
+
+    v, f, fib, origin, insertion = _wide_case(cube)
+    ref, trimmed, _ = trim_and_reconstruct(fib, (v, f), origin, insertion, [0, 0, 1])
+    assert trimmed.all()
+    choice = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
+    out, t2, _ = apply_filter(fib, v, origin, insertion, [0, 0, 1], choice)
+    np.testing.assert_array_equal(out, ref)
+    np.testing.assert_array_equal(t2, trimmed)
+    # the first n fibres' choices serve a smaller bundle (Sobol fibre k is the same for all N)
+    head, _, _ = apply_filter(fib[:5], v, origin, insertion, [0, 0, 1], choice)
+    np.testing.assert_array_equal(head, ref[:5])
+    with pytest.raises(ValueError, match="choices are for"):
+        apply_filter(np.concatenate([fib, fib]), v, origin, insertion, [0, 0, 1], choice)
+
+
+def _rotation(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.array([[1, 0, 0], [0, c, s],
+                                                                    [0, -s, c]])
+
+
+def test_recorded_choices_move_rigidly(cube):
+    # a rigid motion of fibres, surface, landmarks and axis moves the filtered fibres rigidly
+    from fibres.filtering import apply_filter, filter_choices
+
+    v, f, fib, origin, insertion = _wide_case(cube)
+    choice = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
+    ref, _, _ = apply_filter(fib, v, origin, insertion, [0, 0, 1], choice)
+    rot, shift = _rotation(0.7), np.array([0.3, -1.0, 2.0])
+    moved, _, _ = apply_filter(fib @ rot.T + shift, v @ rot.T + shift, origin @ rot.T + shift,
+                               insertion @ rot.T + shift, rot[:, 2], choice)
+    np.testing.assert_allclose(moved, ref @ rot.T + shift, atol=1e-12)
+
+
+def test_recorded_choices_are_smooth_under_deformation(cube):
+    # fibres, surface and landmarks deformed by a smooth map x -> x + e g(x): with the
+    # choices frozen the filtered fibres are a smooth function of e, so central differences
+    # at h and 2h agree to O(h^2) (a flipped choice -- another target vertex, another cut
+    # segment -- would make them differ by jump / h ~ 1e3)
+    from fibres.filtering import apply_filter, filter_choices
+
+    v, f, fib, origin, insertion = _wide_case(cube)
+
+    def g(x):
+        return np.c_[0.05 * np.sin(3 * x[:, 2]), 0.04 * x[:, 0] * x[:, 2], 0.03 * x[:, 1] ** 2]
+
+    def run(e):
+        def d(x):
+            return (x.reshape(-1, 3) + e * g(x.reshape(-1, 3))).reshape(x.shape)
+        return apply_filter(d(fib), d(v), d(origin), d(insertion), [0, 0, 1], choice)[0]
+
+    choice = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
+    h = 1e-4
+    d1 = (run(h) - run(-h)) / (2 * h)
+    d2 = (run(2 * h) - run(-2 * h)) / (4 * h)
+    scale = np.abs(d1).max()
+    assert scale > 1e-3
+    # O(h^2) truncation with second derivatives of order 1: |d1 - d2| ~ h^2 ~ 1e-8
+    assert np.abs(d1 - d2).max() <= 1e-6 * scale

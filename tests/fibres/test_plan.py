@@ -140,3 +140,66 @@ def test_clean_tuple_skips_repair_with_the_same_result(muscle):
         warnings.simplefilter("always")
         flipped = decompose((v, f[:, ::-1]), o, i)
     assert np.abs(flipped.points - direct.points).max() <= 1e-12
+
+
+# --- the attachment filter with a plan (Kohout §3.4 choices frozen on the rest pose) -----
+
+@pytest.fixture(scope="module")
+def wide(muscle):
+    """The same muscle with wide attachment areas: landmarks on the caps up to 30 % of the
+    half-length from the tips, so the cutting planes trim the converging fibre ends."""
+    v, f, _, _ = muscle
+    z = v[:, 2] / 0.06
+    return v, f, v[z < -0.7][::3], v[z > 0.7][::3]
+
+
+def test_filter_choices_recorded_and_reused_at_rest(wide):
+    v, f, o, i = wide
+    b = decompose((v, f), o, i)
+    fc = b.plan.filter_choice
+    assert fc is not None and fc.n_fibres == 100 and fc.n_points == 20
+    assert b.flags["trimmed"].sum() >= 50            # the filter does act on this muscle
+    assert np.array_equal(fc.cut.any(axis=1), b.flags["trimmed"])
+    again = decompose((v, f), o, i, plan=b.plan)
+    assert np.array_equal(again.points, b.points)
+    # a plan from make_plan has no filter record: the choices are made once on its rest
+    # pose (the same as decompose's) and reused
+    p = make_plan((v, f), o, i)
+    assert p.filter_choice is None
+    moved = (deform(v, 0.1), f), deform(o, 0.1), deform(i, 0.1)
+    via_make = decompose(*moved, plan=p)
+    assert any("rest pose" in n for n in via_make.notes)
+    assert np.array_equal(via_make.points, decompose(*moved, plan=b.plan).points)
+
+
+def test_filter_with_plan_is_smooth_under_deformation(wide):
+    # fibre LENGTHS with the filter on are smooth in the deformation parameter: central
+    # differences at h and 2h agree to O(h^2) (a flipped trim / target vertex would change a
+    # length by ~1 mm, i.e. d1 - d2 ~ 1e-3 / h = 10 m per unit e)
+    v, f, o, i = wide
+    b0 = decompose((v, f), o, i)
+
+    def lengths(e):
+        return decompose((deform(v, e), f), deform(o, e), deform(i, e), plan=b0.plan).lengths()
+
+    for e0 in (0.05, 0.15):        # (lengths are even in e: d/de = 0 at e = 0)
+        h = 1e-4
+        d1 = (lengths(e0 + h) - lengths(e0 - h)) / (2 * h)
+        d2 = (lengths(e0 + 2 * h) - lengths(e0 - 2 * h)) / (4 * h)
+        scale = np.abs(d1).max()
+        assert scale > 1e-4
+        assert np.abs(d1 - d2).max() <= 1e-3 * scale
+
+
+def test_filter_with_plan_continuous_over_a_large_sweep(wide):
+    # 60 steps of the bend/twist/stretch: every fibre length changes by a similar amount at
+    # every step (without frozen choices the target vertices snap: steps of ~ an edge)
+    v, f, o, i = wide
+    b0 = decompose((v, f), o, i)
+    ls = np.array([decompose((deform(v, e), f), deform(o, e), deform(i, e), plan=b0.plan).lengths()
+                   for e in np.linspace(0, 0.3, 61)])
+    steps = np.abs(np.diff(ls, axis=0))                     # (60, N)
+    second = np.abs(np.diff(ls, n=2, axis=0))               # curvature of the length curves
+    # smooth curves sampled at 60 steps: second differences far below the first
+    assert second.max() <= 0.2 * steps.max()
+    assert steps.max() <= 3.0 * np.median(steps.max(axis=1))
