@@ -167,3 +167,50 @@ def test_oblique_template_recovers_the_box(theta):
     # re-deriving the frame at the found rotation gives the same axis (what a plan does)
     f = principal_frame(v, o, i, template=pen, angle_index=box.angle_index)
     np.testing.assert_allclose(f.axis, box.axes[:, 2], atol=1e-9)
+
+
+@pytest.mark.parametrize("shape", ["disc", "ellipse", "square", "duplicates", "line", "blob"])
+def test_support_screen_keeps_every_extreme_point(shape):
+    # the screened box search must give bit-identical boxes: every vertex that attains a
+    # minimum or maximum of some projection survives the screen (brute force over all)
+    from fibres.fitting import _boxes, _support_candidates, _thetas
+
+    rng = np.random.default_rng(3)
+    n = 5000
+    t = rng.uniform(0, 2 * np.pi, n)
+    r = np.sqrt(rng.uniform(0, 1, n))
+    a, b = {
+        "disc": (r * np.cos(t), r * np.sin(t)),
+        "ellipse": (0.03 * np.cos(t), 0.01 * np.sin(t)),           # all on the boundary
+        "square": (np.round(rng.uniform(-1, 1, n), 1), np.round(rng.uniform(-1, 1, n), 1)),
+        "duplicates": (np.repeat(np.cos(t[:50]), 100), np.repeat(np.sin(t[:50]), 100)),
+        "line": (np.linspace(-1, 1, n), 0.5 * np.linspace(-1, 1, n)),
+        "blob": (rng.normal(size=n) * 0.02 + 0.1, rng.normal(size=n) * 0.05 - 0.3),
+    }[shape]
+    keep = _support_candidates(a, b)
+    theta = np.linspace(0, 2 * np.pi, 720, endpoint=False)
+    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b
+    extreme = np.union1d(np.flatnonzero((px == px.min(axis=1, keepdims=True)).any(axis=0)),
+                         np.flatnonzero((px == px.max(axis=1, keepdims=True)).any(axis=0)))
+    assert np.isin(extreme, keep).all()
+    if shape in ("disc", "blob"):
+        assert keep.size < n / 5                   # the screen does drop the interior
+    # the boxes equal the unscreened search exactly
+    v = np.c_[a, b, rng.uniform(0, 0.2, n)]
+    c, u, v0, w0 = v.mean(axis=0), np.eye(3)[2], np.eye(3)[0], np.eye(3)[1]
+    axes, corner, ext = _boxes(v, c, u, v0, w0, _thetas(5.0))
+    d = v - c
+    th = _thetas(5.0)
+    pa = np.cos(th)[:, None] * (d @ v0) + np.sin(th)[:, None] * (d @ w0)
+    pb = -np.sin(th)[:, None] * (d @ v0) + np.cos(th)[:, None] * (d @ w0)
+    np.testing.assert_array_equal(ext[:, 0], pa.max(axis=1) - pa.min(axis=1))
+    np.testing.assert_array_equal(ext[:, 1], pb.max(axis=1) - pb.min(axis=1))
+
+
+def test_mean_rows_is_numpy_mean_bit_for_bit():
+    from fibres.fitting import _mean_rows
+
+    rng = np.random.default_rng(5)
+    for n in (4, 999, 15002):
+        v = rng.normal(size=(n, 3)) * 0.05 + 0.3
+        np.testing.assert_array_equal(_mean_rows(v), v.mean(axis=0))
