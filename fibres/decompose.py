@@ -32,7 +32,7 @@ from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
-from .smoothing import DEFAULT_ITERATIONS, smooth
+from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .surface import Surface, as_points, as_surface
 from .templates import Template, get_template
 
@@ -305,7 +305,9 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         Parameters of the template (`fibres.get_template`).
     smoothing_iterations : int, keyword-only
         Iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
-        default `fibres.smoothing.DEFAULT_ITERATIONS`); 0 switches it off.
+        default `fibres.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Each point's
+        smoothing shift is softly bounded by `fibres.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm)
+        so that smoothing cannot pull fibres out through a concave wall.
     filter_attachments : bool, keyword-only
         Trim the fibres at the planes through the extreme landmarks and reconstruct their
         ends on the attachment areas (§3.4).
@@ -355,5 +357,6 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         pts, trimmed, rebuilt = apply_filter(pts, v, o, i, box.axes[:, 2], fc)
         flags = {"trimmed": trimmed, "reconstructed": rebuilt}
     if smoothing_iterations:
-        pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations))
+        pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations),
+                     max_shift=DECOMPOSE_MAX_SHIFT)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

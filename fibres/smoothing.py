@@ -6,19 +6,30 @@ paper; the two end points (on the attachment areas) never move. The iteration is
 Jacobi step for the discrete Laplace equation with fixed ends, so repeating it forever yields
 equally spaced points on the chord; each error mode j decays by
 ``1 - 2 (1 - cos(pi j / (P - 1))) / (k + 2)`` per step.
+
+Bounded shift (our addition, off unless ``max_shift`` is given). Smoothing straightens a
+fibre that follows a curved muscle (the psoas around the pelvic brim) and can pull its inner
+points through the concave wall (measured up to 11 mm outside on LHDL psoas after 5 steps).
+With ``max_shift`` = s the total displacement D of every point is softly saturated,
+``D' = D / sqrt(1 + |D|^2 / s^2)`` (|D'| < s, D' ~ D for |D| << s, smooth in D so a motion's
+fibres stay smooth): a point that was inside the surface ends at most s outside it.
+`fibres.decompose` uses `DECOMPOSE_MAX_SHIFT`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["smooth", "DEFAULT_ITERATIONS"]
+__all__ = ["smooth", "DEFAULT_ITERATIONS", "DECOMPOSE_MAX_SHIFT"]
 
 #: smoothing steps used by `fibres.decompose` unless told otherwise (light: removes slice
 #: noise, keeps the shape; the paper leaves the count to the user)
 DEFAULT_ITERATIONS = 5
+#: bound (metres) on the smoothing displacement of a point used by `fibres.decompose`
+DECOMPOSE_MAX_SHIFT = 1e-3
 
 
-def smooth(points, *, k: float = 4.0, iterations: int = DEFAULT_ITERATIONS) -> np.ndarray:
+def smooth(points, *, k: float = 4.0, iterations: int = DEFAULT_ITERATIONS,
+           max_shift: float | None = None) -> np.ndarray:
     """Smooth poly-lines with fixed end points (Kohout 2012 §3.4).
 
     Parameters
@@ -29,6 +40,8 @@ def smooth(points, *, k: float = 4.0, iterations: int = DEFAULT_ITERATIONS) -> n
         Smoothing constant (> 0; 4 in the paper). Larger k smooths less per step.
     iterations : int, keyword-only
         Number of steps (>= 0).
+    max_shift : float, optional, keyword-only
+        Soft bound on each point's total displacement (module docstring); None: no bound.
 
     Returns
     -------
@@ -44,7 +57,14 @@ def smooth(points, *, k: float = 4.0, iterations: int = DEFAULT_ITERATIONS) -> n
     out = np.array(points, dtype=np.float64, copy=True)
     if out.ndim < 2 or out.shape[-2] < 3:
         return out
+    if max_shift is not None and not (np.isfinite(max_shift) and max_shift > 0):
+        raise ValueError(f"max_shift must be a positive number, got {max_shift!r}")
+    start = out.copy() if max_shift is not None else None
     inv = 1.0 / (k + 2.0)
     for _ in range(int(iterations)):  # loop over smoothing steps only, not over points
         out[..., 1:-1, :] = (out[..., :-2, :] + k * out[..., 1:-1, :] + out[..., 2:, :]) * inv
+    if start is not None:
+        d = out - start
+        d2 = np.einsum("...k,...k->...", d, d)[..., None]
+        out = start + d / np.sqrt(1.0 + d2 / float(max_shift) ** 2)
     return out
