@@ -6,17 +6,24 @@ not reach it. The psoas origins lie on lumbar vertebrae missing from the data se
 from the muscle; they are used as given (they still define the axis and the trimming
 plane; reconstructed ends land on the surface nearest to them).
 
-Measured with this code (mm), full chain (attachment filter + 5 smoothing steps) / morph only:
+Measured with this code (mm), full chain (attachment filter + 5 smoothing steps, each point's
+smoothing shift softly bounded by 1 mm) / morph only:
 
 =========== ===================== ================= ================= ==================
 muscle      most outside, full    most outside,     start -> origin   end -> insertion
             chain                 morph only        landmark (max)    landmark (max)
 =========== ===================== ================= ================= ==================
-glut_max_r  3.6                   0.34              10.9              18.1
-glut_med_r  4.9                   1.50              12.8              9.3
-iliacus_r   4.2                   1.50              11.7              10.6
-psoas_r     8.1                   0.49              10.2              2.6
+glut_max_r  3.4                   0.03              10.9              18.1
+glut_med_r  4.3                   1.50              12.8              9.3
+iliacus_r   4.1                   1.50              11.7              10.6
+psoas_r     4.1                   0.49              10.2              2.6
 =========== ===================== ================= ================= ==================
+
+The full chain does NOT reach "inside or within 1 mm": what remains outside comes from the
+attachment filter itself (Kohout §3.4) -- the straight new end segment from the cut point to
+an attachment-area vertex crosses concave parts of the surface (up to 4.3 mm, glut_med), and
+the resampled points on the kept part lie on chords between morphed points (up to 3.4 mm,
+iliacus). Smoothing without the bound added up to 4 mm more (psoas 8.1 mm).
 
 Original and clean meshes give the same numbers (the repair makes them identical).
 """
@@ -33,8 +40,9 @@ MUSCLES = ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
 # attachment filter, whose surface regions are sampled at mesh vertices)
 START_MM = {"glut_max_r": 13.0, "glut_med_r": 15.5, "iliacus_r": 14.0, "psoas_r": 12.5}
 END_MM = {"glut_max_r": 22.0, "glut_med_r": 11.5, "iliacus_r": 13.0, "psoas_r": 3.5}
-# full chain: at most 10 mm outside (measured 3.6-8.1 mm: filter + smoothing, see above)
-FULL_OUTSIDE_MM = 10.0
+# full chain: at most 5.5 mm outside (measured 3.4-4.3 mm: the filter's straight end segments
+# and chords, see above; ~25 % margin)
+FULL_OUTSIDE_MM = 5.5
 
 
 def _landmarks(lhdl_dir, muscle):
@@ -85,11 +93,12 @@ def test_lhdl_fibres_inside_and_between_the_attachments(decomposed, muscle, fold
     sd_core = _signed_distance_mm(surface, core.points)
     assert sd_core.min() >= -2.0
     assert np.mean(sd_core >= -1.0) >= 0.99
-    # the full chain: trimming + straight reconstruction + smoothing cut the concave
-    # walls of curved muscles (psoas around the pelvic brim): pinned at the measured values
+    # the full chain: trimming + straight reconstruction cut the concave walls of curved
+    # muscles; the smoothing shift is bounded by 1 mm. Pinned at the measured values:
+    # 91.7 % (psoas) to 99.7 % (glut_max) of the points inside or within 1 mm
     sd = _signed_distance_mm(surface, full.points)
     assert sd.min() >= -FULL_OUTSIDE_MM
-    assert np.mean(sd >= -1.0) >= 0.75
+    assert np.mean(sd >= -1.0) >= 0.9
     # every fibre starts near its origin area and ends near its insertion area ...
     d_start = cKDTree(origin).query(full.points[:, 0])[0] * 1e3
     d_end = cKDTree(insertion).query(full.points[:, -1])[0] * 1e3
@@ -105,3 +114,52 @@ def test_lhdl_original_and_clean_agree(decomposed):
         b = decomposed[muscle, "muscles_clean"][3].points
         # the repaired original is the clean mesh up to vertex order: same fibres to rounding
         assert np.abs(a - b).max() <= 1e-9
+
+
+def _bender(origin, insertion):
+    """A smooth bend of the muscle by ``deg`` degrees about an axis through the origin
+    centroid, perpendicular to the attachment line and to z: each point turns by
+    ``deg * t``, t its position along the attachment line clipped to 0..1 (the origin end
+    stays, the insertion end turns fully) -- a stand-in for a joint sweep."""
+    a, b = origin.mean(axis=0), insertion.mean(axis=0)
+    length = np.linalg.norm(b - a)
+    ax = (b - a) / length
+    n = np.cross(ax, [0.0, 0.0, 1.0])
+    n /= np.linalg.norm(n)
+
+    def bend(x, deg):
+        t = np.clip((x - a) @ ax / length, 0.0, 1.0)
+        c, s = np.cos(np.deg2rad(deg) * t)[:, None], np.sin(np.deg2rad(deg) * t)[:, None]
+        rel = x - a
+        return a + rel * c + np.cross(n, rel) * s + n * (rel @ n)[:, None] * (1 - c)
+    return bend
+
+
+# measured max over fibres of |d1 - d2| / max|d1| at 10 degrees (h = 0.05 degree), with the
+# attachment filter's choices frozen in the plan: 1.5e-2, 5.6e-2, 4.0e-2, 5.2e-4; the rest
+# is the morph's own (its end slices fall back to fresh start/split choices on this bend:
+# morph only, no filter, gives 1e-2, 7.9, 38, 4.7e-3)
+FD_REL = {"glut_max_r": 0.03, "glut_med_r": 0.08, "iliacus_r": 0.06, "psoas_r": 0.01}
+# measured largest 1-degree length step / median over the steps of the largest step:
+# 1.7, 3.8, 2.2, 4.6 (morph only: 56, 8.7, 34, 7.4)
+STEP_RATIO = {"glut_max_r": 3.0, "glut_med_r": 5.5, "iliacus_r": 3.5, "psoas_r": 6.0}
+
+
+@pytest.mark.parametrize("muscle", MUSCLES)
+def test_lhdl_bend_sweep_with_the_plan_gives_smooth_fibre_lengths(decomposed, muscle):
+    surface, origin, insertion, full, _ = decomposed[muscle, "muscles_clean"]
+    v, f = np.asarray(surface.vertices), np.asarray(surface.faces)
+    bend = _bender(origin, insertion)
+
+    def lengths(deg):
+        return decompose((bend(v, deg), f), bend(origin, deg), bend(insertion, deg),
+                         plan=full.plan, n_fibres=100, resolution=15).lengths()
+
+    ls = np.array([lengths(d) for d in range(21)])          # 0..20 degrees, 1-degree steps
+    steps = np.abs(np.diff(ls, axis=0))
+    assert steps.max() <= STEP_RATIO[muscle] * np.median(steps.max(axis=1))
+    h = 0.05
+    d1 = (lengths(10 + h) - lengths(10 - h)) / (2 * h)
+    d2 = (lengths(10 + 2 * h) - lengths(10 - 2 * h)) / (4 * h)
+    assert np.abs(d1).max() > 1e-5                           # the bend does change lengths
+    assert np.abs(d1 - d2).max() <= FD_REL[muscle] * np.abs(d1).max()

@@ -62,3 +62,24 @@ def test_validation():
         smooth(_noisy(), iterations=-1)
     two = np.zeros((4, 2, 3))
     np.testing.assert_array_equal(smooth(two), two)  # nothing inside to move
+
+
+def test_max_shift_bounds_every_displacement_softly():
+    # a semicircle of radius 1 (a fibre around a curved muscle): plain smoothing pulls the
+    # middle towards the chord; with max_shift s every point moves by < s, and for tiny
+    # moves (|D| << s) the bound changes nothing to first order: D' = D (1 - |D|^2 / 2s^2)
+    t = np.linspace(0, np.pi, 21)
+    arc = np.c_[np.cos(t), np.sin(t), np.zeros_like(t)][None]
+    free = smooth(arc, iterations=20)
+    assert np.linalg.norm(free - arc, axis=-1).max() > 0.05
+    s = 0.01
+    capped = smooth(arc, iterations=20, max_shift=s)
+    shift = np.linalg.norm(capped - arc, axis=-1)
+    assert shift.max() < s
+    d_free = np.linalg.norm(free - arc, axis=-1)
+    np.testing.assert_allclose(shift, d_free / np.sqrt(1 + (d_free / s) ** 2), rtol=1e-12)
+    np.testing.assert_array_equal(capped[:, [0, -1]], arc[:, [0, -1]])
+    tiny = smooth(arc * 1e-4, iterations=1, max_shift=s)
+    np.testing.assert_allclose(tiny, smooth(arc * 1e-4, iterations=1), atol=1e-12)
+    with pytest.raises(ValueError, match="max_shift"):
+        smooth(arc, max_shift=0.0)
