@@ -30,7 +30,7 @@ def main(argv=None):
     import pandas as pd
     import pyvista as pv
 
-    from motion import MuscleSurfaceSpec, SurfaceAttachment, wrap_surfaces
+    from motion import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment, wrap_surfaces
     from motion.kinematics import motion_from_array
     from motion.osim_reader import load_model
 
@@ -38,6 +38,7 @@ def main(argv=None):
     ap.add_argument("--muscle", default="iliacus_r", choices=sorted(LINES))
     ap.add_argument("--angles", type=float, nargs="+", default=[-10.0, 25.0, 60.0])
     ap.add_argument("--out", default="wrap_strip.png")
+    ap.add_argument("--no-bones", action="store_true", help="no bone collision (faster)")
     args = ap.parse_args(argv)
 
     model = load_model(LHDL / "model" / "LHDL_hip_r.osim")
@@ -52,17 +53,19 @@ def main(argv=None):
             sel = sel[sel.cloud == cloud]
         return sel[["x_mm", "y_mm", "z_mm"]].to_numpy() * 1e-3
 
+    bones = {"pelvis": _mesh(LHDL / "bones" / "iliac_r.vtk"), "femur_r": _mesh(LHDL / "bones" / "femur_r.vtk")}
+    bone_specs = () if args.no_bones else tuple(BoneMesh(b, bv, bf) for b, (bv, bf) in bones.items())
     origin_of = "iliacus_r" if args.muscle == "psoas_r" else args.muscle
     v, f = _mesh(LHDL / "muscles_clean" / f"{args.muscle}.vtk")
     spec = MuscleSurfaceSpec(args.muscle, LINES[args.muscle], v, f, frame="bodies",
                              origin=SurfaceAttachment("pelvis", pts(origin_of, "origin")),
                              insertion=SurfaceAttachment("femur_r", pts(args.muscle, "insertion",
-                                                                        1 if args.muscle == "glut_max_r" else None)))
+                                                                        1 if args.muscle == "glut_max_r" else None)),
+                             bones=bone_specs)
     wrapped = wrap_surfaces(model, motion, [spec])[0]
     from motion.kinematics import body_poses
 
     tf = np.asarray(body_poses(model, motion).tf_ground_body)
-    bones = {"pelvis": _mesh(LHDL / "bones" / "iliac_r.vtk"), "femur_r": _mesh(LHDL / "bones" / "femur_r.vtk")}
     plotter = pv.Plotter(off_screen=True, shape=(1, len(args.angles)), window_size=(600 * len(args.angles), 700))
     for k, angle in enumerate(args.angles):
         plotter.subplot(0, k)

@@ -146,3 +146,19 @@ def test_input_errors_name_the_muscle(tmp_path):
         wrap_surfaces(model, mot, [in_mm])
     with pytest.raises(InputError, match="action_lines"):
         wrap_surfaces(model, mot, [MuscleSurfaceSpec("m", ("nope",), good.vertices, good.faces)])
+
+
+@pytest.mark.parametrize("q0", [0.3, 1.2])
+def test_pulley_surface_is_differentiable_in_the_coordinate(tmp_path, q0):
+    # finite-difference moment arms of fibres need the surface to be a smooth function of q:
+    # central differences with h and h/2 must agree (a kink or jump would make them differ by
+    # O(1) relative; truncation error of the difference is O(h^2 |v'''|) ~ 1e-8 relative)
+    model = build(tmp_path, pulley=True)
+    h = 1e-4
+    q = q0 + np.array([-h, h, -h / 2, h / 2])
+    v = wrap_surfaces(model, motion_from_array(model, q[:, None]), [spec_for(-D)])[0].vertices
+    d_h = (v[1] - v[0]) / (2 * h)
+    d_h2 = (v[3] - v[2]) / h
+    scale = np.abs(d_h).max()
+    assert scale > 1e-3                       # the surface does move with q
+    assert np.abs(d_h - d_h2).max() < 1e-6 * scale, np.abs(d_h - d_h2).max() / scale   # measured ~5e-9
