@@ -19,7 +19,8 @@ explicitly here, so points on edges and vertices get exact coordinates.
 cross product and ``D_i`` the dot product of ``s_i`` and ``s_{i+1}``: this form is
 stable for small angles (and for coincident consecutive vertices, where it is 0) and is
 singular only when ``x`` lies on the edge (alpha = pi), the case treated separately (a
-point within ~1e-14 of an edge's length from the edge counts as on it).
+point within ~1e-14 of an edge's length from the edge counts as on it, and so does a point
+nearly on it whose denominator ``r r' + D`` rounds to zero or below).
 """
 from __future__ import annotations
 
@@ -77,7 +78,7 @@ def mean_value_coordinates(points, polygon) -> np.ndarray:
     cross = sx * syn - sy * sxn                                 # 2 A_i
     dot = sx * sxn + sy * syn                                   # D_i
     denom = rr + dot                                            # r r' (1 + cos alpha)
-    on_edge = (np.abs(cross) <= _ON_EDGE * rr) & (dot < 0.0)
+    on_edge = ((np.abs(cross) <= _ON_EDGE * rr) | (denom <= 0.0)) & (dot < 0.0)
     on_vertex = r == 0.0
     if not (on_edge.any() or on_vertex.any()):
         tan_half = cross / denom
@@ -168,7 +169,8 @@ def mvc_map(points, groups, sources, targets, *, weights=None) -> np.ndarray:
         src = np.ascontiguousarray(np.concatenate(sources), dtype=float)
         dst = np.ascontiguousarray(np.concatenate(targets), dtype=float)
         res = np.empty_like(pts)
-        kernel(pts, groups, w, src, dst, offsets, _ON_EDGE, res)
+        kernel(pts, groups, w, np.ascontiguousarray(src[:, 0]), np.ascontiguousarray(src[:, 1]),
+               src, dst, offsets, _ON_EDGE, res)
         return res
     res = np.zeros_like(pts)
     order = np.argsort(groups, kind="stable")
@@ -193,8 +195,68 @@ def _kernel():
     except ImportError:                                   # pragma: no cover - optional
         _KERNEL.append(None)
         return None
-    _KERNEL.append(numba.njit(cache=True, nogil=True)(_mvc_map_loop))
+    global _mvc_scalar
+    jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+    _mvc_scalar = jit(_mvc_map_loop)
+    _KERNEL.append(jit(_mvc_map_vec))
     return _KERNEL[0]
+
+
+#: the compiled `_mvc_map_loop` (set by `_kernel`), called by `_mvc_map_vec`
+_mvc_scalar = None
+
+
+def _mvc_map_vec(pts, groups, wts, src_x, src_y, src, dst, offsets, eps,
+                 res):  # pragma: no cover - compiled by numba
+    """`_mvc_map_loop` with the square roots and divisions of each point as separate loops
+    over the polygon's vertices, which the compiler vectorises; the weights are then summed
+    in vertex order. Same operations in the same order as `_mvc_map_loop`, hence the same
+    result bit for bit. A point on a vertex or an edge goes through `_mvc_map_loop`."""
+    k_max = 0
+    for g in range(offsets.size - 1):
+        k_max = max(k_max, offsets[g + 1] - offsets[g])
+    sx = np.empty(k_max + 1)
+    sy = np.empty(k_max + 1)
+    r = np.empty(k_max + 1)
+    t = np.empty(k_max + 1)
+    w = np.empty(k_max)
+    for j in range(pts.shape[0]):
+        lo = offsets[groups[j]]
+        k = offsets[groups[j] + 1] - lo
+        x = pts[j, 0]
+        y = pts[j, 1]
+        for i in range(k):
+            sx[i] = src_x[lo + i] - x
+            sy[i] = src_y[lo + i] - y
+        sx[k] = sx[0]
+        sy[k] = sy[0]
+        for i in range(k + 1):
+            r[i] = np.sqrt(sx[i] * sx[i] + sy[i] * sy[i])
+        special = 0
+        for i in range(k):
+            # edge i -> i+1 (the last one k-1 -> 0): t[i + 1] = tan(alpha_i / 2)
+            cross = sx[i] * sy[i + 1] - sy[i] * sx[i + 1]
+            dot = sx[i] * sx[i + 1] + sy[i] * sy[i + 1]
+            rr = r[i] * r[i + 1]
+            t[i + 1] = cross / (rr + dot)
+            special += (r[i] == 0.0) | (((abs(cross) <= eps * rr) | (rr + dot <= 0.0))
+                                        & (dot < 0.0))
+        if special:
+            _mvc_scalar(pts[j:j + 1], groups[j:j + 1], wts[j:j + 1], src, dst, offsets, eps,
+                        res[j:j + 1])
+            continue
+        t[0] = t[k]
+        for i in range(k):
+            w[i] = (t[i] + t[i + 1]) / r[i]
+        sumw = 0.0
+        ax = 0.0
+        ay = 0.0
+        for i in range(k):
+            sumw += w[i]
+            ax += w[i] * dst[lo + i, 0]
+            ay += w[i] * dst[lo + i, 1]
+        res[j, 0] = wts[j] * (ax / sumw)
+        res[j, 1] = wts[j] * (ay / sumw)
 
 
 def _mvc_map_loop(pts, groups, wts, src, dst, offsets, eps, res):  # pragma: no cover - numba
@@ -223,7 +285,7 @@ def _mvc_map_loop(pts, groups, wts, src, dst, offsets, eps, res):  # pragma: no 
             rr = rl * r0
             if rl == 0.0:
                 rx, ry, done = dst[lo + k - 1, 0], dst[lo + k - 1, 1], True
-            elif abs(cross) <= eps * rr and dot < 0.0:
+            elif (abs(cross) <= eps * rr or rr + dot <= 0.0) and dot < 0.0:
                 a = r0 / (rl + r0)
                 rx = a * dst[lo + k - 1, 0] + (1.0 - a) * dst[lo, 0]
                 ry = a * dst[lo + k - 1, 1] + (1.0 - a) * dst[lo, 1]
@@ -246,7 +308,7 @@ def _mvc_map_loop(pts, groups, wts, src, dst, offsets, eps, res):  # pragma: no 
                 cross = sxi * syn - syi * sxn
                 dot = sxi * sxn + syi * syn
                 rr = ri * rn
-                if abs(cross) <= eps * rr and dot < 0.0:
+                if (abs(cross) <= eps * rr or rr + dot <= 0.0) and dot < 0.0:
                     a = rn / (ri + rn)
                     rx = a * dst[lo + i, 0] + (1.0 - a) * dst[lo + i1, 0]
                     ry = a * dst[lo + i, 1] + (1.0 - a) * dst[lo + i1, 1]

@@ -91,6 +91,10 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
     key = lo * np.int64(n_vertices) + hi
     order = np.argsort(key, kind="stable")
     ks = key[order]
+    if ks.size % 2 == 0 and ks.size and (ks[0::2] == ks[1::2]).all() \
+            and (ks[2::2] != ks[1:-1:2]).all():
+        # the common case, every edge twice: sorted half-edges pair up as (2e, 2e+1)
+        return _paired_topology(f, a, b, lo, hi, order, int(n_vertices))
     first = np.ones(ks.size, dtype=bool)
     first[1:] = ks[1:] != ks[:-1]
     edge_of_sorted = np.cumsum(first) - 1
@@ -110,6 +114,22 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
     oriented = bool(np.array_equal(a[order[0::2]], b[order[1::2]]))
     return MeshTopology(f, edges, face_edges.reshape(-1, 3), neighbours, int(n_vertices),
                         oriented)
+
+
+def _paired_topology(f, a, b, lo, hi, order, n_vertices):
+    """`mesh_topology` when the sorted half-edge keys come in pairs (each edge shared by
+    exactly two faces): edge ``e`` is the pair of sorted positions ``2e, 2e+1``."""
+    even, odd = order[0::2], order[1::2]
+    face_edges = np.empty(a.size, dtype=np.int64)
+    e = np.arange(even.size, dtype=np.int64)
+    face_edges[even] = e
+    face_edges[odd] = e
+    twin = np.empty(a.size, dtype=np.int64)
+    twin[even] = odd
+    twin[odd] = even
+    oriented = bool(np.array_equal(a[even], b[odd]))
+    return MeshTopology(f, np.stack([lo[even], hi[even]], axis=1), face_edges.reshape(-1, 3),
+                        (twin // 3).reshape(-1, 3), n_vertices, oriented)
 
 
 @dataclass(frozen=True)
