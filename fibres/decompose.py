@@ -313,7 +313,10 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         ends on the attachment areas (§3.4).
     plan : DecompositionPlan, optional
         Choices from an earlier decomposition of the same mesh (same faces); the result is
-        then consistent with it (no orientation, start-vertex or split flips).
+        then consistent with it (no orientation, start-vertex or split flips, and the
+        attachment filter's trims and targets frozen, `fibres.filtering.apply_filter`).
+        A plan from `make_plan`, or one made for other fibres (seed, template, resolution,
+        fewer fibres), gets the filter's choices made once on its rest pose.
     axis : {"auto", "attachments", "covariance"}, keyword-only
         Principal-axis rule when no plan is given.
 
