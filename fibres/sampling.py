@@ -12,6 +12,8 @@ the same fibre whatever ``n`` is (as long as ``n > k``), in every frame and ever
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 __all__ = ["sobol_rs"]
@@ -32,14 +34,21 @@ def sobol_rs(n: int, *, seed: int = 0) -> np.ndarray:
     rs : (N, 2) float64, read-only
         Template parameters (r, s) in the open square (0, 1)^2.
     """
-    from scipy.stats import qmc
-
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive integer, got {n!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     m = max(int(np.ceil(np.log2(int(n)))), 0)
-    engine = qmc.Sobol(d=2, scramble=True, rng=np.random.default_rng(int(seed)))
-    rs = engine.random_base2(m)[: int(n)]
+    return _sobol_block(m, int(seed))[: int(n)]
+
+
+@lru_cache(maxsize=16)
+def _sobol_block(m: int, seed: int) -> np.ndarray:
+    """The first 2^m points for ``seed``, read-only (computed once: every frame of a motion
+    asks for the same fibres)."""
+    from scipy.stats import qmc
+
+    engine = qmc.Sobol(d=2, scramble=True, rng=np.random.default_rng(seed))
+    rs = engine.random_base2(m)
     rs.flags.writeable = False
     return rs

@@ -230,24 +230,8 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     # (plane, face) crossings: face crosses plane s iff min d <= h_s < max d. Each is one
     # node of the chaining, standing for the crossing of its "down" half-edge (above ->
     # below); the "up" half-edge's twin is the down half-edge of the next node.
-    df = d[faces]                                              # (T, 3)
-    f_lo = np.minimum(np.minimum(df[:, 0], df[:, 1]), df[:, 2])
-    f_hi = np.maximum(np.maximum(df[:, 0], df[:, 1]), df[:, 2])
-    fs0 = _first_at_or_above(h, f_lo)
-    n_f = _first_at_or_above(h, f_hi) - fs0
-    cf = np.flatnonzero(n_f > 0)
-    nfc = n_f[cf]
-    n_nodes = int(nfc.sum())
-    pair_start = np.zeros(faces.shape[0], dtype=np.int64)
-    pair_start[cf] = np.cumsum(nfc) - nfc
-    node_face = np.repeat(cf, nfc)
-    node_slice = fs0[node_face] + (np.arange(n_nodes) - pair_start[node_face])
-    above = df[node_face] > h[node_slice][:, None]             # (Q, 3)
-    above_next = above[:, [1, 2, 0]]
-    down = np.argmax(above & ~above_next, axis=1)
-    up = np.argmax(~above & above_next, axis=1)
-    nbr = topology.neighbours[node_face, up]
-    nxt = pair_start[nbr] + node_slice - fs0[nbr]
+    node_face, node_slice, down, nxt = _crossings(d, faces, topology.neighbours, h)
+    n_nodes = node_face.size
 
     label, rank = _cycles(nxt)
     order = np.lexsort((rank, label, node_slice))
@@ -268,6 +252,126 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     flip = a > b                                               # t measured from edges[:, 0]
     t = np.where(flip, 1.0 - t, t)
     return Sections(h.copy(), pts, node_edge, t, loop_start, node_slice[loop_start[:-1]], tf)
+
+
+def _crossings(d, faces, neighbours, h):
+    """Every (plane, face) crossing as a node of the chaining: its face, plane, "down"
+    half-edge (above -> below) and the node its "up" half-edge leads to.
+
+    Compiled when numba is installed (one pass over the faces, binary searches on the
+    heights: the same integers as the array version), else arrays.
+
+    Returns
+    -------
+    node_face, node_slice, down, nxt : (Q,) int64
+        Nodes ordered by face, then plane.
+    """
+    kernel = _crossings_kernel()
+    if kernel is not None:
+        return kernel(np.ascontiguousarray(d), faces, neighbours, np.ascontiguousarray(h))
+    return _crossings_numpy(d, faces, neighbours, h)            # pragma: no cover
+
+
+def _crossings_numpy(d, faces, neighbours, h):
+    """`_crossings` with arrays (no numba)."""
+    df = d[faces]                                              # (T, 3)
+    f_lo = np.minimum(np.minimum(df[:, 0], df[:, 1]), df[:, 2])
+    f_hi = np.maximum(np.maximum(df[:, 0], df[:, 1]), df[:, 2])
+    fs0 = _first_at_or_above(h, f_lo)
+    n_f = _first_at_or_above(h, f_hi) - fs0
+    cf = np.flatnonzero(n_f > 0)
+    nfc = n_f[cf]
+    n_nodes = int(nfc.sum())
+    pair_start = np.zeros(faces.shape[0], dtype=np.int64)
+    pair_start[cf] = np.cumsum(nfc) - nfc
+    node_face = np.repeat(cf, nfc)
+    node_slice = fs0[node_face] + (np.arange(n_nodes) - pair_start[node_face])
+    above = df[node_face] > h[node_slice][:, None]             # (Q, 3)
+    above_next = above[:, [1, 2, 0]]
+    down = np.argmax(above & ~above_next, axis=1)
+    up = np.argmax(~above & above_next, axis=1)
+    nbr = neighbours[node_face, up]
+    nxt = pair_start[nbr] + node_slice - fs0[nbr]
+    return node_face, node_slice, down, nxt
+
+
+_CROSSINGS = []
+
+
+def _crossings_kernel():
+    if not _CROSSINGS:
+        try:
+            import numba
+        except ImportError:                                 # pragma: no cover - optional
+            _CROSSINGS.append(None)
+        else:
+            _CROSSINGS.append(numba.njit(cache=True, nogil=True)(_crossings_loop))
+    return _CROSSINGS[0]
+
+
+def _crossings_loop(d, faces, neighbours, h):  # pragma: no cover - compiled by numba
+    n_t = faces.shape[0]
+    n_s = h.size
+    fs0 = np.empty(n_t, dtype=np.int64)
+    n_f = np.empty(n_t, dtype=np.int64)
+    pair_start = np.zeros(n_t, dtype=np.int64)
+    total = 0
+    for f in range(n_t):
+        d0 = d[faces[f, 0]]
+        d1 = d[faces[f, 1]]
+        d2 = d[faces[f, 2]]
+        # first plane at or above the face's lowest / highest vertex (binary searches:
+        # ``searchsorted(h, x, side="left")``)
+        x = min(min(d0, d1), d2)
+        lo, hi = 0, n_s
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if h[mid] < x:
+                lo = mid + 1
+            else:
+                hi = mid
+        s0 = lo
+        x = max(max(d0, d1), d2)
+        hi = n_s
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if h[mid] < x:
+                lo = mid + 1
+            else:
+                hi = mid
+        fs0[f] = s0
+        n = lo - s0
+        n_f[f] = n
+        if n > 0:
+            pair_start[f] = total
+            total += n
+    node_face = np.empty(total, dtype=np.int64)
+    node_slice = np.empty(total, dtype=np.int64)
+    down = np.empty(total, dtype=np.int64)
+    nxt = np.empty(total, dtype=np.int64)
+    above = np.empty(3, dtype=np.bool_)
+    for f in range(n_t):
+        for q in range(n_f[f]):
+            node = pair_start[f] + q
+            s = fs0[f] + q
+            node_face[node] = f
+            node_slice[node] = s
+            for k in range(3):
+                above[k] = d[faces[f, k]] > h[s]
+            dn = 0                          # first k: k above, k+1 below (argmax rule)
+            for k in range(3):
+                if above[k] and not above[(k + 1) % 3]:
+                    dn = k
+                    break
+            up = 0                          # first k: k below, k+1 above
+            for k in range(3):
+                if not above[k] and above[(k + 1) % 3]:
+                    up = k
+                    break
+            down[node] = dn
+            nbr = neighbours[f, up]
+            nxt[node] = pair_start[nbr] + s - fs0[nbr]
+    return node_face, node_slice, down, nxt
 
 
 def _first_at_or_above(h, x):

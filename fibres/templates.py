@@ -44,6 +44,7 @@ fitting of §3.2 compares with the user's landmarks).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from types import MappingProxyType
 
 import numpy as np
@@ -336,6 +337,19 @@ def get_template(name: str = "parallel", **params) -> Template:
         raise InputError(f"unknown parameter(s) {', '.join(unknown)} for the {name} template",
                          where="template_params",
                          fix=f"Use: {', '.join(DEFAULTS[name])}.")
+    try:
+        return _cached_template(name, tuple(sorted(params.items())))
+    except TypeError:                                  # unhashable values (lists, arrays)
+        return _build_template(name, params)
+
+
+@lru_cache(maxsize=64)
+def _cached_template(name, items):
+    """Templates are immutable: one instance per (name, parameters)."""
+    return _build_template(name, dict(items))
+
+
+def _build_template(name, params):
     merged = dict(DEFAULTS[name])
     merged.update(params)
     return Template(name, MappingProxyType(merged))

@@ -103,3 +103,23 @@ def test_clockwise_orientation_and_open_mesh_refused():
         assert len(e) == len(p)
     with pytest.raises(ValueError, match="not closed"):
         mesh_topology(m.faces[:-1], len(v))
+
+
+def test_compiled_crossings_equal_the_array_version():
+    # the compiled face-crossing enumeration must give the same integers as the array
+    # expressions, including planes exactly through vertices and planes missing the mesh
+    from fibres.slicing import _crossings, _crossings_numpy, mesh_topology
+
+    m = trimesh.creation.icosphere(subdivisions=3)
+    v = np.asarray(m.vertices) * [1.0, 0.7, 2.0]
+    topo = mesh_topology(np.asarray(m.faces), len(v))
+    d = v @ np.array([0.1, 0.2, 0.97])
+    rng = np.random.default_rng(2)
+    for h in (np.linspace(d.min() + 1e-6, d.max() - 1e-6, 20),
+              np.sort(rng.uniform(d.min(), d.max(), 17)),
+              np.unique(d[[5, 90, 40]]),                   # through vertices
+              np.array([d.max() + 1.0])):                  # misses the mesh
+        got, ref = _crossings(d, topo.faces, topo.neighbours, h), \
+            _crossings_numpy(d, topo.faces, topo.neighbours, h)
+        for a, b in zip(got, ref):
+            np.testing.assert_array_equal(a, b)
