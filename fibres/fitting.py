@@ -133,14 +133,18 @@ def _support_candidates(a, b):
     -------
     (V',) int64, increasing
     """
+    kernels = _screen_kernels()
     idx = np.arange(a.size)
     for n_dir in _SCREEN_DIRECTIONS:
         if idx.size <= 4 * n_dir:
             break
         phi = 2.0 * np.pi * np.arange(n_dir) / n_dir
         pa, pb = a[idx], b[idx]
-        proj = np.cos(phi)[:, None] * pa + np.sin(phi)[:, None] * pb      # (n_dir, n)
-        ext = np.argmax(proj, axis=1)               # counter-clockwise around the hull
+        if kernels is None:                                 # pragma: no cover - optional
+            proj = np.cos(phi)[:, None] * pa + np.sin(phi)[:, None] * pb  # (n_dir, n)
+            ext = np.argmax(proj, axis=1)           # counter-clockwise around the hull
+        else:
+            ext = kernels[0](pa, pb, np.cos(phi), np.sin(phi))
         ext = ext[np.append(ext[1:] != ext[:-1], ext[-1] != ext[0])]     # distinct corners
         if np.unique(ext).size < 3:
             break
@@ -148,11 +152,57 @@ def _support_candidates(a, b):
         ea, eb = np.roll(qa, -1) - qa, np.roll(qb, -1) - qb               # polygon edges
         spread = max(float(np.ptp(pa)), float(np.ptp(pb)))
         margin = 1e-9 * spread * np.hypot(ea, eb)                          # distance * |edge|
-        inside = np.ones(idx.size, dtype=bool)
-        for k in range(ext.size):
-            inside &= ea[k] * (pb - qb[k]) - eb[k] * (pa - qa[k]) > margin[k]
+        if kernels is None:                                 # pragma: no cover - optional
+            inside = np.ones(idx.size, dtype=bool)
+            for k in range(ext.size):
+                inside &= ea[k] * (pb - qb[k]) - eb[k] * (pa - qa[k]) > margin[k]
+        else:
+            inside = kernels[1](pa, pb, qa, qb, ea, eb, margin)
         idx = idx[~inside]
     return idx
+
+
+_SCREEN = []
+
+
+def _screen_kernels():
+    """(argmax per direction, inside-all-edges) compiled with numba, or None."""
+    if not _SCREEN:
+        try:
+            import numba
+        except ImportError:                                     # pragma: no cover - optional
+            _SCREEN.append(None)
+        else:
+            jit = numba.njit(cache=True, nogil=True)
+            _SCREEN.append((jit(_extremes_loop), jit(_inside_loop)))
+    return _SCREEN[0]
+
+
+def _extremes_loop(a, b, c, s):  # pragma: no cover - compiled by numba
+    """First index of the maximum of ``c[k] a + s[k] b`` for every direction k."""
+    n_dir = c.size
+    best = np.full(n_dir, -np.inf)
+    arg = np.zeros(n_dir, dtype=np.int64)
+    for i in range(a.size):
+        for k in range(n_dir):
+            p = c[k] * a[i] + s[k] * b[i]
+            if p > best[k]:
+                best[k] = p
+                arg[k] = i
+    return arg
+
+
+def _inside_loop(a, b, qa, qb, ea, eb, margin):  # pragma: no cover - compiled by numba
+    """Whether each point lies farther than ``margin / |edge|`` inside every edge."""
+    out = np.empty(a.size, dtype=np.bool_)
+    for i in range(a.size):
+        inside = True
+        for k in range(qa.size):
+            if not ea[k] * (b[i] - qb[k]) - eb[k] * (a[i] - qa[k]) > margin[k]:
+                inside = False
+                break
+        out[i] = inside
+    return out
 
 
 def _closest_sum(area, landmarks):

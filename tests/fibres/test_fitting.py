@@ -214,3 +214,14 @@ def test_mean_rows_is_numpy_mean_bit_for_bit():
     for n in (4, 999, 15002):
         v = rng.normal(size=(n, 3)) * 0.05 + 0.3
         np.testing.assert_array_equal(_mean_rows(v), v.mean(axis=0))
+
+
+def test_support_screen_compiled_equals_numpy(monkeypatch):
+    pytest.importorskip("numba")
+    from fibres import fitting
+
+    rng = np.random.default_rng(4)
+    a, b = rng.normal(size=4000) * 0.03, rng.normal(size=4000) * 0.01
+    compiled = fitting._support_candidates(a, b)
+    monkeypatch.setattr(fitting, "_SCREEN", [None])
+    np.testing.assert_array_equal(compiled, fitting._support_candidates(a, b))
