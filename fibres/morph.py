@@ -189,6 +189,25 @@ def _roll_and_subdivide(pts, m, offs, start, split, rect):
         ``P = pts[roll]``.
     split : (S, 3) int64
     """
+    kernels = _kernels()
+    if kernels is None:                                     # pragma: no cover - optional
+        return _roll_and_subdivide_numpy(pts, m, offs, start, split, rect)
+    n_s = m.size
+    start = np.ascontiguousarray(start, dtype=np.int64)
+    roll, P, seg, c_incl, c_excl = kernels[0](np.ascontiguousarray(pts, dtype=float),
+                                              m.astype(np.int64), offs.astype(np.int64), start)
+    if split is None:
+        sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
+        split = np.stack([split_chain(seg[offs[s]:offs[s + 1]], sides) for s in range(n_s)])
+    split = np.ascontiguousarray(split, dtype=np.int64)
+    Q = kernels[1](m.astype(np.int64), offs.astype(np.int64), split, c_incl, c_excl,
+                   np.ascontiguousarray(rect, dtype=float))
+    return P, Q, roll, split
+
+
+def _roll_and_subdivide_numpy(pts, m, offs, start, split, rect):
+    """`_roll_and_subdivide` with arrays (no numba); the compiled loops do the same
+    operations in the same order."""
     n_s = m.size
     sl = np.repeat(np.arange(n_s), m)
     j = np.arange(offs[-1]) - offs[sl]
@@ -217,6 +236,81 @@ def _roll_and_subdivide(pts, m, offs, start, split, rect):
                     (j - b0) / (b1 - b0))
     Q = rect[part] + frac[:, None] * (rect[(part + 1) % 4] - rect[part])
     return P, Q, roll, split
+
+
+_KERNELS = []
+
+
+def _kernels():
+    """(roll, subdivide) loops of `_roll_and_subdivide` compiled with numba, or None."""
+    if not _KERNELS:
+        try:
+            import numba
+        except ImportError:                                 # pragma: no cover - optional
+            _KERNELS.append(None)
+        else:
+            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+            _KERNELS.append((jit(_roll_loop), jit(_subdivide_loop)))
+    return _KERNELS[0]
+
+
+def _roll_loop(pts, m, offs, start):  # pragma: no cover - compiled by numba
+    """Rolled contours P, segment lengths and arc lengths (cumulated over all contours
+    back to back, then measured from each contour's start, as the array version)."""
+    n = pts.shape[0]
+    roll = np.empty(n, dtype=np.int64)
+    P = np.empty((n, 2))
+    seg = np.empty(n)
+    c_incl = np.empty(n)
+    c_excl = np.empty(n)
+    for s in range(m.size):
+        o = offs[s]
+        for j in range(m[s]):
+            roll[o + j] = o + (start[s] + j) % m[s]
+            P[o + j, 0] = pts[roll[o + j], 0]
+            P[o + j, 1] = pts[roll[o + j], 1]
+    cum = 0.0
+    for s in range(m.size):
+        o = offs[s]
+        base = cum
+        for j in range(m[s]):
+            nx = o + (j + 1) % m[s]
+            seg[o + j] = np.hypot(P[nx, 0] - P[o + j, 0], P[nx, 1] - P[o + j, 1])
+            cum += seg[o + j]
+            c_incl[o + j] = cum - base
+            c_excl[o + j] = c_incl[o + j] - seg[o + j]
+    return roll, P, seg, c_incl, c_excl
+
+
+def _subdivide_loop(m, offs, split, c_incl, c_excl, rect):  # pragma: no cover - numba
+    """The subdivided rectangles Q (each side like its part of the contour)."""
+    Q = np.empty((c_incl.size, 2))
+    bounds = np.empty(5, dtype=np.int64)
+    arc = np.empty(5)
+    for s in range(m.size):
+        o = offs[s]
+        bounds[0] = 0
+        arc[0] = 0.0
+        for k in range(3):
+            bounds[k + 1] = split[s, k]
+            arc[k + 1] = c_excl[o + split[s, k]]
+        bounds[4] = m[s]
+        arc[4] = c_incl[o + m[s] - 1]
+        for j in range(m[s]):
+            part = 0
+            for k in range(3):
+                if j >= split[s, k]:
+                    part += 1
+            a0 = arc[part]
+            span = arc[part + 1] - a0
+            if span > 0:
+                frac = (c_excl[o + j] - a0) / span
+            else:
+                frac = (j - bounds[part]) / (bounds[part + 1] - bounds[part])
+            p1 = (part + 1) % 4
+            Q[o + j, 0] = rect[part, 0] + frac * (rect[p1, 0] - rect[part, 0])
+            Q[o + j, 1] = rect[part, 1] + frac * (rect[p1, 1] - rect[part, 1])
+    return Q
 
 
 def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,

@@ -123,3 +123,25 @@ def test_all_planes_at_once_equals_plane_by_plane():
         f1 = mean_value_coordinates(pts, Q[s]) @ P[s]
         f2 = mean_value_coordinates(pts, Q2[s]) @ P2[s]
         assert np.abs(f1 - f2).max() <= 1e-12 * ext.max()
+
+
+def test_compiled_roll_and_subdivide_equals_the_array_version():
+    # the compiled loops of fibres.morph must do the same arithmetic in the same order as
+    # the array expressions: identical P, Q, roll and split (fresh split and given split)
+    pytest.importorskip("numba")
+    from fibres.morph import _roll_and_subdivide, _roll_and_subdivide_numpy
+
+    rng = np.random.default_rng(9)
+    m = rng.integers(4, 60, 12)
+    offs = np.concatenate([[0], np.cumsum(m)])
+    t = np.concatenate([np.sort(rng.uniform(0, 2 * np.pi, k))[::-1] for k in m])
+    r = 1.0 + 0.2 * rng.uniform(size=t.size)
+    pts = np.c_[0.02 * r * np.cos(t) + 0.03, 0.01 * r * np.sin(t) + 0.02]
+    start = rng.integers(0, m)
+    rect = rectangle(0.06, 0.04)
+    for split in (None, np.stack([np.sort(rng.choice(np.arange(1, k), 3, replace=False))
+                                  for k in m])):
+        got = _roll_and_subdivide(pts, m, offs, start, split, rect)
+        ref = _roll_and_subdivide_numpy(pts, m, offs, start, split, rect)
+        for a, b in zip(got, ref):
+            np.testing.assert_array_equal(a, b)
