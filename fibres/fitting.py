@@ -284,13 +284,14 @@ def _transposed(vertices):
 
 
 def _mean_rows(vertices):
-    """``vertices.mean(axis=0)`` (3,) of a (V, 3) array, bit for bit (rows added one after
-    the other, then divided by V), compiled when numba is installed: numpy's reduction over
-    axis 0 of a (V, 3) array runs a 3-element inner loop per row (~10x slower)."""
+    """``vertices.mean(axis=0)`` (3,) of a (V, 3) array, bit for bit: for a C-contiguous
+    array numpy adds the rows one after the other (a 3-element inner loop per row, ~10x
+    slower than this compiled loop); other layouts go to numpy (whose summation order
+    then differs)."""
     kernel = _row_sum_kernel()
-    if kernel is None or vertices.shape[0] == 0:                 # pragma: no cover - optional
-        return vertices.mean(axis=0)
-    return kernel(np.ascontiguousarray(vertices)) / vertices.shape[0]
+    if kernel is None or vertices.shape[0] == 0 or not vertices.flags.c_contiguous:
+        return vertices.mean(axis=0)        # (other layouts: numpy's own summation order)
+    return kernel(vertices) / vertices.shape[0]
 
 
 _ROW_SUM = []

@@ -214,6 +214,8 @@ def test_mean_rows_is_numpy_mean_bit_for_bit():
     for n in (4, 999, 15002):
         v = rng.normal(size=(n, 3)) * 0.05 + 0.3
         np.testing.assert_array_equal(_mean_rows(v), v.mean(axis=0))
+        f = np.asfortranarray(v)                  # numpy sums columns pairwise here
+        np.testing.assert_array_equal(_mean_rows(f), f.mean(axis=0))
 
 
 def test_support_screen_compiled_equals_numpy(monkeypatch):
