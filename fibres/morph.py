@@ -242,7 +242,8 @@ _KERNELS = []
 
 
 def _kernels():
-    """(roll, subdivide) loops of `_roll_and_subdivide` compiled with numba, or None."""
+    """The (roll, subdivide) loops of `_roll_and_subdivide` and the (closest point,
+    insertion) loops of `anchored_maps`, compiled with numba, or None."""
     if not _KERNELS:
         try:
             import numba
@@ -250,7 +251,8 @@ def _kernels():
             _KERNELS.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _KERNELS.append((jit(_roll_loop), jit(_subdivide_loop)))
+            _KERNELS.append((jit(_roll_loop), jit(_subdivide_loop), jit(_closest_loop),
+                             jit(_insert_loop)))
     return _KERNELS[0]
 
 
@@ -347,6 +349,49 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
     rect = rectangle(float(extents[0]), float(extents[1]))
     pts, _, _, _, m, offs, notes = _clockwise_all(sections, chosen, topology, anchors=False)
     n_s = m.size
+    kernels = _kernels()
+    if kernels is None:                                     # pragma: no cover - optional
+        seg, tk, point = _closest_on_contours(pts, m, offs, anchors_uv)
+    else:
+        seg, tk, point = kernels[2](pts, m.astype(np.int64), offs.astype(np.int64),
+                                    np.ascontiguousarray(anchors_uv, dtype=float))
+    # insert them (after vertex seg, in the order (seg, tau, k)) into each contour
+    kk = np.arange(4)
+    before = ((seg[:, None, :] < seg[:, :, None])
+              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] < tk[:, :, None]))
+              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] == tk[:, :, None])
+                 & (kk[None, None, :] < kk[None, :, None])))
+    new_idx = seg + 1 + before.sum(axis=2)                            # (S, 4) local
+    m2 = m + 4
+    offs2 = np.concatenate([[0], np.cumsum(m2)])
+    if kernels is None:                                     # pragma: no cover - optional
+        sl = np.repeat(np.arange(n_s), m)
+        j = np.arange(offs[-1]) - offs[sl]
+        ss = seg[sl]
+        shift = ((ss[:, 0] < j).astype(np.int64) + (ss[:, 1] < j) + (ss[:, 2] < j)
+                 + (ss[:, 3] < j))                                   # anchors before j
+        new = np.empty((offs2[-1], 2))
+        new[offs2[sl] + j + shift] = pts
+    else:
+        new = kernels[3](pts, m.astype(np.int64), offs.astype(np.int64), seg,
+                         offs2.astype(np.int64))
+    new[(offs2[:-1, None] + new_idx).ravel()] = point.reshape(-1, 2)
+    start = new_idx[:, 0]
+    split = (new_idx[:, 1:] - start[:, None]) % m2[:, None]
+    ok = (0 < split[:, 0]) & (split[:, 0] < split[:, 1]) & (split[:, 1] < split[:, 2])
+    P, Q, _, _ = _roll_and_subdivide(new, m2, offs2, start, np.where(ok[:, None], split, 1),
+                                     rect)
+    P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
+    for s in np.flatnonzero(~ok):
+        notes.append(f"slice {s}: planned start/split points out of order; chose afresh")
+        P_all[s], Q_all[s], _, _ = correspond(pts[offs[s]:offs[s + 1]], rect)
+    return tuple(P_all), tuple(Q_all), tuple(notes)
+
+
+def _closest_on_contours(pts, m, offs, anchors_uv):
+    """Closest point of every contour to each of its plane's 4 anchors (first minimum):
+    segment (S, 4) local index, parameter tau (S, 4) along it and the point (S, 4, 2)."""
+    n_s = m.size
     sl = np.repeat(np.arange(n_s), m)
     j = np.arange(offs[-1]) - offs[sl]
     # closest point of every contour to each of its 4 anchors: segment j -> j+1, tau
@@ -365,32 +410,60 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
         seg[:, k] = hit[np.searchsorted(sl[hit], np.arange(n_s))]
     tk = tau[seg, np.arange(4)]                                       # (S, 4)
     point = pts[seg] + tk[..., None] * d[seg]                         # (S, 4, 2)
-    seg -= offs[:-1, None]
-    # insert them (after vertex seg, in the order (seg, tau, k)) into each contour
-    kk = np.arange(4)
-    before = ((seg[:, None, :] < seg[:, :, None])
-              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] < tk[:, :, None]))
-              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] == tk[:, :, None])
-                 & (kk[None, None, :] < kk[None, :, None])))
-    new_idx = seg + 1 + before.sum(axis=2)                            # (S, 4) local
-    m2 = m + 4
-    offs2 = np.concatenate([[0], np.cumsum(m2)])
-    ss = seg[sl]
-    shift = ((ss[:, 0] < j).astype(np.int64) + (ss[:, 1] < j) + (ss[:, 2] < j)
-             + (ss[:, 3] < j))                                       # anchors before j
+    return seg - offs[:-1, None], tk, point
+
+
+def _closest_loop(pts, m, offs, anchors_uv):  # pragma: no cover - compiled by numba
+    """`_closest_on_contours`, one contour and anchor at a time (same arithmetic)."""
+    n_s = m.size
+    seg = np.empty((n_s, 4), dtype=np.int64)
+    tk = np.empty((n_s, 4))
+    point = np.empty((n_s, 4, 2))
+    for s in range(n_s):
+        o = offs[s]
+        for k in range(4):
+            best = np.inf
+            bj = 0
+            bt = 0.0
+            for j in range(m[s]):
+                a = o + j
+                b = o + (j + 1) % m[s]
+                dx = pts[b, 0] - pts[a, 0]
+                dy = pts[b, 1] - pts[a, 1]
+                dd = dx * dx + dy * dy
+                rx = anchors_uv[s, k, 0] - pts[a, 0]
+                ry = anchors_uv[s, k, 1] - pts[a, 1]
+                tau = (rx * dx + ry * dy) / (dd if dd > 0 else 1.0)
+                tau = min(max(tau, 0.0), 1.0)
+                gx = rx - tau * dx
+                gy = ry - tau * dy
+                g2 = gx * gx + gy * gy
+                if g2 < best:
+                    best = g2
+                    bj = j
+                    bt = tau
+            seg[s, k] = bj
+            tk[s, k] = bt
+            a = o + bj
+            b = o + (bj + 1) % m[s]
+            point[s, k, 0] = pts[a, 0] + bt * (pts[b, 0] - pts[a, 0])
+            point[s, k, 1] = pts[a, 1] + bt * (pts[b, 1] - pts[a, 1])
+    return seg, tk, point
+
+
+def _insert_loop(pts, m, offs, seg, offs2):  # pragma: no cover - compiled by numba
+    """The contours with 4 free slots per plane: vertex j moves up by the number of
+    anchors inserted before it (segments < j)."""
     new = np.empty((offs2[-1], 2))
-    new[offs2[sl] + j + shift] = pts
-    new[(offs2[:-1, None] + new_idx).ravel()] = point.reshape(-1, 2)
-    start = new_idx[:, 0]
-    split = (new_idx[:, 1:] - start[:, None]) % m2[:, None]
-    ok = (0 < split[:, 0]) & (split[:, 0] < split[:, 1]) & (split[:, 1] < split[:, 2])
-    P, Q, _, _ = _roll_and_subdivide(new, m2, offs2, start, np.where(ok[:, None], split, 1),
-                                     rect)
-    P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
-    for s in np.flatnonzero(~ok):
-        notes.append(f"slice {s}: planned start/split points out of order; chose afresh")
-        P_all[s], Q_all[s], _, _ = correspond(pts[offs[s]:offs[s + 1]], rect)
-    return tuple(P_all), tuple(Q_all), tuple(notes)
+    for s in range(m.size):
+        for j in range(m[s]):
+            shift = 0
+            for k in range(4):
+                if seg[s, k] < j:
+                    shift += 1
+            new[offs2[s] + j + shift, 0] = pts[offs[s] + j, 0]
+            new[offs2[s] + j + shift, 1] = pts[offs[s] + j, 1]
+    return new
 
 
 def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopology):

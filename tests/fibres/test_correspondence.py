@@ -145,3 +145,31 @@ def test_compiled_roll_and_subdivide_equals_the_array_version():
         ref = _roll_and_subdivide_numpy(pts, m, offs, start, split, rect)
         for a, b in zip(got, ref):
             np.testing.assert_array_equal(a, b)
+
+
+def test_compiled_anchor_search_equals_the_array_version():
+    # closest contour point to each anchor (first minimum) and the insertion of the four
+    # points: compiled loops against the array expressions, identical results
+    pytest.importorskip("numba")
+    from fibres.morph import _closest_on_contours, _kernels
+
+    rng = np.random.default_rng(12)
+    m = rng.integers(4, 40, 9)
+    offs = np.concatenate([[0], np.cumsum(m)])
+    t = np.concatenate([np.sort(rng.uniform(0, 2 * np.pi, k))[::-1] for k in m])
+    pts = np.c_[0.02 * np.cos(t), 0.01 * np.sin(t)]
+    anchors = rng.uniform(-0.03, 0.03, (m.size, 4, 2))
+    anchors[0, 0] = pts[2]                                     # exactly on a vertex
+    anchors[1, 1] = 0.5 * (pts[offs[1]] + pts[offs[1] + 1])    # on an edge
+    kernels = _kernels()
+    got = kernels[2](pts, m, offs, anchors)
+    ref = _closest_on_contours(pts, m, offs, anchors)
+    for a, b in zip(got, ref):
+        np.testing.assert_array_equal(a, b)
+    # insertion: every contour vertex moves up by the anchors inserted before it
+    offs2 = np.concatenate([[0], np.cumsum(m + 4)])
+    new = kernels[3](pts, m, offs, got[0], offs2)
+    for s in range(m.size):
+        j = np.arange(m[s])
+        shift = (got[0][s][None, :] < j[:, None]).sum(axis=1)
+        np.testing.assert_array_equal(new[offs2[s] + j + shift], pts[offs[s]:offs[s + 1]])
