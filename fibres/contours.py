@@ -64,6 +64,8 @@ def choose_loops(sections: Sections, centres, *, n_slices: int):
     chosen = np.full(n_slices, -1, dtype=np.int64)
     if n_loops == 0:
         return chosen, tuple(f"slice {s} cut no loop" for s in range(n_slices))
+    if n_loops == n_slices and np.array_equal(sections.loop_slice, np.arange(n_slices)):
+        return np.arange(n_slices, dtype=np.int64), ()     # one loop per plane: no choice
     p = sections.points
     q = _next_points(sections)
     counts = np.diff(sections.loop_start)

@@ -84,6 +84,13 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
     f = np.ascontiguousarray(faces, dtype=np.int64)
     if f.ndim != 2 or f.shape[1] != 3:
         raise ValueError(f"faces must have shape (T, 3), got {f.shape}")
+    kernels = _topology_kernels()
+    if kernels is not None and f.size:
+        key = kernels[0](f, np.int64(n_vertices))
+        order = np.argsort(key, kind="stable")
+        out = kernels[1](f, key, order)
+        if out[0]:                                          # every edge exactly twice
+            return MeshTopology(f, out[1], out[2], out[3], int(n_vertices), bool(out[4]))
     a = f.reshape(-1)
     b = np.roll(f, -1, axis=1).reshape(-1)
     lo = np.minimum(a, b)
@@ -130,6 +137,63 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
     oriented = bool(np.array_equal(a[even], b[odd]))
     return MeshTopology(f, np.stack([lo[even], hi[even]], axis=1), face_edges.reshape(-1, 3),
                         (twin // 3).reshape(-1, 3), n_vertices, oriented)
+
+
+_TOPOLOGY = []
+
+
+def _topology_kernels():
+    """(half-edge keys, paired tables) of `mesh_topology` compiled with numba, or None."""
+    if not _TOPOLOGY:
+        try:
+            import numba
+        except ImportError:                                 # pragma: no cover - optional
+            _TOPOLOGY.append(None)
+        else:
+            jit = numba.njit(cache=True, nogil=True)
+            _TOPOLOGY.append((jit(_keys_loop), jit(_paired_loop)))
+    return _TOPOLOGY[0]
+
+
+def _keys_loop(f, n_vertices):  # pragma: no cover - compiled by numba
+    """Key ``min * n_vertices + max`` of half-edge ``3 t + j`` (``f[t, j] -> f[t, j+1]``)."""
+    key = np.empty(f.size, dtype=np.int64)
+    for t in range(f.shape[0]):
+        for j in range(3):
+            a = f[t, j]
+            b = f[t, (j + 1) % 3]
+            key[3 * t + j] = min(a, b) * n_vertices + max(a, b)
+    return key
+
+
+def _paired_loop(f, key, order):  # pragma: no cover - compiled by numba
+    """`_paired_topology` from the stably sorted half-edges, after checking that the keys
+    come in pairs (else ``ok`` is False and nothing else is meaningful)."""
+    n = key.size
+    n_e = n // 2
+    edges = np.empty((n_e, 2), dtype=np.int64)
+    face_edges = np.empty((f.shape[0], 3), dtype=np.int64)
+    neighbours = np.empty((f.shape[0], 3), dtype=np.int64)
+    if n % 2:
+        return False, edges, face_edges, neighbours, False
+    oriented = True
+    for e in range(n_e):
+        h0 = order[2 * e]
+        h1 = order[2 * e + 1]
+        if key[h0] != key[h1] or (e > 0 and key[h0] == key[order[2 * e - 1]]):
+            return False, edges, face_edges, neighbours, False
+        a0 = f[h0 // 3, h0 % 3]
+        b0 = f[h0 // 3, (h0 % 3 + 1) % 3]
+        a1 = f[h1 // 3, h1 % 3]
+        edges[e, 0] = min(a0, b0)
+        edges[e, 1] = max(a0, b0)
+        face_edges[h0 // 3, h0 % 3] = e
+        face_edges[h1 // 3, h1 % 3] = e
+        neighbours[h0 // 3, h0 % 3] = h1 // 3
+        neighbours[h1 // 3, h1 % 3] = h0 // 3
+        if a0 != f[h1 // 3, (h1 % 3 + 1) % 3] or a1 != b0:
+            oriented = False
+    return True, edges, face_edges, neighbours, oriented
 
 
 @dataclass(frozen=True)

@@ -123,3 +123,22 @@ def test_compiled_crossings_equal_the_array_version():
             _crossings_numpy(d, topo.faces, topo.neighbours, h)
         for a, b in zip(got, ref):
             np.testing.assert_array_equal(a, b)
+
+
+def test_compiled_topology_equals_the_array_version(monkeypatch):
+    # the compiled half-edge pairing must give the same tables as the array version, for
+    # a consistently and an inconsistently wound closed mesh
+    pytest.importorskip("numba")
+    from fibres import slicing
+
+    m = trimesh.creation.icosphere(subdivisions=3)
+    flipped = np.asarray(m.faces).copy()
+    flipped[::7] = flipped[::7, ::-1]
+    for faces in (np.asarray(m.faces), flipped):
+        got = mesh_topology(faces, len(m.vertices))
+        with monkeypatch.context() as mp:
+            mp.setattr(slicing, "_TOPOLOGY", [None])
+            ref = mesh_topology(faces, len(m.vertices))
+        for name in ("faces", "edges", "face_edges", "neighbours"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
+        assert got.oriented == ref.oriented == (faces is not flipped)
