@@ -249,6 +249,57 @@ def _repair(v, f, label, *, quiet_merge=False):
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64), repairs
 
 
+def _needs_no_repair(v, f) -> bool:
+    """Whether `_repair` would return (v, f) unchanged with nothing to report, checked
+    without building the trimesh structures (~10x faster on a clean 15K-vertex mesh).
+
+    Mirrors each step of `_repair` (conservatively: when in doubt, False and the full
+    repair runs): every vertex referenced; no two vertices merged at trimesh's merge
+    precision (rows of ``round(v * 10**digits)`` distinct); every triangle's edges and
+    heights above trimesh's merge tolerance (with a factor 2 margin); no duplicate faces and
+    one piece (edge-adjacent faces; a closed manifold mesh in one piece has no duplicate
+    faces); closed, manifold and consistently wound (each edge used once in each
+    direction); positive volume.
+    """
+    from trimesh import tol, util
+
+    from .slicing import mesh_topology
+
+    n_v = len(v)
+    if len(f) < 4 or np.bincount(f.ravel(), minlength=n_v).min() == 0:
+        return False
+    q = (v * 10 ** util.decimal_to_digits(tol.merge)).round().astype(np.int64)
+    order = np.lexsort(q.T)
+    if (np.diff(q[order], axis=0) == 0).all(axis=1).any():
+        return False
+    tri = v[f]
+    e = tri[:, [1, 2, 0]] - tri                                    # (T, 3, 3) edges
+    length = np.sqrt(np.einsum("tkd,tkd->tk", e, e))                # (T, 3)
+    area2 = np.linalg.norm(np.cross(e[:, 0], -e[:, 2]), axis=1)
+    # trimesh: both edges from the first corner and the heights over them > tol.merge
+    if not ((length.min(axis=1) > 2 * tol.merge)
+            & (area2 > 2 * tol.merge * length.max(axis=1))).all():
+        return False
+    try:
+        topology = mesh_topology(f, n_v)
+    except ValueError:
+        return False
+    if not topology.oriented:
+        return False
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n_f = len(f)
+    rows = np.repeat(np.arange(n_f), 3)
+    graph = coo_matrix((np.ones(rows.size), (rows, topology.neighbours.ravel())),
+                       shape=(n_f, n_f))
+    if connected_components(graph, directed=False, return_labels=False) != 1:
+        return False
+    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
+    size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    return bool(volume > 1e-9 * size ** 3)
+
+
 def as_surface(mesh, *, units: str = "m") -> Surface:
     """Load, validate and (safely) repair a closed muscle surface.
 
@@ -296,8 +347,11 @@ def as_surface(mesh, *, units: str = "m") -> Surface:
     if f.min() < 0 or f.max() >= len(v):
         raise InputError("faces refer to vertices that do not exist", file=label,
                          where="faces", fix="Re-export the mesh.")
+    v = v * factor
+    if _needs_no_repair(v, f):
+        return Surface(v, f, ())
     quiet_merge = label is not None and Path(label).suffix.lower() == ".stl"
-    v, f, repairs = _repair(v * factor, f, label, quiet_merge=quiet_merge)
+    v, f, repairs = _repair(v, f, label, quiet_merge=quiet_merge)
     if repairs:
         warnings.warn(f"{label or 'surface'}: repaired: " + "; ".join(repairs) + ".",
                       SurfaceRepairWarning, stacklevel=2)

@@ -182,3 +182,50 @@ def test_keeps_the_largest_closed_piece_with_one_warning():
         s = as_surface((v, f))
     assert len(caught) == 1 and "largest piece (12 faces)" in str(caught[0].message)
     assert s.volume == pytest.approx(6.0) and len(s.vertices) == 8
+
+
+def _imperfect_variants():
+    """A clean closed sphere and one variant per repair `as_surface` must still make."""
+    m = trimesh.creation.icosphere(subdivisions=3)
+    v, f = np.asarray(m.vertices) * 0.05, np.asarray(m.faces)
+    out = {"clean": (v, f)}
+    out["duplicate vertex"] = (np.vstack([v, v[:1]]), np.where(f == 0, len(v), f))
+    near = np.vstack([v, v[:1] + 1e-12])                     # merged at trimesh precision
+    out["near-duplicate vertex"] = (near, np.where(f == 0, len(v), f))
+    out["unreferenced point"] = (np.vstack([v, [[1.0, 1.0, 1.0]]]), f)
+    flipped = f.copy()
+    flipped[::5] = flipped[::5, ::-1]
+    out["inconsistent winding"] = (v, flipped)
+    out["inside out"] = (v, f[:, ::-1])
+    out["two pieces"] = (np.vstack([v, v * 0.2 + 1.0]), np.vstack([f, f[:50] + len(v)]))
+    other = v + [0.1, 0.0, 0.0]                               # a second sphere, same size
+    out["two equal pieces"] = (np.vstack([v, other]), np.vstack([f, f + len(v)]))
+    out["duplicate face"] = (v, np.vstack([f, f[:1]]))
+    return out
+
+
+@pytest.mark.parametrize("case", list(_imperfect_variants()))
+def test_fast_path_equals_the_repair(case):
+    # the validated fast path for clean meshes must return exactly what the full repair
+    # returns, and every imperfect variant must still be repaired (one warning) or refused
+    from fibres.surface import _needs_no_repair, _repair
+
+    v, f = _imperfect_variants()[case]
+    clean = _needs_no_repair(v, f)
+    assert clean == (case == "clean")
+    if case == "inconsistent winding":
+        pytest.importorskip("networkx")                # trimesh's fix_normals needs it
+    try:
+        ref_v, ref_f, repairs = _repair(v, f, None)
+    except InputError:
+        with pytest.raises(InputError):
+            as_surface((v, f))
+        return
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        s = as_surface((v, f))
+    assert len([w for w in caught if issubclass(w.category, SurfaceRepairWarning)]) == \
+        (1 if repairs else 0)
+    assert s.repairs == tuple(repairs) and (repairs == []) == clean
+    np.testing.assert_array_equal(s.vertices, ref_v)
+    np.testing.assert_array_equal(s.faces, ref_f)
