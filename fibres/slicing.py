@@ -397,6 +397,8 @@ def _crossings_loop(d, faces, neighbours, h):  # pragma: no cover - compiled by 
         s0 = lo
         x = max(max(d0, d1), d2)
         hi = n_s
+        if lo < n_s and h[lo] >= x:         # crosses no plane (the common case)
+            hi = lo
         while lo < hi:
             mid = (lo + hi) // 2
             if h[mid] < x:
