@@ -249,11 +249,23 @@ def _repair(v, f, label, *, quiet_merge=False):
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64), repairs
 
 
-def _needs_no_repair(v, f) -> bool:
-    """Whether `_repair` would return (v, f) unchanged with nothing to report, checked
-    without building the trimesh structures (~10x faster on a clean 15K-vertex mesh).
+def clean_topology(v, f):
+    """The mesh topology of (v, f) if `as_surface` would return it unchanged with nothing
+    to repair, else None -- checked without building the trimesh structures (~4x faster
+    than the repair on a clean 15K-vertex mesh).
 
-    Mirrors each step of `_repair` (conservatively: when in doubt, False and the full
+    Parameters
+    ----------
+    v : (V, 3) float64
+        Vertices in metres.
+    f : (T, 3) int64
+        Faces, indices already checked to lie in ``[0, V)``.
+
+    Returns
+    -------
+    fibres.slicing.MeshTopology or None
+
+    Mirrors each step of `_repair` (conservatively: when in doubt, None and the full
     repair runs): every vertex referenced; no two vertices merged at trimesh's merge
     precision (rows of ``round(v * 10**digits)`` distinct); every triangle's edges and
     heights above trimesh's merge tolerance (with a factor 2 margin); no duplicate faces and
@@ -267,11 +279,11 @@ def _needs_no_repair(v, f) -> bool:
 
     n_v = len(v)
     if len(f) < 4 or np.bincount(f.ravel(), minlength=n_v).min() == 0:
-        return False
+        return None
     q = (v * 10 ** util.decimal_to_digits(tol.merge)).round().astype(np.int64)
     order = np.lexsort(q.T)
     if (np.diff(q[order], axis=0) == 0).all(axis=1).any():
-        return False
+        return None
     tri = v[f]
     e = tri[:, [1, 2, 0]] - tri                                    # (T, 3, 3) edges
     length = np.sqrt(np.einsum("tkd,tkd->tk", e, e))                # (T, 3)
@@ -279,13 +291,13 @@ def _needs_no_repair(v, f) -> bool:
     # trimesh: both edges from the first corner and the heights over them > tol.merge
     if not ((length.min(axis=1) > 2 * tol.merge)
             & (area2 > 2 * tol.merge * length.max(axis=1))).all():
-        return False
+        return None
     try:
         topology = mesh_topology(f, n_v)
     except ValueError:
-        return False
+        return None
     if not topology.oriented:
-        return False
+        return None
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -294,10 +306,10 @@ def _needs_no_repair(v, f) -> bool:
     graph = coo_matrix((np.ones(rows.size), (rows, topology.neighbours.ravel())),
                        shape=(n_f, n_f))
     if connected_components(graph, directed=False, return_labels=False) != 1:
-        return False
+        return None
     volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
     size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    return bool(volume > 1e-9 * size ** 3)
+    return topology if volume > 1e-9 * size ** 3 else None
 
 
 def as_surface(mesh, *, units: str = "m") -> Surface:
@@ -348,7 +360,7 @@ def as_surface(mesh, *, units: str = "m") -> Surface:
         raise InputError("faces refer to vertices that do not exist", file=label,
                          where="faces", fix="Re-export the mesh.")
     v = v * factor
-    if _needs_no_repair(v, f):
+    if clean_topology(v, f) is not None:
         return Surface(v, f, ())
     quiet_merge = label is not None and Path(label).suffix.lower() == ".stl"
     v, f, repairs = _repair(v, f, label, quiet_merge=quiet_merge)

@@ -208,10 +208,10 @@ def _imperfect_variants():
 def test_fast_path_equals_the_repair(case):
     # the validated fast path for clean meshes must return exactly what the full repair
     # returns, and every imperfect variant must still be repaired (one warning) or refused
-    from fibres.surface import _needs_no_repair, _repair
+    from fibres.surface import _repair, clean_topology
 
     v, f = _imperfect_variants()[case]
-    clean = _needs_no_repair(v, f)
+    clean = clean_topology(v, f) is not None
     assert clean == (case == "clean")
     if case == "inconsistent winding":
         pytest.importorskip("networkx")                # trimesh's fix_normals needs it
