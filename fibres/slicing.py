@@ -295,14 +295,7 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     # node of the chaining, standing for the crossing of its "down" half-edge (above ->
     # below); the "up" half-edge's twin is the down half-edge of the next node.
     node_face, node_slice, down, nxt = _crossings(d, faces, topology.neighbours, h)
-    n_nodes = node_face.size
-
-    label, rank = _cycles(nxt)
-    order = np.lexsort((rank, label, node_slice))
-    lab_sorted = label[order]
-    new_loop = np.ones(n_nodes, dtype=bool)
-    new_loop[1:] = lab_sorted[1:] != lab_sorted[:-1]
-    loop_start = np.append(np.flatnonzero(new_loop), n_nodes).astype(np.int64)
+    order, loop_start = _loop_order(nxt, node_slice, h.size)
     node_face = node_face[order]
     node_slice = node_slice[order]
     down = down[order]
@@ -318,6 +311,64 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     return Sections(h.copy(), pts, node_edge, t, loop_start, node_slice[loop_start[:-1]], tf)
 
 
+def _loop_order(nxt, node_slice, n_s):
+    """Nodes in loop order: by plane, then by loop (smallest node first), then along the
+    loop from its smallest node; and the start of every loop in that order (L+1,).
+
+    Compiled when numba is installed (the cycle walk visits loops by smallest node and
+    along each loop; a stable bucketing by plane keeps that order), else a lexsort.
+    """
+    kernel = _crossings_kernel(1)
+    if kernel is not None:
+        return kernel(np.ascontiguousarray(nxt, dtype=np.int64),
+                      np.ascontiguousarray(node_slice, dtype=np.int64), int(n_s))
+    label, rank = _cycles(nxt)                              # pragma: no cover - optional
+    order = np.lexsort((rank, label, node_slice))
+    lab_sorted = label[order]
+    new_loop = np.ones(nxt.size, dtype=bool)
+    new_loop[1:] = lab_sorted[1:] != lab_sorted[:-1]
+    return order, np.append(np.flatnonzero(new_loop), nxt.size).astype(np.int64)
+
+
+def _loop_order_loop(nxt, node_slice, n_s):  # pragma: no cover - compiled by numba
+    n = nxt.size
+    seen = np.zeros(n, dtype=np.bool_)
+    walk = np.empty(n, dtype=np.int64)
+    cyc_start = np.empty(n + 1, dtype=np.int64)
+    n_cyc = 0
+    k = 0
+    for start in range(n):
+        if seen[start]:
+            continue
+        cyc_start[n_cyc] = k
+        n_cyc += 1
+        node = start
+        while not seen[node]:
+            seen[node] = True
+            walk[k] = node
+            k += 1
+            node = nxt[node]
+    cyc_start[n_cyc] = n
+    # stable bucketing of the loops by plane
+    count = np.zeros(n_s + 1, dtype=np.int64)
+    for c in range(n_cyc):
+        count[node_slice[walk[cyc_start[c]]] + 1] += cyc_start[c + 1] - cyc_start[c]
+    for s in range(n_s):
+        count[s + 1] += count[s]
+    order = np.empty(n, dtype=np.int64)
+    first = np.empty(n_cyc, dtype=np.int64)
+    for c in range(n_cyc):
+        s = node_slice[walk[cyc_start[c]]]
+        first[c] = count[s]
+        for i in range(cyc_start[c], cyc_start[c + 1]):
+            order[count[s]] = walk[i]
+            count[s] += 1
+    loop_start = np.empty(n_cyc + 1, dtype=np.int64)
+    loop_start[:n_cyc] = np.sort(first)
+    loop_start[n_cyc] = n
+    return order, loop_start
+
+
 def _crossings(d, faces, neighbours, h):
     """Every (plane, face) crossing as a node of the chaining: its face, plane, "down"
     half-edge (above -> below) and the node its "up" half-edge leads to.
@@ -330,7 +381,7 @@ def _crossings(d, faces, neighbours, h):
     node_face, node_slice, down, nxt : (Q,) int64
         Nodes ordered by face, then plane.
     """
-    kernel = _crossings_kernel()
+    kernel = _crossings_kernel(0)
     if kernel is not None:
         return kernel(np.ascontiguousarray(d), faces, neighbours, np.ascontiguousarray(h))
     return _crossings_numpy(d, faces, neighbours, h)            # pragma: no cover
@@ -362,15 +413,17 @@ def _crossings_numpy(d, faces, neighbours, h):
 _CROSSINGS = []
 
 
-def _crossings_kernel():
+def _crossings_kernel(which):
+    """Compiled `_crossings_loop` (0) or `_loop_order_loop` (1), or None without numba."""
     if not _CROSSINGS:
         try:
             import numba
         except ImportError:                                 # pragma: no cover - optional
             _CROSSINGS.append(None)
         else:
-            _CROSSINGS.append(numba.njit(cache=True, nogil=True)(_crossings_loop))
-    return _CROSSINGS[0]
+            jit = numba.njit(cache=True, nogil=True)
+            _CROSSINGS.append((jit(_crossings_loop), jit(_loop_order_loop)))
+    return None if _CROSSINGS[0] is None else _CROSSINGS[0][which]
 
 
 def _crossings_loop(d, faces, neighbours, h):  # pragma: no cover - compiled by numba

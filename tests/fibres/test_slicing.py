@@ -142,3 +142,24 @@ def test_compiled_topology_equals_the_array_version(monkeypatch):
         for name in ("faces", "edges", "face_edges", "neighbours"):
             np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
         assert got.oriented == ref.oriented == (faces is not flipped)
+
+
+def test_compiled_loop_order_equals_the_lexsort():
+    # nodes by plane, loop (smallest node) and position along the loop: the compiled walk
+    # with bucketing must equal the lexsort of the cycle labels, with several loops per plane
+    from fibres.slicing import _crossings, _loop_order
+
+    m = trimesh.creation.icosphere(subdivisions=3)
+    v = np.vstack([m.vertices, np.asarray(m.vertices) + [2.5, 0, 0]])
+    f = np.vstack([m.faces, np.asarray(m.faces) + len(m.vertices)])
+    topo = mesh_topology(f, len(v))
+    d = v @ np.array([0.1, 0.2, 0.97])
+    h = np.linspace(d.min() + 1e-6, d.max() - 1e-6, 20)
+    _, node_slice, _, nxt = _crossings(d, topo.faces, topo.neighbours, h)
+    order, loop_start = _loop_order(nxt, node_slice, h.size)
+    label, rank = _cycles(nxt)
+    ref = np.lexsort((rank, label, node_slice))
+    np.testing.assert_array_equal(order, ref)
+    first = np.flatnonzero(np.r_[True, label[ref][1:] != label[ref][:-1]])
+    np.testing.assert_array_equal(loop_start, np.r_[first, nxt.size])
+    assert loop_start.size - 1 > h.size                   # several loops on some planes
