@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .surface_curves import (any_perpendicular, curve_tangents, resample_polylines,
+from .surface_curves import (any_perpendicular, arc_fractions, curve_tangents, resample_polylines,
                              rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
 from .surface_volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
@@ -148,6 +148,7 @@ class SurfaceBinding:
     rest_volume: float
     rest_lengths: np.ndarray         # (L,)
     arc_fraction: np.ndarray         # (n,)
+    anchor_fractions: tuple = ()     # per line: (K,) rest arc fractions of the anchors, or None
 
     @property
     def n_lines(self) -> int:
@@ -155,7 +156,7 @@ class SurfaceBinding:
         return len(self.rest_frames)
 
     # ------------------------------------------------------------------------- frames
-    def line_frames(self, curves, tf_origin, tf_insertion):
+    def line_frames(self, curves, tf_origin, tf_insertion, anchors=None):
         """Resampled current lines and their twisted rotation-minimising frames.
 
         Returns
@@ -169,9 +170,12 @@ class SurfaceBinding:
         rot_o = tf_o[:, :3, :3] @ self.tf_rest_origin[:3, :3].T      # (F, 3, 3) rest -> now
         rot_i = tf_i[:, :3, :3] @ self.tf_rest_insertion[:3, :3].T
         centres, frames = [], []
-        for curve, rest in zip(curves, self.rest_frames):  # loop over action lines (few)
+        for l, (curve, rest) in enumerate(zip(curves, self.rest_frames)):  # loop over lines (few)
             c = np.asarray(curve, dtype=float)
-            c = resample_polylines(c if c.ndim == 3 else c[None], self.n_samples)
+            fractions = self.anchor_fractions[l]
+            idx = None if anchors is None or fractions is None else anchors[l]
+            c = resample_polylines(c if c.ndim == 3 else c[None], self.n_samples, anchors=idx,
+                                   anchor_fractions=None if idx is None else fractions)
             c = np.broadcast_to(c, (max(f_count, c.shape[0]),) + c.shape[1:])
             tan = curve_tangents(c)
             carried_t0 = np.einsum("fij,j->fi", rot_o, rest[0, :, 2])
@@ -189,14 +193,14 @@ class SurfaceBinding:
         return np.stack(centres, axis=1), np.stack(frames, axis=1)
 
     # ------------------------------------------------------------------------- deform
-    def affine_parts(self, curves, tf_origin, tf_insertion):
+    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None):
         """The two parts of ``v(k) = P + k Q`` for every frame, vertex-major.
 
         Returns
         -------
         p, q : (V, F, 3) float
         """
-        centres, frames = self.line_frames(curves, tf_origin, tf_insertion)
+        centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
         f_count = centres.shape[0]
         n_v = self.rest_vertices.shape[0]
         tf_o = np.broadcast_to(_check_tf(tf_origin, "tf_origin", f_count), (f_count, 4, 4))
@@ -214,7 +218,7 @@ class SurfaceBinding:
         q = np.asarray(self.radial_matrix @ radial_feat).reshape(n_v, f_count, 3)
         return p, q
 
-    def deform(self, curves, tf_origin, tf_insertion, *, obstacles=(), preserve_volume: bool = True,
+    def deform(self, curves, tf_origin, tf_insertion, *, anchors=None, obstacles=(), preserve_volume: bool = True,
                push_iterations: int = 5) -> SurfaceFrames:
         """Deform the rest surface for every frame of a motion.
 
@@ -225,6 +229,10 @@ class SurfaceBinding:
             number of points (trailing NaN rows are padding), resampled here by arc length.
         tf_origin, tf_insertion : (F, 4, 4) float
             Current poses in ground of the origin and insertion bodies.
+        anchors : sequence of L (F, K_l) int or None, keyword-only
+            Per line, the indices in each frame's polyline of the anchor points given to
+            `bind_surface` (``rest_anchors``); the arc length is then matched piecewise
+            between anchors (`motion.surface_curves.resample_polylines`).
         obstacles : sequence, keyword-only
             Objects with ``push_out(vertices (F, V, 3)) -> (F, V, 3)``
             (`motion.surface_collision`), applied in order after the volume solve.
@@ -239,7 +247,7 @@ class SurfaceBinding:
         """
         if len(curves) != self.n_lines:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
-        p, q = self.affine_parts(curves, tf_origin, tf_insertion)   # (V, F, 3)
+        p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
         target = self.rest_volume
         if preserve_volume:
             coeffs = volume_cubic_vf(p, q, self.faces)
@@ -256,10 +264,15 @@ class SurfaceBinding:
         p = np.ascontiguousarray(p.transpose(1, 0, 2))
         q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
+        rounds = 1 if len(obstacles) < 2 else 3
+
         def pushed(kk):
             v = p + kk[:, None, None] * q
-            for obstacle in obstacles:
-                v = obstacle.push_out(v)
+            # several obstacles: alternate projections, so a vertex squeezed between two bones
+            # is not pushed out of one into the other
+            for _ in range(rounds):
+                for obstacle in obstacles:
+                    v = obstacle.push_out(v)
             return v, mesh_volume(v, self.faces)
 
         vertices, volume = pushed(k)
@@ -283,7 +296,7 @@ class SurfaceBinding:
 def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,
                  origin_points, insertion_points, *, n_samples: int = 40,
                  rigid_radius: float | None = None, blend_radius: float | None = None,
-                 line_blend: float | None = None) -> SurfaceBinding:
+                 line_blend: float | None = None, rest_anchors=None) -> SurfaceBinding:
     """Bind a rest surface to its action lines and attachment bodies.
 
     Parameters
@@ -306,6 +319,11 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
     line_blend : float, keyword-only
         ``delta`` of the inverse-distance weights between several lines (default 2 % of the
         mean rest line length).
+    rest_anchors : sequence of L (K_l,) int or None, keyword-only
+        Indices of anchor points (e.g. the path points that are always present) in each rest
+        line, first and last included; `SurfaceBinding.deform` then matches arc length piece by
+        piece between anchors, so a piece fixed on one body does not slide over that body as
+        the free pieces stretch. None: one piece (global arc length).
 
     Returns
     -------
@@ -324,6 +342,10 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
     tf_i = _check_tf(tf_rest_insertion, "tf_rest_insertion")[0]
     arc = np.linspace(0.0, 1.0, n)
 
+    fractions = []
+    for k, c in enumerate(rest_curves):
+        idx = None if rest_anchors is None else rest_anchors[k]
+        fractions.append(None if idx is None or len(idx) < 3 else _ro(arc_fractions(c, idx)))
     curves = [resample_polylines(np.asarray(c, dtype=float), n) for c in rest_curves]
     lengths = np.array([np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)) for c in curves])
     if np.any(lengths <= 0):
@@ -407,4 +429,4 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         rest_frames=tuple(rest_frames), tf_rest_origin=_ro(tf_o), tf_rest_insertion=_ro(tf_i),
         weight_origin=_ro(w_o), weight_insertion=_ro(w_i), weight_belly=_ro(w_b),
         fixed_matrix=fixed, radial_matrix=radial, rest_volume=float(volume),
-        rest_lengths=_ro(lengths), arc_fraction=_ro(arc))
+        rest_lengths=_ro(lengths), arc_fraction=_ro(arc), anchor_fractions=tuple(fractions))

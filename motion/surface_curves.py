@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["resample_polylines", "curve_tangents", "rotation_minimizing_frames",
+__all__ = ["resample_polylines", "arc_fractions", "curve_tangents", "rotation_minimizing_frames",
            "transport_vector", "any_perpendicular"]
 
 _TINY = 1e-15
@@ -30,7 +30,7 @@ def _fill_nan_forward(points: np.ndarray) -> np.ndarray:
     return np.take_along_axis(points, index[..., None], axis=1)
 
 
-def resample_polylines(points, n_samples: int) -> np.ndarray:
+def resample_polylines(points, n_samples: int, *, anchors=None, anchor_fractions=None) -> np.ndarray:
     """Resample polylines at ``n_samples`` points equally spaced in arc length.
 
     Parameters
@@ -40,6 +40,12 @@ def resample_polylines(points, n_samples: int) -> np.ndarray:
         points in some frames) and are ignored.
     n_samples : int
         Number of output samples, at least 2; the first and last are the polyline's ends.
+    anchors : (K,) or (F, K) int, keyword-only
+        Indices of anchor vertices in each frame's polyline (first = 0, last = the last valid
+        point). With ``anchor_fractions`` (K,) -- the arc fractions of the anchors at rest --
+        the arc length is matched piece by piece: the samples between anchors k and k + 1
+        stay between them, spaced evenly there. A piece whose two anchors ride the same body
+        then keeps its samples fixed on that body while the free pieces stretch.
 
     Returns
     -------
@@ -57,8 +63,17 @@ def resample_polylines(points, n_samples: int) -> np.ndarray:
     pts = _fill_nan_forward(pts)
     seg = np.linalg.norm(np.diff(pts, axis=1), axis=-1)  # (F, P-1)
     cum = np.concatenate([np.zeros((pts.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
-    total = cum[:, -1:]
-    target = total * np.linspace(0.0, 1.0, n)[None, :]  # (F, n)
+    u = np.linspace(0.0, 1.0, n)
+    if anchors is None:
+        target = cum[:, -1:] * u[None, :]  # (F, n)
+    else:
+        idx = np.broadcast_to(np.asarray(anchors, dtype=np.int64), (pts.shape[0], len(anchor_fractions)))
+        s = np.asarray(anchor_fractions, dtype=float)
+        arc = np.take_along_axis(cum, idx, axis=1)                    # (F, K)
+        piece = np.clip(np.searchsorted(s, u, side="right") - 1, 0, len(s) - 2)
+        width = np.maximum(s[piece + 1] - s[piece], 1e-15)
+        t = np.clip((u - s[piece]) / width, 0.0, 1.0)
+        target = arc[:, piece] + t[None] * (arc[:, piece + 1] - arc[:, piece])
     # index of the segment holding each target: count of interior vertices at or before it
     j = np.sum(cum[:, None, 1:-1] <= target[:, :, None], axis=-1)  # (F, n) in [0, P-2]
     s0 = np.take_along_axis(cum, j, axis=1)
@@ -71,6 +86,14 @@ def resample_polylines(points, n_samples: int) -> np.ndarray:
     out[:, 0] = pts[:, 0]
     out[:, -1] = pts[:, -1]
     return out[0] if single else out
+
+
+def arc_fractions(points, anchors) -> np.ndarray:
+    """Arc-length fractions (K,) of anchor vertices ``anchors`` (K,) of one polyline (P, 3)."""
+    pts = np.asarray(points, dtype=float)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=-1))])
+    return cum[np.asarray(anchors, dtype=np.int64)] / cum[-1]
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

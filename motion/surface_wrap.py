@@ -104,22 +104,39 @@ class WrappedSurface:
 
 
 # ----------------------------------------------------------------------------- paths
-def _compact(points: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Points (F, K, 3) where ``mask`` (F, K), moved to the front in order, NaN-padded."""
+def _compact(points: np.ndarray, mask: np.ndarray):
+    """Points (F, K, 3) where ``mask`` (F, K), moved to the front in order, NaN-padded; and the
+    original index of every slot (F, K) (-1 for padding)."""
     perm = np.argsort(~mask, axis=1, kind="stable")
     out = np.take_along_axis(np.where(mask[..., None], points, np.nan), perm[..., None], axis=1)
-    return out
+    ids = np.where(np.take_along_axis(mask, perm, axis=1), perm, -1)
+    return out, ids
+
+
+def _anchor_positions(path, ids: np.ndarray) -> np.ndarray | None:
+    """(F, K) positions in each frame's polyline of the path points that are always present
+    (fixed and moving points: not conditional), or None when they are only the two ends."""
+    keep = [k for k, p in enumerate(path.points) if p.kind != "conditional"]
+    if len(keep) < 3 or keep[0] != 0 or keep[-1] != len(path.points) - 1:
+        return None
+    hit = ids[:, :, None] == np.asarray(keep)[None, None, :]       # (F, N, K)
+    if not np.all(hit.any(axis=1)):
+        return None
+    return np.argmax(hit, axis=1)
 
 
 def _current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
-    """Mapping path name -> (F, N, 3) current polyline (with wrap arcs), NaN-padded."""
+    """Mapping path name -> ((F, N, 3) current polyline with wrap arcs, NaN-padded;
+    (F, K) anchor positions or None)."""
     out = {}
     table = getattr(lines, "muscle_names", None) if lines is not None else None
     for name in names:
         path = model.path(name)
         if table is not None and name in table and not path.wraps:
             m = table.index(name)
-            out[name] = _compact(np.asarray(lines.points)[:, m], np.asarray(lines.point_mask)[:, m])
+            pts, ids = _compact(np.asarray(lines.points)[:, m, :len(path.points)],
+                                np.asarray(lines.point_mask)[:, m, :len(path.points)])
+            out[name] = (pts, _anchor_positions(path, ids))
     missing = [n for n in names if n not in out]
     if missing:
         from .kinematics import body_pose_derivatives
@@ -133,9 +150,10 @@ def _current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
                 from .path_wrapping import wrap_path
 
                 wrapped = wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
-                out[name] = path_polylines(model, wrapped, tf)
+                pts, ids = _path_polyline_ids(model, wrapped, tf)
             else:
-                out[name] = _compact(pp.points, np.asarray(pp.active, dtype=bool))
+                pts, ids = _compact(pp.points, np.asarray(pp.active, dtype=bool))
+            out[name] = (pts, _anchor_positions(path, ids))
     return out
 
 
@@ -189,6 +207,23 @@ def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POI
     (F, N, 3) float
         Points in path order, NaN-padded at the end.
     """
+    return _path_polyline_ids(model, wrapped, tf_ground_body, arc_points=arc_points)[0]
+
+
+def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POINTS):
+    """A wrapped path's current polyline per frame, with the arcs over the wrap objects.
+
+    Parameters
+    ----------
+    model : motion.Model
+    wrapped : motion.path_wrapping.WrappedPath
+    tf_ground_body : (F, B, 4, 4) float
+
+    Returns
+    -------
+    (F, N, 3) float
+        Points in path order, NaN-padded at the end.
+    """
     order = np.asarray(wrapped.order)
     pts = np.asarray(wrapped.points)
     nf, nk = order.shape
@@ -197,7 +232,7 @@ def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POI
     ordered = np.where(valid[..., None], ordered, np.nan)
     n_wraps = len(wrapped.wrap_objects)
     if n_wraps == 0:
-        return ordered
+        return ordered, np.where(valid, order, -1)
     n_points = pts.shape[1] - 2 * n_wraps
     u = np.linspace(0.0, 1.0, arc_points + 2)[1:-1]
     slots = np.full((nf, nk, 1 + arc_points, 3), np.nan)
@@ -227,9 +262,13 @@ def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POI
         arc = _arc_points(wo.kind if wo.kind != "torus" else "torus", radii, t1, t2, before, u)
         slots[f_idx, k_idx, 1:] = np.einsum("fij,faj->fai", tfw[:, :3, :3], arc) + tfw[:, None, :3, 3]
     flat = slots.reshape(nf, -1, 3)
+    node = np.full((nf, nk, 1 + arc_points), -1)
+    node[:, :, 0] = np.where(valid, order, -1)
+    node = node.reshape(nf, -1)
     keep = np.isfinite(flat).all(axis=-1)
     perm = np.argsort(~keep, axis=1, kind="stable")
-    return np.take_along_axis(flat, perm[..., None], axis=1)
+    return (np.take_along_axis(flat, perm[..., None], axis=1),
+            np.where(np.take_along_axis(keep, perm, axis=1), np.take_along_axis(node, perm, axis=1), -1))
 
 
 # ----------------------------------------------------------------------------- muscles
@@ -369,10 +408,12 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     rest_motion = motion_from_array(model, rest.q[None])
     tf_rest_actual = np.asarray(body_poses(model, rest_motion).tf_ground_body, dtype=float)
     rest_lines = _current_polylines(model, rest_motion, spec.action_lines, None, tf_rest_actual)
-    rest_curves = []
+    rest_curves, rest_anchors = [], []
     for name in spec.action_lines:
-        c = rest_lines[name][0]
+        c = rest_lines[name][0][0]
         rest_curves.append(c[np.isfinite(c).all(axis=1)])
+        anchors = rest_lines[name][1]
+        rest_anchors.append(None if anchors is None else anchors[0])
     first_path = model.path(spec.action_lines[0])
     if spec.generated:
         fmax, lopt = _muscle_parameters(model, spec.action_lines[0])
@@ -392,7 +433,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     b_i, insertion_rest = _attachment(model, spec, "insertion", rest, first_path)
     binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
                            origin_rest, insertion_rest, n_samples=n_samples,
-                           rigid_radius=rigid_radius, blend_radius=blend_radius)
+                           rigid_radius=rigid_radius, blend_radius=blend_radius, rest_anchors=rest_anchors)
     obstacles = []
     seen = set()
     for name in spec.action_lines:
@@ -419,8 +460,9 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
             local = _apply(np.linalg.inv(rest.tf_ground_body[b]) @ rest.tf_ground_data, bone.vertices)
         dist = _bone_distance(bone, local, bone_spacing)
         obstacles.append(BoneObstacle.bind(dist, tf[:, b], vertices, rest.tf_ground_body[b], margin=margin))
-    curves = [current[name] for name in spec.action_lines]
-    res = binding.deform(curves, tf[:, b_o], tf[:, b_i], obstacles=obstacles)
+    curves = [current[name][0] for name in spec.action_lines]
+    anchors = [current[name][1] for name in spec.action_lines]
+    res = binding.deform(curves, tf[:, b_o], tf[:, b_i], anchors=anchors, obstacles=obstacles)
     tf_o = tf[:, b_o] @ np.linalg.inv(rest.tf_ground_body[b_o])
     tf_i = tf[:, b_i] @ np.linalg.inv(rest.tf_ground_body[b_i])
     return WrappedSurface(

@@ -152,19 +152,10 @@ def test_lhdl_volume_and_landmarks(lhdl, lhdl_runs, motion_name):
             np.testing.assert_allclose(back, np.broadcast_to(att.points, back.shape), atol=1e-9)
 
 
-# gluteus maximus: its broad belly is driven up to ~10 mm into the ilium by the action-line
-# deformation in hip adduction and deep flexion; the push-out then leaves up to ~3 mm and kinks
-# some vertex trajectories (known limitation, see motion.surface_collision)
-_GMAX_FAILS = {"hip_flexion", "hip_adduction"}
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("muscle", list(LHDL_LINES))
 @pytest.mark.parametrize("motion_name", MOTIONS)
-def test_lhdl_bones_not_penetrated(lhdl_runs, motion_name, muscle, request):
-    if muscle == "glut_max_r" and motion_name in _GMAX_FAILS:
-        request.applymarker(pytest.mark.xfail(strict=True, reason="glut_max belly driven up to 10 mm into the ilium: "
-                                              "3 mm residual depth (flexion), 25 mm trajectory kink (adduction)"))
+def test_lhdl_bones_not_penetrated(lhdl_runs, motion_name, muscle):
     _, _, measures = lhdl_runs(motion_name)
     depth, step = measures[muscle]
     # the band argument of _signed_distance needs steps below 10 mm
