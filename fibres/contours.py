@@ -13,7 +13,7 @@ import numpy as np
 
 from .slicing import Sections
 
-__all__ = ["loop_areas", "choose_loops", "clockwise_contour"]
+__all__ = ["loop_areas", "choose_loops", "anchored_loops", "clockwise_contour"]
 
 
 def loop_areas(sections: Sections) -> np.ndarray:
@@ -126,3 +126,62 @@ def clockwise_contour(sections: Sections, loop: int):
     if area > 0:
         pts, edge = pts[::-1], edge[::-1]
     return np.ascontiguousarray(pts), np.ascontiguousarray(edge)
+
+
+def anchored_loops(sections: Sections, chosen, anchors_uv):
+    """The loop of each plane that carries a plan's anchors (used with a `DecompositionPlan`).
+
+    Where a plane cuts several loops, the choice of `choose_loops` (box centre inside /
+    nearest) can switch between two frames of a motion. With a plan the loop is identified
+    through the plan instead: its four material anchor points (start and split points of
+    the rest contour, carried along with the surface and projected onto the plane) lie on
+    the loop the rest pose used, so the loop with the smallest sum of squared distances to
+    them is taken. The choice only changes where two loops are equally close to the anchors,
+    i.e. where loops merge or split.
+
+    Parameters
+    ----------
+    sections : Sections
+    chosen : (S,) int
+        `choose_loops`'s loops (kept for planes with a single loop).
+    anchors_uv : (S, 4, 2) float
+
+    Returns
+    -------
+    chosen : (S,) int64
+    changed : (S,) bool
+        Planes where the anchored loop differs from ``chosen``.
+    """
+    chosen = np.array(chosen, dtype=np.int64)
+    n_s = chosen.size
+    per_slice = np.bincount(sections.loop_slice, minlength=n_s)
+    multi = per_slice > 1
+    changed = np.zeros(n_s, dtype=bool)
+    if not multi.any():
+        return chosen, changed
+    loops = np.flatnonzero(multi[sections.loop_slice])                # (L',)
+    lo, hi = sections.loop_start[loops], sections.loop_start[loops + 1]
+    cnt = hi - lo
+    lid = np.repeat(np.arange(loops.size), cnt)
+    k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    idx = lo[lid] + k
+    p = sections.points[idx]
+    q = sections.points[lo[lid] + (k + 1) % cnt[lid]]
+    a = np.asarray(anchors_uv, dtype=float)[sections.loop_slice[loops][lid]]   # (K', 4, 2)
+    d = (q - p)[:, None, :]
+    r = a - p[:, None, :]
+    dd = np.einsum("kij,kij->ki", d, d)
+    tau = np.clip(np.einsum("kij,kij->ki", r, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    g = r - tau[..., None] * d
+    g2 = np.einsum("kij,kij->ki", g, g)                                # (K', 4)
+    offs = np.concatenate([[0], np.cumsum(cnt)])
+    cost = np.minimum.reduceat(g2, offs[:-1], axis=0).sum(axis=1)     # (L',)
+    sl = sections.loop_slice[loops]
+    order = np.lexsort((cost, sl))
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = sl[order][1:] != sl[order][:-1]
+    best = loops[order[first]]
+    new = chosen.copy()
+    new[sections.loop_slice[best]] = best
+    changed = new != chosen
+    return new, changed

@@ -21,7 +21,17 @@ finite difference), any of them can flip and fibre ``k`` would jump. A
   as the start and split points (`fibres.morph.anchored_maps`): the correspondence then
   depends continuously on the vertices, with no vertex snapping or re-minimisation that
   could flip between two nearby poses;
+- the loop of each plane: where a plane cuts several loops, the one carrying the four
+  projected anchors (smallest sum of squared distances, `fibres.contours.anchored_loops`)
+  is used, not the per-frame centre rule; each split point is searched within
+  `fibres.morph.ARC_WINDOW` of the contour length around its nominal place after the
+  start (a thin sheet's other face is never taken);
 - the mesh topology itself (edges, face table), computed once.
+
+Not yet continuous everywhere (measured on LHDL bend sweeps, see
+``tests/fibres/test_decompose_lhdl.py``): where the projected anchors come out of order
+the paper's fresh choice is still made (a note says so), and a plane whose loops split
+or merge changes its contour discontinuously.
 
 Kohout's own software had the same idea: an optional rest-pose "InputTemplate".
 """

@@ -151,7 +151,7 @@ def test_compiled_anchor_search_equals_the_array_version():
     # closest contour point to each anchor (first minimum) and the insertion of the four
     # points: compiled loops against the array expressions, identical results
     pytest.importorskip("numba")
-    from fibres.morph import _closest_on_contours, _kernels
+    from fibres.morph import ARC_GAP, ARC_WINDOW, _closest_on_contours, _kernels
 
     rng = np.random.default_rng(12)
     m = rng.integers(4, 40, 9)
@@ -161,11 +161,43 @@ def test_compiled_anchor_search_equals_the_array_version():
     anchors = rng.uniform(-0.03, 0.03, (m.size, 4, 2))
     anchors[0, 0] = pts[2]                                     # exactly on a vertex
     anchors[1, 1] = 0.5 * (pts[offs[1]] + pts[offs[1] + 1])    # on an edge
+    for s in range(4, 9):                  # in order along the contour (no reordering)
+        anchors[s] = 1.2 * pts[offs[s] + (np.array([0.0, 0.2, 0.5, 0.7]) * m[s]).astype(int)]
     kernels = _kernels()
-    got = kernels[2](pts, m, offs, anchors)
+    nominal = np.array([0.2, 0.5, 0.7])
+    # a window of half the length around the nominal positions is the whole contour: the
+    # split points are then the global closest points, as in the array version
+    *got, moved = kernels[2](pts, m, offs, anchors, nominal, ARC_GAP, 0.5)
     ref = _closest_on_contours(pts, m, offs, anchors)
+    # planes whose closest points are already in order: exactly the array version
+    assert 0 < (~moved).sum() < m.size
     for a, b in zip(got, ref):
-        np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(a[~moved], b[~moved])
+    np.testing.assert_array_equal(got[0][:, 0], ref[0][:, 0])   # the start is never moved
+    # with ARC_WINDOW the split points of the in-order planes stay within the window
+    # around their nominal arc fraction after the start
+    win = kernels[2](pts, m, offs, anchors, nominal, ARC_GAP, ARC_WINDOW)
+    for s in np.flatnonzero(~win[3]):
+        p = pts[offs[s]:offs[s + 1]]
+        seg_len = np.hypot(*(np.roll(p, -1, axis=0) - p).T)
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        arc = cum[win[0][s]] + win[1][s] * seg_len[win[0][s]]
+        rel = (arc[1:] - arc[0]) % cum[-1] / cum[-1]
+        off = (rel - nominal + 0.5) % 1.0 - 0.5
+        assert np.abs(off).max() <= ARC_WINDOW + 1e-12
+    # reordered planes: split points strictly after the start and in order along the
+    # contour, at least ARC_GAP of the length apart (the isotonic projection's constraint)
+    for s in np.flatnonzero(moved):
+        p = pts[offs[s]:offs[s + 1]]
+        seg_len = np.hypot(*(np.roll(p, -1, axis=0) - p).T)
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        arc = cum[got[0][s]] + got[1][s] * seg_len[got[0][s]]
+        rel = (arc[1:] - arc[0]) % cum[-1]
+        gaps = np.diff(np.concatenate([[0.0], rel, [cum[-1]]]))
+        assert gaps.min() >= ARC_GAP * cum[-1] * (1 - 1e-9)
+        # the points lie on the contour
+        np.testing.assert_allclose(got[2][s], p[got[0][s]] + got[1][s][:, None]
+                                   * (np.roll(p, -1, axis=0)[got[0][s]] - p[got[0][s]]))
     # insertion: every contour vertex moves up by the anchors inserted before it
     offs2 = np.concatenate([[0], np.cumsum(m + 4)])
     new = kernels[3](pts, m, offs, got[0], offs2)
@@ -173,3 +205,27 @@ def test_compiled_anchor_search_equals_the_array_version():
         j = np.arange(m[s])
         shift = (got[0][s][None, :] < j[:, None]).sum(axis=1)
         np.testing.assert_array_equal(new[offs2[s] + j + shift], pts[offs[s]:offs[s + 1]])
+
+
+def test_order_arcs_is_the_bounded_isotonic_projection():
+    # _order_arcs against a brute-force projection onto {lo <= a0 <= a1 <= a2 <= hi}
+    # (scipy SLSQP on the same convex problem): identical to 1e-7 (the solver's tolerance);
+    # ordered input is returned unchanged, and the map is 1-Lipschitz (a projection onto a
+    # convex set), which is what keeps the anchored split points continuous
+    from scipy.optimize import minimize
+
+    from fibres.morph import _order_arcs
+
+    rng = np.random.default_rng(5)
+    A = np.array([[1.0, 0, 0], [-1, 1, 0], [0, -1, 1], [0, 0, -1]])
+    for _ in range(40):
+        a = rng.uniform(-0.5, 1.5, 3)
+        got = _order_arcs(a, 0.0, 1.0)
+        ref = minimize(lambda x: ((x - a) ** 2).sum(), np.full(3, 0.5), method="SLSQP",
+                       constraints={"type": "ineq", "fun": lambda x: A @ x - [0, 0, 0, -1]},
+                       options={"ftol": 1e-14}).x
+        np.testing.assert_allclose(got, ref, atol=1e-7)
+        b = a + rng.normal(0, 1e-3, 3)
+        assert np.linalg.norm(_order_arcs(b, 0.0, 1.0) - got) <= np.linalg.norm(b - a) + 1e-15
+    ordered = np.array([0.1, 0.4, 0.9])
+    np.testing.assert_array_equal(_order_arcs(ordered, 0.0, 1.0), ordered)
