@@ -128,7 +128,7 @@ def clockwise_contour(sections: Sections, loop: int):
     return np.ascontiguousarray(pts), np.ascontiguousarray(edge)
 
 
-def anchored_loops(sections: Sections, chosen, anchors_uv):
+def anchored_loops(sections: Sections, chosen, anchors_uv, *, points=None):
     """The loop of each plane that carries a plan's anchors (used with a `DecompositionPlan`).
 
     Where a plane cuts several loops, the choice of `choose_loops` (box centre inside /
@@ -144,7 +144,11 @@ def anchored_loops(sections: Sections, chosen, anchors_uv):
     sections : Sections
     chosen : (S,) int
         `choose_loops`'s loops (kept for planes with a single loop).
-    anchors_uv : (S, 4, 2) float
+    anchors_uv : (S, 4, D) float
+        The anchors, in the plane (D = 2) or in the coordinates of ``points``.
+    points : (K, D) float, optional
+        Coordinates of the section points to measure in (default the plane coordinates);
+        e.g. their rest-pose positions, to match the anchors materially.
 
     Returns
     -------
@@ -165,9 +169,10 @@ def anchored_loops(sections: Sections, chosen, anchors_uv):
     lid = np.repeat(np.arange(loops.size), cnt)
     k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     idx = lo[lid] + k
-    p = sections.points[idx]
-    q = sections.points[lo[lid] + (k + 1) % cnt[lid]]
-    a = np.asarray(anchors_uv, dtype=float)[sections.loop_slice[loops][lid]]   # (K', 4, 2)
+    pts = sections.points if points is None else np.asarray(points, dtype=float)
+    p = pts[idx]
+    q = pts[lo[lid] + (k + 1) % cnt[lid]]
+    a = np.asarray(anchors_uv, dtype=float)[sections.loop_slice[loops][lid]]   # (K', 4, D)
     d = (q - p)[:, None, :]
     r = a - p[:, None, :]
     dd = np.einsum("kij,kij->ki", d, d)

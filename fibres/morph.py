@@ -35,6 +35,7 @@ import numpy as np
 from .contours import anchored_loops, clockwise_contour
 from .correspondence import correspond, rectangle, split_chain
 from .mvc import mvc_map
+from .plan import rest_geometry
 from .slicing import MeshTopology, Sections
 
 __all__ = ["END_INSET", "slice_fractions", "slice_maps", "anchored_maps", "morph_local"]
@@ -318,7 +319,7 @@ def _subdivide_loop(m, offs, split, c_incl, c_excl, rect):  # pragma: no cover -
 
 
 def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
-                  topology: MeshTopology):
+                  topology: MeshTopology, plan=None):
     """Correspondence of every plane with a plan's start and split points carried along.
 
     A plan's four correspondence points of each plane (start ``P0`` and the first points
@@ -342,6 +343,15 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
     anchors_uv : (S, 4, 2) float
         Projected anchors, in the plane frame.
     topology : MeshTopology
+    plan : DecompositionPlan, optional
+        The plan whose anchors these are. Given, the anchors are matched *materially*:
+        every contour point is a material point of the surface (its mesh edge and
+        parameter), so it has a rest-pose position and normal (`fibres.plan.rest_geometry`);
+        the loop and the closest contour points are those nearest to the anchors' rest
+        positions, among segments facing the same way. That follows the material however
+        far the plane has moved through it (a bend tilts the planes through the muscle by
+        up to ~17 mm on the LHDL iliacus, where a projected anchor lands 20 mm from the
+        contour, nearer to the other face of the thin sheet).
 
     Returns
     -------
@@ -353,9 +363,23 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
         s = int(np.flatnonzero(chosen < 0)[0])
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
     anchors_uv = np.ascontiguousarray(anchors_uv, dtype=float)
-    chosen, changed = anchored_loops(sections, chosen, anchors_uv)
+    if plan is None:
+        chosen, changed = anchored_loops(sections, chosen, anchors_uv)
+    else:
+        rest, rest_n, ax, nax = rest_geometry(plan)
+        e = topology.edges[sections.edge]
+        tt = sections.t[:, None]
+        chosen, changed = anchored_loops(sections, chosen, ax,
+                                         points=(1.0 - tt) * rest[e[:, 0]] + tt * rest[e[:, 1]])
     rect = rectangle(float(extents[0]), float(extents[1]))
-    pts, _, _, _, m, offs, notes = _clockwise_all(sections, chosen, topology, anchors=False)
+    pts, _, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology,
+                                                    anchors=plan is not None)
+    if plan is None:
+        X, NX = pts, np.zeros((pts.shape[0], 1))
+        ax, nax = anchors_uv, np.zeros(anchors_uv.shape[:2] + (1,))
+    else:
+        X = np.einsum("kn,knd->kd", aw, rest[av])
+        NX = np.einsum("kn,knd->kd", aw, rest_n[av])
     notes = [f"slice {s}: used the loop carrying the plan's anchors" for s in
              np.flatnonzero(changed)] + notes
     n_s = m.size
@@ -363,8 +387,11 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
     nominal = np.cumsum(sides)[:3] / sides.sum()          # rest-like arc fractions of Q1..Q3
     kernels = _kernels()
     anchor_fn = _anchor_loop if kernels is None else kernels[2]
-    seg, tk, point, moved = anchor_fn(pts, m.astype(np.int64), offs.astype(np.int64),
-                                      anchors_uv, nominal, ARC_GAP, ARC_WINDOW)
+    seg, tk, point, moved = anchor_fn(np.ascontiguousarray(pts), np.ascontiguousarray(X),
+                                      np.ascontiguousarray(NX), m.astype(np.int64),
+                                      offs.astype(np.int64), np.ascontiguousarray(ax),
+                                      np.ascontiguousarray(nax), nominal, ARC_GAP,
+                                      ARC_WINDOW)
     # insert them (after vertex seg, in the order (seg, tau, k)) into each contour
     kk = np.arange(4)
     before = ((seg[:, None, :] < seg[:, :, None])
@@ -439,17 +466,28 @@ def _order_arcs(a, lo, hi):  # pragma: no cover - compiled by numba (and called 
     return out
 
 
-def _anchor_loop(pts, m, offs, anchors_uv, nominal, gap, window):  # pragma: no cover - numba
+def _anchor_loop(pts, X, NX, m, offs, AX, NAX, nominal, gap,
+                 window):  # pragma: no cover - compiled by numba
     """Closest contour point to each of a plane's 4 anchors (first minimum), with the
     split points (anchors 1-3) put in order along the contour from the start point.
 
-    Arc positions ``a_k`` of the split points are measured from the start point, unwrapped
-    to within half a contour of their nominal position ``nominal[k] * L`` (the rectangle's
-    corners' arc fractions), and replaced by the nearest positions with
-    ``gap * L <= a_1``, ``a_k + gap * L <= a_{k+1}``, ``a_3 <= L - gap * L`` (`_order_arcs`
-    on ``a_k - k gap L``). Returns segment (S, 4), parameter tau (S, 4), the points
-    (S, 4, 2) and which planes were reordered (S,)."""
+    Distances are measured in the matching coordinates ``X`` (K, D) of the contour points
+    and ``AX`` (S, 4, D) of the anchors: the plane coordinates themselves (``X = pts``), or
+    material (rest-pose) positions. A segment is a candidate for anchor k only if its
+    normal ``NX[j] + NX[j+1]`` does not point away from the anchor's ``NAX`` (zero normals:
+    every segment; if none qualifies, every segment). Split point k is searched only
+    within ``window`` of the length around its nominal arc place ``nominal[k] * L`` after
+    the start.
+
+    Arc positions ``a_k`` of the split points (in the plane) are measured from the start
+    point, unwrapped to within half a contour of their nominal position, and replaced by
+    the nearest positions with ``gap * L <= a_1``, ``a_k + gap * L <= a_{k+1}``,
+    ``a_3 <= L - gap * L`` (`_order_arcs` on ``a_k - k gap L``). Returns segment (S, 4),
+    parameter tau (S, 4), the points in the plane (S, 4, 2) and which planes were
+    reordered (S,)."""
     n_s = m.size
+    dim = X.shape[1]
+    dn = NX.shape[1]
     seg = np.empty((n_s, 4), dtype=np.int64)
     tk = np.empty((n_s, 4))
     point = np.empty((n_s, 4, 2))
@@ -468,20 +506,34 @@ def _anchor_loop(pts, m, offs, anchors_uv, nominal, gap, window):  # pragma: no 
         length = cum[ms]
         for k in range(4):
             # the start: closest point of the whole contour; split point k: closest point
-            # within ARC_WINDOW of the length around its nominal position after the start
+            # within `window` of the length around its nominal place after the start
             # (a thin sheet's other face, as close to a projected anchor, is not taken)
+            n_ok = 0
+            for j in range(ms):
+                dot = 0.0
+                for c in range(dn):
+                    dot += (NX[o + j, c] + NX[o + (j + 1) % ms, c]) * NAX[s, k, c]
+                if dot >= 0.0:
+                    n_ok += 1
             best = np.inf
             bj = 0
             bt = 0.0
             for j in range(ms):
                 a = o + j
                 nb = o + (j + 1) % ms
-                dx = pts[nb, 0] - pts[a, 0]
-                dy = pts[nb, 1] - pts[a, 1]
-                dd = dx * dx + dy * dy
-                rx = anchors_uv[s, k, 0] - pts[a, 0]
-                ry = anchors_uv[s, k, 1] - pts[a, 1]
-                tau = (rx * dx + ry * dy) / (dd if dd > 0 else 1.0)
+                if n_ok > 0:
+                    dot = 0.0
+                    for c in range(dn):
+                        dot += (NX[a, c] + NX[nb, c]) * NAX[s, k, c]
+                    if dot < 0.0:
+                        continue
+                dd = 0.0
+                rd = 0.0
+                for c in range(dim):
+                    dc = X[nb, c] - X[a, c]
+                    dd += dc * dc
+                    rd += (AX[s, k, c] - X[a, c]) * dc
+                tau = rd / (dd if dd > 0 else 1.0)
                 tau = min(max(tau, 0.0), 1.0)
                 if k > 0 and length > 0:
                     seg_len = cum[j + 1] - cum[j]
@@ -502,9 +554,10 @@ def _anchor_loop(pts, m, offs, anchors_uv, nominal, gap, window):  # pragma: no 
                     if not found:
                         continue
                     tau = t_best
-                gx = rx - tau * dx
-                gy = ry - tau * dy
-                g2 = gx * gx + gy * gy
+                g2 = 0.0
+                for c in range(dim):
+                    gc = AX[s, k, c] - X[a, c] - tau * (X[nb, c] - X[a, c])
+                    g2 += gc * gc
                 if g2 < best:
                     best = g2
                     bj = j

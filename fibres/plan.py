@@ -45,7 +45,8 @@ from .errors import InputError
 from .fitting import Box, principal_frame
 from .slicing import MeshTopology
 
-__all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_local"]
+__all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_local",
+           "rest_geometry"]
 
 
 def _readonly(a):
@@ -284,3 +285,39 @@ def _complete_frame(u, v_ref):
     v0 = ref - (ref @ u) * u
     v0 /= np.linalg.norm(v0)
     return v0, np.cross(u, v0)
+
+
+def rest_geometry(plan: DecompositionPlan):
+    """Rest-pose positions and normals for matching a plan's anchors materially.
+
+    Computed once per plan and cached on the object (not a field: the frozen plan stays
+    equal to itself).
+
+    Returns
+    -------
+    rest : (V, 3) float
+        The plan's rest vertices.
+    normals : (V, 3) float
+        Area-weighted vertex normals of the rest surface (outward for the outward-wound
+        surfaces `decompose` works on).
+    anchors : (S, 4, 3) float
+        Rest positions of the four anchors of every plane, ``sum_k w_k V[v_k]``.
+    anchor_normals : (S, 4, 3) float
+        Their normals, interpolated the same way.
+    """
+    cached = plan.__dict__.get("_rest_geometry")
+    if cached is not None:
+        return cached
+    v = plan.rest_vertices
+    f = plan.topology.faces
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])     # 2 x area x normal
+    normals = np.zeros_like(v)
+    for c in range(3):
+        np.add.at(normals, f[:, c], fn)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    anchors = np.einsum("skn,sknd->skd", plan.anchor_weights, v[plan.anchor_vertices])
+    anchor_normals = np.einsum("skn,sknd->skd", plan.anchor_weights,
+                               normals[plan.anchor_vertices])
+    out = tuple(_readonly(x) for x in (v, normals, anchors, anchor_normals))
+    plan.__dict__["_rest_geometry"] = out
+    return out

@@ -167,7 +167,8 @@ def test_compiled_anchor_search_equals_the_array_version():
     nominal = np.array([0.2, 0.5, 0.7])
     # a window of half the length around the nominal positions is the whole contour: the
     # split points are then the global closest points, as in the array version
-    *got, moved = kernels[2](pts, m, offs, anchors, nominal, ARC_GAP, 0.5)
+    zn, zan = np.zeros((pts.shape[0], 1)), np.zeros((m.size, 4, 1))    # no normal filter
+    *got, moved = kernels[2](pts, pts, zn, m, offs, anchors, zan, nominal, ARC_GAP, 0.5)
     ref = _closest_on_contours(pts, m, offs, anchors)
     # planes whose closest points are already in order: exactly the array version
     assert 0 < (~moved).sum() < m.size
@@ -176,7 +177,7 @@ def test_compiled_anchor_search_equals_the_array_version():
     np.testing.assert_array_equal(got[0][:, 0], ref[0][:, 0])   # the start is never moved
     # with ARC_WINDOW the split points of the in-order planes stay within the window
     # around their nominal arc fraction after the start
-    win = kernels[2](pts, m, offs, anchors, nominal, ARC_GAP, ARC_WINDOW)
+    win = kernels[2](pts, pts, zn, m, offs, anchors, zan, nominal, ARC_GAP, ARC_WINDOW)
     for s in np.flatnonzero(~win[3]):
         p = pts[offs[s]:offs[s + 1]]
         seg_len = np.hypot(*(np.roll(p, -1, axis=0) - p).T)
@@ -229,3 +230,27 @@ def test_order_arcs_is_the_bounded_isotonic_projection():
         assert np.linalg.norm(_order_arcs(b, 0.0, 1.0) - got) <= np.linalg.norm(b - a) + 1e-15
     ordered = np.array([0.1, 0.4, 0.9])
     np.testing.assert_array_equal(_order_arcs(ordered, 0.0, 1.0), ordered)
+
+
+def test_anchor_search_respects_the_normals():
+    # a thin sheet: two long parallel faces 1 mm apart; an anchor 0.4 mm outside the lower
+    # face but given the upper face's normal (+v) is matched on the upper face, 1.4 mm
+    # away, not on the nearer lower face; without normals the nearer face is taken
+    pytest.importorskip("numba")
+    from fibres.morph import ARC_GAP, _kernels
+
+    x = np.linspace(0.0, 0.05, 26)
+    top = np.c_[x, np.full_like(x, 0.001)]
+    bottom = np.c_[x[::-1], np.zeros_like(x)]
+    pts = np.concatenate([top, bottom])                    # clockwise: top to +u, back below
+    normals = np.concatenate([np.tile([0.0, 1.0], (26, 1)), np.tile([0.0, -1.0], (26, 1))])
+    m, offs = np.array([52]), np.array([0, 52])
+    anchors = np.array([[[0.02, -0.0004]] * 4])
+    nominal = np.array([0.25, 0.5, 0.75])
+    up = np.array([[[0.0, 1.0]] * 4])
+    seg, tk, point, _ = _kernels()[2](pts, pts, normals, m, offs, anchors, up, nominal,
+                                      ARC_GAP, 0.5)
+    np.testing.assert_allclose(point[0, 0], [0.02, 0.001], atol=1e-12)
+    seg, tk, point, _ = _kernels()[2](pts, pts, np.zeros((52, 1)), m, offs, anchors,
+                                      np.zeros((1, 4, 1)), nominal, ARC_GAP, 0.5)
+    np.testing.assert_allclose(point[0, 0], [0.02, 0.0], atol=1e-12)
