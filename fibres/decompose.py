@@ -27,13 +27,13 @@ from .bundle import FibreBundle
 from .contours import choose_loops
 from .errors import InputError
 from .filtering import apply_filter, filter_choices
-from .fitting import fit_box, principal_frame
+from .fitting import fit_box, principal_frame, reference_frame
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
 from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
-from .surface import Surface, as_points, as_surface
+from .surface import Surface, as_points, as_surface, clean_topology
 from .templates import Template, get_template
 
 __all__ = ["decompose", "make_plan"]
@@ -74,9 +74,10 @@ def _inputs(mesh, origin, insertion, units, plan):
 
 def _clean_tuple(mesh, units):
     """(vertices, faces, topology) of a (vertices, faces) tuple that `as_surface` would
-    return unchanged -- closed, manifold, consistently and outward wound, one piece, every
-    vertex used, no duplicate vertices or zero-area faces -- else None (then `as_surface`
-    repairs or refuses it). Skips the general repair for the common clean input."""
+    return unchanged (`fibres.surface.clean_topology`: closed, manifold, consistently and
+    outward wound, one edge-connected piece, every vertex used, no vertices merged or
+    triangles dropped by the repair), else None (then `as_surface` repairs or refuses it).
+    Skips the general repair for the common clean input and keeps the topology it built."""
     if not (isinstance(mesh, tuple) and len(mesh) == 2) or units not in ("m", "mm"):
         return None
     v = np.asarray(mesh[0], dtype=np.float64)
@@ -85,33 +86,11 @@ def _clean_tuple(mesh, units):
             or not np.issubdtype(f.dtype, np.integer) or not np.isfinite(v).all()):
         return None
     f = f.astype(np.int64)
-    n_v = len(v)
-    if f.min() < 0 or f.max() >= n_v or np.bincount(f.ravel(), minlength=n_v).min() == 0:
+    if f.min() < 0 or f.max() >= len(v):
         return None
-    tri = v[f]
-    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    if area2.min() <= 1e-12 * size * size:
-        return None
-    order = np.lexsort(v.T)
-    sv = v[order]
-    if (np.diff(sv, axis=0) == 0).all(axis=1).any():
-        return None
-    try:
-        topology = mesh_topology(f, n_v)
-    except ValueError:
-        return None
-    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
-    if not topology.oriented or volume <= 0:
-        return None
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    e = topology.edges
-    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n_v, n_v))
-    if connected_components(graph, directed=False, return_labels=False) != 1:
-        return None
-    return (v * 1e-3 if units == "mm" else v), f, topology
+    v = v * 1e-3 if units == "mm" else v
+    topology = clean_topology(v, f)
+    return None if topology is None else (v, f, topology)
 
 
 def _template(template, template_params) -> Template:
@@ -122,24 +101,34 @@ def _template(template, template_params) -> Template:
     return get_template(template, **dict(template_params or {}))
 
 
-def _cross_section_ref(vertices, origin, insertion, axis, template):
+def _cross_section_ref(vertices, frame):
     """A reference direction for v0 derived from the muscle itself, so that the rotations
     searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
     the major axis of the vertices' spread perpendicular to the principal axis, its sign
     fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
+    ``frame`` is the muscle's `fibres.fitting.principal_frame` (default v_ref).
 
     Returns None (the fitting's default, a world axis) when that spread is isotropic
     (eigenvalues within `ISOTROPIC` of each other: a circular cylinder, a cube), where no
-    direction is defined by the shape and a world axis keeps axis-aligned shapes exact."""
-    frame = principal_frame(vertices, origin, insertion, axis=axis, template=template)
+    direction is defined by the shape and a world axis keeps axis-aligned shapes exact.
+
+    Component-wise over the (3, V) coordinates: (3, 3) @ (3, V) products would start BLAS
+    threads for a few microseconds of work."""
     u = frame.axis
     dt = np.ascontiguousarray(vertices.T) - frame.centroid[:, None]     # (3, V)
-    dt -= np.outer(u, u @ dt)
-    vals, vecs = np.linalg.eigh(dt @ dt.T)
+    along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
+    for c in range(3):  # coordinates
+        dt[c] -= u[c] * along
+    gram = np.empty((3, 3))
+    for r in range(3):  # coordinates
+        for c in range(r, 3):
+            gram[r, c] = gram[c, r] = np.dot(dt[r], dt[c])
+    vals, vecs = np.linalg.eigh(gram)
     if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
         return None
     ref = vecs[:, -1]
-    if np.arange(1, dt.shape[1] + 1) @ (ref @ dt) < 0:
+    k = np.arange(1.0, dt.shape[1] + 1.0)
+    if np.dot(k, ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]) < 0:
         ref = -ref
     return ref
 
@@ -158,9 +147,10 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
     """Fit the box (§3.2) and record the choices known before slicing."""
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
-    ref = _cross_section_ref(vertices, origin, insertion, axis, tmpl)
+    frame = principal_frame(vertices, origin, insertion, axis=axis, template=tmpl)
+    ref = _cross_section_ref(vertices, frame)
     box = fit_box(vertices, origin, insertion, tmpl, angle_step_deg=angle_step_deg, axis=axis,
-                  v_ref=ref)
+                  v_ref=ref, frame=reference_frame(frame, ref, tmpl))
     scores = box.scores
     best = int(np.flatnonzero(scores <= scores.min() * (1 + SCORE_TIE) + 1e-300)[0])
     theta = np.deg2rad(box.angle_step_deg * box.angle_index)

@@ -146,22 +146,44 @@ def _vertices_faces(surface):
     return np.asarray(v, float), np.asarray(f, np.int64)
 
 
-def _region_indices(vertices, faces, landmarks, tree=None) -> np.ndarray:
-    """Vertex indices of an attachment area (module docstring)."""
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(vertices) if tree is None else tree
-    _, nearest = tree.query(landmarks)
-    proj = vertices[np.unique(nearest)]
-    edges = vertices[faces[:, [1, 2, 0]]] - vertices[faces]
-    mean_edge = float(np.linalg.norm(edges, axis=-1).mean()) if len(faces) else 0.0
-    radius = mean_edge
+def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None) -> np.ndarray:
+    """Vertex indices of an attachment area (module docstring), by brute force over the
+    vertices, component-wise (no KD-tree of the surface: K landmarks need K distances per
+    vertex, cheaper than building a tree). ``vt`` (3, V) and ``mean_edge`` may be passed
+    when already computed."""
+    vt = np.ascontiguousarray(vertices.T) if vt is None else vt
+    landmarks = np.asarray(landmarks, float).reshape(-1, 3)
+    d2 = _sq_distances(vt, landmarks)                                  # (K, V)
+    nearest = np.argmin(d2, axis=1)
+    proj = np.unique(nearest)
+    radius = _mean_edge(vt, faces) if mean_edge is None else mean_edge
     if len(landmarks) > 1:
-        d, _ = cKDTree(landmarks).query(landmarks, k=2)
-        radius = max(radius, float(np.median(d[:, 1])))
-    near = tree.query_ball_point(proj, r=radius)
-    return np.unique(np.concatenate([np.asarray(n, dtype=np.int64) for n in near]
-                                    + [np.asarray(nearest, np.int64)]))
+        dl = np.sqrt(_sq_distances(np.ascontiguousarray(landmarks.T), landmarks))
+        np.fill_diagonal(dl, np.inf)
+        radius = max(radius, float(np.median(dl.min(axis=1))))
+    # |x - proj| <= r needs |x - landmark| <= r + |landmark - proj| (triangle inequality):
+    # only those candidates are measured exactly
+    reach = radius + np.sqrt(d2[np.arange(len(landmarks)), nearest])
+    cand = np.flatnonzero((d2 <= (reach[:, None] * (1 + 1e-9)) ** 2).any(axis=0))
+    near = (_sq_distances(vt[:, cand], vertices[proj]) <= radius * radius).any(axis=0)
+    return np.unique(np.concatenate([cand[near], nearest.astype(np.int64)]))
+
+
+def _sq_distances(vt, points):
+    """(K, V) squared distances of points (K, 3) to vertices given as (3, V)."""
+    d2 = (vt[0] - points[:, 0, None]) ** 2
+    d2 += (vt[1] - points[:, 1, None]) ** 2
+    d2 += (vt[2] - points[:, 2, None]) ** 2
+    return d2
+
+
+def _mean_edge(vt, faces) -> float:
+    """Mean length of the faces' (directed) edges, from (3, V) vertices."""
+    if len(faces) == 0:
+        return 0.0
+    c = np.take(vt, np.ascontiguousarray(faces.T), axis=1)              # (3, 3, T)
+    e = c[:, [1, 2, 0]] - c
+    return float(np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).mean())
 
 
 def attachment_region(vertices, faces, landmarks) -> np.ndarray:
@@ -280,7 +302,8 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
 
     if n == 0 or p < 2 or h_o >= h_i:  # overlapping attachment bands: nothing sensible to cut
         return done()
-    tol = TIE * float(np.linalg.norm(verts.max(axis=0) - verts.min(axis=0)))
+    vt = np.ascontiguousarray(verts.T)                                 # (3, V)
+    tol = TIE * float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
     h = pts @ u                                                       # (N, P)
     idx = np.arange(p)[None, :]
     below = h < h_o - tol    # beyond the origin plane (not on it)
@@ -299,16 +322,14 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     s_o, c_o = _cuts(pts, h, segment[:, 0], h_o, 0.0, 0.0)
     s_i, c_i = _cuts(pts, h, segment[:, 1], h_i, 0.0, 0.0)
     cut_param[:] = np.stack([s_o, s_i], axis=1)
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(verts)
+    mean_edge = _mean_edge(vt, faces)
     rows = np.arange(n)
     for end, (landmarks, c, a, b) in enumerate((
             (origin, c_o, segment[:, 0] + 1, segment[:, 0]),     # ray towards the origin
             (insertion, c_i, segment[:, 1], segment[:, 1] + 1))):  # ray towards the insertion
         sel = cut[:, end]
         if sel.any():  # two ends, not a loop over fibres
-            region = _region_indices(verts, faces, landmarks, tree)
+            region = _region_indices(verts, faces, landmarks, vt, mean_edge)
             d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
             target[sel, end] = region[_closest_to_rays(verts[region], c[sel], d)]
     _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param)

@@ -11,6 +11,20 @@ point the distance to the closest landmark of the same attachment, summed over b
 
 All rotations are evaluated at once: (J, V) projections, (J, K_template, K_landmarks) distances.
 
+Ties in the oblique-axis iteration (`principal_frame` with e.g. the pennate template). When
+the landmarks are symmetric about the attachment line (two rings of landmarks around the
+tips), two rotations 180 degrees apart match equally well and their scores differ by
+rounding only (~1e-16 relative), yet they shift the axis to opposite sides. Rotations whose
+score is within `ROTATION_TIE` (relative) of the best count as tied, and the tie is broken by
+the muscle's shape, invariant under any rigid motion of the input: (1) the rotation whose
+cross-section offset (the template's insertion band relative to its origin band, mapped into
+the box) points farthest towards the muscle's bulk -- the offset of the vertex centroid from
+the line through the origin-landmark centroid along the attachment vector -- where these
+differ by more than `ROTATION_TIE` x offset x muscle size; else (2) the same with the
+vertex-order moment ``sum_k (k + 1) (V_k - c)`` (the sign rule of the cross-section
+reference in `fibres.decompose`, which rides along with the vertices); else (3) the lowest
+rotation index.
+
 Axis rule (``axis="auto"``): the attachment direction is used unless the two landmark
 centroids are closer than ``AUTO_MIN_SEPARATION`` (1/4) of the surface's extent along its
 covariance axis; then the covariance axis is used, oriented from origin to insertion.
@@ -26,10 +40,13 @@ from .errors import InputError
 from .templates import Template, get_template
 
 __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
-           "template_offset", "AUTO_MIN_SEPARATION"]
+           "template_offset", "reference_frame", "AUTO_MIN_SEPARATION", "ROTATION_TIE"]
 
 AUTO_MIN_SEPARATION = 0.25
 _MAX_OBLIQUE_ITERATIONS = 200
+#: relative score margin within which rotations of the oblique-axis iteration are tied
+#: (module docstring): far above rounding (1e-16), far below real score differences
+ROTATION_TIE = 1e-9
 _AXES = ("attachments", "covariance", "auto")
 
 
@@ -277,6 +294,33 @@ def principal_frame(vertices, origin, insertion, *, axis: str = "auto", v_ref=No
                             angle_index=angle_index)
 
 
+def reference_frame(frame: PrincipalFrame, v_ref, template=None) -> PrincipalFrame | None:
+    """``frame`` with v0, w0 taken from ``v_ref`` -- what `principal_frame` returns for the
+    same inputs with this ``v_ref`` -- or None where the axis itself depends on v_ref (an
+    oblique template with the attachment axis: the fixed-point iteration searches rotations
+    of v0), which then needs `principal_frame` again.
+
+    Parameters
+    ----------
+    frame : PrincipalFrame
+        From `principal_frame` (any ``v_ref``).
+    v_ref : (3,) float or None
+    template : Template or str, optional
+        The template ``frame`` was computed with.
+
+    Returns
+    -------
+    PrincipalFrame or None
+    """
+    if template is not None and frame.method == "attachments":
+        if not isinstance(template, Template):
+            template = get_template(template)
+        if np.abs(template_offset(template)).max() > 1e-12:
+            return None
+    v0, w0 = _frame_for(frame.axis, v_ref)
+    return PrincipalFrame(frame.centroid, frame.axis, v0, w0, frame.method)
+
+
 def _transposed(vertices):
     """(3, V) C-contiguous copy of (V, 3) vertices: reductions over the vertices then run
     along contiguous rows (over axis 0 of (V, 3) they are ~10-50x slower)."""
@@ -362,7 +406,8 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
                 theta = theta[[int(angle_index) % len(theta)]]
             for it in range(_MAX_OBLIQUE_ITERATIONS):
                 axes, corner, ext = _boxes(vertices, centroid, u, v0, w0, theta)
-                j = int(np.argmin(_scores(template, axes, corner, ext, origin, insertion)))
+                j = _best_rotation(_scores(template, axes, corner, ext, origin, insertion),
+                                   axes, ext, off, origin, direction, vertices, centroid)
                 if it == 3:  # the rotation has settled: keep it, iterate on the axis only
                     theta = theta[[j]]
                 new = direction - ext[j, 0] * off[0] * axes[j, :, 0] \
@@ -374,6 +419,32 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
                 if done:
                     break
     return PrincipalFrame(centroid, u, v0, w0, method)
+
+
+def _best_rotation(scores, axes, ext, off, origin, direction, vertices, centroid) -> int:
+    """Index of the best-scoring rotation of the oblique-axis iteration with the tie rule of
+    the module docstring. scores (J,), axes (J, 3, 3), ext (J, 3), off (2,), origin (K, 3),
+    direction (3,) (the attachment vector), vertices (V, 3), centroid (3,)."""
+    tied = np.flatnonzero(scores <= scores.min() * (1.0 + ROTATION_TIE) + 1e-300)
+    if tied.size == 1:
+        return int(tied[0])
+    shift = (ext[tied, 0, None] * off[0] * axes[tied, :, 0]
+             + ext[tied, 1, None] * off[1] * axes[tied, :, 1])                # (J', 3)
+    reach = float(np.linalg.norm(shift, axis=1).max()) * float(np.ptp(vertices, axis=0).max())
+    # (1) towards the bulk: the centroid's offset from the attachment line
+    rel = centroid - origin.mean(axis=0)
+    bulk = rel - (rel @ direction) / (direction @ direction) * direction
+    # (2) the vertex-order moment sum_k (k + 1) (V_k - c), which rides along with the vertices
+    dt = _transposed(vertices) - centroid[:, None]                               # (3, V)
+    k = np.arange(1.0, dt.shape[1] + 1.0)
+    moment = np.array([np.dot(k, dt[c]) for c in range(3)])  # coordinates
+    for ref, scale in ((bulk, reach), (moment, reach * np.sqrt(k @ k))):  # two rules
+        along = shift @ ref
+        keep = along >= along.max() - ROTATION_TIE * scale
+        tied, shift = tied[keep], shift[keep]
+        if tied.size == 1:
+            break
+    return int(tied[0])
 
 
 def check_landmarks(vertices, points, *, name: str = "landmarks", file=None):
@@ -477,7 +548,8 @@ class Box:
 
 
 def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg: float = 5.0,
-            axis: str = "auto", v_ref=None, check_units: bool = True) -> Box:
+            axis: str = "auto", v_ref=None, check_units: bool = True,
+            frame: PrincipalFrame | None = None) -> Box:
     """Fit the template cube to the muscle as the best-matching principal-axis OBB.
 
     Kohout et al. (GRAPP 2012) §3.2, vectorised over all rotations.
@@ -498,6 +570,10 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
         Reference for v0 (see `principal_frame`).
     check_units : bool, keyword-only
         Run `check_landmarks` on both sets (refuses unit mistakes).
+    frame : PrincipalFrame, optional
+        The principal frame of exactly these inputs (vertices, landmarks, ``axis``,
+        ``template``, ``v_ref``, ``angle_step_deg``) when already at hand (e.g. from
+        `reference_frame`); computed when None.
 
     Returns
     -------
@@ -521,8 +597,9 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
     if check_units:
         _check_in_box(lo, hi, origin, name="origin")
         _check_in_box(lo, hi, insertion, name="insertion")
-    frame = _principal_frame(vertices, vt, origin, insertion, axis=axis, v_ref=v_ref,
-                             template=template, angle_step_deg=step, angle_index=None)
+    if frame is None:
+        frame = _principal_frame(vertices, vt, origin, insertion, axis=axis, v_ref=v_ref,
+                                 template=template, angle_step_deg=step, angle_index=None)
     axes, corner, ext = _boxes(vertices, frame.centroid, frame.axis, frame.v0, frame.w0,
                                _thetas(step))
     size = float(np.linalg.norm(hi - lo))

@@ -251,7 +251,7 @@ def _repair(v, f, label, *, quiet_merge=False):
 
 def clean_topology(v, f):
     """The mesh topology of (v, f) if `as_surface` would return it unchanged with nothing
-    to repair, else None -- checked without building the trimesh structures (~4x faster
+    to repair, else None -- checked without building the trimesh structures (~20x faster
     than the repair on a clean 15K-vertex mesh).
 
     Parameters
@@ -271,7 +271,8 @@ def clean_topology(v, f):
     heights above trimesh's merge tolerance (with a factor 2 margin); no duplicate faces and
     one piece (edge-adjacent faces; a closed manifold mesh in one piece has no duplicate
     faces); closed, manifold and consistently wound (each edge used once in each
-    direction); positive volume.
+    direction); positive volume. The geometry runs component-wise on (3, T) corner arrays
+    (numpy's cross and norm over a size-3 axis are ~10x slower).
     """
     from trimesh import tol, util
 
@@ -280,36 +281,104 @@ def clean_topology(v, f):
     n_v = len(v)
     if len(f) < 4 or np.bincount(f.ravel(), minlength=n_v).min() == 0:
         return None
-    q = (v * 10 ** util.decimal_to_digits(tol.merge)).round().astype(np.int64)
-    order = np.lexsort(q.T)
-    if (np.diff(q[order], axis=0) == 0).all(axis=1).any():
+    if _has_duplicate_rows((v * 10 ** util.decimal_to_digits(tol.merge)).round()
+                           .astype(np.int64)):
         return None
-    tri = v[f]
-    e = tri[:, [1, 2, 0]] - tri                                    # (T, 3, 3) edges
-    length = np.sqrt(np.einsum("tkd,tkd->tk", e, e))                # (T, 3)
-    area2 = np.linalg.norm(np.cross(e[:, 0], -e[:, 2]), axis=1)
+    vt = np.ascontiguousarray(v.T)                                 # (3, V)
+    a, b, c = np.take(vt, np.ascontiguousarray(f.T), axis=1).transpose(1, 0, 2)  # (3, T) each
+    ab, ac, bc = b - a, c - a, c - b
+    len2 = np.minimum(np.minimum(_dot3(ab, ab), _dot3(bc, bc)), _dot3(ac, ac))
+    len2_max = np.maximum(np.maximum(_dot3(ab, ab), _dot3(bc, bc)), _dot3(ac, ac))
+    n = _cross3(ab, ac)                                             # (3, T), |n| = 2 area
+    area2 = np.sqrt(_dot3(n, n))
     # trimesh: both edges from the first corner and the heights over them > tol.merge
-    if not ((length.min(axis=1) > 2 * tol.merge)
-            & (area2 > 2 * tol.merge * length.max(axis=1))).all():
+    if not ((np.sqrt(len2) > 2 * tol.merge)
+            & (area2 > 2 * tol.merge * np.sqrt(len2_max))).all():
         return None
     try:
         topology = mesh_topology(f, n_v)
     except ValueError:
         return None
-    if not topology.oriented:
+    if not topology.oriented or _n_pieces(topology.neighbours) != 1:
         return None
+    volume = float(_dot3(a, _cross3(b, c)).sum())
+    size = float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
+    return topology if volume > 1e-9 * size ** 3 else None
+
+
+def _dot3(p, q):
+    """Dot product of (3, T) arrays along axis 0."""
+    return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
+
+
+def _cross3(p, q):
+    """Cross product of (3, T) arrays along axis 0."""
+    return np.stack([p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2],
+                     p[0] * q[1] - p[1] * q[0]])
+
+
+def _has_duplicate_rows(q):
+    """Whether two rows of the (V, 3) int64 array are equal: one sort of a row hash (~4x
+    faster than a lexsort of the rows); only equal hashes are checked row by row."""
+    h = (q[:, 0] * np.int64(-7046029254386353131) + q[:, 1]) * np.int64(0x5851F42D4C957F2D) \
+        + q[:, 2]                                            # wraps around: a hash, not a key
+    if not (np.diff(np.sort(h)) == 0).any():
+        return False
+    order = np.argsort(h, kind="stable")
+    same = np.flatnonzero(np.diff(h[order]) == 0)
+    sub = np.unique(np.concatenate([order[same], order[same + 1]]))
+    qs = q[sub][np.lexsort(q[sub].T)]
+    return bool((np.diff(qs, axis=0) == 0).all(axis=1).any())
+
+
+def _n_pieces(neighbours):
+    """Number of edge-connected pieces of a closed mesh from its (T, 3) face neighbours."""
+    kernel = _pieces_kernel()
+    if kernel is not None:
+        return int(kernel(np.ascontiguousarray(neighbours, dtype=np.int64)))
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    n_f = len(f)
+    n_f = len(neighbours)
     rows = np.repeat(np.arange(n_f), 3)
-    graph = coo_matrix((np.ones(rows.size), (rows, topology.neighbours.ravel())),
-                       shape=(n_f, n_f))
-    if connected_components(graph, directed=False, return_labels=False) != 1:
-        return None
-    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
-    size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    return topology if volume > 1e-9 * size ** 3 else None
+    graph = coo_matrix((np.ones(rows.size), (rows, neighbours.ravel())), shape=(n_f, n_f))
+    return connected_components(graph, directed=False, return_labels=False)
+
+
+_PIECES = []
+
+
+def _pieces_kernel():
+    """`_pieces_loop` compiled with numba, or None (then scipy's connected components)."""
+    if not _PIECES:
+        try:
+            import numba
+        except ImportError:                                     # pragma: no cover - optional
+            _PIECES.append(None)
+        else:
+            _PIECES.append(numba.njit(cache=True, nogil=True)(_pieces_loop))
+    return _PIECES[0]
+
+
+def _pieces_loop(nb):  # pragma: no cover - compiled by numba
+    """Union-find (path halving) over the face adjacency; returns the number of roots."""
+    n = nb.shape[0]
+    parent = np.arange(n)
+    pieces = n
+    for t in range(n):
+        for j in range(3):
+            x = t
+            while parent[x] != x:
+                parent[x] = parent[parent[x]]
+                x = parent[x]
+            y = nb[t, j]
+            while parent[y] != y:
+                parent[y] = parent[parent[y]]
+                y = parent[y]
+            if x != y:
+                parent[max(x, y)] = min(x, y)
+                pieces -= 1
+    return pieces
 
 
 def as_surface(mesh, *, units: str = "m") -> Surface:

@@ -227,3 +227,46 @@ def test_support_screen_compiled_equals_numpy(monkeypatch):
     compiled = fitting._support_candidates(a, b)
     monkeypatch.setattr(fitting, "_SCREEN", [None])
     np.testing.assert_array_equal(compiled, fitting._support_candidates(a, b))
+
+
+def _bent_spindle(n_z=24, n_t=32, length=0.2):
+    """Closed spindle (elliptic sections, twisted, bowed to +x) and two rings of 8 landmarks
+    around its tips: the landmarks are symmetric about the tip line (the z axis), so the
+    pennate template's first rotation search has two exactly tied rotations 180 degrees apart."""
+    u = np.linspace(0.0, 1.0, n_z + 2)[1:-1]
+    th = np.linspace(0.0, 2 * np.pi, n_t, endpoint=False)
+    r = 0.02 * np.sin(np.pi * u) ** 0.8 + 0.002
+    a, b = r[:, None] * 1.4 * np.cos(th), r[:, None] * 0.8 * np.sin(th)
+    tw = 0.6 * u[:, None]
+    x = np.cos(tw) * a - np.sin(tw) * b + 0.02 * np.sin(np.pi * u)[:, None]
+    y = np.sin(tw) * a + np.cos(tw) * b
+    z = np.broadcast_to(length * (u - 0.5)[:, None], x.shape)
+    v = np.vstack([np.stack([x, y, z], -1).reshape(-1, 3), [0, 0, -length / 2],
+                   [0, 0, length / 2]])
+    ring = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    spread = 0.004 * np.c_[np.cos(ring), np.sin(ring), np.zeros(8)]
+    return v, v[-2] + spread + [0, 0, 0.004], v[-1] + spread - [0, 0, 0.004]
+
+
+def test_pennate_tie_is_broken_by_the_shape_not_by_rounding():
+    # Rotations within ROTATION_TIE of the best score are tied and broken towards the
+    # muscle's bulk (module docstring). Without the rule the rounding of the two equal scores
+    # (~1e-16 apart) chose the side: a rigid motion flipped the axis by ~2 x 11 degrees.
+    v, o, i = _bent_spindle()
+    ref = np.array([1.0, 0.3, 0.1])
+    frame = principal_frame(v, o, i, template="pennate", v_ref=ref)
+    # rule (1): the template's insertion band is shifted towards the bulk (+x here: the
+    # spindle is bowed to +x), so the axis = attachment vector - shift tilts to -x
+    assert frame.axis[0] < -0.1
+    for rot in Rotation.random(8, random_state=3):
+        r, t = rot.as_matrix(), np.array([0.3, -1.2, 0.7])
+        moved = principal_frame(v @ r.T + t, o @ r.T + t, i @ r.T + t, template="pennate",
+                                v_ref=r @ ref)
+        # the same rotation grid relative to the muscle: equal up to rounding (1e-9 is
+        # ~1e6 x the double precision of unit vectors; a flip would be ~0.38 away)
+        assert np.abs(moved.axis - r @ frame.axis).max() <= 1e-9
+    rng = np.random.default_rng(0)
+    for _ in range(4):  # perturbations of 1e-12 m break the exact tie by ~1e-10 relative
+        nudged = principal_frame(v, o + 1e-12 * rng.standard_normal(o.shape), i,
+                                 template="pennate", v_ref=ref)
+        assert np.abs(nudged.axis - frame.axis).max() <= 1e-8
