@@ -264,7 +264,7 @@ class SurfaceBinding:
         p = np.ascontiguousarray(p.transpose(1, 0, 2))
         q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
-        rounds = 1 if len(obstacles) < 2 else 3
+        rounds = 1 if len(obstacles) < 2 else 2
 
         def pushed(kk):
             v = p + kk[:, None, None] * q

@@ -381,15 +381,13 @@ class BoneDistance:
             sub = idx[:, inside]
             value[inside] = map_coordinates(self.coefficients, sub, order=3, prefilter=False, mode="nearest")
             if gradient:
-                h = 0.25
-                for axis in range(3):  # three axes, central differences of the spline
-                    plus, minus = sub.copy(), sub.copy()
+                h = 0.1
+                for axis in range(3):  # three axes, forward differences of the (C2) spline
+                    plus = sub.copy()
                     plus[axis] += h
-                    minus[axis] -= h
                     grad[inside, axis] = (
                         map_coordinates(self.coefficients, plus, order=3, prefilter=False, mode="nearest")
-                        - map_coordinates(self.coefficients, minus, order=3, prefilter=False, mode="nearest")
-                    ) / (2.0 * h * self.spacing)
+                        - value[inside]) / (h * self.spacing)
         value = value.reshape(p.shape[:-1])
         if gradient:
             return value, grad.reshape(p.shape)
