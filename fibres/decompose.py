@@ -33,7 +33,7 @@ from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
 from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
-from .surface import Surface, as_points, as_surface, clean_topology
+from .surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .templates import Template, get_template
 
 __all__ = ["decompose", "make_plan"]
@@ -42,9 +42,11 @@ _AXES = ("auto", "attachments", "covariance")
 
 
 def _inputs(mesh, origin, insertion, units, plan):
-    """(vertices, faces, origin, insertion, notes): the surface through `as_surface`, except
-    a (vertices, faces) tuple with exactly the plan's faces (a frame of a motion), which is
-    used as is (the plan's mesh was checked and repaired already)."""
+    """(vertices, faces, origin, insertion, notes, topology, mean_edge): the surface through
+    `as_surface`, except a (vertices, faces) tuple with exactly the plan's faces (a frame of
+    a motion), which is used as is (the plan's mesh was checked and repaired already), and a
+    clean tuple (`_clean_tuple`), whose topology and mean edge length come from the check
+    (else None)."""
     notes = []
     if (plan is not None and isinstance(mesh, tuple) and len(mesh) == 2
             and np.shape(mesh[1]) == plan.topology.faces.shape
@@ -57,23 +59,23 @@ def _inputs(mesh, origin, insertion, units, plan):
                              f"({plan.topology.n_vertices}, 3), got {v.shape}",
                              where="mesh", fix="Pass the same mesh, deformed.")
         faces = plan.topology.faces
-        topology = plan.topology
+        topology, mean_edge = plan.topology, None
     else:
         clean = _clean_tuple(mesh, units)
         if clean is not None:
-            v, faces, topology = clean
+            v, faces, topology, mean_edge = clean
         else:
             # a Surface is in metres by definition; ``units`` then applies to the landmarks
             surface = mesh if isinstance(mesh, Surface) else as_surface(mesh, units=units)
-            v, faces, topology = surface.vertices, surface.faces, None
+            v, faces, topology, mean_edge = surface.vertices, surface.faces, None, None
             notes.extend(f"surface repaired: {r}" for r in surface.repairs)
     o = as_points(origin, units=units, name="origin")
     i = as_points(insertion, units=units, name="insertion")
-    return v, faces, o, i, notes, topology
+    return v, faces, o, i, notes, topology, mean_edge
 
 
 def _clean_tuple(mesh, units):
-    """(vertices, faces, topology) of a (vertices, faces) tuple that `as_surface` would
+    """(vertices, faces, topology, mean_edge) of a (vertices, faces) tuple that `as_surface` would
     return unchanged (`fibres.surface.clean_topology`: closed, manifold, consistently and
     outward wound, one edge-connected piece, every vertex used, no vertices merged or
     triangles dropped by the repair), else None (then `as_surface` repairs or refuses it).
@@ -89,8 +91,8 @@ def _clean_tuple(mesh, units):
     if f.min() < 0 or f.max() >= len(v):
         return None
     v = v * 1e-3 if units == "mm" else v
-    topology = clean_topology(v, f)
-    return None if topology is None else (v, f, topology)
+    topology, mean_edge = clean_mesh_geometry(v, f)
+    return None if topology is None else (v, f, topology, mean_edge)
 
 
 def _template(template, template_params) -> Template:
@@ -211,7 +213,7 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
     DecompositionPlan
         Reuse with ``decompose(deformed, o, i, plan=plan)`` for every frame.
     """
-    v, faces, o, i, _, topology = _inputs(mesh, origin, insertion, units, None)
+    v, faces, o, i, _, topology, _ = _inputs(mesh, origin, insertion, units, None)
     tmpl = _template(template, template_params)
     plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, angle_step_deg, topology)
     *_, choice, _ = _sweep(plan, v, o, i, fresh=True)
@@ -319,7 +321,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
             or resolution < 1:
         raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
-    v, faces, o, i, notes, topology = _inputs(mesh, origin, insertion, units, plan)
+    v, faces, o, i, notes, topology, mean_edge = _inputs(mesh, origin, insertion, units, plan)
     tmpl = _template(template, template_params)
     if plan is None:
         plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, 5.0, topology)
@@ -339,7 +341,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         fc = None
         if fresh:
             fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2], seed=seed,
-                                template=template_spec(tmpl))
+                                template=template_spec(tmpl), mean_edge=mean_edge)
             plan = dataclasses.replace(plan, filter_choice=fc)
         else:
             fc = _plan_filter_choice(plan, tmpl, int(n_fibres), int(resolution), seed, notes)

@@ -153,20 +153,89 @@ def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None) -> np.n
     when already computed."""
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
     landmarks = np.asarray(landmarks, float).reshape(-1, 3)
-    d2 = _sq_distances(vt, landmarks)                                  # (K, V)
-    nearest = np.argmin(d2, axis=1)
-    proj = np.unique(nearest)
     radius = _mean_edge(vt, faces) if mean_edge is None else mean_edge
     if len(landmarks) > 1:
         dl = np.sqrt(_sq_distances(np.ascontiguousarray(landmarks.T), landmarks))
         np.fill_diagonal(dl, np.inf)
         radius = max(radius, float(np.median(dl.min(axis=1))))
+    kernels = _kernels()
+    if kernels is not None:
+        nearest = kernels[0](vt, landmarks)
+        within = kernels[1](vt, np.ascontiguousarray(vertices[np.unique(nearest)]),
+                            radius * radius)
+        return np.unique(np.concatenate([np.flatnonzero(within), nearest]))
+    d2 = _sq_distances(vt, landmarks)                                  # (K, V)
+    nearest = np.argmin(d2, axis=1)
+    proj = np.unique(nearest)
     # |x - proj| <= r needs |x - landmark| <= r + |landmark - proj| (triangle inequality):
     # only those candidates are measured exactly
     reach = radius + np.sqrt(d2[np.arange(len(landmarks)), nearest])
     cand = np.flatnonzero((d2 <= (reach[:, None] * (1 + 1e-9)) ** 2).any(axis=0))
     near = (_sq_distances(vt[:, cand], vertices[proj]) <= radius * radius).any(axis=0)
     return np.unique(np.concatenate([cand[near], nearest.astype(np.int64)]))
+
+
+_KERNELS = []
+
+
+def _kernels():
+    """(nearest vertex per point, vertices within a radius of some point, closest candidate
+    to each ray) compiled with numba, or None (then numpy, component-wise: the same
+    arithmetic in the same order)."""
+    if not _KERNELS:
+        try:
+            import numba
+        except ImportError:                                     # pragma: no cover - optional
+            _KERNELS.append(None)
+        else:
+            jit = numba.njit(cache=True, nogil=True)
+            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_rays_loop)))
+    return _KERNELS[0]
+
+
+def _nearest_loop(vt, points):  # pragma: no cover - compiled by numba
+    """Index of the nearest of the vertices (3, V) to each point (K, 3) (first on ties)."""
+    out = np.zeros(points.shape[0], np.int64)
+    for k in range(points.shape[0]):
+        px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+        best = np.inf
+        for i in range(vt.shape[1]):
+            dx, dy, dz = vt[0, i] - px, vt[1, i] - py, vt[2, i] - pz
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 < best:
+                best = d2
+                out[k] = i
+    return out
+
+
+def _within_loop(vt, points, r2):  # pragma: no cover - compiled by numba
+    """Whether each vertex (3, V) lies within squared distance r2 of some point (K, 3)."""
+    out = np.zeros(vt.shape[1], np.bool_)
+    for i in range(vt.shape[1]):
+        for k in range(points.shape[0]):
+            dx, dy, dz = points[k, 0] - vt[0, i], points[k, 1] - vt[1, i], points[k, 2] - vt[2, i]
+            if dx * dx + dy * dy + dz * dz <= r2:
+                out[i] = True
+                break
+    return out
+
+
+def _rays_loop(ct, start, dn):  # pragma: no cover - compiled by numba
+    """`_closest_to_rays` for candidates (3, C), starts (N, 3), unit directions (N, 3)."""
+    out = np.zeros(start.shape[0], np.int64)
+    for n in range(start.shape[0]):
+        sx, sy, sz = start[n, 0], start[n, 1], start[n, 2]
+        ux, uy, uz = dn[n, 0], dn[n, 1], dn[n, 2]
+        best = np.inf
+        for c in range(ct.shape[1]):
+            rx, ry, rz = ct[0, c] - sx, ct[1, c] - sy, ct[2, c] - sz
+            t = max(rx * ux + ry * uy + rz * uz, 0.0)
+            px, py, pz = rx - t * ux, ry - t * uy, rz - t * uz
+            d2 = px * px + py * py + pz * pz
+            if d2 < best:
+                best = d2
+                out[n] = c
+    return out
 
 
 def _sq_distances(vt, points):
@@ -208,16 +277,27 @@ def attachment_region(vertices, faces, landmarks) -> np.ndarray:
 def _closest_to_rays(candidates, start, direction, *, chunk: int = 1 << 21):
     """For each ray (start (N,3), direction (N,3)) the index of the candidate (C,3) closest
     to it. Distance of q to the ray s + t d (t >= 0): |q - s - max((q - s).d, 0) d|.
-    Fibres are processed in blocks of about ``chunk`` fibre-candidate pairs (bounded memory).
+    Fibres are processed in blocks of about ``chunk`` fibre-candidate pairs (bounded memory),
+    component-wise on (n, C) arrays (a reduction over a size-3 axis is ~5x slower).
     """
     dn = direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    ct = np.ascontiguousarray(np.asarray(candidates, dtype=np.float64).T)   # (3, C)
+    kernels = _kernels()
+    if kernels is not None:
+        return kernels[2](ct, np.ascontiguousarray(start, dtype=np.float64),
+                          np.ascontiguousarray(dn))
     out = np.empty(len(start), np.int64)
-    step = max(1, chunk // max(len(candidates), 1))
+    step = max(1, chunk // max(ct.shape[1], 1))
     for a in range(0, len(start), step):  # blocks of fibres, not single fibres
-        rel = candidates[None, :, :] - start[a:a + step, None, :]       # (n, C, 3)
-        along = np.einsum("nck,nk->nc", rel, dn[a:a + step])
-        perp = rel - np.maximum(along, 0.0)[..., None] * dn[a:a + step, None, :]
-        out[a:a + step] = np.argmin(np.einsum("nck,nck->nc", perp, perp), axis=1)
+        s, d = start[a:a + step], dn[a:a + step]
+        rel = [ct[c] - s[:, c, None] for c in range(3)]                      # 3 x (n, C)
+        along = np.maximum(rel[0] * d[:, 0, None] + rel[1] * d[:, 1, None]
+                           + rel[2] * d[:, 2, None], 0.0)
+        d2 = 0.0
+        for c in range(3):  # coordinates
+            p = rel[c] - along * d[:, c, None]
+            d2 = d2 + p * p
+        out[a:a + step] = np.argmin(d2, axis=1)
     return out
 
 
@@ -254,7 +334,7 @@ def _cuts(pts, h, segment, level, fallback, slack):
 
 
 def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
-                   template=None) -> FilterChoice:
+                   template=None, mean_edge: float | None = None) -> FilterChoice:
     """Make the attachment filter's choices on one (rest-pose) decomposition.
 
     Kohout et al. (GRAPP 2012) §3.4: cutting planes through the extreme landmarks, the
@@ -273,6 +353,9 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     seed : int, keyword-only
     template : (name, params) or None, keyword-only
         Recorded with the choices (which fibres they belong to).
+    mean_edge : float, optional, keyword-only
+        Mean length of the surface's face edges when already known (e.g. from
+        `fibres.surface.clean_mesh_geometry`); computed when None.
 
     Returns
     -------
@@ -322,7 +405,7 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     s_o, c_o = _cuts(pts, h, segment[:, 0], h_o, 0.0, 0.0)
     s_i, c_i = _cuts(pts, h, segment[:, 1], h_i, 0.0, 0.0)
     cut_param[:] = np.stack([s_o, s_i], axis=1)
-    mean_edge = _mean_edge(vt, faces)
+    mean_edge = _mean_edge(vt, faces) if mean_edge is None else float(mean_edge)
     rows = np.arange(n)
     for end, (landmarks, c, a, b) in enumerate((
             (origin, c_o, segment[:, 0] + 1, segment[:, 0]),     # ray towards the origin

@@ -274,36 +274,111 @@ def clean_topology(v, f):
     direction); positive volume. The geometry runs component-wise on (3, T) corner arrays
     (numpy's cross and norm over a size-3 axis are ~10x slower).
     """
-    from trimesh import tol, util
+    return clean_mesh_geometry(v, f)[0]
 
-    from .slicing import mesh_topology
+
+def clean_mesh_geometry(v, f):
+    """`clean_topology` and, for a clean mesh, the mean length of the faces' edges (the
+    edge lengths are computed by the check anyway).
+
+    Parameters
+    ----------
+    v : (V, 3) float64
+    f : (T, 3) int64
+
+    Returns
+    -------
+    topology : fibres.slicing.MeshTopology or None
+    mean_edge : float or None
+        Mean over the 3 T directed face edges (None when the mesh is not clean).
+    """
+    from trimesh import tol, util
 
     n_v = len(v)
     if len(f) < 4 or np.bincount(f.ravel(), minlength=n_v).min() == 0:
-        return None
+        return None, None
     if _has_duplicate_rows((v * 10 ** util.decimal_to_digits(tol.merge)).round()
                            .astype(np.int64)):
-        return None
+        return None, None
+    kernel = _geometry_kernel()
+    if kernel is not None:
+        ok, volume, edge_sum = kernel(np.ascontiguousarray(v), np.ascontiguousarray(f),
+                                      2 * tol.merge)
+        if not ok:
+            return None, None
+        return _clean_topology_rest(v, f, volume, edge_sum / (3 * len(f)))
     vt = np.ascontiguousarray(v.T)                                 # (3, V)
     a, b, c = np.take(vt, np.ascontiguousarray(f.T), axis=1).transpose(1, 0, 2)  # (3, T) each
     ab, ac, bc = b - a, c - a, c - b
-    len2 = np.minimum(np.minimum(_dot3(ab, ab), _dot3(bc, bc)), _dot3(ac, ac))
-    len2_max = np.maximum(np.maximum(_dot3(ab, ab), _dot3(bc, bc)), _dot3(ac, ac))
+    lab, lbc, lac = np.sqrt(_dot3(ab, ab)), np.sqrt(_dot3(bc, bc)), np.sqrt(_dot3(ac, ac))
     n = _cross3(ab, ac)                                             # (3, T), |n| = 2 area
     area2 = np.sqrt(_dot3(n, n))
     # trimesh: both edges from the first corner and the heights over them > tol.merge
-    if not ((np.sqrt(len2) > 2 * tol.merge)
-            & (area2 > 2 * tol.merge * np.sqrt(len2_max))).all():
-        return None
+    if not ((np.minimum(np.minimum(lab, lbc), lac) > 2 * tol.merge)
+            & (area2 > 2 * tol.merge * np.maximum(np.maximum(lab, lbc), lac))).all():
+        return None, None
+    return _clean_topology_rest(v, f, float(_dot3(a, _cross3(b, c)).sum()),
+                                float((lab.sum() + lbc.sum() + lac.sum()) / (3 * len(f))))
+
+
+def _clean_topology_rest(v, f, volume, mean_edge):
+    """The topological steps of `clean_mesh_geometry` and the volume check."""
+    from .slicing import mesh_topology
+
     try:
-        topology = mesh_topology(f, n_v)
+        topology = mesh_topology(f, len(v))
     except ValueError:
-        return None
+        return None, None
     if not topology.oriented or _n_pieces(topology.neighbours) != 1:
-        return None
-    volume = float(_dot3(a, _cross3(b, c)).sum())
+        return None, None
+    vt = np.ascontiguousarray(v.T)
     size = float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
-    return topology if volume > 1e-9 * size ** 3 else None
+    if not volume > 1e-9 * size ** 3:
+        return None, None
+    return topology, float(mean_edge)
+
+
+_GEOMETRY = []
+
+
+def _geometry_kernel():
+    """`_geometry_loop` compiled with numba, or None (then numpy, component-wise)."""
+    if not _GEOMETRY:
+        try:
+            import numba
+        except ImportError:                                     # pragma: no cover - optional
+            _GEOMETRY.append(None)
+        else:
+            _GEOMETRY.append(numba.njit(cache=True, nogil=True)(_geometry_loop))
+    return _GEOMETRY[0]
+
+
+def _geometry_loop(v, f, tol2):  # pragma: no cover - compiled by numba
+    """One pass over the faces: (every edge and the height over the first corner's edges
+    above ``tol2``, signed volume x 6, sum of the edge lengths)."""
+    volume = 0.0
+    edge_sum = 0.0
+    ok = True
+    for t in range(f.shape[0]):
+        i, j, k = f[t, 0], f[t, 1], f[t, 2]
+        ax, ay, az = v[i, 0], v[i, 1], v[i, 2]
+        bx, by, bz = v[j, 0], v[j, 1], v[j, 2]
+        cx, cy, cz = v[k, 0], v[k, 1], v[k, 2]
+        abx, aby, abz = bx - ax, by - ay, bz - az
+        acx, acy, acz = cx - ax, cy - ay, cz - az
+        bcx, bcy, bcz = cx - bx, cy - by, cz - bz
+        lab = np.sqrt(abx * abx + aby * aby + abz * abz)
+        lbc = np.sqrt(bcx * bcx + bcy * bcy + bcz * bcz)
+        lac = np.sqrt(acx * acx + acy * acy + acz * acz)
+        nx = aby * acz - abz * acy
+        ny = abz * acx - abx * acz
+        nz = abx * acy - aby * acx
+        area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if not (min(lab, lbc, lac) > tol2 and area2 > tol2 * max(lab, lbc, lac)):
+            ok = False
+        volume += ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+        edge_sum += lab + lbc + lac
+    return ok, volume, edge_sum
 
 
 def _dot3(p, q):
