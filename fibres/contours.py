@@ -13,7 +13,8 @@ import numpy as np
 
 from .slicing import Sections
 
-__all__ = ["loop_areas", "choose_loops", "anchored_loops", "clockwise_contour"]
+__all__ = ["loop_areas", "choose_loops", "anchored_loops", "bridge_loops",
+           "clockwise_contour"]
 
 
 def loop_areas(sections: Sections) -> np.ndarray:
@@ -128,7 +129,7 @@ def clockwise_contour(sections: Sections, loop: int):
     return np.ascontiguousarray(pts), np.ascontiguousarray(edge)
 
 
-def anchored_loops(sections: Sections, chosen, anchors_uv, *, points=None):
+def anchored_loops(sections: Sections, chosen, anchors_uv, *, points=None, carriers=False):
     """The loop of each plane that carries a plan's anchors (used with a `DecompositionPlan`).
 
     Where a plane cuts several loops, the choice of `choose_loops` (box centre inside /
@@ -155,14 +156,18 @@ def anchored_loops(sections: Sections, chosen, anchors_uv, *, points=None):
     chosen : (S,) int64
     changed : (S,) bool
         Planes where the anchored loop differs from ``chosen``.
+    carrier : (S, 4) int64
+        Only with ``carriers=True``: the loop nearest to each anchor (``chosen`` on planes
+        with one loop).
     """
     chosen = np.array(chosen, dtype=np.int64)
     n_s = chosen.size
     per_slice = np.bincount(sections.loop_slice, minlength=n_s)
     multi = per_slice > 1
     changed = np.zeros(n_s, dtype=bool)
+    carrier = np.repeat(chosen[:, None], 4, axis=1)
     if not multi.any():
-        return chosen, changed
+        return (chosen, changed, carrier) if carriers else (chosen, changed)
     loops = np.flatnonzero(multi[sections.loop_slice])                # (L',)
     lo, hi = sections.loop_start[loops], sections.loop_start[loops + 1]
     cnt = hi - lo
@@ -180,7 +185,8 @@ def anchored_loops(sections: Sections, chosen, anchors_uv, *, points=None):
     g = r - tau[..., None] * d
     g2 = np.einsum("kij,kij->ki", g, g)                                # (K', 4)
     offs = np.concatenate([[0], np.cumsum(cnt)])
-    cost = np.minimum.reduceat(g2, offs[:-1], axis=0).sum(axis=1)     # (L',)
+    per_anchor = np.minimum.reduceat(g2, offs[:-1], axis=0)            # (L', 4)
+    cost = per_anchor.sum(axis=1)                                      # (L',)
     sl = sections.loop_slice[loops]
     order = np.lexsort((cost, sl))
     first = np.ones(order.size, dtype=bool)
@@ -189,4 +195,86 @@ def anchored_loops(sections: Sections, chosen, anchors_uv, *, points=None):
     new = chosen.copy()
     new[sections.loop_slice[best]] = best
     changed = new != chosen
-    return new, changed
+    if not carriers:
+        return new, changed
+    carrier = np.repeat(new[:, None], 4, axis=1)
+    for k in range(4):
+        order = np.lexsort((per_anchor[:, k], sl))
+        first = np.ones(order.size, dtype=bool)
+        first[1:] = sl[order][1:] != sl[order][:-1]
+        carrier[sl[order[first]], k] = loops[order[first]]
+    return new, changed, carrier
+
+
+def bridge_loops(a_pts, a_mat, b_pts, b_mat):
+    """One closed contour through two disjoint clockwise loops, joined at their closest
+    points by a bridge travelled both ways.
+
+    Where a loop pinches and splits in two (or two merge), the two loops touch at the
+    pinch; joined at their closest pair of points the contour is, at that moment, the
+    pinched contour itself, and the bridge grows continuously from zero length as they
+    move apart. So a plane whose plan anchors lie on two loops keeps one contour that
+    depends continuously on the vertices through the split.
+
+    Parameters
+    ----------
+    a_pts, b_pts : (m_a, 2), (m_b, 2) float
+        The loops, clockwise, not repeated at the end.
+    a_mat, b_mat : ((m, 4) int64, (m, 4) float)
+        Material anchors of the loop vertices (vertex indices and weights); the bridge
+        points get theirs by interpolation (`_rolled_at`).
+
+    Returns
+    -------
+    pts : (m_a + m_b + 4, 2) float
+        ``a*, A_{i+1} .. A_i, a*, b*, B_{j+1} .. B_j, b*`` (the closing segment is the bridge
+        back from ``b*`` to ``a*``).
+    mat : ((m_a + m_b + 4, 4) int64, (m_a + m_b + 4, 4) float)
+    gap : float
+        Bridge length.
+    """
+    ia, ta, ib, tb, gap = _closest_pair(a_pts, b_pts)
+    pa, ma = _rolled_at(a_pts, a_mat, ia, ta)
+    pb, mb = _rolled_at(b_pts, b_mat, ib, tb)
+    mat = tuple(np.concatenate([x, y]) for x, y in zip(ma, mb))
+    return np.concatenate([pa, pb]), mat, gap
+
+
+def _closest_pair(a, b):
+    """Closest points of two closed polylines: (segment of a, tau, segment of b, tau,
+    distance), over every vertex of one against every segment of the other."""
+    best = None
+    for first, second, swap in ((a, b, False), (b, a, True)):
+        d = np.roll(second, -1, axis=0) - second                     # (n, 2) segments
+        r = first[:, None, :] - second[None, :, :]                   # (m, n, 2)
+        dd = np.einsum("ij,ij->i", d, d)
+        tau = np.clip(np.einsum("mnj,nj->mn", r, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        g = r - tau[..., None] * d[None]
+        g2 = np.einsum("mnj,mnj->mn", g, g)
+        i, j = np.unravel_index(np.argmin(g2), g2.shape)
+        if best is None or g2[i, j] < best[0]:
+            # vertex i of `first` (segment i, tau 0) against segment j of `second`
+            best = (g2[i, j], (j, tau[i, j], i, 0.0) if swap else (i, 0.0, j, tau[i, j]))
+    ia, ta, ib, tb = best[1]
+    return int(ia), float(ta), int(ib), float(tb), float(np.sqrt(best[0]))
+
+
+def _rolled_at(pts, mat, i, tau):
+    """The loop from the point at ``tau`` on segment ``i`` once round and back to it:
+    (m + 2, 2) points, and the material anchors ``mat = (av (m, 4) int, aw (m, 4) float)``
+    of the new point: the two edge points' vertices and weights combined (exact for
+    contour points on mesh edges), else the nearer vertex's."""
+    m = pts.shape[0]
+    j = (i + 1) % m
+    order = (j + np.arange(m)) % m                                   # A_{i+1} .. A_i
+    p = (1.0 - tau) * pts[i] + tau * pts[j]
+    av, aw = mat
+    if (aw[i, 2:] == 0).all() and (aw[j, 2:] == 0).all():
+        v_new = np.concatenate([av[i, :2], av[j, :2]])
+        w_new = np.concatenate([(1.0 - tau) * aw[i, :2], tau * aw[j, :2]])
+    else:
+        k = i if tau < 0.5 else j
+        v_new, w_new = av[k], aw[k]
+    out = np.concatenate([p[None], pts[order], p[None]])
+    return out, (np.concatenate([v_new[None], av[order], v_new[None]]),
+                 np.concatenate([w_new[None], aw[order], w_new[None]]))

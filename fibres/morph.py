@@ -32,10 +32,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contours import anchored_loops, clockwise_contour
-from .correspondence import correspond, rectangle, split_chain
+from .contours import anchored_loops, bridge_loops, clockwise_contour
+from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD,
+                             _closest_on_contours,
+                             _order_arcs, anchor_kernel, correspond, rectangle,
+                             split_chain)
 from .mvc import mvc_map
-from .plan import rest_geometry
+from .plan import rest_geometry, rest_loop_counts
 from .slicing import MeshTopology, Sections
 
 __all__ = ["END_INSET", "slice_fractions", "slice_maps", "anchored_maps", "morph_local"]
@@ -252,9 +255,7 @@ def _kernels():
             _KERNELS.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            global _order_arcs
-            _order_arcs = jit(_order_arcs)          # called by the compiled _anchor_loop
-            _KERNELS.append((jit(_roll_loop), jit(_subdivide_loop), jit(_anchor_loop),
+            _KERNELS.append((jit(_roll_loop), jit(_subdivide_loop), anchor_kernel(),
                              jit(_insert_loop)))
     return _KERNELS[0]
 
@@ -364,16 +365,29 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
     anchors_uv = np.ascontiguousarray(anchors_uv, dtype=float)
     if plan is None:
-        chosen, changed = anchored_loops(sections, chosen, anchors_uv)
+        chosen, changed, carrier = anchored_loops(sections, chosen, anchors_uv, carriers=True)
     else:
         rest, rest_n, ax, nax = rest_geometry(plan)
         e = topology.edges[sections.edge]
         tt = sections.t[:, None]
-        chosen, changed = anchored_loops(sections, chosen, ax,
-                                         points=(1.0 - tt) * rest[e[:, 0]] + tt * rest[e[:, 1]])
+        chosen, changed, carrier = anchored_loops(
+            sections, chosen, ax, points=(1.0 - tt) * rest[e[:, 0]] + tt * rest[e[:, 1]],
+            carriers=True)
     rect = rectangle(float(extents[0]), float(extents[1]))
     pts, _, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology,
                                                     anchors=plan is not None)
+    extra = [np.setdiff1d(carrier[s], [chosen[s]]) for s in range(chosen.size)]
+    if plan is not None:
+        # the whole section where the rest plane cut one loop (continuous through splits
+        # and merges), see `fibres.plan.rest_loop_counts`
+        single = np.flatnonzero((rest_loop_counts(plan) == 1)
+                                & (np.bincount(sections.loop_slice, minlength=chosen.size) > 1))
+        for s in single:
+            extra[s] = np.setdiff1d(sections.loops_of_slice(int(s)), [chosen[s]])
+    if any(x.size for x in extra):
+        pts, av, aw, m, offs, bridge_notes = _bridged(sections, chosen, extra, topology,
+                                                      pts, av, aw, m, offs, plan is not None)
+        notes += bridge_notes
     if plan is None:
         X, NX = pts, np.zeros((pts.shape[0], 1))
         ax, nax = anchors_uv, np.zeros(anchors_uv.shape[:2] + (1,))
@@ -386,12 +400,12 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
     sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
     nominal = np.cumsum(sides)[:3] / sides.sum()          # rest-like arc fractions of Q1..Q3
     kernels = _kernels()
-    anchor_fn = _anchor_loop if kernels is None else kernels[2]
+    anchor_fn = anchor_kernel()
     seg, tk, point, moved = anchor_fn(np.ascontiguousarray(pts), np.ascontiguousarray(X),
                                       np.ascontiguousarray(NX), m.astype(np.int64),
                                       offs.astype(np.int64), np.ascontiguousarray(ax),
                                       np.ascontiguousarray(nax), nominal, ARC_GAP,
-                                      ARC_WINDOW)
+                                      ARC_WINDOW, SOFT_SPREAD, SOFT_FLOOR)
     # insert them (after vertex seg, in the order (seg, tau, k)) into each contour
     kk = np.arange(4)
     before = ((seg[:, None, :] < seg[:, :, None])
@@ -416,211 +430,43 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
     start = new_idx[:, 0]
     split = (new_idx[:, 1:] - start[:, None]) % m2[:, None]
     ok = (0 < split[:, 0]) & (split[:, 0] < split[:, 1]) & (split[:, 1] < split[:, 2])
-    ok &= ~moved
     P, Q, _, _ = _roll_and_subdivide(new, m2, offs2, start, np.where(ok[:, None], split, 1),
                                      rect)
     P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
-    # Out-of-order anchors fall back to the paper's fresh choice. The continuous rule
-    # (`_anchor_loop`'s isotonic reordering, ``moved``) is computed but not used yet: on
-    # the LHDL iliacus (a thin sheet, anchors 5-8 mm off their planes at a 15-20 degree
-    # bend) it made larger steps than the fresh choice (filter on: largest/median step
-    # 9.3 against 2.2).
-    for s in np.flatnonzero(~ok):
-        notes.append(f"slice {s}: planned start/split points out of order; chose afresh")
+    for s in np.flatnonzero(moved & ok):
+        notes.append(f"slice {s}: planned split points out of order; moved to the nearest "
+                     "ordered positions")
+    for s in np.flatnonzero(~ok):       # a contour of zero length: nothing to order
+        notes.append(f"slice {s}: degenerate contour; start/split points chosen afresh")
         P_all[s], Q_all[s], _, _ = correspond(pts[offs[s]:offs[s + 1]], rect)
     return tuple(P_all), tuple(Q_all), tuple(notes)
 
 
-#: Smallest arc length between consecutive start/split points of an anchored contour, as a
-#: fraction of its length, where `_order_arcs` has to restore their order.
-ARC_GAP = 1e-3
-
-#: Split point k of an anchored contour is searched within this fraction of the contour
-#: length around its nominal position after the start (the rectangle corner's arc fraction).
-ARC_WINDOW = 0.25
-
-
-def _order_arcs(a, lo, hi):  # pragma: no cover - compiled by numba (and called by it)
-    """Euclidean projection of ``a`` (3,) onto ``lo <= a0 <= a1 <= a2 <= hi``: pool adjacent
-    violators (isotonic regression), then clip -- a continuous (1-Lipschitz) map that is
-    the identity on ordered input (Barlow et al. 1972, "Statistical inference under order
-    restrictions"; clipping the isotonic fit gives the bounded projection)."""
-    val = np.empty(3)
-    size = np.empty(3, dtype=np.int64)
-    nb = 0
-    for i in range(3):
-        val[nb] = a[i]
-        size[nb] = 1
-        nb += 1
-        while nb > 1 and val[nb - 2] > val[nb - 1]:
-            tot = size[nb - 2] + size[nb - 1]
-            val[nb - 2] = (val[nb - 2] * size[nb - 2] + val[nb - 1] * size[nb - 1]) / tot
-            size[nb - 2] = tot
-            nb -= 1
-    out = np.empty(3)
+def _bridged(sections, chosen, extra, topology, pts, av, aw, m, offs, anchors):
+    """The contours with the other loops ``extra[s]`` of each plane bridged in
+    (`fibres.contours.bridge_loops`), back to back as `_clockwise_all` returns them."""
+    planes = np.flatnonzero([x.size > 0 for x in extra])
+    extra = [extra[s] for s in planes]
+    loops = np.concatenate(extra).astype(np.int64)
+    e_pts, _, e_av, e_aw, e_m, e_offs, _ = _clockwise_all(sections, loops, topology,
+                                                           anchors=anchors)
+    parts = [list(np.split(x, offs[1:-1])) for x in (pts, av, aw)]
+    notes = []
     i = 0
-    for b in range(nb):
-        for _ in range(size[b]):
-            out[i] = min(max(val[b], lo), hi)
+    for s, ex in zip(planes, extra):
+        cur_p, cur_m = parts[0][s], (parts[1][s], parts[2][s])
+        for _ in ex:
+            lo, hi = e_offs[i], e_offs[i + 1]
+            cur_p, cur_m, gap = bridge_loops(cur_p, cur_m, e_pts[lo:hi],
+                                             (e_av[lo:hi], e_aw[lo:hi]))
             i += 1
-    return out
-
-
-def _anchor_loop(pts, X, NX, m, offs, AX, NAX, nominal, gap,
-                 window):  # pragma: no cover - compiled by numba
-    """Closest contour point to each of a plane's 4 anchors (first minimum), with the
-    split points (anchors 1-3) put in order along the contour from the start point.
-
-    Distances are measured in the matching coordinates ``X`` (K, D) of the contour points
-    and ``AX`` (S, 4, D) of the anchors: the plane coordinates themselves (``X = pts``), or
-    material (rest-pose) positions. A segment is a candidate for anchor k only if its
-    normal ``NX[j] + NX[j+1]`` does not point away from the anchor's ``NAX`` (zero normals:
-    every segment; if none qualifies, every segment). Split point k is searched only
-    within ``window`` of the length around its nominal arc place ``nominal[k] * L`` after
-    the start.
-
-    Arc positions ``a_k`` of the split points (in the plane) are measured from the start
-    point, unwrapped to within half a contour of their nominal position, and replaced by
-    the nearest positions with ``gap * L <= a_1``, ``a_k + gap * L <= a_{k+1}``,
-    ``a_3 <= L - gap * L`` (`_order_arcs` on ``a_k - k gap L``). Returns segment (S, 4),
-    parameter tau (S, 4), the points in the plane (S, 4, 2) and which planes were
-    reordered (S,)."""
-    n_s = m.size
-    dim = X.shape[1]
-    dn = NX.shape[1]
-    seg = np.empty((n_s, 4), dtype=np.int64)
-    tk = np.empty((n_s, 4))
-    point = np.empty((n_s, 4, 2))
-    moved = np.zeros(n_s, dtype=np.bool_)
-    arc = np.empty(4)
-    b = np.empty(3)
-    for s in range(n_s):
-        o = offs[s]
-        ms = m[s]
-        cum = np.empty(ms + 1)
-        cum[0] = 0.0
-        for j in range(ms):
-            a = o + j
-            nb = o + (j + 1) % ms
-            cum[j + 1] = cum[j] + np.hypot(pts[nb, 0] - pts[a, 0], pts[nb, 1] - pts[a, 1])
-        length = cum[ms]
-        for k in range(4):
-            # the start: closest point of the whole contour; split point k: closest point
-            # within `window` of the length around its nominal place after the start
-            # (a thin sheet's other face, as close to a projected anchor, is not taken)
-            n_ok = 0
-            for j in range(ms):
-                dot = 0.0
-                for c in range(dn):
-                    dot += (NX[o + j, c] + NX[o + (j + 1) % ms, c]) * NAX[s, k, c]
-                if dot >= 0.0:
-                    n_ok += 1
-            best = np.inf
-            bj = 0
-            bt = 0.0
-            for j in range(ms):
-                a = o + j
-                nb = o + (j + 1) % ms
-                if n_ok > 0:
-                    dot = 0.0
-                    for c in range(dn):
-                        dot += (NX[a, c] + NX[nb, c]) * NAX[s, k, c]
-                    if dot < 0.0:
-                        continue
-                dd = 0.0
-                rd = 0.0
-                for c in range(dim):
-                    dc = X[nb, c] - X[a, c]
-                    dd += dc * dc
-                    rd += (AX[s, k, c] - X[a, c]) * dc
-                tau = rd / (dd if dd > 0 else 1.0)
-                tau = min(max(tau, 0.0), 1.0)
-                if k > 0 and length > 0:
-                    seg_len = cum[j + 1] - cum[j]
-                    r0 = (cum[j] - arc[0]) % length
-                    lo = (nominal[k - 1] - window) * length
-                    hi = (nominal[k - 1] + window) * length
-                    found = False
-                    t_best = 0.0
-                    for shift in (-length, 0.0, length):
-                        a0 = r0 + shift
-                        t_lo = (max(lo, a0) - a0) / seg_len if seg_len > 0 else 0.0
-                        t_hi = (min(hi, a0 + seg_len) - a0) / seg_len if seg_len > 0 else 0.0
-                        if (seg_len > 0 and t_lo <= t_hi) or (seg_len <= 0 and lo <= a0 <= hi):
-                            tc = min(max(tau, t_lo), t_hi)
-                            if not found or abs(tc - tau) < abs(t_best - tau):
-                                t_best = tc
-                            found = True
-                    if not found:
-                        continue
-                    tau = t_best
-                g2 = 0.0
-                for c in range(dim):
-                    gc = AX[s, k, c] - X[a, c] - tau * (X[nb, c] - X[a, c])
-                    g2 += gc * gc
-                if g2 < best:
-                    best = g2
-                    bj = j
-                    bt = tau
-            seg[s, k] = bj
-            tk[s, k] = bt
-            arc[k] = cum[bj] + bt * (cum[bj + 1] - cum[bj])
-        if length > 0:
-            g = gap * length
-            for k in range(3):
-                rel = (arc[k + 1] - arc[0]) % length
-                nom = nominal[k] * length
-                if rel - nom > 0.5 * length:
-                    rel -= length
-                elif rel - nom < -0.5 * length:
-                    rel += length
-                b[k] = rel - (k + 1) * g
-            ordered = b[0] >= 0.0 and b[0] <= b[1] and b[1] <= b[2] and b[2] <= length - 4 * g
-            if not ordered:
-                moved[s] = True
-                out = _order_arcs(b, 0.0, length - 4 * g)
-                for k in range(3):
-                    t = arc[0] + out[k] + (k + 1) * g
-                    if t >= length:
-                        t -= length
-                    j = np.searchsorted(cum, t, side="right") - 1
-                    j = min(max(j, 0), ms - 1)
-                    while j > 0 and cum[j + 1] - cum[j] <= 0:
-                        j -= 1
-                    span = cum[j + 1] - cum[j]
-                    seg[s, k + 1] = j
-                    tk[s, k + 1] = min(max((t - cum[j]) / span, 0.0), 1.0) if span > 0 else 0.0
-        for k in range(4):
-            a = o + seg[s, k]
-            nb = o + (seg[s, k] + 1) % ms
-            point[s, k, 0] = pts[a, 0] + tk[s, k] * (pts[nb, 0] - pts[a, 0])
-            point[s, k, 1] = pts[a, 1] + tk[s, k] * (pts[nb, 1] - pts[a, 1])
-    return seg, tk, point, moved
-
-
-def _closest_on_contours(pts, m, offs, anchors_uv):
-    """Closest point of every contour to each of its plane's 4 anchors (first minimum):
-    segment (S, 4) local index, parameter tau (S, 4) along it and the point (S, 4, 2)."""
-    n_s = m.size
-    sl = np.repeat(np.arange(n_s), m)
-    j = np.arange(offs[-1]) - offs[sl]
-    # closest point of every contour to each of its 4 anchors: segment j -> j+1, tau
-    d = pts[offs[sl] + (j + 1) % m[sl]] - pts                         # (K, 2)
-    dx, dy = d[:, 0:1], d[:, 1:2]
-    dd = dx * dx + dy * dy
-    rx = anchors_uv[sl, :, 0] - pts[:, 0:1]                           # (K, 4)
-    ry = anchors_uv[sl, :, 1] - pts[:, 1:2]
-    tau = np.clip((rx * dx + ry * dy) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    gx, gy = rx - tau * dx, ry - tau * dy
-    g2 = gx * gx + gy * gy
-    best = g2 == np.minimum.reduceat(g2, offs[:-1], axis=0)[sl]
-    seg = np.empty((n_s, 4), dtype=np.int64)
-    for k in range(4):                                                # first minimum
-        hit = np.flatnonzero(best[:, k])
-        seg[:, k] = hit[np.searchsorted(sl[hit], np.arange(n_s))]
-    tk = tau[seg, np.arange(4)]                                       # (S, 4)
-    point = pts[seg] + tk[..., None] * d[seg]                         # (S, 4, 2)
-    return seg - offs[:-1, None], tk, point
+        parts[0][s], parts[1][s], parts[2][s] = cur_p, cur_m[0], cur_m[1]
+        notes.append(f"slice {s}: {len(ex) + 1} loops bridged into one contour (the plan's "
+                     "section)")
+    m = np.array([len(x) for x in parts[0]])
+    offs = np.concatenate([[0], np.cumsum(m)])
+    pts, av, aw = (np.concatenate(x) for x in parts)
+    return pts, av, aw, m, offs, notes
 
 
 def _insert_loop(pts, m, offs, seg, offs2):  # pragma: no cover - compiled by numba

@@ -46,7 +46,7 @@ from .fitting import Box, principal_frame
 from .slicing import MeshTopology
 
 __all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_local",
-           "rest_geometry"]
+           "rest_geometry", "rest_loop_counts"]
 
 
 def _readonly(a):
@@ -321,3 +321,35 @@ def rest_geometry(plan: DecompositionPlan):
     out = tuple(_readonly(x) for x in (v, normals, anchors, anchor_normals))
     plan.__dict__["_rest_geometry"] = out
     return out
+
+
+def rest_loop_counts(plan: DecompositionPlan):
+    """(S,) int64: how many loops each plane cut on the plan's rest pose (-1: unknown, the
+    plan has no rest landmarks). Computed once and cached on the plan.
+
+    Where the rest plane cut one loop, the whole section of the muscle is that contour;
+    on a deformed copy the same plane may cut several (the section pinches and splits, or
+    passes a saddle), and `fibres.morph.anchored_maps` then bridges all of them into one
+    contour, which is continuous through the topology change. Where the rest plane already
+    cut several loops, only the one used at rest (and loops its anchors move onto) is
+    followed."""
+    cached = plan.__dict__.get("_rest_loop_counts")
+    if cached is not None:
+        return cached
+    n_s = plan.n_slices
+    if plan.rest_origin is None or plan.rest_insertion is None:
+        counts = np.full(n_s, -1, dtype=np.int64)
+    else:
+        from .slicing import slice_mesh
+
+        box, local_t = box_and_local(plan, plan.rest_vertices, plan.rest_origin,
+                                     plan.rest_insertion)
+        tf = np.eye(4)
+        tf[:3, :3] = box.axes
+        tf[:3, 3] = box.corner
+        sections = slice_mesh(plan.rest_vertices, plan.topology, tf,
+                              plan.fractions * box.extents[2], local_t=local_t)
+        counts = np.bincount(sections.loop_slice, minlength=n_s).astype(np.int64)
+    counts = _readonly(counts)
+    plan.__dict__["_rest_loop_counts"] = counts
+    return counts
