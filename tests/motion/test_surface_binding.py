@@ -202,3 +202,32 @@ def test_smoothstep_is_c2_at_the_ends():
     h = 1e-4
     d1 = (smoothstep(x + h) - smoothstep(x - h)) / (2 * h)
     assert np.abs(d1).max() < 1e-6
+
+
+def test_numpy_fallbacks_match_compiled_kernels(monkeypatch):
+    # numba is optional: the numpy paths must give the same surfaces (to round-off)
+    pytest.importorskip("numba")
+    import motion.surface_collision as collision
+    import motion.surface_volume as volume
+
+    verts, faces = capped_cylinder(n_around=16, n_rings=11)
+    origin, insertion = np.zeros(3), np.array([LENGTH, 0.0, 0.0])
+    binding = bind_surface(verts, faces, [np.array([origin, insertion])], np.eye(4), np.eye(4),
+                           origin[None], insertion[None])
+    theta = np.deg2rad([0.0, 40.0, 80.0])
+    tf = pin_about([0.12, 0.03, 0.0], theta)
+    ins = tf[:, :3, :3] @ insertion + tf[:, :3, 3]
+    line = np.stack([np.broadcast_to(origin, ins.shape), ins], axis=1)
+    tf_obs = np.eye(4)
+    tf_obs[:3, 3] = [0.12, -0.037, 0.0]   # overlaps the muscle's underside by a few mm
+    obstacles = [WrapObstacle("sphere", tf_obs, np.full(3, 0.02)),
+                 WrapObstacle("ellipsoid", tf_obs, np.array([0.01, 0.025, 0.015]))]
+    compiled = binding.deform([line], np.tile(np.eye(4), (3, 1, 1)), tf, obstacles=obstacles)
+    monkeypatch.setattr(volume, "_KERNELS", {"done": True})
+    monkeypatch.setattr(collision, "_PUSH", {"kernel": None})
+    plain = binding.deform([line], np.tile(np.eye(4), (3, 1, 1)), tf, obstacles=obstacles)
+    free = binding.deform([line], np.tile(np.eye(4), (3, 1, 1)), tf)
+    assert np.abs(compiled.vertices - free.vertices).max() > 1e-3   # the obstacles did push
+    assert np.abs(compiled.volume_error).max() < 1e-6
+    np.testing.assert_allclose(plain.vertices, compiled.vertices, atol=1e-10)
+    np.testing.assert_allclose(plain.volume, compiled.volume, rtol=1e-9)
