@@ -50,7 +50,8 @@ def _inputs(mesh, origin, insertion, units, plan):
     notes = []
     if (plan is not None and isinstance(mesh, tuple) and len(mesh) == 2
             and np.shape(mesh[1]) == plan.topology.faces.shape
-            and np.array_equal(mesh[1], plan.topology.faces)):
+            and (mesh[1] is plan.topology.faces
+                 or np.array_equal(mesh[1], plan.topology.faces))):
         v = np.asarray(mesh[0], dtype=np.float64) * (1e-3 if units == "mm" else 1.0)
         if units not in ("m", "mm"):
             raise InputError(f"unknown units {units!r}", where="units", fix="Use 'm' or 'mm'.")

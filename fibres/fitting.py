@@ -128,8 +128,9 @@ def _boxes(vertices, c, u, v0, w0, theta):
     return axes, corner, ext
 
 
-#: directions of the polygons that screen the support candidates (two passes)
-_SCREEN_DIRECTIONS = (8, 32)
+#: directions of the polygons that screen the support candidates (three passes; the third
+#: cuts ~1200 candidates of a twisted 15K-vertex spindle to ~350)
+_SCREEN_DIRECTIONS = (8, 32, 128)
 
 
 def _support_candidates(a, b):

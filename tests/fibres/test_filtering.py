@@ -202,3 +202,36 @@ def test_recorded_choices_are_smooth_under_deformation(cube):
     assert scale > 1e-3
     # O(h^2) truncation with second derivatives of order 1: |d1 - d2| ~ h^2 ~ 1e-8
     assert np.abs(d1 - d2).max() <= 1e-6 * scale
+
+
+def test_compiled_region_and_ray_search_equal_numpy_and_the_definition(cube, monkeypatch):
+    # the attachment area by its definition (module docstring) with scipy's KD-tree, and the
+    # closest-to-ray vertex by brute force: the compiled loops and the numpy fallback must
+    # give exactly these (no ties on this jittered cube)
+    from scipy.spatial import cKDTree
+
+    import fibres.filtering as fl
+
+    rng = np.random.default_rng(2)
+    v = cube[0] + 1e-4 * rng.standard_normal(cube[0].shape)
+    f = cube[1]
+    lms = _grid_on_x0(0.1, 0.3, 3) + [0.02, 0.0, 0.0]
+    tree = cKDTree(v)
+    _, nearest = tree.query(lms)
+    radius = max(np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean(),
+                 np.median(cKDTree(lms).query(lms, k=2)[0][:, 1]))
+    near = tree.query_ball_point(v[np.unique(nearest)], r=radius)
+    ref = np.unique(np.concatenate([np.asarray(n, np.int64) for n in near] + [nearest]))
+    assert 5 < ref.size < len(v) // 4                  # a real area, not one point or all
+    start = rng.uniform(0.2, 0.8, (50, 3))
+    direction = rng.standard_normal((50, 3))
+    cand = v[ref]
+    dn = direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    rel = cand[None] - start[:, None]
+    t = np.maximum((rel * dn[:, None]).sum(-1), 0.0)
+    ray_ref = np.argmin(np.linalg.norm(rel - t[..., None] * dn[:, None], axis=-1), axis=1)
+    for kernels in ("compiled", "numpy"):
+        if kernels == "numpy":
+            monkeypatch.setattr(fl, "_KERNELS", [None])
+        np.testing.assert_array_equal(fl._region_indices(v, f, lms), ref)
+        np.testing.assert_array_equal(fl._closest_to_rays(cand, start, direction), ray_ref)

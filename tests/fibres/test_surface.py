@@ -229,3 +229,39 @@ def test_fast_path_equals_the_repair(case):
     assert s.repairs == tuple(repairs) and (repairs == []) == clean
     np.testing.assert_array_equal(s.vertices, ref_v)
     np.testing.assert_array_equal(s.faces, ref_f)
+
+
+@pytest.mark.parametrize("case", list(_imperfect_variants()))
+def test_compiled_geometry_check_equals_numpy(case, monkeypatch):
+    # the one-pass compiled face check and the component-wise numpy check make the same
+    # decision; the mean edge is the plain mean of the 3 T directed face edges (rounding:
+    # 1e-12 relative covers any summation order over ~4K terms)
+    import fibres.surface as fs
+
+    v, f = _imperfect_variants()[case]
+    f = np.asarray(f, np.int64)
+    top_c, edge_c = fs.clean_mesh_geometry(v, f)
+    monkeypatch.setattr(fs, "_GEOMETRY", [None])
+    top_n, edge_n = fs.clean_mesh_geometry(v, f)
+    assert (top_c is None) == (top_n is None) == (case != "clean")
+    if case == "clean":
+        ref = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean()
+        assert edge_c == pytest.approx(ref, rel=1e-12)
+        assert edge_n == pytest.approx(ref, rel=1e-12)
+        np.testing.assert_array_equal(top_c.neighbours, top_n.neighbours)
+
+
+def test_pieces_touching_at_one_vertex_are_not_clean():
+    # two tetrahedra sharing one vertex: every edge is used twice and the winding is
+    # consistent, but the face adjacency has two pieces -- trimesh's repair keeps one, so
+    # the fast path must not accept it
+    from fibres.surface import _repair, clean_topology
+
+    tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]) * 0.01
+    ft = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    v = np.vstack([tet, -tet[1:]])                     # vertex 0 shared
+    g = np.where(ft == 0, 0, ft + 3)[:, ::-1]          # mirrored: flip to keep it outward
+    f = np.vstack([ft, g])
+    assert clean_topology(v, f) is None
+    _, ref_f, repairs = _repair(v, f, None)
+    assert len(ref_f) == 4 and any("stray piece" in r for r in repairs)
