@@ -14,7 +14,9 @@ line are the rotation-minimising frames of Wang et al., ACM TOG 2008):
    (insertion) landmarks get a rigid weight ``w_o`` (``w_i``): 1 within ``rigid_radius``,
    falling with a C2 quintic smoothstep to 0 at ``blend_radius``; the belly weight is
    ``w_b = 1 - w_o - w_i``.
-2. Deform (every frame, vectorised). The current lines are resampled the same way; their frames
+2. Deform (every frame, vectorised). The current lines are resampled the same way -- piecewise
+   between anchor points (the path points that are always present) when they are given, so a
+   stretch of line fixed on one body keeps its samples fixed on that body; their frames
    start from the origin body's rotation of the rest start frame (transported onto the current
    tangent) and the twist that the insertion body imposes at the far end is spread linearly in
    arc length. A vertex goes to
