@@ -213,8 +213,11 @@ def bridge_loops(a_pts, a_mat, b_pts, b_mat):
     Where a loop pinches and splits in two (or two merge), the two loops touch at the
     pinch; joined at their closest pair of points the contour is, at that moment, the
     pinched contour itself, and the bridge grows continuously from zero length as they
-    move apart. So a plane whose plan anchors lie on two loops keeps one contour that
-    depends continuously on the vertices through the split.
+    move apart. A new island (a loop of no area, possibly far away) must not appear with a
+    bridge of finite length: loop b and its bridge are scaled towards the bridge's start
+    by ``area_b / (area_b + gap^2)`` (1 at a pinch, 0 for an island of no area). So the
+    section keeps one contour that depends continuously on the vertices through splits,
+    merges and islands. The bridge ends are soft closest points (`_soft_bridge_end`).
 
     Parameters
     ----------
@@ -234,8 +237,17 @@ def bridge_loops(a_pts, a_mat, b_pts, b_mat):
         Bridge length.
     """
     ia, ta, ib, tb, gap = _closest_pair(a_pts, b_pts)
+    ia, ta = _soft_bridge_end(a_pts, b_pts, ia, ta, gap)
+    ib, tb = _soft_bridge_end(b_pts, a_pts, ib, tb, gap)
     pa, ma = _rolled_at(a_pts, a_mat, ia, ta)
     pb, mb = _rolled_at(b_pts, b_mat, ib, tb)
+    # a loop far from a and small (an island the plane has just started to cut) is
+    # shrunk towards the bridge's start: lambda = area / (area + gap^2) is 1 where the
+    # loops touch (a pinch) and 0 for an island of no area, so both events are continuous
+    area = 0.5 * abs(np.sum(b_pts[:, 0] * np.roll(b_pts[:, 1], -1)
+                            - np.roll(b_pts[:, 0], -1) * b_pts[:, 1]))
+    lam = area / (area + gap * gap) if area + gap * gap > 0 else 1.0
+    pb = pa[0] + lam * (pb - pa[0])
     mat = tuple(np.concatenate([x, y]) for x, y in zip(ma, mb))
     return np.concatenate([pa, pb]), mat, gap
 
@@ -257,6 +269,45 @@ def _closest_pair(a, b):
             best = (g2[i, j], (j, tau[i, j], i, 0.0) if swap else (i, 0.0, j, tau[i, j]))
     ia, ta, ib, tb = best[1]
     return int(ia), float(ta), int(ib), float(tb), float(np.sqrt(best[0]))
+
+
+#: Width of the soft bridge ends, relative to the gap between the loops (see
+#: `_soft_bridge_end`), and its floor relative to the loop's length.
+BRIDGE_SPREAD = 0.5
+BRIDGE_FLOOR = 1e-7
+
+
+def _soft_bridge_end(a, b, i0, t0, gap):
+    """Where the bridge leaves loop ``a``: the mean arc position on ``a`` weighted by
+    ``exp(-(d^2 - gap^2) / sigma^2)``, d the distance to loop ``b``, ``sigma = BRIDGE_SPREAD
+    * gap`` (floored): the closest point while the loops touch, moving smoothly (not
+    jumping) where two places of ``a`` are about as near to ``b``. Trapezoidal weights at
+    the vertices of ``a``; positions measured around the hard closest point ``(i0, t0)``.
+
+    Returns (segment, tau) on ``a``."""
+    m = a.shape[0]
+    seg = np.hypot(*(np.roll(a, -1, axis=0) - a).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    length = cum[-1]
+    if length <= 0:
+        return i0, t0
+    d = np.roll(b, -1, axis=0) - b
+    r = a[:, None, :] - b[None, :, :]
+    dd = np.einsum("ij,ij->i", d, d)
+    tau = np.clip(np.einsum("mnj,nj->mn", r, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    g = r - tau[..., None] * d[None]
+    d2 = np.einsum("mnj,mnj->mn", g, g).min(axis=1)                   # (m,) to loop b
+    sigma2 = (BRIDGE_SPREAD * gap) ** 2 + (BRIDGE_FLOOR * length) ** 2
+    w = np.exp(-(d2 - gap * gap) / sigma2) * 0.5 * (seg + np.roll(seg, 1))
+    ref = cum[i0] + t0 * seg[i0]
+    rel = (cum[:-1] - ref + 0.5 * length) % length - 0.5 * length
+    if w.sum() <= 0:
+        return i0, t0
+    pos = (ref + (w * rel).sum() / w.sum()) % length
+    j = int(min(max(np.searchsorted(cum, pos, side="right") - 1, 0), m - 1))
+    while j > 0 and seg[j] <= 0:
+        j -= 1
+    return j, float(np.clip((pos - cum[j]) / seg[j], 0.0, 1.0)) if seg[j] > 0 else 0.0
 
 
 def _rolled_at(pts, mat, i, tau):

@@ -320,7 +320,7 @@ def _subdivide_loop(m, offs, split, c_incl, c_excl, rect):  # pragma: no cover -
 
 
 def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
-                  topology: MeshTopology, plan=None):
+                  topology: MeshTopology, plan=None, material: bool = False):
     """Correspondence of every plane with a plan's start and split points carried along.
 
     A plan's four correspondence points of each plane (start ``P0`` and the first points
@@ -364,7 +364,9 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
         s = int(np.flatnonzero(chosen < 0)[0])
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
     anchors_uv = np.ascontiguousarray(anchors_uv, dtype=float)
-    if plan is None:
+    if material and plan is None:
+        raise ValueError("material matching needs the plan")
+    if not material:
         chosen, changed, carrier = anchored_loops(sections, chosen, anchors_uv, carriers=True)
     else:
         rest, rest_n, ax, nax = rest_geometry(plan)
@@ -375,7 +377,7 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
             carriers=True)
     rect = rectangle(float(extents[0]), float(extents[1]))
     pts, _, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology,
-                                                    anchors=plan is not None)
+                                                    anchors=material)
     extra = [np.setdiff1d(carrier[s], [chosen[s]]) for s in range(chosen.size)]
     if plan is not None:
         # the whole section where the rest plane cut one loop (continuous through splits
@@ -386,9 +388,9 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
             extra[s] = np.setdiff1d(sections.loops_of_slice(int(s)), [chosen[s]])
     if any(x.size for x in extra):
         pts, av, aw, m, offs, bridge_notes = _bridged(sections, chosen, extra, topology,
-                                                      pts, av, aw, m, offs, plan is not None)
+                                                      pts, av, aw, m, offs, material)
         notes += bridge_notes
-    if plan is None:
+    if not material:
         X, NX = pts, np.zeros((pts.shape[0], 1))
         ax, nax = anchors_uv, np.zeros(anchors_uv.shape[:2] + (1,))
     else:

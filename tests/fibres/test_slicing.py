@@ -163,3 +163,41 @@ def test_compiled_loop_order_equals_the_lexsort():
     first = np.flatnonzero(np.r_[True, label[ref][1:] != label[ref][:-1]])
     np.testing.assert_array_equal(loop_start, np.r_[first, nxt.size])
     assert loop_start.size - 1 > h.size                   # several loops on some planes
+
+
+def _circle(c, r, n, phase=0.0):
+    t = phase - np.linspace(0, 2 * np.pi, n, endpoint=False)          # clockwise
+    return np.c_[c[0] + r * np.cos(t), c[1] + r * np.sin(t)]
+
+
+def _no_material(n):
+    return np.zeros((n, 4), np.int64), np.zeros((n, 4))
+
+
+def test_bridge_loops_is_continuous_through_a_pinch_and_an_island():
+    from fibres.contours import bridge_loops
+
+    a = _circle((0.0, 0.0), 1.0, 40)
+    # two circles 2e-9 apart (just split): the bridge is the pinch point, 2e-9 long
+    b = _circle((2.0 + 2e-9, 0.0), 1.0, 40, phase=np.pi)
+    pts, (av, aw), gap = bridge_loops(a, _no_material(40), b, _no_material(40))
+    assert pts.shape == (84, 2) and av.shape == (84, 4) and aw.shape == (84, 4)
+    assert abs(gap - 2e-9) <= 1e-12
+    # the contour runs round a, crosses at (1, 0) and runs round b: its length is the two
+    # perimeters (polygons of 40 sides) plus twice the gap
+    per = 40 * 2 * np.sin(np.pi / 40)
+    length = np.hypot(*(np.roll(pts, -1, axis=0) - pts).T).sum()
+    assert abs(length - 2 * per) <= 1e-8
+    np.testing.assert_allclose(pts[0], [1.0, 0.0], atol=1e-8)
+    # an island of (almost) no area 3 units away: shrunk onto the bridge start with it,
+    # so it adds (almost) nothing to the contour (lambda = area / (area + gap^2))
+    island = _circle((4.0, 0.0), 1e-6, 12)
+    pts, _, gap = bridge_loops(a, _no_material(40), island, _no_material(12))
+    assert abs(gap - 3.0) <= 1e-5
+    extra = np.hypot(*(np.roll(pts, -1, axis=0) - pts).T).sum() - per
+    assert 0 <= extra <= 1e-11
+    # the bridge ends are continuous in the loops: moving b by 1e-7 moves them by ~1e-7
+    b2 = b + [1e-7, 1e-7]
+    p1 = bridge_loops(a, _no_material(40), b, _no_material(40))[0]
+    p2 = bridge_loops(a, _no_material(40), b2, _no_material(40))[0]
+    assert np.abs(p1 - p2).max() <= 1e-5
