@@ -213,9 +213,9 @@ def bridge_loops(a_pts, a_mat, b_pts, b_mat):
     Where a loop pinches and splits in two (or two merge), the two loops touch at the
     pinch; joined at their closest pair of points the contour is, at that moment, the
     pinched contour itself, and the bridge grows continuously from zero length as they
-    move apart. A new island (a loop of no area, possibly far away) must not appear with a
-    bridge of finite length: loop b and its bridge are scaled towards the bridge's start
-    by ``area_b / (area_b + gap^2)`` (1 at a pinch, 0 for an island of no area). So the
+    move apart. A new island (a loop of no area, possibly far away) must not appear (or
+    vanish) with a bridge of finite length: each loop is scaled towards the other loop's
+    bridge end by `_fade` (1 at a pinch, 0 for a loop of no area, ~1 for the larger). So the
     section keeps one contour that depends continuously on the vertices through splits,
     merges and islands. The bridge ends are soft closest points (`_soft_bridge_end`).
 
@@ -241,13 +241,14 @@ def bridge_loops(a_pts, a_mat, b_pts, b_mat):
     ib, tb = _soft_bridge_end(b_pts, a_pts, ib, tb, gap)
     pa, ma = _rolled_at(a_pts, a_mat, ia, ta)
     pb, mb = _rolled_at(b_pts, b_mat, ib, tb)
-    # a loop far from a and small (an island the plane has just started to cut) is
-    # shrunk towards the bridge's start: lambda = area / (area + gap^2) is 1 where the
-    # loops touch (a pinch) and 0 for an island of no area, so both events are continuous
-    area = 0.5 * abs(np.sum(b_pts[:, 0] * np.roll(b_pts[:, 1], -1)
-                            - np.roll(b_pts[:, 0], -1) * b_pts[:, 1]))
-    lam = area / (area + gap * gap) if area + gap * gap > 0 else 1.0
-    pb = pa[0] + lam * (pb - pa[0])
+    # a loop far from the other and small (an island the plane has just started or is
+    # about to stop cutting) is shrunk towards the other loop's bridge end: lambda =
+    # area / (area + gap^2) is 1 where the loops touch (a pinch) and 0 for a loop of no
+    # area, so splits, merges and islands appearing or vanishing are all continuous
+    a_star, b_star = pa[0].copy(), pb[0].copy()
+    area_a, area_b = _area(a_pts), _area(b_pts)
+    pa = b_star + _fade(area_a, area_b, gap) * (pa - b_star)
+    pb = a_star + _fade(area_b, area_a, gap) * (pb - a_star)
     mat = tuple(np.concatenate([x, y]) for x, y in zip(ma, mb))
     return np.concatenate([pa, pb]), mat, gap
 
@@ -269,6 +270,28 @@ def _closest_pair(a, b):
             best = (g2[i, j], (j, tau[i, j], i, 0.0) if swap else (i, 0.0, j, tau[i, j]))
     ia, ta, ib, tb = best[1]
     return int(ia), float(ta), int(ib), float(tb), float(np.sqrt(best[0]))
+
+
+def _area(loop):
+    """Unsigned area of a closed polygon."""
+    return 0.5 * abs(np.sum(loop[:, 0] * np.roll(loop[:, 1], -1)
+                            - np.roll(loop[:, 0], -1) * loop[:, 1]))
+
+
+def _fade(area, other, gap):
+    """Scale of a loop of ``area`` bridged to one of area ``other`` across ``gap``.
+
+    With ``r = area / (area + other)`` and ``g2 = gap^2 / (area + other)``: 1 for the larger
+    loop (``r >= 1/2``), else ``2r / (2r + g2 (1 - 2r))`` -- 1 at a pinch (gap 0) and at equal
+    areas, 0 for a loop of no area; continuous in all three."""
+    total = area + other
+    if total <= 0:
+        return 1.0
+    r2 = 2.0 * area / total
+    if r2 >= 1.0:
+        return 1.0
+    den = r2 + gap * gap / total * (1.0 - r2)
+    return r2 / den if den > 0 else 1.0
 
 
 #: Width of the soft bridge ends, relative to the gap between the loops (see
