@@ -34,8 +34,7 @@ the vertex positions:
   summed squared distance to them, `fibres.contours.anchored_loops`) -- this only changes
   where two loops are equally near the anchors;
 - correspondence points (`fibres.correspondence._soft_anchor_loop`): the anchors (material
-  points, projected along the axis onto their planes; with ``plan=`` matched by rest-pose
-  position and normal instead, `rest_geometry`) are placed on the contour at a *soft*
+  points, projected along the axis onto their planes) are placed on the contour at a *soft*
   closest point: a Gaussian-weighted mean arc position, the weights integrated exactly
   along each segment (so splitting a segment changes nothing) with a width proportional
   to the distance to the contour (near the contour it is the closest point). Where the
@@ -51,9 +50,10 @@ the vertex positions:
 
 Remaining discontinuities (measured on LHDL bend sweeps, ``tests/fibres/
 test_decompose_lhdl.py``): a plane whose section changes topology (two loops merging or
-splitting; a small island appearing does not matter). `fibres.morph.anchored_maps` can
-follow the whole section through such events (`fibres.contours.bridge_loops`, for planes
-that cut one loop at rest, `rest_loop_counts`) when the plan is passed to it.
+splitting, an island appearing or vanishing, typically at the end planes).
+`fibres.morph.anchored_maps` follows the whole section through such events
+(`fibres.contours.bridge_loops`, for planes that cut one loop at rest,
+`rest_loop_counts`) when the plan is passed to it (``plan=``).
 
 Kohout's own software had the same idea: an optional rest-pose "InputTemplate".
 """
