@@ -189,7 +189,8 @@ def _kernels():
             _KERNELS.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True)
-            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_rays_loop)))
+            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_rays_loop),
+                             jit(_edge_sum_loop)))
     return _KERNELS[0]
 
 
@@ -218,6 +219,17 @@ def _within_loop(vt, points, r2):  # pragma: no cover - compiled by numba
                 out[i] = True
                 break
     return out
+
+
+def _edge_sum_loop(vt, faces):  # pragma: no cover - compiled by numba
+    """Sum of the lengths of the faces' (T, 3) directed edges, vertices (3, V)."""
+    total = 0.0
+    for t in range(faces.shape[0]):
+        for j in range(3):
+            a, b = faces[t, j], faces[t, (j + 1) % 3]
+            dx, dy, dz = vt[0, b] - vt[0, a], vt[1, b] - vt[1, a], vt[2, b] - vt[2, a]
+            total += np.sqrt(dx * dx + dy * dy + dz * dz)
+    return total
 
 
 def _rays_loop(ct, start, dn):  # pragma: no cover - compiled by numba
@@ -250,6 +262,10 @@ def _mean_edge(vt, faces) -> float:
     """Mean length of the faces' (directed) edges, from (3, V) vertices."""
     if len(faces) == 0:
         return 0.0
+    kernels = _kernels()
+    if kernels is not None:
+        f = np.ascontiguousarray(faces, dtype=np.int64)
+        return float(kernels[3](vt, f) / (3 * len(f)))
     c = np.take(vt, np.ascontiguousarray(faces.T), axis=1)              # (3, 3, T)
     e = c[:, [1, 2, 0]] - c
     return float(np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).mean())

@@ -235,3 +235,7 @@ def test_compiled_region_and_ray_search_equal_numpy_and_the_definition(cube, mon
             monkeypatch.setattr(fl, "_KERNELS", [None])
         np.testing.assert_array_equal(fl._region_indices(v, f, lms), ref)
         np.testing.assert_array_equal(fl._closest_to_rays(cand, start, direction), ray_ref)
+        # the mean edge (the area's minimum radius): summation order only, 1e-12 relative
+        edge = fl._mean_edge(np.ascontiguousarray(v.T), f)
+        assert edge == pytest.approx(np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean(),
+                                     rel=1e-12)
