@@ -255,6 +255,9 @@ def _closest_on_contours(pts, m, offs, anchors_uv):
 #: ``sigma^2 = (SOFT_SPREAD d_min)^2 + (SOFT_FLOOR L)^2``.
 SOFT_SPREAD = 0.5
 SOFT_FLOOR = 1e-7
+#: Segments whose weight is below exp(-SOFT_CUTOFF) of the nearest one's are skipped (a
+#: change of at most ~1e-17 relative, below rounding).
+SOFT_CUTOFF = 40.0
 
 
 def _erfcx(x):  # pragma: no cover - compiled by numba (and called by it)
@@ -356,7 +359,10 @@ def _soft_anchor_loop(pts, X, NX, m, offs, AX, NAX, nominal, gap, window,
             for c in range(dn):
                 na += NAX[s, k, c] * NAX[s, k, c]
             any_face = False
-            for j in range(ms):
+            if na == 0.0:                               # no normals: every segment
+                face[:] = 1.0
+                any_face = True
+            for j in range(ms if na > 0.0 else 0):
                 a = o + j
                 nb = o + (j + 1) % ms
                 dot = 0.0
@@ -405,6 +411,7 @@ def _soft_anchor_loop(pts, X, NX, m, offs, AX, NAX, nominal, gap, window,
                 for c in range(dim):
                     gc = ax[c] - X[a, c] - tau * (X[nb, c] - X[a, c])
                     g2 += gc * gc
+                gd[j] = g2
                 if g2 < best:
                     best = g2
                     bj = j
@@ -420,8 +427,8 @@ def _soft_anchor_loop(pts, X, NX, m, offs, AX, NAX, nominal, gap, window,
             msum = 0.0
             for j in range(ms):
                 w0 = face[j] * wf[j]
-                if w0 <= 0:
-                    continue
+                if w0 <= 0 or gd[j] - best > SOFT_CUTOFF * sigma2:
+                    continue                    # weight below exp(-SOFT_CUTOFF) of the best
                 a = o + j
                 nb = o + (j + 1) % ms
                 for c in range(dim):

@@ -381,7 +381,10 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
     rect = rectangle(float(extents[0]), float(extents[1]))
     pts, _, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology,
                                                     anchors=material)
-    extra = [np.setdiff1d(carrier[s], [chosen[s]]) for s in range(chosen.size)]
+    none = np.zeros(0, dtype=np.int64)
+    extra = [none] * chosen.size
+    for s in np.flatnonzero((carrier != chosen[:, None]).any(axis=1)):
+        extra[s] = np.setdiff1d(carrier[s], [chosen[s]])
     if plan is not None:
         # the whole section where the rest plane cut one loop (continuous through splits
         # and merges), see `fibres.plan.rest_loop_counts`
