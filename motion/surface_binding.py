@@ -316,7 +316,7 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         Samples per action line.
     rigid_radius, blend_radius : float, keyword-only
         Vertices within ``rigid_radius`` of an attachment landmark move rigidly with its body;
-        the rigid weight falls smoothly to 0 at ``blend_radius``. Defaults: 5 % and 20 % of
+        the rigid weight falls smoothly to 0 at ``blend_radius``. Defaults: 2 % and 5 % of
         the mean rest action-line length.
     line_blend : float, keyword-only
         ``delta`` of the inverse-distance weights between several lines (default 2 % of the
@@ -353,8 +353,8 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
     if np.any(lengths <= 0):
         raise ValueError("a rest action line has zero length")
     mean_len = float(np.mean(lengths))
-    rigid = 0.05 * mean_len if rigid_radius is None else float(rigid_radius)
-    blend = 0.20 * mean_len if blend_radius is None else float(blend_radius)
+    rigid = 0.02 * mean_len if rigid_radius is None else float(rigid_radius)
+    blend = 0.05 * mean_len if blend_radius is None else float(blend_radius)
     if blend <= rigid:
         raise ValueError("blend_radius must exceed rigid_radius")
     delta = 0.02 * mean_len if line_blend is None else float(line_blend)
