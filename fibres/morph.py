@@ -33,10 +33,8 @@ from __future__ import annotations
 import numpy as np
 
 from .contours import anchored_loops, bridge_loops, clockwise_contour
-from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD,
-                             _closest_on_contours,
-                             _order_arcs, anchor_kernel, correspond, rectangle,
-                             split_chain)
+from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD, anchor_kernel,
+                             correspond, rectangle, split_chain)
 from .mvc import mvc_map
 from .plan import rest_geometry, rest_loop_counts
 from .slicing import MeshTopology, Sections

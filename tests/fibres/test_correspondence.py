@@ -235,7 +235,7 @@ def test_order_arcs_is_the_bounded_isotonic_projection():
     # convex set), which is what keeps the anchored split points continuous
     from scipy.optimize import minimize
 
-    from fibres.morph import _order_arcs
+    from fibres.correspondence import _order_arcs
 
     rng = np.random.default_rng(5)
     A = np.array([[1.0, 0, 0], [-1, 1, 0], [0, -1, 1], [0, 0, -1]])
