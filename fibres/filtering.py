@@ -83,8 +83,13 @@ class FilterChoice:
         First point index of the fibre segment containing the cut.
     cut_param : (N, 2) float
         Position of the cut in its segment on the rest pose (0..1).
-    target : (N, 2) int
-        Surface vertex the rebuilt end goes to (-1 where not cut).
+    target_face : (N, 2) int
+        Surface triangle holding the rebuilt end (-1 where not cut).
+    target_vertices : (N, 2, 3) int
+        That triangle's corners (the rows of ``faces``; 0 where not cut).
+    target_bary : (N, 2, 3) float
+        Barycentric coordinates of the rebuilt end in its triangle (a material point:
+        ``sum_k target_bary[..., k] * vertices[target_vertices[..., k]]``).
     piece : (N, P) int8
         Where each output point lies: 0 on the new origin segment, 1 on the kept fibre,
         2 on the new insertion segment.
@@ -102,7 +107,9 @@ class FilterChoice:
     cut: np.ndarray
     segment: np.ndarray
     cut_param: np.ndarray
-    target: np.ndarray
+    target_face: np.ndarray
+    target_vertices: np.ndarray
+    target_bary: np.ndarray
     piece: np.ndarray
     param: np.ndarray
     seed: int = 0
@@ -110,15 +117,20 @@ class FilterChoice:
 
     def __post_init__(self):
         for name, dt in (("landmarks", np.int64), ("cut", bool), ("segment", np.int64),
-                         ("cut_param", np.float64), ("target", np.int64), ("piece", np.int8),
+                         ("cut_param", np.float64), ("target_face", np.int64),
+                         ("target_vertices", np.int64), ("target_bary", np.float64),
+                         ("piece", np.int8),
                          ("param", np.float64)):
             object.__setattr__(self, name, _readonly(getattr(self, name), dt))
         n = self.cut.shape[0]
         if self.landmarks.shape != (2,):
             raise ValueError("landmarks must be (2,)")
-        for name in ("cut", "segment", "cut_param", "target"):
+        for name in ("cut", "segment", "cut_param", "target_face"):
             if getattr(self, name).shape != (n, 2):
                 raise ValueError(f"{name} must be (N, 2) = ({n}, 2)")
+        for name in ("target_vertices", "target_bary"):
+            if getattr(self, name).shape != (n, 2, 3):
+                raise ValueError(f"{name} must be (N, 2, 3) = ({n}, 2, 3)")
         if self.piece.ndim != 2 or self.piece.shape[0] != n or self.param.shape != self.piece.shape:
             raise ValueError("piece and param must be (N, P)")
 
@@ -135,7 +147,8 @@ class FilterChoice:
     def head(self, n: int) -> "FilterChoice":
         """The choices of the first ``n`` fibres (Sobol fibre k is the same for any N > k)."""
         return FilterChoice(self.landmarks, self.cut[:n], self.segment[:n], self.cut_param[:n],
-                            self.target[:n], self.piece[:n], self.param[:n], self.seed,
+                            self.target_face[:n], self.target_vertices[:n],
+                            self.target_bary[:n], self.piece[:n], self.param[:n], self.seed,
                             self.template)
 
 
@@ -179,8 +192,8 @@ _KERNELS = []
 
 
 def _kernels():
-    """(nearest vertex per point, vertices within a radius of some point, closest candidate
-    to each ray) compiled with numba, or None (then numpy, component-wise: the same
+    """(nearest vertex per point, vertices within a radius of some point, sum of edge
+    lengths) compiled with numba, or None (then numpy, component-wise: the same
     arithmetic in the same order)."""
     if not _KERNELS:
         try:
@@ -189,8 +202,7 @@ def _kernels():
             _KERNELS.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True)
-            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_rays_loop),
-                             jit(_edge_sum_loop)))
+            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_edge_sum_loop)))
     return _KERNELS[0]
 
 
@@ -232,24 +244,6 @@ def _edge_sum_loop(vt, faces):  # pragma: no cover - compiled by numba
     return total
 
 
-def _rays_loop(ct, start, dn):  # pragma: no cover - compiled by numba
-    """`_closest_to_rays` for candidates (3, C), starts (N, 3), unit directions (N, 3)."""
-    out = np.zeros(start.shape[0], np.int64)
-    for n in range(start.shape[0]):
-        sx, sy, sz = start[n, 0], start[n, 1], start[n, 2]
-        ux, uy, uz = dn[n, 0], dn[n, 1], dn[n, 2]
-        best = np.inf
-        for c in range(ct.shape[1]):
-            rx, ry, rz = ct[0, c] - sx, ct[1, c] - sy, ct[2, c] - sz
-            t = max(rx * ux + ry * uy + rz * uz, 0.0)
-            px, py, pz = rx - t * ux, ry - t * uy, rz - t * uz
-            d2 = px * px + py * py + pz * pz
-            if d2 < best:
-                best = d2
-                out[n] = c
-    return out
-
-
 def _sq_distances(vt, points):
     """(K, V) squared distances of points (K, 3) to vertices given as (3, V)."""
     d2 = (vt[0] - points[:, 0, None]) ** 2
@@ -265,7 +259,7 @@ def _mean_edge(vt, faces) -> float:
     kernels = _kernels()
     if kernels is not None:
         f = np.ascontiguousarray(faces, dtype=np.int64)
-        return float(kernels[3](vt, f) / (3 * len(f)))
+        return float(kernels[2](vt, f) / (3 * len(f)))
     c = np.take(vt, np.ascontiguousarray(faces.T), axis=1)              # (3, 3, T)
     e = c[:, [1, 2, 0]] - c
     return float(np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).mean())
@@ -290,31 +284,122 @@ def attachment_region(vertices, faces, landmarks) -> np.ndarray:
                                     np.asarray(landmarks, float).reshape(-1, 3))]
 
 
-def _closest_to_rays(candidates, start, direction, *, chunk: int = 1 << 21):
-    """For each ray (start (N,3), direction (N,3)) the index of the candidate (C,3) closest
-    to it. Distance of q to the ray s + t d (t >= 0): |q - s - max((q - s).d, 0) d|.
-    Fibres are processed in blocks of about ``chunk`` fibre-candidate pairs (bounded memory),
-    component-wise on (n, C) arrays (a reduction over a size-3 axis is ~5x slower).
-    """
+def _region_triangles(faces, region, n_vertices):
+    """The attachment area's surface: the faces with all three corners in the area, plus
+    each area vertex on no such face as a point (a degenerate triangle (v, v, v)).
+
+    Returns (corners (T', 3) int, face (T',) int): the triangles' vertex indices and, for
+    each, a face of the mesh holding it (for a point: any face with that corner)."""
+    inside = np.zeros(n_vertices, bool)
+    inside[region] = True
+    full = np.flatnonzero(inside[faces].all(axis=1))
+    covered = np.zeros(n_vertices, bool)
+    covered[faces[full].ravel()] = True
+    lone = region[~covered[region]]
+    if len(lone) == 0:
+        return faces[full], full
+    owner = np.full(n_vertices, -1, np.int64)          # a face holding each vertex
+    owner[faces[::-1].ravel()] = np.repeat(np.arange(len(faces))[::-1], 3)
+    corners = np.concatenate([faces[full], np.repeat(lone[:, None], 3, axis=1)])
+    return corners, np.concatenate([full, owner[lone]])
+
+
+def _dot(a, b):
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def _ray_triangle_pairs(tv, s, d):
+    """Closest pair between rays s + t d (t >= 0, |d| = 1) and triangles, for every ray
+    (n, 1, 3) x triangle (1, T, 3, 3) pair (broadcast).
+
+    The minimum distance between a ray and a triangle (two convex sets) is attained by a hit
+    (distance 0; Moeller & Trumbore 1997 ray/triangle test), else by the ray start against
+    the triangle's interior (its projection on the plane, when inside), or by the ray
+    against one of the three edges (closest points of two clamped segments, Ericson 2005,
+    Real-Time Collision Detection §5.1.9, with the ray's upper bound removed).
+
+    Returns (d2 (n, T) squared distance (0 for a hit), t (n, T) ray parameter of the pair,
+    bary (n, T, 3) barycentric coordinates of the triangle point)."""
+    a, b, c = tv[..., 0, :], tv[..., 1, :], tv[..., 2, :]
+    e1, e2 = b - a, c - a
+    nrm = np.cross(e1, e2)
+    nn = _dot(nrm, nrm)
+    w = s - a                                                       # (n, T, 3)
+    # hit (Moeller-Trumbore): s + t d = a + u e1 + v e2
+    pvec = np.cross(d, e2)
+    det = _dot(e1, pvec)
+    ok = np.abs(det) > 1e-12 * np.sqrt(nn)
+    inv = 1.0 / np.where(ok, det, 1.0)
+    u = _dot(w, pvec) * inv
+    qvec = np.cross(w, e1)
+    v = _dot(d, qvec) * inv
+    t_hit = _dot(e2, qvec) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t_hit >= 0)
+    d2 = np.where(hit, 0.0, np.inf)
+    t = np.where(hit, t_hit, 0.0)
+    bary = np.stack([1.0 - u - v, u, v], axis=-1)
+    # ray start against the interior
+    safe = np.where(nn > 0, nn, 1.0)
+    beta = _dot(np.cross(w, e2), nrm) / safe
+    gamma = _dot(np.cross(e1, w), nrm) / safe
+    height = _dot(w, nrm)
+    dp = height * height / safe
+    take = (nn > 0) & (beta >= 0) & (gamma >= 0) & (beta + gamma <= 1) & (dp < d2)
+    d2 = np.where(take, dp, d2)
+    t = np.where(take, 0.0, t)
+    bary = np.where(take[..., None], np.stack([1.0 - beta - gamma, beta, gamma], -1), bary)
+    # ray against the edges (p, q) = corners (i, j)
+    corners = (a, b, c)
+    for i, j in ((0, 1), (1, 2), (2, 0)):  # the three edges
+        p, e = corners[i], corners[j] - corners[i]
+        r = s - p
+        bb, cc, dd, ff = _dot(d, e), _dot(e, e), _dot(d, r), _dot(e, r)
+        den = cc - bb * bb
+        par = den > 1e-12 * cc
+        wq = np.clip(np.where(par, (ff - bb * dd) / np.where(par, den, 1.0), 0.0), 0.0, 1.0)
+        te = wq * bb - dd
+        back = te < 0
+        te = np.maximum(te, 0.0)
+        wq = np.where(back, np.clip(ff / np.where(cc > 0, cc, 1.0), 0.0, 1.0) * (cc > 0), wq)
+        diff = r + te[..., None] * d - wq[..., None] * e
+        de = _dot(diff, diff)
+        take = de < d2
+        d2 = np.where(take, de, d2)
+        t = np.where(take, te, t)
+        be = np.zeros(de.shape + (3,))
+        be[..., i], be[..., j] = 1.0 - wq, wq
+        bary = np.where(take[..., None], be, bary)
+    return d2, t, bary
+
+
+def _closest_on_triangles(tv, start, direction, *, chunk: int = 1 << 16):
+    """For each ray (start (N, 3), direction (N, 3)) the point of the triangles (T, 3, 3)
+    closest to it: the first hit where the ray hits them, else the closest point (edges,
+    vertices or interiors). Pairs closer than 1e-12 x the triangles' extent count as hits
+    (a ray through a shared edge), the first of them along the ray wins.
+
+    Fibres are processed in blocks of about ``chunk`` fibre-triangle pairs (bounded memory).
+
+    Returns (index (N,) of the triangle, barycentric coordinates (N, 3))."""
+    tv = np.asarray(tv, dtype=np.float64)
     dn = direction / np.linalg.norm(direction, axis=1, keepdims=True)
-    ct = np.ascontiguousarray(np.asarray(candidates, dtype=np.float64).T)   # (3, C)
-    kernels = _kernels()
-    if kernels is not None:
-        return kernels[2](ct, np.ascontiguousarray(start, dtype=np.float64),
-                          np.ascontiguousarray(dn))
-    out = np.empty(len(start), np.int64)
-    step = max(1, chunk // max(ct.shape[1], 1))
-    for a in range(0, len(start), step):  # blocks of fibres, not single fibres
-        s, d = start[a:a + step], dn[a:a + step]
-        rel = [ct[c] - s[:, c, None] for c in range(3)]                      # 3 x (n, C)
-        along = np.maximum(rel[0] * d[:, 0, None] + rel[1] * d[:, 1, None]
-                           + rel[2] * d[:, 2, None], 0.0)
-        d2 = 0.0
-        for c in range(3):  # coordinates
-            p = rel[c] - along * d[:, c, None]
-            d2 = d2 + p * p
-        out[a:a + step] = np.argmin(d2, axis=1)
-    return out
+    n = len(start)
+    index, bary = np.zeros(n, np.int64), np.zeros((n, 3))
+    if n == 0 or len(tv) == 0:
+        return index, bary
+    flat = tv.reshape(-1, 3)
+    eps2 = (1e-12 * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))) ** 2
+    step = max(1, chunk // len(tv))
+    for lo in range(0, n, step):  # blocks of fibres, not single fibres
+        sl = slice(lo, lo + step)
+        d2, t, b = _ray_triangle_pairs(tv[None], start[sl, None], dn[sl, None])
+        touch = d2 <= eps2
+        first = np.argmin(np.where(touch, t, np.inf), axis=1)
+        near = np.argmin(d2, axis=1)
+        k = np.where(touch.any(axis=1), first, near)
+        index[sl] = k
+        bary[sl] = b[np.arange(len(k)), k]
+    return index, bary
 
 
 def _at_index(pts, tau):
@@ -388,7 +473,9 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     cut = np.zeros((n, 2), bool)
     segment = np.zeros((n, 2), np.int64)
     cut_param = np.zeros((n, 2))
-    target = np.full((n, 2), -1, np.int64)
+    t_face = np.full((n, 2), -1, np.int64)
+    t_vert = np.zeros((n, 2, 3), np.int64)
+    t_bary = np.zeros((n, 2, 3))
     piece = np.ones((n, p), np.int8)
     param = np.broadcast_to(np.linspace(0.0, 1.0, p), (n, p)).copy()
     piece[:, 0], param[:, 0] = 0, 0.0
@@ -396,8 +483,8 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
         piece[:, -1], param[:, -1] = 2, 1.0
 
     def done():
-        return FilterChoice(lms, cut, segment, cut_param, target, piece, param, int(seed),
-                            template)
+        return FilterChoice(lms, cut, segment, cut_param, t_face, t_vert, t_bary, piece, param,
+                            int(seed), template)
 
     if n == 0 or p < 2 or h_o >= h_i:  # overlapping attachment bands: nothing sensible to cut
         return done()
@@ -429,9 +516,16 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
         sel = cut[:, end]
         if sel.any():  # two ends, not a loop over fibres
             region = _region_indices(verts, faces, landmarks, vt, mean_edge)
+            corners, owner = _region_triangles(faces, region, len(verts))
             d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
-            target[sel, end] = region[_closest_to_rays(verts[region], c[sel], d)]
-    _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param)
+            k, w = _closest_on_triangles(verts[corners], c[sel], d)
+            face = owner[k]
+            # barycentric coordinates on the owning face's corners (a point: all on its slot)
+            match = faces[face][:, :, None] == corners[k][:, None, :]       # (n, 3, 3)
+            t_face[sel, end] = face
+            t_vert[sel, end] = faces[face]
+            t_bary[sel, end] = (match * w[:, None, :]).sum(axis=2)
+    _record_resampling(pts, verts, cut, segment, cut_param, (t_vert, t_bary), piece, param)
     return done()
 
 
@@ -442,7 +536,8 @@ def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param
     fib = pts[sel]
     m, p = fib.shape[:2]
     tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut[sel], segment[sel],
-                                                     cut_param[sel], target[sel])
+                                                     cut_param[sel],
+                                                     (target[0][sel], target[1][sel]))
     body_tau = np.clip(np.arange(p, dtype=float)[None, :], tau_o[:, None], tau_i[:, None])
     body = np.where((body_tau == np.arange(p))[..., None], fib, _at_index(fib, body_tau))
     poly = np.concatenate([end_o[:, None], c_o[:, None], body, c_i[:, None], end_i[:, None]], 1)
@@ -467,7 +562,9 @@ def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param
 
 def _geometry(pts, verts, cut, segment, s, target):
     """Fractional indices and points of the two cuts and the two new ends (uncut ends: the
-    fibre's own end, index 0 / P-1)."""
+    fibre's own end, index 0 / P-1); ``target`` is (corners (N, 2, 3), barycentric (N, 2, 3))."""
+    corner, bary = target
+    ends = np.einsum("nekc,nek->nec", verts[corner], bary)             # (N, 2, 3)
     p = pts.shape[1]
     rows = np.arange(len(pts))
     cuts = []
@@ -477,7 +574,7 @@ def _geometry(pts, verts, cut, segment, s, target):
         own = pts[:, 0] if end == 0 else pts[:, -1]
         cuts.append((np.where(cut[:, end], segment[:, end] + s[:, end], 0.0 if end == 0 else p - 1),
                      np.where(cut[:, end, None], c, own),
-                     np.where(cut[:, end, None], verts[np.maximum(target[:, end], 0)], own)))
+                     np.where(cut[:, end, None], ends[:, end], own)))
     (tau_o, c_o, end_o), (tau_i, c_i, end_i) = cuts
     return tau_o, tau_i, c_o, c_i, end_o, end_i
 
@@ -526,7 +623,8 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
     s_o, _ = _cuts(fib, h, seg[:, 0], h_o, ch.cut_param[sel, 0], CUT_SLACK)
     s_i, _ = _cuts(fib, h, seg[:, 1], h_i, ch.cut_param[sel, 1], CUT_SLACK)
     s = np.stack([s_o, s_i], axis=1)
-    out[sel] = _evaluate(fib, np.asarray(vertices, float), cutf, seg, s, ch.target[sel],
+    out[sel] = _evaluate(fib, np.asarray(vertices, float), cutf, seg, s,
+                         (ch.target_vertices[sel], ch.target_bary[sel]),
                          ch.piece[sel], ch.param[sel])
     return out, sel.copy(), sel.copy()
 
