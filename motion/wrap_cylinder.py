@@ -14,10 +14,14 @@ independent numpy implementation:
    pair is chosen by the most-parallel rule (all) or by the active side (quadrant).
 4. The tangent points are slid along the axis to the plane through p1, p2 and an "apex" on
    the cylinder; no wrap if both end up beyond the half length.
-5. The surface path is a helix; its length is ``sqrt((R theta)^2 + axial^2)``. Except for
-   paths with a single wrap object (OpenSim's ``WrapResult::singleWrap`` optimisation when
-   visualisation is off), the tangent points are then re-adjusted along the axis until the
-   straight lines meet the helix within 0.1 degree (up to 100 restarts).
+5. The surface path is a helix; its length is ``sqrt((R theta)^2 + axial^2)`` with theta the
+   angle between the tangent points signed about the axis (``atan2``; ``2 pi - theta`` for a
+   long wrap), as in OpenSim 4.6. Except for paths with a single wrap object (OpenSim's
+   ``WrapResult::singleWrap`` optimisation when visualisation is off), the tangent points are
+   then re-adjusted along the axis until the straight lines meet the helix within 0.1 degree
+   (up to 100 restarts); OpenSim 4.6's spiral points follow the current r1, so r2 is tested
+   against a spiral point taken after r1 moved in the same pass (older releases' source used
+   the pass's initial r1; 4.6 is what is reproduced, to ~1e-15 m against live OpenSim).
 
 Everything is computed on `motion.wrap_autodiff.Dual` arrays, so the returned length carries
 its exact derivative with respect to whatever the inputs were seeded with.
@@ -93,42 +97,33 @@ def _dist2(a, b) -> Dual:
     return ad.dot(d, d)
 
 
-def _helix(r1, r2, long_wrap, radius):
-    """Helix from r1 to r2 on the cylinder: (r1a, axial_vec, uu, ax, theta, length)."""
-    zero = 0.0 * r1[..., 0]
-    r1a = _vec(zero, zero, r1[..., 2])
-    r2a = _vec(zero, zero, r2[..., 2])
-    axial_vec = r2a - r1a
-    axial_dist = ad.norm(axial_vec)
-    uu = (r1 - r1a) / radius
-    vv = (r2 - r2a) / radius
-    cos_t = ad.dot(uu, vv) / (ad.norm(uu) * ad.norm(vv))
-    cos_t = ad.where(np.abs(cos_t.v) <= 1.0, cos_t, np.sign(cos_t.v))
-    theta = ad.arccos(cos_t)
-    theta = ad.where(long_wrap, 2.0 * np.pi - theta, theta)
-    x = theta * radius
-    length = ad.sqrt(x * x + axial_dist * axial_dist)
-    ax, _ = ad.normalize_or_zero(ad.cross(uu, vv))
-    return r1a, axial_vec, uu, ax, theta, length
+def _signed_theta(xy1, xy2, long_wrap):
+    """Helix angle as OpenSim 4.6: signed about +z (atan2 of cross and dot); long: 2 pi - theta."""
+    cz = xy1[:, 0] * xy2[:, 1] - xy1[:, 1] * xy2[:, 0]
+    cc = xy1[:, 0] * xy2[:, 0] + xy1[:, 1] * xy2[:, 1]
+    theta = ad.arctan2(cz, cc)
+    return ad.where(long_wrap, 2.0 * np.pi - theta, theta)
 
 
 def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust):
-    """WrapCylinder::_make_spiral_path: helix length, with OpenSim's tangent re-adjustment.
+    """WrapCylinder::_make_spiral_path (OpenSim 4.6): helix length and tangent re-adjustment.
 
-    The re-adjustment only slides r1 and r2 along the axis, so the loop carries their z
-    coordinates: the helix's angle, the radial directions and hence the rotation of the
-    spiral points stay fixed (rotation about the z axis). The loop runs on the frames that
-    still adjust only. Each step is OpenSim's: compare the angles to the axis of p->r and of
-    r->w (w the spiral point 1/n of the way from r), and if they differ by more than 0.1 degree
-    move r 1.5 times the way to the point of r's axial line closest to the line p->w.
+    OpenSim 4.6 measures the helix angle ``theta`` signed about the axis (``atan2``; a long
+    wrap takes ``2 pi - theta``) and turns r1 by ``sense * t * theta`` about the axis, ``sense``
+    -1 for a long wrap; the length is ``sqrt((R theta)^2 + axial^2)``. The re-adjustment only
+    slides r1 and r2 along the axis, so the loop carries their z coordinates (theta is fixed).
+    Each pass is OpenSim's: compare the angles to the axis of p->r and of r->w (w the spiral
+    point 1/n of the way from r), and if they differ by more than 0.1 degree move r 1.5 times
+    the way to the point of r's axial line closest to the line p->w. As in OpenSim 4.6, whose
+    spiral points are computed from the *current* r1 (a lambda capturing the result by
+    reference), r2's spiral point is taken after r1 was moved in the same pass, with the
+    pass's axial distance and angle. Checked against live OpenSim 4.6 to ~1e-15 m.
     """
+    xy1, xy2 = r1[:, :2], r2[:, :2]
+    z1, z2 = r1[:, 2], r2[:, 2]
+    theta = _signed_theta(xy1, xy2, long_wrap)
     if adjust:
-        z1, z2 = r1[:, 2], r2[:, 2]
-        xy1, xy2 = r1[:, :2], r2[:, :2]
-        *_, theta, _ = _helix(r1, r2, long_wrap, radius)
-        # direction of rotation from r1 towards r2 about z (OpenSim: ax = uu x vv, sense)
-        turn = np.sign(xy1.v[:, 0] * xy2.v[:, 1] - xy1.v[:, 1] * xy2.v[:, 0])
-        turn = np.where(turn == 0.0, 1.0, turn) * np.where(long_wrap, -1.0, 1.0)
+        sense = np.where(long_wrap, -1.0, 1.0)
         iterations = np.zeros(long_wrap.shape, dtype=int)
         active = np.ones(long_wrap.shape, dtype=bool)
         while active.any():
@@ -138,30 +133,27 @@ def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust):
             q1, q2 = _rows(p1, idx), _rows(p2, idx)
             dz = a2 - a1
             x = th * radius
-            length = ad.sqrt(x * x + dz * dz)
-            n_seg = np.maximum((length.v / 0.002).astype(int), 1)
+            n_seg = np.maximum((np.sqrt(x.v * x.v + dz.v * dz.v) / 0.002).astype(int), 1)
             can = (n_seg >= 2) & (iterations[idx] < _MAX_ITERATIONS)
             t = 1.0 / n_seg
-            w1 = _spiral_xyz(c1, a1, dz, th * (turn[idx] * t), t)
-            w2 = _spiral_xyz(c1, a1, dz, th * (turn[idx] * (1.0 - t)), 1.0 - t)
+            w1 = _spiral_xyz(c1, a1, dz, th * (sense[idx] * t), t)
             new1, adj1 = _slide(q1, c1, a1, w1)
+            b1 = ad.where(adj1, new1, a1)
+            w2 = _spiral_xyz(c1, b1, dz, th * (sense[idx] * (1.0 - t)), 1.0 - t)
             new2, adj2 = _slide(q2, c2, a2, w2)
-            # Measured against OpenSim 4.6: r2 is only re-adjusted in a pass where r1 was not
-            # (the published source adjusts both; the binary behaves as if r1 restarts first).
-            adj2 = adj2 & ~adj1
             changed = can & (adj1 | adj2)
             active[idx[~changed]] = False
             if not changed.any():
                 break
-            new1 = ad.where(adj1, new1, a1)
             new2 = ad.where(adj2, new2, a2)
-            z1 = ad.scatter(z1, idx[changed], _rows(new1, changed))
+            z1 = ad.scatter(z1, idx[changed], _rows(b1, changed))
             z2 = ad.scatter(z2, idx[changed], _rows(new2, changed))
             iterations[idx[changed]] += 1
         r1 = ad.stack([xy1[:, 0], xy1[:, 1], z1])
         r2 = ad.stack([xy2[:, 0], xy2[:, 1], z2])
-    *_, length = _helix(r1, r2, long_wrap, radius)
-    return r1, r2, length
+    x = theta * radius
+    dz = z2 - z1
+    return r1, r2, ad.sqrt(x * x + dz * dz)
 
 
 def _spiral_xyz(xy1, z1, dz, angle, t):
