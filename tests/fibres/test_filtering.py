@@ -244,6 +244,15 @@ def test_compiled_region_equals_numpy_and_the_definition(cube, monkeypatch):
         if kernels == "numpy":
             monkeypatch.setattr(fl, "_KERNELS", [None])
         np.testing.assert_array_equal(fl._region_indices(v, f, lms), ref)
+        # the area's triangles: the faces with all corners in it (definition), plus each
+        # area vertex on none of them as a point held by a face with that corner
+        corners, owner = fl._region_triangles(f, ref, len(v))
+        full = np.flatnonzero(np.isin(f, ref).all(axis=1))
+        np.testing.assert_array_equal(owner[:len(full)], full)
+        np.testing.assert_array_equal(corners[:len(full)], f[full])
+        lone = np.setdiff1d(ref, f[full])
+        np.testing.assert_array_equal(corners[len(full):], np.repeat(lone[:, None], 3, 1))
+        assert (f[owner[len(full):]] == lone[:, None]).any(axis=1).all()
         # the mean edge (the area's minimum radius): summation order only, 1e-12 relative
         edge = fl._mean_edge(np.ascontiguousarray(v.T), f)
         assert edge == pytest.approx(np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean(),
@@ -252,11 +261,17 @@ def test_compiled_region_equals_numpy_and_the_definition(cube, monkeypatch):
 
 # --- the new end: the surface point of the area closest to the ray (paper §3.4) ----------
 
-def test_closest_point_on_triangles_is_first_hit_or_nearest():
+@pytest.mark.parametrize("kernels", ["compiled", "numpy"])
+def test_closest_point_on_triangles_is_first_hit_or_nearest(kernels, monkeypatch):
     # random triangles and rays: where a ray hits some triangle, the answer is the hit with
     # the smallest ray parameter (each hit solved independently as the 3x3 system
     # s + t d = a + u (b - a) + v (c - a)); otherwise no surface sample is closer to the ray
+    # (the compiled loop and the numpy fallback, each against this reference)
+    import fibres.filtering as fl
     from fibres.filtering import _closest_on_triangles
+
+    if kernels == "numpy":
+        monkeypatch.setattr(fl, "_KERNELS", [None])
 
     rng = np.random.default_rng(7)
     tv = rng.uniform(-1, 1, (30, 3, 3))
