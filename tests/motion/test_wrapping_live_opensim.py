@@ -185,6 +185,40 @@ def test_cylinder_tangent_readjustment(osim, tmp_path):
     assert wraps.sum() >= 10 and moved.max() > 1e-5
 
 
+@pytest.mark.parametrize("config", [0, 1])
+def test_cylinder_long_wraps_signed_angle(osim, tmp_path, config):
+    # A tilted quadrant cylinder on ground and a second one on the arm, with long wraps whose
+    # helix turns clockwise about the axis: OpenSim 4.6 measures the angle signed (atan2), so
+    # such a long wrap spans 2 pi + |theta|, not 2 pi - |theta| (an implementation using the
+    # unsigned angle is off by up to 0.66 m in length here). Lengths and points must match
+    # OpenSim to round-off (measured 7e-12 m, 1e-13 m over 40 random cases like these).
+    quadrant, rot, p1, p2 = [
+        ("y", (-0.4184, 0.3552, 0.3613), (-0.0056, 0.2, -0.0986), (0.0291, -0.3, 0.0671)),
+        ("-y", (-0.2848, 0.1393, 0.3051), (-0.0699, 0.2, 0.0789), (-0.0155, -0.3, -0.0951)),
+    ][config]
+    c1 = osim.WrapCylinder()
+    c1.setName("c1")
+    c1.set_radius(0.03)
+    c1.set_length(0.4)
+    c1.set_quadrant(quadrant)
+    c1.set_xyz_body_rotation(osim.Vec3(*rot))
+    c2 = osim.WrapCylinder()
+    c2.setName("c2")
+    c2.set_radius(0.02)
+    c2.set_length(0.3)
+    c2.set_quadrant("-x")
+    c2.set_translation(osim.Vec3(0.0, -0.15, 0.0))
+    f = _build(osim, tmp_path / "longwrap.osim", [("ground", c1), ("arm", c2)],
+               [("ground", p1), ("arm", p2)])
+    qs = np.linspace(-1.5, 1.5, 13)
+    lengths, _, _, _, points = _opensim(osim, f, qs)
+    res = _mine(f, qs)
+    assert (res.arc[:, 0] > np.pi * 0.03).any(), "c1 must wrap the long way in some frames"
+    np.testing.assert_allclose(res.length, lengths, rtol=0, atol=1e-9)
+    for i, pts in enumerate(points):
+        assert np.abs(res.ordered_points[i, :len(pts)] - pts).max() < 1e-9, f"frame {i}"
+
+
 @pytest.mark.parametrize("method", ["hybrid", "midpoint", "axial"])
 @pytest.mark.parametrize("quadrant", ["all", "-y"])
 def test_ellipsoid_methods(osim, tmp_path, method, quadrant):
