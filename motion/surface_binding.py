@@ -27,8 +27,11 @@ line are the rotation-minimising frames of Wang et al., ACM TOG 2008):
    i.e. its material point slides with the arc-length parameter (the belly stretches along the
    line) while the cross-section scales by ``k``. Since the surface is affine in ``k`` its
    volume is a cubic in ``k``; ``k`` is solved per frame so that the volume equals the rest
-   volume (`motion.surface_volume`). Obstacles (wrap objects, bones) then push vertices out
-   (`motion.surface_collision`) and ``k`` is re-solved by a fixed number of secant steps.
+   volume (`motion.surface_volume`). Wrap objects then squeeze the cross-section offsets
+   ``k (x N + y B)`` through the thickness where they point into the object
+   (`motion.surface_collision.WrapObstacle.squeezer`), obstacles (wrap objects, bones)
+   push what still penetrates out (`motion.surface_collision`), and ``k`` is re-solved by a
+   fixed number of secant steps.
    All steps are smooth functions of the body poses and the line points, so finite
    differences of anything measured on the surface are meaningful.
 
@@ -268,8 +271,15 @@ class SurfaceBinding:
 
         rounds = 1 if len(obstacles) < 2 else 2
 
+        squeezers = [o.squeezer(p) for o in obstacles if hasattr(o, "squeezer")]
+
         def pushed(kk):
-            v = p + kk[:, None, None] * q
+            w = kk[:, None, None] * q
+            # wrap objects first squeeze the cross-section through its thickness (smooth in s and
+            # in the poses, layers keep their order); the push-outs then remove what is left
+            for squeeze in squeezers:
+                w = squeeze(w)
+            v = p + w
             # several obstacles: alternate projections, so a vertex squeezed between two bones
             # is not pushed out of one into the other
             for _ in range(rounds):

@@ -231,3 +231,61 @@ def test_numpy_fallbacks_match_compiled_kernels(monkeypatch):
     assert np.abs(compiled.volume_error).max() < 1e-6
     np.testing.assert_allclose(plain.vertices, compiled.vertices, atol=1e-10)
     np.testing.assert_allclose(plain.volume, compiled.volume, rtol=1e-9)
+
+
+def _squeeze_on_cylinder(h, t, y=0.005, radius=0.02):
+    """Offsets (-t, 0, y) from centres at clearance h outside a z-axis cylinder, squeezed."""
+    pulley = WrapObstacle("cylinder", np.eye(4), np.array([radius, radius, np.inf]))
+    centres = np.zeros((1, len(t), 3))
+    centres[..., 0] = radius + h
+    offsets = np.stack([-t, np.zeros_like(t), np.full_like(t, y)], axis=-1)[None]
+    return centres, offsets, pulley.squeezer(centres)(offsets)
+
+
+def test_squeeze_flattens_layers_in_order_into_the_room_left():
+    from motion.surface_collision import SQUEEZE_KNEE
+
+    h, radius = 0.004, 0.02
+    t = np.linspace(-0.01, 0.03, 4001)            # inward depth of the offset (m)
+    centres, offsets, out = _squeeze_on_cylinder(h, t, radius=radius)
+    depth = -out[0, :, 0]
+    # offsets reaching less than the knee fraction of the room (and all outward ones) are kept
+    keep = t <= SQUEEZE_KNEE * h
+    np.testing.assert_array_equal(out[0, keep], offsets[0, keep])
+    # the squeezed vertices stay outside the pulley, in their order, at their height
+    assert (depth < h).all()
+    assert (np.diff(depth) > 0).all()
+    assert (np.linalg.norm((centres + out)[0, :, :2], axis=-1) > radius).all()
+    np.testing.assert_array_equal(out[0, :, 1:], offsets[0, :, 1:])
+    # C1 at the knee: the slope is 1 on both sides (one-sided differences, step 1e-5 m: the
+    # curvature beyond the knee is 1 / ((1 - a) h) ~ 360 /m, so the slope changes by < 0.4 %)
+    knee = SQUEEZE_KNEE * h
+    s = 1e-5
+    t3 = np.array([knee - s, knee, knee + s])
+    d3 = -_squeeze_on_cylinder(h, t3, radius=radius)[2][0, :, 0]
+    np.testing.assert_allclose(np.diff(d3) / s, 1.0, rtol=5e-3)
+    # a centre on the surface: everything pointing in collapses onto it, outward stays
+    t0 = np.array([-0.005, 0.001, 0.01])
+    out0 = _squeeze_on_cylinder(0.0, t0, radius=radius)[2][0]
+    np.testing.assert_allclose(-out0[:, 0], [-0.005, 0.0, 0.0], atol=1e-15)
+
+
+def test_squeeze_numpy_fallback_matches_compiled_kernel(monkeypatch):
+    pytest.importorskip("numba")
+    import motion.surface_collision as collision
+
+    rng = np.random.default_rng(3)
+    tf = np.tile(np.eye(4), (2, 1, 1))
+    tf[1] = rot_z([0.7])[0]
+    tf[:, :3, 3] = [0.01, -0.02, 0.0]
+    centres = rng.normal(scale=0.03, size=(2, 500, 3))
+    offsets = rng.normal(scale=0.01, size=(2, 500, 3))
+    for obstacle in (WrapObstacle("cylinder", tf, np.array([0.02, 0.02, 0.05])),
+                     WrapObstacle("sphere", tf, np.full(3, 0.02)),
+                     WrapObstacle("ellipsoid", tf, np.array([0.01, 0.025, 0.015]))):
+        compiled = obstacle.squeezer(centres)(offsets)
+        with monkeypatch.context() as m:
+            m.setattr(collision, "_PUSH", {"kernel": None})
+            plain = obstacle.squeezer(centres)(offsets)
+        assert np.abs(compiled - offsets).max() > 1e-3        # something was squeezed
+        np.testing.assert_allclose(plain, compiled, atol=1e-15)
