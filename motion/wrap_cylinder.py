@@ -105,7 +105,7 @@ def _signed_theta(xy1, xy2, long_wrap):
     return ad.where(long_wrap, 2.0 * np.pi - theta, theta)
 
 
-def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust):
+def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust, need):
     """WrapCylinder::_make_spiral_path (OpenSim 4.6): helix length and tangent re-adjustment.
 
     OpenSim 4.6 measures the helix angle ``theta`` signed about the axis (``atan2``; a long
@@ -118,6 +118,7 @@ def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust):
     spiral points are computed from the *current* r1 (a lambda capturing the result by
     reference), r2's spiral point is taken after r1 was moved in the same pass, with the
     pass's axial distance and angle. Checked against live OpenSim 4.6 to ~1e-15 m.
+    The loop runs on the frames of ``need`` (those that wrap) only; elsewhere r1, r2 stay.
     """
     xy1, xy2 = r1[:, :2], r2[:, :2]
     z1, z2 = r1[:, 2], r2[:, 2]
@@ -125,7 +126,7 @@ def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust):
     if adjust:
         sense = np.where(long_wrap, -1.0, 1.0)
         iterations = np.zeros(long_wrap.shape, dtype=int)
-        active = np.ones(long_wrap.shape, dtype=bool)
+        active = np.array(need, dtype=bool, copy=True)
         while active.any():
             idx = np.nonzero(active)[0]
             a1, a2, th = _rows(z1, idx), _rows(z2, idx), _rows(theta, idx)
@@ -343,7 +344,7 @@ def cylinder_wrap_line(p1, p2, *, radius, length, quadrant="all", adjust_tangent
     code[~done & beyond] = NO_WRAP
     done |= beyond
 
-    r1, r2, arc = _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust_tangents)
+    r1, r2, arc = _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust_tangents, ~done)
     code[done & (code >= WRAPPED)] = NO_WRAP
     return code, r1, r2, arc
 
