@@ -216,3 +216,60 @@ def test_gradient_matches_central_differences(name):
             smooth = same & (np.abs(fd - grad[:, k]) < 1e-3)
             assert smooth.sum() >= same.sum() - 2
             assert np.abs(fd - grad[:, k])[smooth].max(initial=0) < 2e-6
+
+
+def _tangency_error_deg(pt, r, w):
+    """|angle(p->r, axis) - angle(r->w, axis)| in degrees (OpenSim's tangency measure)."""
+    pr = (r - pt) / np.linalg.norm(r - pt, axis=1)[:, None]
+    rw = (w - r) / np.linalg.norm(w - r, axis=1)[:, None]
+    return np.degrees(np.abs(np.arccos(pr[:, 2]) - np.arccos(rw[:, 2])))
+
+
+@pytest.mark.parametrize("quadrant", ["all", "+y", "-x"])
+def test_cylinder_readjustment_ends_tangent_and_frame_by_frame(quadrant, monkeypatch):
+    # The re-adjustment loop stops when both straight lines meet the helix within 0.1 degree
+    # at the spiral points 1/n of the way in (n = int(arc / 2 mm)); check that stop condition
+    # independently from the returned points, and that each frame's answer does not depend on
+    # the other frames of the batch (the loop runs only on the frames that wrap).
+    rng = np.random.default_rng(7)
+    p1, p2 = _random_cases(rng, 40)
+    p2[::5, 2] += 0.2            # some steep helices
+    p2[1::7, 1] += 0.12          # and some segments that miss the cylinder
+    res = wrap_cylinder(p1, p2, radius=R, length=0.6, quadrant=quadrant, adjust_tangents=True)
+    assert 10 <= res.wrapped.sum() < len(res.wrapped)
+    # frames with a single 2 mm piece (n = 1) skip the loop in OpenSim too, and frames where
+    # OpenSim's cap of 100 restarts stops it early (found by lifting the cap) are not tangent
+    monkeypatch.setattr("motion.wrap_cylinder._MAX_ITERATIONS", 100000)
+    uncapped = wrap_cylinder(p1, p2, radius=R, length=0.6, quadrant=quadrant, adjust_tangents=True)
+    monkeypatch.undo()
+    capped = np.nan_to_num(np.abs(uncapped.t1 - res.t1).max(axis=1)) > 0
+    assert capped.sum() <= 2
+    w = res.wrapped & (np.nan_to_num(res.arc) >= 0.004) & ~capped
+    assert w.sum() >= 10
+    t1, t2 = res.t1[w], res.t2[w]
+    dz = t2[:, 2] - t1[:, 2]
+    phi = np.sqrt(np.maximum(res.arc[w] ** 2 - dz ** 2, 0.0)) / R
+    n = np.floor(res.arc[w] / 0.002)
+    # turning direction: the one that takes t1 to t2 in angle phi
+    a1 = np.arctan2(t1[:, 1], t1[:, 0])
+    a2 = np.arctan2(t2[:, 1], t2[:, 0])
+    ccw = np.abs(np.angle(np.exp(1j * (a1 + phi - a2)))) < 1e-6
+    sgn = np.where(ccw, 1.0, -1.0)
+
+    def spiral(frac):
+        ang = a1 + sgn * phi * frac
+        return np.stack([R * np.cos(ang), R * np.sin(ang), t1[:, 2] + dz * frac], axis=1)
+
+    # 0.1 degree plus round-off of the angles (~1e-12 degree)
+    assert _tangency_error_deg(p1[w], t1, spiral(1.0 / n)).max() <= 0.1 + 1e-9
+    assert _tangency_error_deg(p2[w], t2, spiral(1.0 - 1.0 / n)).max() <= 0.1 + 1e-9
+    # the loop moved the points in some frames (else this test proves nothing)
+    loose = wrap_cylinder(p1, p2, radius=R, length=0.6, quadrant=quadrant, adjust_tangents=False)
+    assert np.abs(loose.t1[w] - t1).max() > 1e-5
+    # frame by frame: identical to the batch
+    for f in np.nonzero(w)[0][:8]:
+        one = wrap_cylinder(p1[f:f + 1], p2[f:f + 1], radius=R, length=0.6, quadrant=quadrant,
+                            adjust_tangents=True)
+        assert one.code[0] == res.code[f]
+        np.testing.assert_array_equal(one.t1[0], res.t1[f])
+        assert one.length[0] == res.length[f]
