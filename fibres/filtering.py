@@ -12,7 +12,17 @@ of the projected landmarks"): every landmark is projected to its nearest surface
 area is the set of surface vertices within ``r`` of a projected landmark, where r is the median
 distance between neighbouring landmarks (at least the mean edge length of the surface), plus
 the projections themselves. For one landmark the area is its projection and that vertex's
-neighbourhood of radius r = mean edge length.
+neighbourhood of radius r = mean edge length. The area's SURFACE is the faces whose three
+corners are all in the area, plus each area vertex on no such face as a point.
+
+The new end point ("a new point such that it lies on the surface of muscle, in the insertion
+area, and is closest the ray defined by the segment (P_m-1, P_m)", §3.4) is the point of the
+area's surface closest to the ray from the cut point along the last kept segment (t >= 0):
+the first hit where the ray hits the area (Moeller-Trumbore), else the closest point between
+the ray and the area's triangles (their interiors, edges or vertices). Not a vertex: on a flat
+end cap whose only vertices are its centre and its rim, a straight fibre ends where its own
+line meets the cap and stays straight (the closest VERTEX kinks it towards the centre or the
+rim: 0.16 % of its length on the analytic cylinder of tests/analysis/test_run_cylinders.py).
 
 Fibres that were cut are resampled uniformly by arc length so every fibre keeps P points;
 untouched fibres are returned unchanged.
@@ -22,25 +32,28 @@ it: heights within ``TIE`` times the surface's bounding-box diagonal of a plane 
 it, so rounding cannot decide whether a fibre is trimmed.
 
 Frozen decisions (our addition for motions). The filter makes discrete choices: the extreme
-landmark of each set, which fibres are cut and in which segment, the attachment-area vertex
+landmark of each set, which fibres are cut and in which segment, the attachment-area point
 each new end goes to, and which piece (new end segment or kept fibre) each resampled point
 falls on. `filter_choices` makes them on the rest pose and returns them as a `FilterChoice`;
 `apply_filter` re-applies them to a deformed copy (same topology, same fibres): the planes
 go through the SAME landmarks along the current axis, each cut stays in its rest segment
 (its position in it follows the current plane), the new end is the same material point
-(mesh vertex) and every resampled point keeps its piece and its parameter there (a fraction
+(a triangle and barycentric coordinates in it) and every resampled point keeps its piece
+and its parameter there (a fraction
 of the new segment, or a fractional fibre index between the two cuts). Every output point is
 then a smooth function of the morphed fibre, the surface and the landmarks; on the rest pose
 it is the paper's arc-length resampling (to rounding). No KD-tree or search per frame.
 
 Inside the surface (measured on the LHDL hip muscles, 100 fibres x 16 points): the morph
-keeps points within 1.5 mm of the surface; after this filter up to 4.3 mm lie outside, from
-two sources that are the method's own: (1) the straight new segment from the cut point to the
-attachment vertex crosses concave parts of the surface when the cutting plane is far from the
-area (segments of 44-96 mm on glut_med / iliacus; no vertex of the area is reachable in a
-straight line from the cut point for the worst fibres, so choosing another target -- tried:
-the closest of the 64 nearest-to-the-ray vertices whose segment crosses no triangle -- gains
-little, 4.3 -> 4.2 mm, at 5-10x the rest-pose cost, and was not kept); (2) resampled points
+keeps points within 1.5 mm of the surface; after this filter (no smoothing) up to 4.2 mm lie
+outside (glut_max 3.4, glut_med 4.1, iliacus 4.2, psoas 3.5 mm; with the closest vertex instead
+of the closest surface point: 2.9, 4.3, 4.1, 3.5 mm), from two sources that are the method's
+own: (1) the straight new segment from the cut point to the attachment area crosses concave
+parts of the surface when the cutting plane is far from the area (segments of 44-96 mm on
+glut_med / iliacus; with vertex targets no vertex of the area was reachable in a straight line
+from the cut point for the worst fibres -- tried: the closest of the 64 nearest-to-the-ray
+vertices whose segment crosses no triangle -- 4.3 -> 4.2 mm at 5-10x the rest-pose cost, not
+kept); (2) resampled points
 on the kept part lie on chords between morphed points, which cut concave walls for fibres
 running along the surface (up to 3.4 mm, iliacus / psoas). We keep the paper's straight
 segment and chords and report the numbers (tests/fibres/test_decompose_lhdl.py).
@@ -50,6 +63,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from .ray_triangles import closest_on_triangles, region_triangles
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
            "apply_filter", "TIE"]
@@ -193,8 +208,8 @@ _KERNELS = []
 
 def _kernels():
     """(nearest vertex per point, vertices within a radius of some point, sum of edge
-    lengths, closest triangle point to each ray, faces with all corners marked) compiled with numba, or None (then numpy, component-wise: the same
-    arithmetic in the same order)."""
+    lengths) compiled with numba, or None (then numpy, component-wise: the same arithmetic
+    in the same order)."""
     if not _KERNELS:
         try:
             import numba
@@ -202,8 +217,7 @@ def _kernels():
             _KERNELS.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True)
-            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_edge_sum_loop),
-                             jit(_triangles_loop), jit(_full_faces_loop)))
+            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_edge_sum_loop)))
     return _KERNELS[0]
 
 
@@ -243,123 +257,6 @@ def _edge_sum_loop(vt, faces):  # pragma: no cover - compiled by numba
             dx, dy, dz = vt[0, b] - vt[0, a], vt[1, b] - vt[1, a], vt[2, b] - vt[2, a]
             total += np.sqrt(dx * dx + dy * dy + dz * dz)
     return total
-
-
-def _triangles_loop(tv, centre, radius, start, dn, eps2):  # pragma: no cover - numba
-    """`_closest_on_triangles` for triangles (T, 3, 3), starts (N, 3), unit directions
-    (N, 3): the formulas of `_ray_triangle_pairs`, one pair at a time, and the same
-    selection (first touching pair along the ray, else the nearest). A triangle whose
-    bounding sphere (centre (T, 3), radius (T,)) is farther from the ray than the best
-    distance so far (and than the touching tolerance) is skipped: it can neither touch
-    the ray nor be nearer."""
-    n_rays, n_tri = start.shape[0], tv.shape[0]
-    index = np.zeros(n_rays, np.int64)
-    bary = np.zeros((n_rays, 3))
-    s, d, w, e1, e2, nrm = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
-                            np.empty(3))
-    r, e, diff, bb3 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    lower = np.empty(n_tri)
-    for n in range(n_rays):
-        for c in range(3):
-            s[c], d[c] = start[n, c], dn[n, c]
-        best_touch, best_d2 = np.inf, np.inf
-        k_touch, k_near = -1, 0
-        b_touch, b_near = np.zeros(3), np.zeros(3)
-        for k in range(n_tri):  # lower bounds: the sphere's distance from the ray
-            rx, ry, rz = centre[k, 0] - s[0], centre[k, 1] - s[1], centre[k, 2] - s[2]
-            ta = max(rx * d[0] + ry * d[1] + rz * d[2], 0.0)
-            rx, ry, rz = rx - ta * d[0], ry - ta * d[1], rz - ta * d[2]
-            lower[k] = np.sqrt(rx * rx + ry * ry + rz * rz) - radius[k]
-        k0 = np.argmin(lower)
-        for m in range(n_tri + 1):  # the most promising triangle first, then all in order
-            k = k0 if m == 0 else m - 1
-            if m > 0 and k == k0:
-                continue
-            lb = lower[k]
-            if lb > 0 and lb * lb > max(best_d2, eps2) * (1.0 + 1e-9):
-                continue
-            for c in range(3):
-                e1[c] = tv[k, 1, c] - tv[k, 0, c]
-                e2[c] = tv[k, 2, c] - tv[k, 0, c]
-                w[c] = s[c] - tv[k, 0, c]
-            nrm[0] = e1[1] * e2[2] - e1[2] * e2[1]
-            nrm[1] = e1[2] * e2[0] - e1[0] * e2[2]
-            nrm[2] = e1[0] * e2[1] - e1[1] * e2[0]
-            nn = nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]
-            # hit (Moeller-Trumbore)
-            px, py, pz = d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], \
-                d[0] * e2[1] - d[1] * e2[0]
-            det = e1[0] * px + e1[1] * py + e1[2] * pz
-            d2, t = np.inf, 0.0
-            if abs(det) > 1e-12 * np.sqrt(nn):
-                inv = 1.0 / det
-                u = (w[0] * px + w[1] * py + w[2] * pz) * inv
-                qx, qy, qz = w[1] * e1[2] - w[2] * e1[1], w[2] * e1[0] - w[0] * e1[2], \
-                    w[0] * e1[1] - w[1] * e1[0]
-                v = (d[0] * qx + d[1] * qy + d[2] * qz) * inv
-                th = (e2[0] * qx + e2[1] * qy + e2[2] * qz) * inv
-                if u >= 0 and v >= 0 and u + v <= 1 and th >= 0:
-                    d2, t = 0.0, th
-                    bb3[0], bb3[1], bb3[2] = 1.0 - u - v, u, v
-            # ray start against the interior
-            if nn > 0:
-                cx, cy, cz = w[1] * e2[2] - w[2] * e2[1], w[2] * e2[0] - w[0] * e2[2], \
-                    w[0] * e2[1] - w[1] * e2[0]
-                beta = (cx * nrm[0] + cy * nrm[1] + cz * nrm[2]) / nn
-                cx, cy, cz = e1[1] * w[2] - e1[2] * w[1], e1[2] * w[0] - e1[0] * w[2], \
-                    e1[0] * w[1] - e1[1] * w[0]
-                gamma = (cx * nrm[0] + cy * nrm[1] + cz * nrm[2]) / nn
-                height = w[0] * nrm[0] + w[1] * nrm[1] + w[2] * nrm[2]
-                dp = height * height / nn
-                if beta >= 0 and gamma >= 0 and beta + gamma <= 1 and dp < d2:
-                    d2, t = dp, 0.0
-                    bb3[0], bb3[1], bb3[2] = 1.0 - beta - gamma, beta, gamma
-            # ray against the edges
-            for i in range(3):
-                j = (i + 1) % 3
-                for c in range(3):
-                    e[c] = tv[k, j, c] - tv[k, i, c]
-                    r[c] = s[c] - tv[k, i, c]
-                bb = d[0] * e[0] + d[1] * e[1] + d[2] * e[2]
-                cc = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
-                dd = d[0] * r[0] + d[1] * r[1] + d[2] * r[2]
-                ff = e[0] * r[0] + e[1] * r[1] + e[2] * r[2]
-                den = cc - bb * bb
-                wq = (ff - bb * dd) / den if den > 1e-12 * cc else 0.0
-                wq = min(max(wq, 0.0), 1.0)
-                te = wq * bb - dd
-                if te < 0:
-                    te = 0.0
-                    wq = min(max(ff / cc, 0.0), 1.0) if cc > 0 else 0.0
-                de = 0.0
-                for c in range(3):
-                    diff[c] = r[c] + te * d[c] - wq * e[c]
-                    de += diff[c] * diff[c]
-                if de < d2:
-                    d2, t = de, te
-                    bb3[0], bb3[1], bb3[2] = 0.0, 0.0, 0.0
-                    bb3[i], bb3[j] = 1.0 - wq, wq
-            if d2 <= eps2 and t < best_touch:
-                best_touch, k_touch = t, k
-                b_touch[:] = bb3
-            if d2 < best_d2:
-                best_d2, k_near = d2, k
-                b_near[:] = bb3
-        if k_touch >= 0:
-            index[n] = k_touch
-            bary[n] = b_touch
-        else:
-            index[n] = k_near
-            bary[n] = b_near
-    return index, bary
-
-
-def _full_faces_loop(faces, inside):  # pragma: no cover - compiled by numba
-    """Whether all three corners of each face (T, 3) are marked in ``inside`` (V,)."""
-    out = np.zeros(faces.shape[0], np.bool_)
-    for t in range(faces.shape[0]):
-        out[t] = inside[faces[t, 0]] and inside[faces[t, 1]] and inside[faces[t, 2]]
-    return out
 
 
 def _sq_distances(vt, points):
@@ -402,140 +299,6 @@ def attachment_region(vertices, faces, landmarks) -> np.ndarray:
                                     np.asarray(landmarks, float).reshape(-1, 3))]
 
 
-def _region_triangles(faces, region, n_vertices):
-    """The attachment area's surface: the faces with all three corners in the area, plus
-    each area vertex on no such face as a point (a degenerate triangle (v, v, v)).
-
-    Returns (corners (T', 3) int, face (T',) int): the triangles' vertex indices and, for
-    each, a face of the mesh holding it (for a point: any face with that corner)."""
-    inside = np.zeros(n_vertices, bool)
-    inside[region] = True
-    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
-    kernels = _kernels()
-    if kernels is not None:
-        full = np.flatnonzero(kernels[4](faces, inside))
-    else:  # column by column (faces may be a strided view; a (T, 3) gather is ~6x slower)
-        full = np.flatnonzero(inside[f0] & inside[f1] & inside[f2])
-    covered = np.zeros(n_vertices, bool)
-    covered[faces[full].ravel()] = True
-    lone = region[~covered[region]]
-    if len(lone) == 0:
-        return faces[full], full
-    alone = np.zeros(n_vertices, bool)
-    alone[lone] = True
-    owner = np.full(n_vertices, -1, np.int64)          # a face holding each lone vertex
-    for col in (f0, f1, f2):  # the three corners
-        rows = np.flatnonzero(alone[col])
-        owner[col[rows]] = rows
-    corners = np.concatenate([faces[full], np.repeat(lone[:, None], 3, axis=1)])
-    return corners, np.concatenate([full, owner[lone]])
-
-
-def _dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
-def _ray_triangle_pairs(tv, s, d):
-    """Closest pair between rays s + t d (t >= 0, |d| = 1) and triangles, for every ray
-    (n, 1, 3) x triangle (1, T, 3, 3) pair (broadcast).
-
-    The minimum distance between a ray and a triangle (two convex sets) is attained by a hit
-    (distance 0; Moeller & Trumbore 1997 ray/triangle test), else by the ray start against
-    the triangle's interior (its projection on the plane, when inside), or by the ray
-    against one of the three edges (closest points of two clamped segments, Ericson 2005,
-    Real-Time Collision Detection §5.1.9, with the ray's upper bound removed).
-
-    Returns (d2 (n, T) squared distance (0 for a hit), t (n, T) ray parameter of the pair,
-    bary (n, T, 3) barycentric coordinates of the triangle point)."""
-    a, b, c = tv[..., 0, :], tv[..., 1, :], tv[..., 2, :]
-    e1, e2 = b - a, c - a
-    nrm = np.cross(e1, e2)
-    nn = _dot(nrm, nrm)
-    w = s - a                                                       # (n, T, 3)
-    # hit (Moeller-Trumbore): s + t d = a + u e1 + v e2
-    pvec = np.cross(d, e2)
-    det = _dot(e1, pvec)
-    ok = np.abs(det) > 1e-12 * np.sqrt(nn)
-    inv = 1.0 / np.where(ok, det, 1.0)
-    u = _dot(w, pvec) * inv
-    qvec = np.cross(w, e1)
-    v = _dot(d, qvec) * inv
-    t_hit = _dot(e2, qvec) * inv
-    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t_hit >= 0)
-    d2 = np.where(hit, 0.0, np.inf)
-    t = np.where(hit, t_hit, 0.0)
-    bary = np.stack([1.0 - u - v, u, v], axis=-1)
-    # ray start against the interior
-    safe = np.where(nn > 0, nn, 1.0)
-    beta = _dot(np.cross(w, e2), nrm) / safe
-    gamma = _dot(np.cross(e1, w), nrm) / safe
-    height = _dot(w, nrm)
-    dp = height * height / safe
-    take = (nn > 0) & (beta >= 0) & (gamma >= 0) & (beta + gamma <= 1) & (dp < d2)
-    d2 = np.where(take, dp, d2)
-    t = np.where(take, 0.0, t)
-    bary = np.where(take[..., None], np.stack([1.0 - beta - gamma, beta, gamma], -1), bary)
-    # ray against the edges (p, q) = corners (i, j)
-    corners = (a, b, c)
-    for i, j in ((0, 1), (1, 2), (2, 0)):  # the three edges
-        p, e = corners[i], corners[j] - corners[i]
-        r = s - p
-        bb, cc, dd, ff = _dot(d, e), _dot(e, e), _dot(d, r), _dot(e, r)
-        den = cc - bb * bb
-        par = den > 1e-12 * cc
-        wq = np.clip(np.where(par, (ff - bb * dd) / np.where(par, den, 1.0), 0.0), 0.0, 1.0)
-        te = wq * bb - dd
-        back = te < 0
-        te = np.maximum(te, 0.0)
-        wq = np.where(back, np.clip(ff / np.where(cc > 0, cc, 1.0), 0.0, 1.0) * (cc > 0), wq)
-        diff = r + te[..., None] * d - wq[..., None] * e
-        de = _dot(diff, diff)
-        take = de < d2
-        d2 = np.where(take, de, d2)
-        t = np.where(take, te, t)
-        be = np.zeros(de.shape + (3,))
-        be[..., i], be[..., j] = 1.0 - wq, wq
-        bary = np.where(take[..., None], be, bary)
-    return d2, t, bary
-
-
-def _closest_on_triangles(tv, start, direction, *, chunk: int = 1 << 16):
-    """For each ray (start (N, 3), direction (N, 3)) the point of the triangles (T, 3, 3)
-    closest to it: the first hit where the ray hits them, else the closest point (edges,
-    vertices or interiors). Pairs closer than 1e-12 x the triangles' extent count as hits
-    (a ray through a shared edge), the first of them along the ray wins.
-
-    Fibres are processed in blocks of about ``chunk`` fibre-triangle pairs (bounded memory).
-
-    Returns (index (N,) of the triangle, barycentric coordinates (N, 3))."""
-    tv = np.asarray(tv, dtype=np.float64)
-    dn = direction / np.linalg.norm(direction, axis=1, keepdims=True)
-    n = len(start)
-    index, bary = np.zeros(n, np.int64), np.zeros((n, 3))
-    if n == 0 or len(tv) == 0:
-        return index, bary
-    flat = tv.reshape(-1, 3)
-    eps2 = (1e-12 * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))) ** 2
-    kernels = _kernels()
-    if kernels is not None:
-        centre = tv.mean(axis=1)
-        radius = np.linalg.norm(tv - centre[:, None], axis=2).max(axis=1) * (1 + 1e-12)
-        return kernels[3](np.ascontiguousarray(tv), centre, radius,
-                          np.ascontiguousarray(start, dtype=float),
-                          np.ascontiguousarray(dn, dtype=float), eps2)
-    step = max(1, chunk // len(tv))
-    for lo in range(0, n, step):  # blocks of fibres, not single fibres
-        sl = slice(lo, lo + step)
-        d2, t, b = _ray_triangle_pairs(tv[None], start[sl, None], dn[sl, None])
-        touch = d2 <= eps2
-        first = np.argmin(np.where(touch, t, np.inf), axis=1)
-        near = np.argmin(d2, axis=1)
-        k = np.where(touch.any(axis=1), first, near)
-        index[sl] = k
-        bary[sl] = b[np.arange(len(k)), k]
-    return index, bary
-
-
 def _at_index(pts, tau):
     """Points at fractional fibre indices: pts (N, P, 3), tau (N, M) -> (N, M, 3), linear
     along the poly-line (extrapolated along the first/last segment outside 0..P-1)."""
@@ -573,7 +336,7 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     """Make the attachment filter's choices on one (rest-pose) decomposition.
 
     Kohout et al. (GRAPP 2012) §3.4: cutting planes through the extreme landmarks, the
-    attachment-area vertex closest to the ray of the last kept segment, uniform arc-length
+    attachment-area surface point closest to the ray of the last kept segment, uniform arc-length
     resampling of [new end, cut, kept points, cut, new end] (module docstring).
 
     Parameters
@@ -650,9 +413,9 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
         sel = cut[:, end]
         if sel.any():  # two ends, not a loop over fibres
             region = _region_indices(verts, faces, landmarks, vt, mean_edge)
-            corners, owner = _region_triangles(faces, region, len(verts))
+            corners, owner = region_triangles(faces, region, len(verts))
             d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
-            k, w = _closest_on_triangles(verts[corners], c[sel], d)
+            k, w = closest_on_triangles(verts[corners], c[sel], d)
             face = owner[k]
             # barycentric coordinates on the owning face's corners (a point: all on its slot)
             match = faces[face][:, :, None] == corners[k][:, None, :]       # (n, 3, 3)
@@ -718,7 +481,7 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
 
     The planes pass through the recorded landmarks, perpendicular to the current axis; each
     cut lies where the current plane crosses the recorded segment's line (within
-    `CUT_SLACK`); the new ends are the recorded surface vertices; each output point keeps
+    `CUT_SLACK`); the new ends are the recorded material points; each output point keeps
     its recorded piece and parameter (module docstring). Smooth in every input.
 
     Parameters

@@ -228,6 +228,7 @@ def test_compiled_region_equals_numpy_and_the_definition(cube, monkeypatch):
     from scipy.spatial import cKDTree
 
     import fibres.filtering as fl
+    import fibres.ray_triangles as rt
 
     rng = np.random.default_rng(2)
     v = cube[0] + 1e-4 * rng.standard_normal(cube[0].shape)
@@ -243,10 +244,11 @@ def test_compiled_region_equals_numpy_and_the_definition(cube, monkeypatch):
     for kernels in ("compiled", "numpy"):
         if kernels == "numpy":
             monkeypatch.setattr(fl, "_KERNELS", [None])
+            monkeypatch.setattr(rt, "_KERNELS", [None])
         np.testing.assert_array_equal(fl._region_indices(v, f, lms), ref)
         # the area's triangles: the faces with all corners in it (definition), plus each
         # area vertex on none of them as a point held by a face with that corner
-        corners, owner = fl._region_triangles(f, ref, len(v))
+        corners, owner = rt.region_triangles(f, ref, len(v))
         full = np.flatnonzero(np.isin(f, ref).all(axis=1))
         np.testing.assert_array_equal(owner[:len(full)], full)
         np.testing.assert_array_equal(corners[:len(full)], f[full])
@@ -267,18 +269,17 @@ def test_closest_point_on_triangles_is_first_hit_or_nearest(kernels, monkeypatch
     # the smallest ray parameter (each hit solved independently as the 3x3 system
     # s + t d = a + u (b - a) + v (c - a)); otherwise no surface sample is closer to the ray
     # (the compiled loop and the numpy fallback, each against this reference)
-    import fibres.filtering as fl
-    from fibres.filtering import _closest_on_triangles
+    import fibres.ray_triangles as rt
 
     if kernels == "numpy":
-        monkeypatch.setattr(fl, "_KERNELS", [None])
+        monkeypatch.setattr(rt, "_KERNELS", [None])
 
     rng = np.random.default_rng(7)
     tv = rng.uniform(-1, 1, (30, 3, 3))
     tv[5] = tv[5, 0]                                     # a degenerate triangle (a point)
     start = rng.uniform(-1.5, 1.5, (200, 3))
     direction = rng.standard_normal((200, 3))
-    k, bary = _closest_on_triangles(tv, start, direction)
+    k, bary = rt.closest_on_triangles(tv, start, direction)
     assert ((bary >= -1e-12) & (bary <= 1 + 1e-12)).all()
     np.testing.assert_allclose(bary.sum(axis=1), 1.0, atol=1e-12)
     end = np.einsum("nk,nkc->nc", bary, tv[k])
