@@ -24,6 +24,7 @@ OpenSim-specific quantities.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +32,7 @@ import numpy as np
 from .errors import InputError
 from .kinematics import body_pose_derivatives, motion_coordinates
 from .model import Model, Path
-from .path_points import _local_positions, path_points
+from .path_points import _moving_local, _point_set, _point_set_positions, path_points
 
 __all__ = ["ActionLines", "action_lines", "spanned_coordinates", "polyline_length"]
 
@@ -193,51 +194,138 @@ def _body_twists(tf: np.ndarray, dtf: np.ndarray) -> tuple:
     return omega, dtf[..., :3, 3]
 
 
-def _twist_matrix(tf: np.ndarray, dtf: np.ndarray) -> np.ndarray:
-    """(F, B, C, 6) [omega, v] per body and coordinate (see `_body_twists`), contiguous."""
-    omega, v = _body_twists(tf, dtf)
-    return np.ascontiguousarray(np.concatenate([omega, v], axis=-1))
+def _twists(tf: np.ndarray, dtf: np.ndarray, bodies: np.ndarray, coords: np.ndarray) -> np.ndarray:
+    """(F, U, 6) [omega, v] of the (body, coordinate) pairs ``bodies``, ``coords`` (see `_body_twists`)."""
+    omega, v = _body_twists(tf[:, bodies], dtf[:, bodies, coords][:, :, None])
+    return np.concatenate([omega[:, :, 0], v[:, :, 0]], axis=-1)
 
 
-def _unwrapped_path(path: Path, model: Model, q_used, jac, tf, twist) -> tuple:
-    """Length (F,) and dL/dq (F, C) of a path without wrap objects, and its points.
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """Index arrays for the unwrapped paths of one model and path selection (built once, cached).
+
+    Attributes
+    ----------
+    unwrapped, wrapped : (M_u,), (M_w,) int
+        Indices into the selection.
+    points : `motion.path_points._PointSet` of the unwrapped paths (grid (M_u, K)).
+    perm, starts : (N,), (J,) int
+        The points sorted by (path, body) and the start of every (path, body) pair among them.
+    twist_body, twist_coord : (U,) int
+        The (body, coordinate) twists needed.
+    term_twist, term_pair, term_starts : (T,), (T,), (G,) int
+        One dL/dq term per (pair, spanned coordinate), sorted by (path, coordinate, body);
+        ``term_starts`` begins each (path, coordinate) target.
+    target_path, target_coord : (G,) int
+        Selection index of the path and coordinate of each target.
+    moving : tuple of (path in selection, slot in the grid, point index N, PathPoint)
+    spanned : (M, C) bool
+    """
+
+    unwrapped: np.ndarray
+    wrapped: np.ndarray
+    points: object
+    perm: np.ndarray
+    starts: np.ndarray
+    twist_body: np.ndarray
+    twist_coord: np.ndarray
+    term_twist: np.ndarray
+    term_pair: np.ndarray
+    term_starts: np.ndarray
+    target_path: np.ndarray
+    target_coord: np.ndarray
+    moving: tuple
+    spanned: np.ndarray
+
+
+_PLANS = weakref.WeakKeyDictionary()   # model -> {selected path names: _Plan}
+
+
+def _plan(model: Model, chosen: list) -> _Plan:
+    """The cached `_Plan` of ``chosen`` paths of ``model``."""
+    per_model = _PLANS.setdefault(model, {})
+    key = tuple(p.name for p in chosen)
+    if key in per_model:
+        return per_model[key]
+    n_coords = len(model.coordinates)
+    spanned = np.array([spanned_coordinates(model, path) for path in chosen], dtype=bool).reshape(len(chosen), n_coords)
+    unwrapped = np.array([m for m, p in enumerate(chosen) if not p.wraps], dtype=np.int64)
+    ps = _point_set(model, [chosen[m] for m in unwrapped])
+    path_of = ps.flat // max(ps.shape[1], 1)                     # (N,) index into unwrapped
+    perm = np.lexsort((ps.bodies, path_of))                       # by path, then body (stable)
+    pair_key = path_of[perm] * len(model.bodies) + ps.bodies[perm]
+    starts = np.flatnonzero(np.r_[True, pair_key[1:] != pair_key[:-1]]) if len(perm) else np.zeros(0, np.int64)
+    twists, terms = {}, []
+    for j, s0 in enumerate(starts):
+        mu, b = int(path_of[perm[s0]]), int(ps.bodies[perm[s0]])
+        for c in np.flatnonzero(spanned[unwrapped[mu]]):
+            u = twists.setdefault((b, int(c)), len(twists))
+            terms.append((mu, int(c), b, u, j))
+    terms.sort()
+    target = [(t[0], t[1]) for t in terms]
+    first = [i for i in range(len(terms)) if i == 0 or target[i] != target[i - 1]]
+    tw = np.array(list(twists), dtype=np.int64).reshape(-1, 2)
+    moving = tuple((int(unwrapped[ps.flat[n] // ps.shape[1]]), int(ps.flat[n]), n, pt) for n, pt in ps.moving)
+    plan = _Plan(unwrapped, np.array([m for m, p in enumerate(chosen) if p.wraps], dtype=np.int64), ps,
+                 perm, starts, tw[:, 0], tw[:, 1],
+                 np.array([t[3] for t in terms], dtype=np.int64), np.array([t[4] for t in terms], dtype=np.int64),
+                 np.array(first, dtype=np.int64),
+                 np.array([unwrapped[terms[i][0]] for i in first], dtype=np.int64),
+                 np.array([terms[i][1] for i in first], dtype=np.int64), moving, spanned)
+    per_model[key] = plan
+    return plan
+
+
+def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, dtf, dldq) -> tuple:
+    """Lengths (F, M_u), points (F, M_u, K, 3) NaN-padded, mask and order (F, M_u, K) of all
+    unwrapped paths at once; adds their dL/dq into ``dldq`` (F, M, C) (spanned entries).
 
     dL/dq_k = sum_i g_i . dp_i/dq_k with g_i = (unit vector of the segment arriving at point i)
     - (unit vector of the segment leaving it); rigid points contribute through their body's
-    twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per body first.
+    twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per (path, body)
+    first (np.add.reduceat), then one product per (path, body, spanned coordinate).
     """
-    pp = path_points(path, model, q_used, tf)
-    pts, act = pp.points, pp.active
-    n_frames, n_points = act.shape
-    rows = np.arange(n_frames)[:, None]
-    idx = np.where(act, np.arange(n_points), n_points)
-    nxt = np.minimum.accumulate(idx[:, ::-1], axis=1)[:, ::-1]
-    nxt = np.concatenate([nxt[:, 1:], np.full((n_frames, 1), n_points)], axis=1)
-    valid = act & (nxt < n_points)
-    seg = pts[rows, np.minimum(nxt, n_points - 1)] - pts
-    seg_len = np.linalg.norm(seg, axis=-1)
-    length = np.where(valid, seg_len, 0.0).sum(axis=1)
+    ps = plan.points
+    n_paths, n_slots = ps.shape
+    n_frames = q_used.shape[0]
+    p_n, act = _point_set_positions(ps, model, q_used, tf)
+    pts = np.zeros((n_frames, n_paths * n_slots, 3))
+    pts[:, ps.flat] = p_n
+    pts = pts.reshape(n_frames, n_paths, n_slots, 3)
+    act = act.reshape(n_frames, n_paths, n_slots)
+    slots = np.arange(n_slots)
+    idx = np.where(act, slots, n_slots)
+    # next active point after i: running minimum from the right, shifted by one
+    nxt = np.minimum.accumulate(idx[..., ::-1], axis=2)[..., ::-1]
+    nxt = np.concatenate([nxt[..., 1:], np.full((n_frames, n_paths, 1), n_slots)], axis=2)
+    valid = act & (nxt < n_slots)
+    seg = np.take_along_axis(pts, np.minimum(nxt, n_slots - 1)[..., None], axis=2) - pts
+    seg_len = np.sqrt(np.einsum("fmki,fmki->fmk", seg, seg))
+    length = np.where(valid, seg_len, 0.0).sum(axis=2)
     ok = valid & (seg_len > 0)
     unit = np.where(ok[..., None], seg / np.where(ok, seg_len, 1.0)[..., None], 0.0)   # leaving i
-    idx_prev = np.where(act, np.arange(n_points), -1)
-    prv = np.maximum.accumulate(idx_prev, axis=1)
-    prv = np.concatenate([np.full((n_frames, 1), -1), prv[:, :-1]], axis=1)
+    prv = np.maximum.accumulate(np.where(act, slots, -1), axis=2)
+    prv = np.concatenate([np.full((n_frames, n_paths, 1), -1), prv[..., :-1]], axis=2)
     has_prev = act & (prv >= 0)
-    g = np.where(has_prev[..., None], unit[rows, np.maximum(prv, 0)], 0.0) - unit
-    d_length = np.zeros((n_frames, q_used.shape[1]))
-    for b in np.unique(pp.bodies):
-        on_b = pp.bodies == b
-        trans = tf[:, b, :3, 3]
-        moment = np.concatenate([np.cross(pts[:, on_b] - trans[:, None], g[:, on_b]).sum(axis=1),
-                                 g[:, on_b].sum(axis=1)], axis=-1)                  # (F, 6)
-        d_length += (twist[:, b] @ moment[..., None])[..., 0]                          # (F, C, 6) @ (F, 6)
-    moving = [i for i, p in enumerate(path.points) if p.kind == "moving"]
-    if moving:
-        _, dloc = _local_positions(path, model, q_used, jac)
-        for i in moving:
-            rot = tf[:, pp.bodies[i], :3, :3]
-            d_length += np.einsum("fk,fkj,fcj->fc", g[:, i], rot, dloc[:, i])
-    return length, d_length, pts, act, pp.names
+    g = np.where(has_prev[..., None], np.take_along_axis(unit, np.maximum(prv, 0)[..., None], axis=2), 0.0) - unit
+    g_n = g.reshape(n_frames, -1, 3)[:, ps.flat[plan.perm]]
+    arm = p_n[:, plan.perm] - tf[:, :, :3, 3][:, ps.bodies[plan.perm]]
+    moment = np.empty(g_n.shape[:2] + (6,))                         # (F, N, 6): (p - t) x g, g
+    moment[..., 0] = arm[..., 1] * g_n[..., 2] - arm[..., 2] * g_n[..., 1]
+    moment[..., 1] = arm[..., 2] * g_n[..., 0] - arm[..., 0] * g_n[..., 2]
+    moment[..., 2] = arm[..., 0] * g_n[..., 1] - arm[..., 1] * g_n[..., 0]
+    moment[..., 3:] = g_n
+    moment = np.add.reduceat(moment, plan.starts, axis=1)            # (F, J, 6) per (path, body)
+    twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord)      # (F, U, 6)
+    terms = np.einsum("fti,fti->ft", twist[:, plan.term_twist], moment[:, plan.term_pair])
+    dldq[:, plan.target_path, plan.target_coord] = np.add.reduceat(terms, plan.term_starts, axis=1)
+    for m, slot, n, pt in plan.moving:                               # few moving points
+        _, dloc = _moving_local(pt, model, q_used, jac)
+        rot = tf[:, ps.bodies[n], :3, :3]
+        dldq[:, m] += np.einsum("fk,fkj,fcj->fc", g[:, slot // n_slots, slot % n_slots], rot, dloc)
+    # active points keep their order; inactive ones move to the end as -1 (stable sort)
+    order = np.take_along_axis(np.where(act, slots, -1), np.argsort(~act, axis=2, kind="stable"), axis=2)
+    return length, np.where(act[..., None], pts, np.nan), act, order
 
 
 def _wrap_module():
@@ -252,30 +340,28 @@ def _wrap_module():
 FRAME_BLOCK = 512   # frames per block in `action_lines` (bounds memory, keeps arrays vectorised)
 
 
-def _block(model: Model, chosen: list, q: np.ndarray) -> tuple:
-    """Lengths (F, M), dL/dq (F, M, C), q_used and per-path (points, mask, labels) of a frame block."""
+def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray) -> tuple:
+    """Lengths (F, M), dL/dq (F, M, C), q_used, the unwrapped paths' (points, mask, order) and the
+    wrapped paths' (points, mask, labels, order) of a frame block."""
     tf, dtf, q_used, jac = body_pose_derivatives(model, q)
     n_frames, n_coords = q_used.shape
     lengths = np.zeros((n_frames, len(chosen)))
     dldq = np.zeros((n_frames, len(chosen), n_coords))
+    unwrapped = None
+    if len(plan.unwrapped):
+        length, pts, act, order = _unwrapped_paths(plan, model, q_used, jac, tf, dtf, dldq)
+        lengths[:, plan.unwrapped] = length
+        unwrapped = (pts, act, order)
     per_path = []
-    twist = _twist_matrix(tf, dtf)
-    for m, path in enumerate(chosen):
-        if path.wraps:
-            pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
-            wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
-            lengths[:, m] = wrapped.length
-            dldq[:, m] = wrapped.d_length
-            per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
-                             tuple(str(x) for x in wrapped.labels), np.asarray(wrapped.order)))
-        else:
-            lengths[:, m], dldq[:, m], pts, act, names = _unwrapped_path(path, model, q_used, jac, tf, twist)
-            n_points = act.shape[1]
-            # active points keep their order; inactive ones move to the end as -1 (stable sort)
-            order = np.take_along_axis(np.where(act, np.arange(n_points), -1),
-                                       np.argsort(~act, axis=1, kind="stable"), axis=1)
-            per_path.append((pts, act, names, order))
-    return lengths, dldq, q_used, per_path
+    for m in plan.wrapped:
+        path = chosen[m]
+        pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
+        wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
+        lengths[:, m] = wrapped.length
+        dldq[:, m] = wrapped.d_length
+        per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
+                         tuple(str(x) for x in wrapped.labels), np.asarray(wrapped.order)))
+    return lengths, dldq, q_used, unwrapped, per_path
 
 
 def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
@@ -305,29 +391,36 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
         chosen = [model.path(m) for m in muscles]
     time, q = motion_coordinates(model, motion)
     n_frames, n_coords = q.shape
-    spanned = np.array([spanned_coordinates(model, path) for path in chosen], dtype=bool).reshape(len(chosen), n_coords)
+    plan = _plan(model, chosen)
+    spanned = plan.spanned
     # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
-    blocks = [_block(model, chosen, q[i:i + FRAME_BLOCK]) for i in range(0, max(n_frames, 1), FRAME_BLOCK)]
+    blocks = [_block(model, chosen, plan, q[i:i + FRAME_BLOCK]) for i in range(0, max(n_frames, 1), FRAME_BLOCK)]
     lengths = np.concatenate([b[0] for b in blocks])
     dldq = np.concatenate([b[1] for b in blocks])
     q_used = np.concatenate([b[2] for b in blocks])
-    per_path = [(np.concatenate([b[3][m][0] for b in blocks]), np.concatenate([b[3][m][1] for b in blocks]),
-                 blocks[0][3][m][2], np.concatenate([b[3][m][3] for b in blocks]))
-                for m in range(len(chosen))]
+    per_path = [(np.concatenate([b[4][w][0] for b in blocks]), np.concatenate([b[4][w][1] for b in blocks]),
+                 blocks[0][4][w][2], np.concatenate([b[4][w][3] for b in blocks]))
+                for w in range(len(plan.wrapped))]
     moment_arms = np.where(spanned[None], -dldq, 0.0)
-    k_max = max((p[0].shape[1] for p in per_path), default=0)
+    n_slots = plan.points.shape[1] if len(plan.unwrapped) else 0
+    k_max = max([p[0].shape[1] for p in per_path] + [n_slots])
     points = np.full((n_frames, len(chosen), k_max, 3), np.nan)
     mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
     order = np.full((n_frames, len(chosen), k_max), -1, dtype=np.int64)
-    labels = []
-    for m, (pts, msk, lab, ordr) in enumerate(per_path):
+    labels = [tuple(p.name for p in path.points) for path in chosen]
+    if n_slots:
+        points[:, plan.unwrapped, :n_slots] = np.concatenate([b[3][0] for b in blocks])
+        mask[:, plan.unwrapped, :n_slots] = np.concatenate([b[3][1] for b in blocks])
+        order[:, plan.unwrapped, :n_slots] = np.concatenate([b[3][2] for b in blocks])
+    for m, (pts, msk, lab, ordr) in zip(plan.wrapped, per_path):
         k = pts.shape[1]
         points[:, m, :k] = np.where(msk[..., None], pts, np.nan)
         mask[:, m, :k] = msk
         order[:, m, :ordr.shape[1]] = ordr
-        labels.append(tuple(lab) + ("",) * (k_max - k))
+        labels[m] = lab
+    labels = tuple(tuple(lab) + ("",) * (k_max - len(lab)) for lab in labels)
     dep = model.dependent_coordinates
     status = tuple("dependent" if dep[i] else ("locked" if c.locked else "independent")
                    for i, c in enumerate(model.coordinates))
     return ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
-                       status, time, q_used, points, mask, tuple(labels), order)
+                       status, time, q_used, points, mask, labels, order)

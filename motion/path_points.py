@@ -18,7 +18,7 @@ import numpy as np
 
 from .model import Model, Path
 
-__all__ = ["PathPoints", "path_points", "CONDITIONAL_TOLERANCE"]
+__all__ = ["PathPoints", "path_points", "CONDITIONAL_TOLERANCE"]   # + private batched `_PointSet`
 
 CONDITIONAL_TOLERANCE = 1e-5   # OpenSim ConditionalPathPoint::isActive
 
@@ -54,19 +54,10 @@ def _local_positions(path: Path, model: Model, q: np.ndarray, jac: np.ndarray | 
     loc = np.broadcast_to(np.array([p.location for p in path.points]), (n_frames, n_points, 3)).copy()
     dloc = None if jac is None else np.zeros((n_frames, n_points, q.shape[1], 3))
     for i, p in enumerate(path.points):          # only the (few) moving points
-        if p.kind != "moving":
-            continue
-        for axis in range(3):
-            f, c = p.moving_functions[axis], p.moving_coordinates[axis]
-            if f is None:
-                continue
-            if c is None:
-                loc[:, i, axis] = float(f.value(0.0))
-                continue
-            k = model.coordinate_index(c)
-            loc[:, i, axis] = f.value(q[:, k])
+        if p.kind == "moving":
+            loc[:, i], d = _moving_local(p, model, q, jac)
             if dloc is not None:
-                dloc[:, i, :, axis] = f.derivative(q[:, k])[:, None] * jac[:, k, :]
+                dloc[:, i] = d
     return loc, dloc
 
 
@@ -126,3 +117,97 @@ def path_points(path: Path, model: Model, q_used: np.ndarray, tf_ground_body: np
                                + np.einsum("fij,fcj->fci", rot, dloc[:, i]))
     return PathPoints(pts, active_mask(path, model, q_used), d_pts,
                       tuple(p.name for p in path.points), bodies)
+
+
+@dataclass(frozen=True, eq=False)
+class _PointSet:
+    """Index arrays of the points of several paths, stacked (built once per model and paths).
+
+    The paths' points sit in a padded (M, K) grid (K = most points of a path); ``flat`` (N,)
+    gives each real point's slot in the flattened grid, path by path in path order.
+
+    Attributes
+    ----------
+    shape : (M, K)
+    flat, bodies : (N,) int
+    loc : (N, 3) float
+        Body-frame locations (``location``; moving points are replaced per frame).
+    by_body : tuple of (body, (N_b,) int)
+        Fixed (not moving) points grouped by body.
+    cond, cond_coord : (Q,) int
+        Conditional points (indices into N) and their coordinate.
+    cond_lo, cond_hi : (Q,) float
+        Their ranges widened by CONDITIONAL_TOLERANCE.
+    moving : tuple of (n, PathPoint)
+    """
+
+    shape: tuple
+    flat: np.ndarray
+    bodies: np.ndarray
+    loc: np.ndarray
+    by_body: tuple
+    cond: np.ndarray
+    cond_coord: np.ndarray
+    cond_lo: np.ndarray
+    cond_hi: np.ndarray
+    moving: tuple
+
+
+def _point_set(model: Model, paths: list) -> _PointSet:
+    """Stack the points of ``paths`` (see `_PointSet`)."""
+    n_slots = max((len(p.points) for p in paths), default=0)
+    pts = [(m * n_slots + k, pt) for m, path in enumerate(paths) for k, pt in enumerate(path.points)]
+    flat = np.array([f for f, _ in pts], dtype=np.int64)
+    bodies = np.array([model.body_index(pt.body) for _, pt in pts], dtype=np.int64)
+    loc = np.array([pt.location for _, pt in pts], dtype=float).reshape(len(pts), 3)
+    moving = tuple((n, pt) for n, (_, pt) in enumerate(pts) if pt.kind == "moving")
+    is_moving = np.zeros(len(pts), dtype=bool)
+    is_moving[[n for n, _ in moving]] = True
+    by_body = tuple((int(b), np.flatnonzero((bodies == b) & ~is_moving)) for b in np.unique(bodies))
+    cond = [(n, pt) for n, (_, pt) in enumerate(pts) if pt.kind == "conditional"]
+    return _PointSet((len(paths), n_slots), flat, bodies, loc, tuple((b, i) for b, i in by_body if len(i)),
+                     np.array([n for n, _ in cond], dtype=np.int64),
+                     np.array([model.coordinate_index(pt.coordinate) for _, pt in cond], dtype=np.int64),
+                     np.array([pt.range[0] - CONDITIONAL_TOLERANCE for _, pt in cond], dtype=float),
+                     np.array([pt.range[1] + CONDITIONAL_TOLERANCE for _, pt in cond], dtype=float), moving)
+
+
+def _moving_local(pt, model: Model, q: np.ndarray, jac: np.ndarray | None) -> tuple:
+    """Body-frame position (F, 3) of one MovingPathPoint and its derivative (F, C, 3) or None."""
+    loc = np.broadcast_to(pt.location, (q.shape[0], 3)).copy()
+    dloc = None if jac is None else np.zeros((q.shape[0], q.shape[1], 3))
+    for axis in range(3):
+        f, c = pt.moving_functions[axis], pt.moving_coordinates[axis]
+        if f is None:
+            continue
+        if c is None:
+            loc[:, axis] = float(f.value(0.0))
+            continue
+        k = model.coordinate_index(c)
+        loc[:, axis] = f.value(q[:, k])
+        if dloc is not None:
+            dloc[:, :, axis] = f.derivative(q[:, k])[:, None] * jac[:, k, :]
+    return loc, dloc
+
+
+def _point_set_positions(ps: _PointSet, model: Model, q_used: np.ndarray, tf_ground_body: np.ndarray) -> tuple:
+    """Ground positions (F, N, 3) of a `_PointSet`'s points and the active grid (F, M*K) bool.
+
+    Same arithmetic as `path_points`: ``p_body @ R^T + t`` per body for fixed points,
+    ``R p_body(q) + t`` for moving points; conditional points active inside their range.
+    """
+    n_frames = q_used.shape[0]
+    pts = np.empty((n_frames, len(ps.flat), 3))
+    for b, idx in ps.by_body:                          # a model has few bodies
+        rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
+        pts[:, idx] = ps.loc[idx] @ np.swapaxes(rot, 1, 2) + trans[:, None]
+    for n, pt in ps.moving:                            # few moving points
+        b = ps.bodies[n]
+        loc, _ = _moving_local(pt, model, q_used, None)
+        pts[:, n] = np.einsum("fij,fj->fi", tf_ground_body[:, b, :3, :3], loc) + tf_ground_body[:, b, :3, 3]
+    act = np.zeros((n_frames, ps.shape[0] * ps.shape[1]), dtype=bool)
+    act[:, ps.flat] = True
+    if len(ps.cond):
+        x = q_used[:, ps.cond_coord]
+        act[:, ps.flat[ps.cond]] = (x >= ps.cond_lo) & (x <= ps.cond_hi)
+    return pts, act
