@@ -295,6 +295,8 @@ def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
     tf = np.zeros((n_frames, n_bodies, 4, 4))
     tf[:, 0] = np.eye(4)
     dtf = np.zeros((n_frames, n_bodies, n_coords, 4, 4)) if derivatives else None
+    # columns k where d tf_ground_body / dq_k may be nonzero (the others stay exactly 0)
+    support = np.zeros((n_bodies, n_coords), dtype=bool)
     for joint in model.joints:
         p = model.body_index(joint.parent)
         b = model.body_index(joint.child)
@@ -305,12 +307,16 @@ def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
         if derivatives:
             # parent's motion carried along: d(parent) @ (X_PF X_FM X_MB)
             rest = joint.tf_parent_jointframe @ tf_fm @ inv_child           # (F, 4, 4)
-            dtf[:, b] = dtf[:, p] @ rest[:, None]
+            keep = np.flatnonzero(support[p])
+            dtf[:, b, keep] = dtf[:, p, keep] @ rest[:, None]
+            support[b] = support[p]
             if joint.coordinates:
                 cols = [cidx[c] for c in joint.coordinates]
+                ks = np.flatnonzero(np.any(jac[:, cols, :] != 0.0, axis=(0, 1)))
+                support[b, ks] = True
                 # total derivative: sum_c dX_FM/dq_c * dq_c/dq_k
-                dfm_total = np.einsum("fcij,fck->fkij", dtf_fm, jac[:, cols, :])
-                dtf[:, b] += left[:, None] @ dfm_total @ inv_child
+                dfm_total = np.einsum("fcij,fck->fkij", dtf_fm, jac[:, cols][:, :, ks])
+                dtf[:, b, ks] += left[:, None] @ dfm_total @ inv_child
     return tf, dtf, q_used, jac
 
 
