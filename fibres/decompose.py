@@ -190,8 +190,10 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool)
     # material anchors (S, 4) in the plane frame, projected along the axis
     uv = np.einsum("skn,dskn->dsk", plan.anchor_weights, local_t[:2, plan.anchor_vertices])
     anchors_uv = np.moveaxis(uv, 0, -1)                                     # (S, 4, 2)
+    # with the plan: a plane that cut one loop at rest keeps its whole section (continuous
+    # through loops splitting/merging; see fibres.morph.anchored_maps)
     P, Q, map_notes = anchored_maps(sections, chosen, box.extents, anchors_uv,
-                                    topology=plan.topology)
+                                    topology=plan.topology, plan=plan)
     return box, heights, P, Q, None, notes + map_notes
 
 

@@ -13,15 +13,15 @@ smoothing shift softly bounded by 1 mm) / morph only:
 muscle      most outside, full    most outside,     start -> origin   end -> insertion
             chain                 morph only        landmark (max)    landmark (max)
 =========== ===================== ================= ================= ==================
-glut_max_r  3.4                   0.03              10.9              18.1
-glut_med_r  4.3                   1.50              12.8              9.3
-iliacus_r   4.1                   1.50              11.7              10.6
-psoas_r     4.1                   0.49              10.2              2.6
+glut_max_r  3.8                   0.03              10.9              18.1
+glut_med_r  4.2                   1.50              12.8              9.2
+iliacus_r   4.2                   1.50              11.5              9.6
+psoas_r     4.1                   0.49              10.2              2.2
 =========== ===================== ================= ================= ==================
 
 The full chain does NOT reach "inside or within 1 mm": what remains outside comes from the
 attachment filter itself (Kohout §3.4) -- the straight new end segment from the cut point to
-an attachment-area vertex crosses concave parts of the surface (up to 4.3 mm, glut_med), and
+the attachment-area surface point closest to the ray crosses concave parts of the surface (up to 4.3 mm, glut_med), and
 the resampled points on the kept part lie on chords between morphed points (up to 3.4 mm,
 iliacus). Smoothing without the bound added up to 4 mm more (psoas 8.1 mm).
 
@@ -37,7 +37,7 @@ from fibres import as_surface, decompose
 
 MUSCLES = ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
 # the measured worst values above with ~20 % margin (the end points come from the
-# attachment filter, whose surface regions are sampled at mesh vertices)
+# attachment filter: the area surface point closest to each fibre's end ray)
 START_MM = {"glut_max_r": 13.0, "glut_med_r": 15.5, "iliacus_r": 14.0, "psoas_r": 12.5}
 END_MM = {"glut_max_r": 22.0, "glut_med_r": 11.5, "iliacus_r": 13.0, "psoas_r": 3.5}
 # full chain: at most 5.5 mm outside (measured 3.4-4.3 mm: the filter's straight end segments
