@@ -208,32 +208,28 @@ class _Plan:
     ----------
     unwrapped, wrapped : (M_u,), (M_w,) int
         Indices into the selection.
-    points : `motion.path_points._PointSet` of the unwrapped paths (grid (M_u, K)).
-    perm, starts : (N,), (J,) int
-        The points sorted by (path, body) and the start of every (path, body) pair among them.
+    points : `motion.path_points._PointSet` of the unwrapped paths (grid (M_u, K), N points
+        sorted by body, then path).
+    slot_point : (M_u K + 1,) int
+        Point index n of each grid slot; N for padding slots and for the extra last slot.
+    starts : (J,) int
+        Start of every (body, path) run among the N points.
     twist_body, twist_coord : (U,) int
-        The (body, coordinate) twists needed.
-    term_twist, term_pair, term_starts : (T,), (T,), (G,) int
-        One dL/dq term per (pair, spanned coordinate), sorted by (path, coordinate, body);
-        ``term_starts`` begins each (path, coordinate) target.
-    target_path, target_coord : (G,) int
-        Selection index of the path and coordinate of each target.
-    moving : tuple of (path in selection, slot in the grid, point index N, PathPoint)
+        The (body, coordinate) twists needed, grouped by body.
+    groups : tuple of (twist slice, pair slice, (J_b,) selection index of the pairs' paths,
+        (C_b,) coordinates) per moving body: the coordinates any of its paths span.
+    moving : tuple of (path in selection, point index n, PathPoint)
     spanned : (M, C) bool
     """
 
     unwrapped: np.ndarray
     wrapped: np.ndarray
     points: object
-    perm: np.ndarray
+    slot_point: np.ndarray
     starts: np.ndarray
     twist_body: np.ndarray
     twist_coord: np.ndarray
-    term_twist: np.ndarray
-    term_pair: np.ndarray
-    term_starts: np.ndarray
-    target_path: np.ndarray
-    target_coord: np.ndarray
+    groups: tuple
     moving: tuple
     spanned: np.ndarray
 
@@ -251,81 +247,88 @@ def _plan(model: Model, chosen: list) -> _Plan:
     spanned = np.array([spanned_coordinates(model, path) for path in chosen], dtype=bool).reshape(len(chosen), n_coords)
     unwrapped = np.array([m for m, p in enumerate(chosen) if not p.wraps], dtype=np.int64)
     ps = _point_set(model, [chosen[m] for m in unwrapped])
-    path_of = ps.flat // max(ps.shape[1], 1)                     # (N,) index into unwrapped
-    perm = np.lexsort((ps.bodies, path_of))                       # by path, then body (stable)
-    pair_key = path_of[perm] * len(model.bodies) + ps.bodies[perm]
-    starts = np.flatnonzero(np.r_[True, pair_key[1:] != pair_key[:-1]]) if len(perm) else np.zeros(0, np.int64)
-    twists, terms = {}, []
-    for j, s0 in enumerate(starts):
-        mu, b = int(path_of[perm[s0]]), int(ps.bodies[perm[s0]])
-        for c in np.flatnonzero(spanned[unwrapped[mu]]):
-            u = twists.setdefault((b, int(c)), len(twists))
-            terms.append((mu, int(c), b, u, j))
-    terms.sort()
-    target = [(t[0], t[1]) for t in terms]
-    first = [i for i in range(len(terms)) if i == 0 or target[i] != target[i - 1]]
-    tw = np.array(list(twists), dtype=np.int64).reshape(-1, 2)
-    moving = tuple((int(unwrapped[ps.flat[n] // ps.shape[1]]), int(ps.flat[n]), n, pt) for n, pt in ps.moving)
+    n_paths, n_slots = ps.shape
+    slot_point = np.full(n_paths * n_slots + 1, len(ps.flat), dtype=np.int64)
+    slot_point[ps.flat] = np.arange(len(ps.flat))
+    path_of = unwrapped[ps.flat // max(n_slots, 1)] if len(ps.flat) else np.zeros(0, np.int64)   # (N,)
+    pair_key = ps.bodies * max(len(chosen), 1) + path_of
+    starts = np.flatnonzero(np.r_[True, pair_key[1:] != pair_key[:-1]]) if len(pair_key) else np.zeros(0, np.int64)
+    pair_body, pair_path = ps.bodies[starts], path_of[starts]
+    groups, tw_b, tw_c = [], [], []
+    for b in np.unique(pair_body):
+        j = np.flatnonzero(pair_body == b)
+        coords = np.flatnonzero(spanned[pair_path[j]].any(axis=0))
+        if b == 0 or not len(coords):             # ground does not move
+            continue
+        groups.append((slice(len(tw_b), len(tw_b) + len(coords)), slice(j[0], j[-1] + 1), pair_path[j], coords))
+        tw_b += [int(b)] * len(coords)
+        tw_c += coords.tolist()
+    moving = tuple((int(path_of[n]), n, pt) for n, pt in ps.moving)
     plan = _Plan(unwrapped, np.array([m for m, p in enumerate(chosen) if p.wraps], dtype=np.int64), ps,
-                 perm, starts, tw[:, 0], tw[:, 1],
-                 np.array([t[3] for t in terms], dtype=np.int64), np.array([t[4] for t in terms], dtype=np.int64),
-                 np.array(first, dtype=np.int64),
-                 np.array([unwrapped[terms[i][0]] for i in first], dtype=np.int64),
-                 np.array([terms[i][1] for i in first], dtype=np.int64), moving, spanned)
+                 slot_point, starts, np.array(tw_b, dtype=np.int64), np.array(tw_c, dtype=np.int64),
+                 tuple(groups), moving, spanned)
     per_model[key] = plan
     return plan
 
 
 def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, dtf, dldq) -> tuple:
     """Lengths (F, M_u), points (F, M_u, K, 3) NaN-padded, mask and order (F, M_u, K) of all
-    unwrapped paths at once; adds their dL/dq into ``dldq`` (F, M, C) (spanned entries).
+    unwrapped paths at once; writes their dL/dq into ``dldq`` (F, M, C) (spanned entries).
 
     dL/dq_k = sum_i g_i . dp_i/dq_k with g_i = (unit vector of the segment arriving at point i)
     - (unit vector of the segment leaving it); rigid points contribute through their body's
-    twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per (path, body)
-    first (np.add.reduceat), then one product per (path, body, spanned coordinate).
+    twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per (body, path)
+    first (np.add.reduceat), then one matrix product per body with its twists.
     """
     ps = plan.points
     n_paths, n_slots = ps.shape
-    n_frames = q_used.shape[0]
-    p_n, act = _point_set_positions(ps, model, q_used, tf)
-    pts = np.zeros((n_frames, n_paths * n_slots, 3))
-    pts[:, ps.flat] = p_n
-    pts = pts.reshape(n_frames, n_paths, n_slots, 3)
+    n_frames, n_points = q_used.shape[0], len(ps.flat)
+    p_n, arm, act = _point_set_positions(ps, model, q_used, tf)      # (F, N, 3) x2, (F, M K)
     act = act.reshape(n_frames, n_paths, n_slots)
     slots = np.arange(n_slots)
+    base = (np.arange(n_paths) * n_slots)[:, None]
     idx = np.where(act, slots, n_slots)
-    # next active point after i: running minimum from the right, shifted by one
+    # next active point after i: running minimum from the right, shifted by one (grid slots)
     nxt = np.minimum.accumulate(idx[..., ::-1], axis=2)[..., ::-1]
     nxt = np.concatenate([nxt[..., 1:], np.full((n_frames, n_paths, 1), n_slots)], axis=2)
-    valid = act & (nxt < n_slots)
-    seg = np.take_along_axis(pts, np.minimum(nxt, n_slots - 1)[..., None], axis=2) - pts
-    seg_len = np.sqrt(np.einsum("fmki,fmki->fmk", seg, seg))
-    length = np.where(valid, seg_len, 0.0).sum(axis=2)
-    ok = valid & (seg_len > 0)
-    unit = np.where(ok[..., None], seg / np.where(ok, seg_len, 1.0)[..., None], 0.0)   # leaving i
+    nxt = np.where(act & (nxt < n_slots), base + nxt, n_paths * n_slots)
     prv = np.maximum.accumulate(np.where(act, slots, -1), axis=2)
     prv = np.concatenate([np.full((n_frames, n_paths, 1), -1), prv[..., :-1]], axis=2)
-    has_prev = act & (prv >= 0)
-    g = np.where(has_prev[..., None], np.take_along_axis(unit, np.maximum(prv, 0)[..., None], axis=2), 0.0) - unit
-    g_n = g.reshape(n_frames, -1, 3)[:, ps.flat[plan.perm]]
-    arm = p_n[:, plan.perm] - tf[:, :, :3, 3][:, ps.bodies[plan.perm]]
-    moment = np.empty(g_n.shape[:2] + (6,))                         # (F, N, 6): (p - t) x g, g
-    moment[..., 0] = arm[..., 1] * g_n[..., 2] - arm[..., 2] * g_n[..., 1]
-    moment[..., 1] = arm[..., 2] * g_n[..., 0] - arm[..., 0] * g_n[..., 2]
-    moment[..., 2] = arm[..., 0] * g_n[..., 1] - arm[..., 1] * g_n[..., 0]
-    moment[..., 3:] = g_n
-    moment = np.add.reduceat(moment, plan.starts, axis=1)            # (F, J, 6) per (path, body)
+    prv = np.where(act & (prv >= 0), base + prv, n_paths * n_slots)
+    # as point indices n (N = none): the segment n -> nxt_n leaves n, prv_n -> n arrives at n
+    rows = (np.arange(n_frames) * (n_points + 1))[:, None]
+    nxt_n = plan.slot_point[nxt.reshape(n_frames, -1)[:, ps.flat]] + rows
+    prv_n = plan.slot_point[prv.reshape(n_frames, -1)[:, ps.flat]] + rows
+    valid = nxt_n - rows < n_points
+    ext = np.zeros((n_frames, n_points + 1, 3))
+    ext[:, :n_points] = p_n
+    seg = ext.reshape(-1, 3)[nxt_n] - p_n
+    seg_len = np.sqrt(np.einsum("fni,fni->fn", seg, seg))
+    grid = np.zeros((n_frames, n_paths * n_slots))
+    grid[:, ps.flat] = np.where(valid, seg_len, 0.0)
+    length = grid.reshape(n_frames, n_paths, n_slots).sum(axis=2)
+    ok = valid & (seg_len > 0)
+    ext[:, :n_points] = seg / np.where(ok, seg_len, 1.0)[..., None] * ok[..., None]     # unit, leaving n
+    g = ext.reshape(-1, 3)[prv_n] - ext[:, :n_points]
+    moment = np.empty((n_frames, n_points, 6))                       # (F, N, 6): (p - t) x g, g
+    moment[..., 0] = arm[..., 1] * g[..., 2] - arm[..., 2] * g[..., 1]
+    moment[..., 1] = arm[..., 2] * g[..., 0] - arm[..., 0] * g[..., 2]
+    moment[..., 2] = arm[..., 0] * g[..., 1] - arm[..., 1] * g[..., 0]
+    moment[..., 3:] = g
+    moment = np.add.reduceat(moment, plan.starts, axis=1)            # (F, J, 6) per (body, path)
     twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord)      # (F, U, 6)
-    terms = np.einsum("fti,fti->ft", twist[:, plan.term_twist], moment[:, plan.term_pair])
-    dldq[:, plan.target_path, plan.target_coord] = np.add.reduceat(terms, plan.term_starts, axis=1)
-    for m, slot, n, pt in plan.moving:                               # few moving points
+    for tw, pairs, paths, coords in plan.groups:                     # bodies in ascending order
+        dldq[:, paths[:, None], coords] += moment[:, pairs] @ np.swapaxes(twist[:, tw], 1, 2)
+    for m, n, pt in plan.moving:                                     # few moving points
         _, dloc = _moving_local(pt, model, q_used, jac)
         rot = tf[:, ps.bodies[n], :3, :3]
-        dldq[:, m] += np.einsum("fk,fkj,fcj->fc", g[:, slot // n_slots, slot % n_slots], rot, dloc)
+        dldq[:, m] += np.einsum("fk,fkj,fcj->fc", g[:, n], rot, dloc)
     # active points keep their order; inactive ones move to the end as -1 (stable sort)
     order = np.take_along_axis(np.where(act, slots, -1), np.argsort(~act, axis=2, kind="stable"), axis=2)
-    return length, np.where(act[..., None], pts, np.nan), act, order
+    points = np.full((n_frames, n_paths * n_slots, 3), np.nan)
+    act = act.reshape(n_frames, -1)
+    points[:, ps.flat] = np.where(act[:, ps.flat, None], p_n, np.nan)
+    return length, points.reshape(n_frames, n_paths, n_slots, 3), act.reshape(n_frames, n_paths, n_slots), order
 
 
 def _wrap_module():

@@ -124,7 +124,8 @@ class _PointSet:
     """Index arrays of the points of several paths, stacked (built once per model and paths).
 
     The paths' points sit in a padded (M, K) grid (K = most points of a path); ``flat`` (N,)
-    gives each real point's slot in the flattened grid, path by path in path order.
+    gives each real point's slot in the flattened grid. The N points are sorted by body, then
+    path, then path order (each body's points are contiguous).
 
     Attributes
     ----------
@@ -156,7 +157,9 @@ class _PointSet:
 def _point_set(model: Model, paths: list) -> _PointSet:
     """Stack the points of ``paths`` (see `_PointSet`)."""
     n_slots = max((len(p.points) for p in paths), default=0)
-    pts = [(m * n_slots + k, pt) for m, path in enumerate(paths) for k, pt in enumerate(path.points)]
+    pts = sorted(((model.body_index(pt.body), m * n_slots + k, pt) for m, path in enumerate(paths)
+                  for k, pt in enumerate(path.points)), key=lambda t: t[:2])
+    pts = [(f, pt) for _, f, pt in pts]                 # by body, then path, then path order
     flat = np.array([f for f, _ in pts], dtype=np.int64)
     bodies = np.array([model.body_index(pt.body) for _, pt in pts], dtype=np.int64)
     loc = np.array([pt.location for _, pt in pts], dtype=float).reshape(len(pts), 3)
@@ -191,7 +194,8 @@ def _moving_local(pt, model: Model, q: np.ndarray, jac: np.ndarray | None) -> tu
 
 
 def _point_set_positions(ps: _PointSet, model: Model, q_used: np.ndarray, tf_ground_body: np.ndarray) -> tuple:
-    """Ground positions (F, N, 3) of a `_PointSet`'s points and the active grid (F, M*K) bool.
+    """Ground positions (F, N, 3) of a `_PointSet`'s points, the same minus their body's origin
+    (F, N, 3), and the active grid (F, M*K) bool.
 
     Same arithmetic as `path_points`: ``p_body @ R^T + t`` per body for fixed points,
     ``R p_body(q) + t`` for moving points; conditional points active inside their range.
@@ -210,4 +214,8 @@ def _point_set_positions(ps: _PointSet, model: Model, q_used: np.ndarray, tf_gro
     if len(ps.cond):
         x = q_used[:, ps.cond_coord]
         act[:, ps.flat[ps.cond]] = (x >= ps.cond_lo) & (x <= ps.cond_hi)
-    return pts, act
+    arm = np.empty_like(pts)                           # p - t_body (moment arms about body origins)
+    for b in np.unique(ps.bodies):
+        on_b = slice(*np.searchsorted(ps.bodies, [b, b + 1]))
+        arm[:, on_b] = pts[:, on_b] - tf_ground_body[:, b, None, :3, 3]
+    return pts, arm, act
