@@ -204,13 +204,21 @@ class WrapObstacle:
         callable
             ``squeeze(offsets (F, V, 3)) -> (F, V, 3)`` squeezed offsets ``w``.
         """
-        d, n, window = self._distance_direction(_to_local(self.tf_ground_obstacle, np.asarray(centres, float)))
-        inward = _to_ground_dir(self.tf_ground_obstacle, -n) * window[..., None]   # windowed -n
-        h = np.maximum(d, 0.0)
+        c = np.asarray(centres, dtype=float)
+        kernels = _squeeze_kernel()
+        if kernels is not None and c.ndim == 3:
+            tf = self.tf_ground_obstacle if self.tf_ground_obstacle.ndim == 3 else self.tf_ground_obstacle[None]
+            tf = np.ascontiguousarray(np.broadcast_to(tf, (c.shape[0], 4, 4)))
+            inward, h = np.empty_like(c), np.empty(c.shape[:2])
+            kernels[0](("cylinder", "sphere", "ellipsoid").index(self.kind), np.ascontiguousarray(c), tf,
+                       np.ascontiguousarray(self.radii), inward, h)
+        else:
+            d, n, window = self._distance_direction(_to_local(self.tf_ground_obstacle, c))
+            inward = _to_ground_dir(self.tf_ground_obstacle, -n) * window[..., None]   # windowed -n
+            h = np.maximum(d, 0.0)
         inv_h = 1.0 / np.maximum(h, 1e-300)
         a = float(SQUEEZE_KNEE)
-
-        kernel = _squeeze_kernel()
+        kernel = None if kernels is None else kernels[1]
 
         def squeeze(offsets) -> np.ndarray:
             w = np.asarray(offsets, dtype=float)
@@ -257,7 +265,7 @@ _PUSH: dict = {}
 
 
 def _squeeze_kernel():
-    """The compiled squeeze (same formulas as `WrapObstacle.squeezer`), or None."""
+    """The compiled squeeze set-up and application (same formulas as `WrapObstacle.squeezer`), or None."""
     if "squeeze" in _PUSH:
         return _PUSH["squeeze"]
     if _PUSH.get("kernel", 0) is None:   # numba unavailable, or the numpy path forced (tests)
@@ -287,8 +295,44 @@ def _squeeze_kernel():
                 out[f, i, 1] -= cut * iy
                 out[f, i, 2] -= cut * iz
 
-    _PUSH["squeeze"] = kernel
-    return kernel
+    @numba.njit(cache=False)
+    def setup(kind, c, tf, radii, inward, h):  # pragma: no cover - compiled
+        r_min = min(radii[0], min(radii[1], radii[2]))
+        for f in range(c.shape[0]):
+            for i in range(c.shape[1]):
+                dx = c[f, i, 0] - tf[f, 0, 3]
+                dy = c[f, i, 1] - tf[f, 1, 3]
+                dz = c[f, i, 2] - tf[f, 2, 3]
+                x = tf[f, 0, 0] * dx + tf[f, 1, 0] * dy + tf[f, 2, 0] * dz
+                y = tf[f, 0, 1] * dx + tf[f, 1, 1] * dy + tf[f, 2, 1] * dz
+                z = tf[f, 0, 2] * dx + tf[f, 1, 2] * dy + tf[f, 2, 2] * dz
+                window = 1.0
+                if kind == 0:
+                    rad = math.sqrt(x * x + y * y)
+                    d = rad - radii[0]
+                    nx, ny, nz = x / max(rad, 1e-12), y / max(rad, 1e-12), 0.0
+                    if math.isfinite(radii[2]):
+                        over = abs(z) - 0.5 * radii[2]
+                        if over > 0.0:
+                            t = min(over / radii[0], 1.0)
+                            window = 1.0 - t * t * t * (t * (6.0 * t - 15.0) + 10.0)
+                elif kind == 1:
+                    rad = math.sqrt(x * x + y * y + z * z)
+                    d = rad - radii[0]
+                    nx, ny, nz = x / max(rad, 1e-12), y / max(rad, 1e-12), z / max(rad, 1e-12)
+                else:
+                    sx, sy, sz = x / radii[0], y / radii[1], z / radii[2]
+                    d = (math.sqrt(sx * sx + sy * sy + sz * sz) - 1.0) * r_min
+                    gx, gy, gz = sx / radii[0], sy / radii[1], sz / radii[2]
+                    g = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
+                    nx, ny, nz = gx / g, gy / g, gz / g
+                h[f, i] = max(d, 0.0)
+                inward[f, i, 0] = -window * (tf[f, 0, 0] * nx + tf[f, 0, 1] * ny + tf[f, 0, 2] * nz)
+                inward[f, i, 1] = -window * (tf[f, 1, 0] * nx + tf[f, 1, 1] * ny + tf[f, 1, 2] * nz)
+                inward[f, i, 2] = -window * (tf[f, 2, 0] * nx + tf[f, 2, 1] * ny + tf[f, 2, 2] * nz)
+
+    _PUSH["squeeze"] = (setup, kernel)
+    return _PUSH["squeeze"]
 
 
 def _push_kernel():
