@@ -176,12 +176,15 @@ class WrapObstacle:
         """The through-thickness squeeze of offsets from ``centres`` (F, V, 3): a function of offsets.
 
         A deformed vertex is ``c + w`` (``c`` its point on the action line, ``w`` its scaled
-        cross-section offset). With ``h = max(d(c), 0)`` the clearance of the centre and ``n``
-        the object's outward direction there, the inward depth ``t = -w . n`` of the offset is
-        mapped to ``h soft(t / h)``, ``soft(z) = z`` for ``z <= a`` and
-        ``1 - (1 - a) exp(-(z - a) / (1 - a))`` beyond (C1, increasing, below 1; knee
-        ``a = SQUEEZE_KNEE = 0.3``); the tangential part of
-        ``w`` is kept. So the layers of a muscle pressed on a pulley are flattened
+        cross-section offset). With ``h = d(c) - margin`` the room between the centre and the
+        push-out shell and ``n`` the object's outward direction at the centre, the inward
+        depth ``t = -w . n`` of the offset is mapped to ``h soft(t / h)`` when ``h > 0``,
+        ``soft(z) = z`` for ``z <= a`` and ``1 - (1 - a) exp(-(z - a) / (1 - a))`` beyond (C1,
+        increasing, below 1; knee ``a = SQUEEZE_KNEE = 0.3``), and to ``min(t, h)`` when
+        ``h <= 0`` (a centre within the shell or inside, as the chords of a resampled arc are:
+        the layers facing the object land on the shell's outer face, a smooth surface, rather
+        than on the rippled chords, whose ripple the fibre polylines would alias); continuous
+        in ``h``. The tangential part of ``w`` is kept. So the layers of a muscle pressed on a pulley are flattened
         progressively, in order, into the room left between its line and the surface, instead
         of every penetrating point being projected onto the surface: a fibre that would cross
         the surface at an angle then bends over a length comparable to the muscle's thickness,
@@ -211,11 +214,11 @@ class WrapObstacle:
             tf = np.ascontiguousarray(np.broadcast_to(tf, (c.shape[0], 4, 4)))
             inward, h = np.empty_like(c), np.empty(c.shape[:2])
             kernels[0](("cylinder", "sphere", "ellipsoid").index(self.kind), np.ascontiguousarray(c), tf,
-                       np.ascontiguousarray(self.radii), inward, h)
+                       np.ascontiguousarray(self.radii), float(self.margin), inward, h)
         else:
             d, n, window = self._distance_direction(_to_local(self.tf_ground_obstacle, c))
             inward = _to_ground_dir(self.tf_ground_obstacle, -n) * window[..., None]   # windowed -n
-            h = np.maximum(d, 0.0)
+            h = d - self.margin
         inv_h = 1.0 / np.maximum(h, 1e-300)
         a = float(SQUEEZE_KNEE)
         kernel = None if kernels is None else kernels[1]
@@ -228,7 +231,8 @@ class WrapObstacle:
                 return out
             t = np.einsum("fvk,fvk->fv", w, inward)          # windowed inward depth
             z = np.clip(t * inv_h, a, 1e6)
-            squeezed = np.where(t <= a * h, t, h * (1.0 - (1.0 - a) * np.exp((a - z) / (1.0 - a))))
+            squeezed = np.where(h > 0.0, np.where(t <= a * h, t, h * (1.0 - (1.0 - a) * np.exp((a - z) / (1.0 - a)))),
+                                np.minimum(t, h))
             return w - (t - squeezed)[..., None] * inward
 
         return squeeze
@@ -286,17 +290,22 @@ def _squeeze_kernel():
                 out[f, i, 0] = w[f, i, 0]
                 out[f, i, 1] = w[f, i, 1]
                 out[f, i, 2] = w[f, i, 2]
-                if t <= a * hh:
-                    continue
-                z = min(t / max(hh, 1e-300), 1e6)
-                squeezed = hh * (1.0 - (1.0 - a) * math.exp((a - z) / (1.0 - a)))
+                if hh > 0.0:
+                    if t <= a * hh:
+                        continue
+                    z = min(t / hh, 1e6)
+                    squeezed = hh * (1.0 - (1.0 - a) * math.exp((a - z) / (1.0 - a)))
+                else:
+                    if t <= hh:
+                        continue
+                    squeezed = hh
                 cut = t - squeezed
                 out[f, i, 0] -= cut * ix
                 out[f, i, 1] -= cut * iy
                 out[f, i, 2] -= cut * iz
 
     @numba.njit(cache=False)
-    def setup(kind, c, tf, radii, inward, h):  # pragma: no cover - compiled
+    def setup(kind, c, tf, radii, m, inward, h):  # pragma: no cover - compiled
         r_min = min(radii[0], min(radii[1], radii[2]))
         for f in range(c.shape[0]):
             for i in range(c.shape[1]):
@@ -326,7 +335,7 @@ def _squeeze_kernel():
                     gx, gy, gz = sx / radii[0], sy / radii[1], sz / radii[2]
                     g = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
                     nx, ny, nz = gx / g, gy / g, gz / g
-                h[f, i] = max(d, 0.0)
+                h[f, i] = d - m
                 inward[f, i, 0] = -window * (tf[f, 0, 0] * nx + tf[f, 0, 1] * ny + tf[f, 0, 2] * nz)
                 inward[f, i, 1] = -window * (tf[f, 1, 0] * nx + tf[f, 1, 1] * ny + tf[f, 1, 2] * nz)
                 inward[f, i, 2] = -window * (tf[f, 2, 0] * nx + tf[f, 2, 1] * ny + tf[f, 2, 2] * nz)

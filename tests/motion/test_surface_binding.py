@@ -233,9 +233,9 @@ def test_numpy_fallbacks_match_compiled_kernels(monkeypatch):
     np.testing.assert_allclose(plain.volume, compiled.volume, rtol=1e-9)
 
 
-def _squeeze_on_cylinder(h, t, y=0.005, radius=0.02):
+def _squeeze_on_cylinder(h, t, y=0.005, radius=0.02, margin=5e-4):
     """Offsets (-t, 0, y) from centres at clearance h outside a z-axis cylinder, squeezed."""
-    pulley = WrapObstacle("cylinder", np.eye(4), np.array([radius, radius, np.inf]))
+    pulley = WrapObstacle("cylinder", np.eye(4), np.array([radius, radius, np.inf]), margin=margin)
     centres = np.zeros((1, len(t), 3))
     centres[..., 0] = radius + h
     offsets = np.stack([-t, np.zeros_like(t), np.full_like(t, y)], axis=-1)[None]
@@ -245,29 +245,32 @@ def _squeeze_on_cylinder(h, t, y=0.005, radius=0.02):
 def test_squeeze_flattens_layers_in_order_into_the_room_left():
     from motion.surface_collision import SQUEEZE_KNEE
 
-    h, radius = 0.004, 0.02
+    h, radius, margin = 0.004, 0.02, 5e-4
+    room = h - margin                             # down to the push-out shell
     t = np.linspace(-0.01, 0.03, 4001)            # inward depth of the offset (m)
-    centres, offsets, out = _squeeze_on_cylinder(h, t, radius=radius)
+    centres, offsets, out = _squeeze_on_cylinder(h, t, radius=radius, margin=margin)
     depth = -out[0, :, 0]
     # offsets reaching less than the knee fraction of the room (and all outward ones) are kept
-    keep = t <= SQUEEZE_KNEE * h
+    keep = t <= SQUEEZE_KNEE * room
     np.testing.assert_array_equal(out[0, keep], offsets[0, keep])
-    # the squeezed vertices stay outside the pulley, in their order, at their height
-    assert (depth < h).all()
+    # the squeezed vertices stay outside the push-out shell, in their order, at their height
+    assert (depth < room).all()
     assert (np.diff(depth) > 0).all()
-    assert (np.linalg.norm((centres + out)[0, :, :2], axis=-1) > radius).all()
+    assert (np.linalg.norm((centres + out)[0, :, :2], axis=-1) > radius + margin).all()
     np.testing.assert_array_equal(out[0, :, 1:], offsets[0, :, 1:])
     # C1 at the knee: the slope is 1 on both sides (one-sided differences, step 1e-5 m: the
     # curvature beyond the knee is 1 / ((1 - a) h) ~ 360 /m, so the slope changes by < 0.4 %)
-    knee = SQUEEZE_KNEE * h
+    knee = SQUEEZE_KNEE * room
     s = 1e-5
     t3 = np.array([knee - s, knee, knee + s])
     d3 = -_squeeze_on_cylinder(h, t3, radius=radius)[2][0, :, 0]
     np.testing.assert_allclose(np.diff(d3) / s, 1.0, rtol=5e-3)
-    # a centre on the surface: everything pointing in collapses onto it, outward stays
-    t0 = np.array([-0.005, 0.001, 0.01])
-    out0 = _squeeze_on_cylinder(0.0, t0, radius=radius)[2][0]
-    np.testing.assert_allclose(-out0[:, 0], [-0.005, 0.0, 0.0], atol=1e-15)
+    # a centre on the surface (or inside, as chords of an arc are): everything pointing in,
+    # or out by less than the shell, goes onto the shell's outer face; farther out stays
+    for h0 in (0.0, -3e-4):
+        t0 = np.array([-0.005, -1e-4, 0.001, 0.01])
+        out0 = _squeeze_on_cylinder(h0, t0, radius=radius, margin=margin)[2][0]
+        np.testing.assert_allclose(-out0[:, 0], [-0.005, h0 - margin, h0 - margin, h0 - margin], atol=1e-15)
 
 
 def test_squeeze_numpy_fallback_matches_compiled_kernel(monkeypatch):
