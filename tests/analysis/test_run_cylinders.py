@@ -191,8 +191,8 @@ def test_pulley_action_line_lengthens_by_r_dq_while_wrapped(tmp_path):
     "the cross-section through its thickness), but the volume-preserving cross-section scale k "
     "falls as the path lengthens over the pulley (dk/dq ~ -0.02 /rad), so an outer fibre's "
     "offset shrinks while it wraps and its r is below its current radius by ~ x theta dk/dq: "
-    "measured |r + rho| over 60-120 degrees up to 3.1 % of R for the outer fibres (1.4 % with k "
-    "held at 1), 3.0 % for the squeezed inner ones, 2.0 % near the line (0.5 % of it the chords "
+    "measured |r + rho| over 60-120 degrees up to 3.0 % of R for the outer fibres (1.4 % with k "
+    "held at 1), 2.4 % for the squeezed inner ones, 2.3 % near the line (~0.5 % of it the chords "
     "of the 40-segment fibres on the arc); median r = -R within 1 %"))
 def test_pulley_moment_arms_are_the_radius_plus_the_fibre_offset(tmp_path):
     res, m, q = _pulley(tmp_path)
