@@ -32,7 +32,8 @@ import numpy as np
 from .errors import InputError
 from .kinematics import body_pose_derivatives, motion_coordinates
 from .model import Model, Path
-from .path_points import _moving_local, _point_set, _point_set_positions, path_points
+from .path_points import (_moving_local, _point_set, _point_set_active, _point_set_positions, _polyline_kernel,
+                          path_points)
 
 __all__ = ["ActionLines", "action_lines", "spanned_coordinates", "polyline_length"]
 
@@ -218,6 +219,10 @@ class _Plan:
         The (body, coordinate) twists needed, grouped by body.
     groups : tuple of (twist slice, pair slice, (J_b,) selection index of the pairs' paths,
         (C_b,) coordinates) per moving body: the coordinates any of its paths span.
+    pair_of : (N,) int
+        The (body, path) pair of each point.
+    terms : tuple of four (T,) int arrays
+        (pair, twist, path in selection, coordinate) of each spanned term, bodies ascending.
     moving : tuple of (path in selection, point index n, PathPoint)
     spanned : (M, C) bool
     """
@@ -230,6 +235,8 @@ class _Plan:
     twist_body: np.ndarray
     twist_coord: np.ndarray
     groups: tuple
+    pair_of: np.ndarray
+    terms: tuple
     moving: tuple
     spanned: np.ndarray
 
@@ -263,27 +270,62 @@ def _plan(model: Model, chosen: list) -> _Plan:
         groups.append((slice(len(tw_b), len(tw_b) + len(coords)), slice(j[0], j[-1] + 1), pair_path[j], coords))
         tw_b += [int(b)] * len(coords)
         tw_c += coords.tolist()
+    terms = [(j, tw.start + i, m, c) for tw, pairs, paths, coords in groups
+             for j, m in zip(range(pairs.start, pairs.stop), paths) for i, c in enumerate(coords) if spanned[m, c]]
+    terms = tuple(np.array([t[i] for t in terms], dtype=np.int64) for i in range(4))
+    pair_of = np.cumsum(np.isin(np.arange(len(pair_key)), starts)) - 1
     moving = tuple((int(path_of[n]), n, pt) for n, pt in ps.moving)
     plan = _Plan(unwrapped, np.array([m for m, p in enumerate(chosen) if p.wraps], dtype=np.int64), ps,
                  slot_point, starts, np.array(tw_b, dtype=np.int64), np.array(tw_c, dtype=np.int64),
-                 tuple(groups), moving, spanned)
+                 tuple(groups), pair_of.astype(np.int64), terms, moving, spanned)
     per_model[key] = plan
     return plan
 
 
-def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, dtf, dldq) -> tuple:
-    """Lengths (F, M_u), points (F, M_u, K, 3) NaN-padded, mask and order (F, M_u, K) of all
-    unwrapped paths at once; writes their dL/dq into ``dldq`` (F, M, C) (spanned entries).
+def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, dtf, out: tuple) -> None:
+    """Lengths, dL/dq (spanned entries), points, mask and order of all unwrapped paths at once,
+    written into their rows of ``out`` = (lengths (F, M), dldq (F, M, C), points (F, M, K, 3)
+    NaN-filled, mask (F, M, K) False, order (F, M, K) -1) for a block of frames.
 
     dL/dq_k = sum_i g_i . dp_i/dq_k with g_i = (unit vector of the segment arriving at point i)
     - (unit vector of the segment leaving it); rigid points contribute through their body's
     twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per (body, path)
-    first (np.add.reduceat), then one matrix product per body with its twists.
+    pair first, then one product per pair and spanned coordinate; moving points add
+    g . R dp_body/dq. The compiled kernel (`motion.path_points._polyline_kernel`) does the
+    polyline part; without numba (or with ``COMPILED = False``) the numpy `_polyline_numpy`.
     """
+    lengths, dldq, points, mask, order = out
+    ps = plan.points
+    n_slots = ps.shape[1]
+    locals_ = [_moving_local(pt, model, q_used, jac) for _, pt in ps.moving]     # few moving points
+    moving_loc = np.stack([x[0] for x in locals_], axis=1) if locals_ else np.zeros((len(q_used), 0, 3))
+    act = _point_set_active(ps, q_used)
+    twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord)      # (F, U, 6)
+    kernel = _polyline_kernel() if COMPILED else None
+    if kernel is None:
+        p_n, arm = _point_set_positions(ps, tf, moving_loc)
+        length, g, pts, msk, ordr = _polyline_numpy(plan, p_n, arm, act, twist, dldq)
+        g_moving = g[:, [n for n, _ in ps.moving]]
+        lengths[:, plan.unwrapped] = length
+        points[:, plan.unwrapped, :n_slots] = pts
+        mask[:, plan.unwrapped, :n_slots] = msk
+        order[:, plan.unwrapped, :n_slots] = ordr
+    else:
+        g_moving = np.empty_like(moving_loc)
+        kernel(tf, ps.bodies, ps.loc, np.array([n for n, _ in ps.moving], dtype=np.int64), moving_loc, act,
+               plan.slot_point, n_slots, plan.pair_of, twist, *plan.terms, plan.unwrapped,
+               lengths, g_moving, dldq, points, mask, order)
+    for i, (m, n, _) in enumerate(plan.moving):
+        gr = np.einsum("fk,fkj->fj", g_moving[:, i], tf[:, ps.bodies[n], :3, :3])     # g . R
+        dldq[:, m] += np.einsum("fj,fcj->fc", gr, locals_[i][1])
+
+
+def _polyline_numpy(plan: _Plan, p_n, arm, act, twist, dldq) -> tuple:
+    """The numpy twin of `motion.path_points._polyline_kernel`: length (F, M_u), g (F, N, 3),
+    points, mask, order; adds the rigid-body terms to ``dldq`` (one matrix product per body)."""
     ps = plan.points
     n_paths, n_slots = ps.shape
-    n_frames, n_points = q_used.shape[0], len(ps.flat)
-    p_n, arm, act = _point_set_positions(ps, model, q_used, tf)      # (F, N, 3) x2, (F, M K)
+    n_frames, n_points = p_n.shape[:2]
     act = act.reshape(n_frames, n_paths, n_slots)
     slots = np.arange(n_slots)
     base = (np.arange(n_paths) * n_slots)[:, None]
@@ -316,19 +358,14 @@ def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, dtf, dldq) -> t
     moment[..., 2] = arm[..., 0] * g[..., 1] - arm[..., 1] * g[..., 0]
     moment[..., 3:] = g
     moment = np.add.reduceat(moment, plan.starts, axis=1)            # (F, J, 6) per (body, path)
-    twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord)      # (F, U, 6)
     for tw, pairs, paths, coords in plan.groups:                     # bodies in ascending order
         dldq[:, paths[:, None], coords] += moment[:, pairs] @ np.swapaxes(twist[:, tw], 1, 2)
-    for m, n, pt in plan.moving:                                     # few moving points
-        _, dloc = _moving_local(pt, model, q_used, jac)
-        rot = tf[:, ps.bodies[n], :3, :3]
-        dldq[:, m] += np.einsum("fk,fkj,fcj->fc", g[:, n], rot, dloc)
     # active points keep their order; inactive ones move to the end as -1 (stable sort)
     order = np.take_along_axis(np.where(act, slots, -1), np.argsort(~act, axis=2, kind="stable"), axis=2)
     points = np.full((n_frames, n_paths * n_slots, 3), np.nan)
     act = act.reshape(n_frames, -1)
     points[:, ps.flat] = np.where(act[:, ps.flat, None], p_n, np.nan)
-    return length, points.reshape(n_frames, n_paths, n_slots, 3), act.reshape(n_frames, n_paths, n_slots), order
+    return length, g, points.reshape(n_frames, n_paths, n_slots, 3), act.reshape(n_frames, n_paths, n_slots), order
 
 
 def _wrap_module():
@@ -340,21 +377,17 @@ def _wrap_module():
     return path_wrapping
 
 
+COMPILED = True     # use the numba polyline kernel when numba is installed (tests switch it off)
 FRAME_BLOCK = 512   # frames per block in `action_lines` (bounds memory, keeps arrays vectorised)
 
 
-def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray) -> tuple:
-    """Lengths (F, M), dL/dq (F, M, C), q_used, the unwrapped paths' (points, mask, order) and the
-    wrapped paths' (points, mask, labels, order) of a frame block."""
+def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -> tuple:
+    """One block of frames: fills its rows of ``out`` (see `_unwrapped_paths`; lengths and dldq
+    also for the wrapped paths); returns q_used and the wrapped paths' (points, mask, labels, order)."""
     tf, dtf, q_used, jac = body_pose_derivatives(model, q)
-    n_frames, n_coords = q_used.shape
-    lengths = np.zeros((n_frames, len(chosen)))
-    dldq = np.zeros((n_frames, len(chosen), n_coords))
-    unwrapped = None
+    lengths, dldq = out[:2]
     if len(plan.unwrapped):
-        length, pts, act, order = _unwrapped_paths(plan, model, q_used, jac, tf, dtf, dldq)
-        lengths[:, plan.unwrapped] = length
-        unwrapped = (pts, act, order)
+        _unwrapped_paths(plan, model, q_used, jac, tf, dtf, out)
     per_path = []
     for m in plan.wrapped:
         path = chosen[m]
@@ -364,7 +397,7 @@ def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray) -> tuple:
         dldq[:, m] = wrapped.d_length
         per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
                          tuple(str(x) for x in wrapped.labels), np.asarray(wrapped.order)))
-    return lengths, dldq, q_used, unwrapped, per_path
+    return q_used, per_path
 
 
 def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
@@ -396,25 +429,28 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     n_frames, n_coords = q.shape
     plan = _plan(model, chosen)
     spanned = plan.spanned
+    n_slots = plan.points.shape[1] if len(plan.unwrapped) else 0
+    lengths = np.zeros((n_frames, len(chosen)))
+    dldq = np.zeros((n_frames, len(chosen), n_coords))
+    points = np.full((n_frames, len(chosen), n_slots, 3), np.nan)
+    mask = np.zeros((n_frames, len(chosen), n_slots), dtype=bool)
+    order = np.full((n_frames, len(chosen), n_slots), -1, dtype=np.int64)
     # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
-    blocks = [_block(model, chosen, plan, q[i:i + FRAME_BLOCK]) for i in range(0, max(n_frames, 1), FRAME_BLOCK)]
-    lengths = np.concatenate([b[0] for b in blocks])
-    dldq = np.concatenate([b[1] for b in blocks])
-    q_used = np.concatenate([b[2] for b in blocks])
-    per_path = [(np.concatenate([b[4][w][0] for b in blocks]), np.concatenate([b[4][w][1] for b in blocks]),
-                 blocks[0][4][w][2], np.concatenate([b[4][w][3] for b in blocks]))
+    blocks = [_block(model, chosen, plan, q[i:i + FRAME_BLOCK],
+                     tuple(a[i:i + FRAME_BLOCK] for a in (lengths, dldq, points, mask, order)))
+              for i in range(0, max(n_frames, 1), FRAME_BLOCK)]
+    q_used = blocks[0][0] if len(blocks) == 1 else np.concatenate([b[0] for b in blocks])
+    per_path = [(np.concatenate([b[1][w][0] for b in blocks]), np.concatenate([b[1][w][1] for b in blocks]),
+                 blocks[0][1][w][2], np.concatenate([b[1][w][3] for b in blocks]))
                 for w in range(len(plan.wrapped))]
     moment_arms = np.where(spanned[None], -dldq, 0.0)
-    n_slots = plan.points.shape[1] if len(plan.unwrapped) else 0
     k_max = max([p[0].shape[1] for p in per_path] + [n_slots])
-    points = np.full((n_frames, len(chosen), k_max, 3), np.nan)
-    mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
-    order = np.full((n_frames, len(chosen), k_max), -1, dtype=np.int64)
+    if k_max > n_slots:                      # wrapped paths with more points (tangent points)
+        pad = ((0, 0), (0, 0), (0, k_max - n_slots))
+        points = np.pad(points, pad + ((0, 0),), constant_values=np.nan)
+        mask = np.pad(mask, pad, constant_values=False)
+        order = np.pad(order, pad, constant_values=-1)
     labels = [tuple(p.name for p in path.points) for path in chosen]
-    if n_slots:
-        points[:, plan.unwrapped, :n_slots] = np.concatenate([b[3][0] for b in blocks])
-        mask[:, plan.unwrapped, :n_slots] = np.concatenate([b[3][1] for b in blocks])
-        order[:, plan.unwrapped, :n_slots] = np.concatenate([b[3][2] for b in blocks])
     for m, (pts, msk, lab, ordr) in zip(plan.wrapped, per_path):
         k = pts.shape[1]
         points[:, m, :k] = np.where(msk[..., None], pts, np.nan)

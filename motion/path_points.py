@@ -193,29 +193,128 @@ def _moving_local(pt, model: Model, q: np.ndarray, jac: np.ndarray | None) -> tu
     return loc, dloc
 
 
-def _point_set_positions(ps: _PointSet, model: Model, q_used: np.ndarray, tf_ground_body: np.ndarray) -> tuple:
-    """Ground positions (F, N, 3) of a `_PointSet`'s points, the same minus their body's origin
-    (F, N, 3), and the active grid (F, M*K) bool.
-
-    Same arithmetic as `path_points`: ``p_body @ R^T + t`` per body for fixed points,
-    ``R p_body(q) + t`` for moving points; conditional points active inside their range.
-    """
-    n_frames = q_used.shape[0]
-    pts = np.empty((n_frames, len(ps.flat), 3))
-    for b, idx in ps.by_body:                          # a model has few bodies
-        rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
-        pts[:, idx] = ps.loc[idx] @ np.swapaxes(rot, 1, 2) + trans[:, None]
-    for n, pt in ps.moving:                            # few moving points
-        b = ps.bodies[n]
-        loc, _ = _moving_local(pt, model, q_used, None)
-        pts[:, n] = np.einsum("fij,fj->fi", tf_ground_body[:, b, :3, :3], loc) + tf_ground_body[:, b, :3, 3]
-    act = np.zeros((n_frames, ps.shape[0] * ps.shape[1]), dtype=bool)
+def _point_set_active(ps: _PointSet, q_used: np.ndarray) -> np.ndarray:
+    """(F, M*K) bool: the real points of a `_PointSet`'s grid, conditional ones inside their range."""
+    act = np.zeros((q_used.shape[0], ps.shape[0] * ps.shape[1]), dtype=bool)
     act[:, ps.flat] = True
     if len(ps.cond):
         x = q_used[:, ps.cond_coord]
         act[:, ps.flat[ps.cond]] = (x >= ps.cond_lo) & (x <= ps.cond_hi)
+    return act
+
+
+def _point_set_positions(ps: _PointSet, tf_ground_body: np.ndarray, moving_loc: np.ndarray) -> tuple:
+    """Ground positions (F, N, 3) of a `_PointSet`'s points and the same minus their body's
+    origin (F, N, 3); ``moving_loc`` (F, n_moving, 3) are the moving points' body positions.
+
+    Same arithmetic as `path_points`: ``p_body @ R^T + t`` per body for fixed points,
+    ``R p_body(q) + t`` for moving points.
+    """
+    n_frames = tf_ground_body.shape[0]
+    pts = np.empty((n_frames, len(ps.flat), 3))
+    for b, idx in ps.by_body:                          # a model has few bodies
+        rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
+        pts[:, idx] = ps.loc[idx] @ np.swapaxes(rot, 1, 2) + trans[:, None]
+    for i, (n, _) in enumerate(ps.moving):             # few moving points
+        b = ps.bodies[n]
+        pts[:, n] = np.einsum("fij,fj->fi", tf_ground_body[:, b, :3, :3], moving_loc[:, i]) + tf_ground_body[:, b, :3, 3]
     arm = np.empty_like(pts)                           # p - t_body (moment arms about body origins)
     for b in np.unique(ps.bodies):
         on_b = slice(*np.searchsorted(ps.bodies, [b, b + 1]))
         arm[:, on_b] = pts[:, on_b] - tf_ground_body[:, b, None, :3, 3]
-    return pts, arm, act
+    return pts, arm
+
+
+_KERNEL: dict = {}
+
+
+def _polyline_kernel():
+    """The compiled (numba, once per process) polyline kernel of a `_PointSet`, or None without numba.
+
+    ``kernel(tf, bodies, loc, moving, moving_loc, act, slot_point, n_slots, pair_of, twist,
+    t_pair, t_twist, t_path, t_coord, path_index, length, g_moving, dldq, points, mask, order)``:
+    per frame, the ground position ``R p_body + t`` of every point (``moving_loc`` (F, n_moving,
+    3) replaces ``loc`` at the indices ``moving``), then per path the active points in path
+    order: length = sum of segment lengths, g = unit vector of the segment arriving at a point
+    minus the one leaving it, the moment [(p - t_body) x g, g] summed per (body, path) pair, and
+    ``twist[t_twist] . moment[t_pair]`` added to ``dldq[:, t_path, t_coord]`` term by term (in
+    the terms' order). Path m of the set is row ``path_index[m]`` of ``length``,
+    ``dldq``, ``points`` (NaN on entry), ``mask`` (False), ``order`` (-1; the active points'
+    slots in path order); ``g_moving`` (F, n_moving, 3) receives g of the moving points.
+    """
+    if "kernel" in _KERNEL:
+        return _KERNEL["kernel"]
+    try:
+        import numba
+    except ImportError:  # pragma: no cover - numba is a dependency; numpy path otherwise
+        _KERNEL["kernel"] = None
+        return None
+
+    @numba.njit(cache=False, fastmath=False)
+    def kernel(tf, bodies, loc, moving, moving_loc, act, slot_point, n_slots, pair_of, twist, t_pair, t_twist,
+               t_path, t_coord, path_index, length, g_moving, dldq, points, mask, order):  # pragma: no cover
+        n_frames, n_points, n_paths = tf.shape[0], loc.shape[0], path_index.shape[0]
+        pos = np.empty((n_points, 3))
+        arm = np.empty((n_points, 3))
+        g = np.empty((n_points, 3))
+        moment = np.empty((pair_of[n_points - 1] + 1 if n_points else 0, 6))
+        here = loc.copy()
+        for f in range(n_frames):
+            for i in range(moving.shape[0]):
+                for a in range(3):
+                    here[moving[i], a] = moving_loc[f, i, a]
+            for n in range(n_points):
+                b = bodies[n]
+                for a in range(3):
+                    arm[n, a] = tf[f, b, a, 0] * here[n, 0] + tf[f, b, a, 1] * here[n, 1] + tf[f, b, a, 2] * here[n, 2]
+                    pos[n, a] = arm[n, a] + tf[f, b, a, 3]
+                    arm[n, a] = pos[n, a] - tf[f, b, a, 3]
+            g[:] = 0.0
+            for m in range(n_paths):
+                row = path_index[m]
+                prev, total, count = -1, 0.0, 0
+                for k in range(n_slots):
+                    s = m * n_slots + k
+                    n = slot_point[s]
+                    if n == n_points or not act[f, s]:
+                        continue
+                    mask[f, row, k] = True
+                    order[f, row, count] = k
+                    count += 1
+                    for a in range(3):
+                        points[f, row, k, a] = pos[n, a]
+                    if prev >= 0:
+                        d0, d1, d2 = pos[n, 0] - pos[prev, 0], pos[n, 1] - pos[prev, 1], pos[n, 2] - pos[prev, 2]
+                        seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                        total += seg
+                        if seg > 0:
+                            d0, d1, d2 = d0 / seg, d1 / seg, d2 / seg
+                        else:
+                            d0, d1, d2 = 0.0, 0.0, 0.0
+                        g[prev, 0] -= d0
+                        g[prev, 1] -= d1
+                        g[prev, 2] -= d2
+                        g[n, 0], g[n, 1], g[n, 2] = d0, d1, d2
+                    prev = n
+                length[f, row] = total
+            moment[:] = 0.0
+            for n in range(n_points):
+                j = pair_of[n]
+                moment[j, 0] += arm[n, 1] * g[n, 2] - arm[n, 2] * g[n, 1]
+                moment[j, 1] += arm[n, 2] * g[n, 0] - arm[n, 0] * g[n, 2]
+                moment[j, 2] += arm[n, 0] * g[n, 1] - arm[n, 1] * g[n, 0]
+                moment[j, 3] += g[n, 0]
+                moment[j, 4] += g[n, 1]
+                moment[j, 5] += g[n, 2]
+            for t in range(t_pair.shape[0]):
+                j, u = t_pair[t], t_twist[t]
+                acc = 0.0
+                for a in range(6):
+                    acc += twist[f, u, a] * moment[j, a]
+                dldq[f, t_path[t], t_coord[t]] += acc
+            for i in range(moving.shape[0]):
+                for a in range(3):
+                    g_moving[f, i, a] = g[moving[i], a]
+
+    _KERNEL["kernel"] = kernel
+    return kernel
