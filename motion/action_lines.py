@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
-from .kinematics import body_pose_derivatives, motion_coordinates
+from .kinematics import _pose_twists, body_pose_derivatives, motion_coordinates
 from .model import Model, Path
 from .path_points import (_moving_local, _point_set, _point_set_active, _point_set_positions, _polyline_kernel,
                           path_points)
@@ -85,8 +85,10 @@ class ActionLines:
     def __post_init__(self):
         for key in ("lengths", "moment_arms", "spanned", "time", "q", "points", "point_mask",
                     "point_order"):
-            arr = np.array(getattr(self, key), copy=True)
-            arr.setflags(write=False)
+            arr = getattr(self, key)
+            if not (isinstance(arr, np.ndarray) and arr.flags.owndata and not arr.flags.writeable):
+                arr = np.array(arr, copy=True)       # a read-only array owning its data is kept as is
+                arr.setflags(write=False)
             object.__setattr__(self, key, arr)
         n_frames, n_paths = self.lengths.shape
         n_coords = len(self.coordinate_names)
@@ -275,6 +277,7 @@ def _plan(model: Model, chosen: list) -> _Plan:
     terms = tuple(np.array([t[i] for t in terms], dtype=np.int64) for i in range(4))
     pair_of = np.cumsum(np.isin(np.arange(len(pair_key)), starts)) - 1
     moving = tuple((int(path_of[n]), n, pt) for n, pt in ps.moving)
+    spanned.setflags(write=False)               # shared by every result of this plan
     plan = _Plan(unwrapped, np.array([m for m, p in enumerate(chosen) if p.wraps], dtype=np.int64), ps,
                  slot_point, starts, np.array(tw_b, dtype=np.int64), np.array(tw_c, dtype=np.int64),
                  tuple(groups), pair_of.astype(np.int64), terms, moving, spanned)
@@ -282,10 +285,11 @@ def _plan(model: Model, chosen: list) -> _Plan:
     return plan
 
 
-def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, dtf, out: tuple) -> None:
+def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, twist, out: tuple) -> None:
     """Lengths, dL/dq (spanned entries), points, mask and order of all unwrapped paths at once,
     written into their rows of ``out`` = (lengths (F, M), dldq (F, M, C), points (F, M, K, 3)
-    NaN-filled, mask (F, M, K) False, order (F, M, K) -1) for a block of frames.
+    NaN-filled, mask (F, M, K) False, order (F, M, K) -1) for a block of frames; ``twist``
+    (F, U, 6) are the body twists ``plan.twist_body``, ``plan.twist_coord``.
 
     dL/dq_k = sum_i g_i . dp_i/dq_k with g_i = (unit vector of the segment arriving at point i)
     - (unit vector of the segment leaving it); rigid points contribute through their body's
@@ -300,7 +304,6 @@ def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, dtf, out: tuple
     locals_ = [_moving_local(pt, model, q_used, jac) for _, pt in ps.moving]     # few moving points
     moving_loc = np.stack([x[0] for x in locals_], axis=1) if locals_ else np.zeros((len(q_used), 0, 3))
     act = _point_set_active(ps, q_used)
-    twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord)      # (F, U, 6)
     kernel = _polyline_kernel() if COMPILED else None
     if kernel is None:
         p_n, arm = _point_set_positions(ps, tf, moving_loc)
@@ -384,10 +387,15 @@ FRAME_BLOCK = 512   # frames per block in `action_lines` (bounds memory, keeps a
 def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -> tuple:
     """One block of frames: fills its rows of ``out`` (see `_unwrapped_paths`; lengths and dldq
     also for the wrapped paths); returns q_used and the wrapped paths' (points, mask, labels, order)."""
-    tf, dtf, q_used, jac = body_pose_derivatives(model, q)
+    if len(plan.wrapped):                    # the wrap helper works with d tf (F, B, C, 4, 4)
+        tf, dtf, q_used, jac = body_pose_derivatives(model, q)
+        twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord)
+    else:                                    # body twists directly (no (F, B, C, 4, 4) array)
+        tf, twist, q_used, jac = _pose_twists(model, q)
+        twist = twist[:, plan.twist_body, plan.twist_coord]
     lengths, dldq = out[:2]
     if len(plan.unwrapped):
-        _unwrapped_paths(plan, model, q_used, jac, tf, dtf, out)
+        _unwrapped_paths(plan, model, q_used, jac, tf, twist, out)
     per_path = []
     for m in plan.wrapped:
         path = chosen[m]
@@ -443,7 +451,8 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     per_path = [(np.concatenate([b[1][w][0] for b in blocks]), np.concatenate([b[1][w][1] for b in blocks]),
                  blocks[0][1][w][2], np.concatenate([b[1][w][3] for b in blocks]))
                 for w in range(len(plan.wrapped))]
-    moment_arms = np.where(spanned[None], -dldq, 0.0)
+    moment_arms = np.negative(dldq, out=dldq)
+    moment_arms[:, ~spanned] = 0.0                 # exactly 0.0 where not spanned
     k_max = max([p[0].shape[1] for p in per_path] + [n_slots])
     if k_max > n_slots:                      # wrapped paths with more points (tangent points)
         pad = ((0, 0), (0, 0), (0, k_max - n_slots))
@@ -461,5 +470,8 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     dep = model.dependent_coordinates
     status = tuple("dependent" if dep[i] else ("locked" if c.locked else "independent")
                    for i, c in enumerate(model.coordinates))
+    for arr in (lengths, moment_arms, q_used, points, mask, order):
+        if arr.flags.owndata:
+            arr.setflags(write=False)            # ours alone: ActionLines keeps it without a copy
     return ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
                        status, time, q_used, points, mask, labels, order)

@@ -320,6 +320,62 @@ def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
     return tf, dtf, q_used, jac
 
 
+def _pose_twists(model: Model, motion) -> tuple:
+    """Body transforms and body twists (instead of `body_pose_derivatives`' (F, B, C, 4, 4)).
+
+    The twist of body b about coordinate k is [omega, v] (ground frame) with
+    ``d R_gb / dq_k = [omega]x R_gb`` and ``v = d t_gb / dq_k`` (total derivative along the
+    couplers, as `body_pose_derivatives`). Root to leaf, with ``L = tf_ground_parent @ X_PF``:
+    ``omega_b = omega_p + R_L vee(dR_FM R_FM^T)``, ``v_b = v_p + omega_p x (t_b - t_p)
+    + R_L (dR_FM c + dt_FM)`` (c: translation of inv(X_BM)); (Featherstone, Rigid Body Dynamics
+    Algorithms, 2008, ch. 4: velocity propagation along a kinematic tree).
+
+    Returns
+    -------
+    tf_ground_body : (F, B, 4, 4) float
+    twist : (F, B, C, 6) float
+    q_used : (F, C) float
+    dq_dqk : (F, C, C) float
+    """
+    _, q = motion_coordinates(model, motion)
+    if model.welds:
+        q = _assemble_welds(model, coordinate_values(model, q)[0])
+    q_used, jac = coordinate_values(model, q)
+    n_frames, n_coords = q_used.shape
+    n_bodies = len(model.bodies)
+    cidx = model._coord_index
+    tf = np.zeros((n_frames, n_bodies, 4, 4))
+    tf[:, 0] = np.eye(4)
+    twist = np.zeros((n_frames, n_bodies, n_coords, 6))
+    support = np.zeros((n_bodies, n_coords), dtype=bool)      # columns that may be nonzero
+    for joint in model.joints:
+        p = model.body_index(joint.parent)
+        b = model.body_index(joint.child)
+        tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx)
+        inv_child = np.linalg.inv(joint.tf_child_jointframe)
+        left = tf[:, p] @ joint.tf_parent_jointframe
+        tf[:, b] = left @ tf_fm @ inv_child
+        keep = np.flatnonzero(support[p])
+        if len(keep):
+            omega = twist[:, p, keep, :3]
+            twist[:, b, keep, :3] = omega
+            twist[:, b, keep, 3:] = twist[:, p, keep, 3:] + np.cross(omega, (tf[:, b, :3, 3] - tf[:, p, :3, 3])[:, None])
+        support[b] = support[p]
+        if joint.coordinates:
+            cols = [cidx[c] for c in joint.coordinates]
+            ks = np.flatnonzero(np.any(jac[:, cols, :] != 0.0, axis=(0, 1)))
+            support[b, ks] = True
+            dfm = np.einsum("fcij,fck->fkij", dtf_fm, jac[:, cols][:, :, ks])           # (F, K, 4, 4)
+            w = dfm[..., :3, :3] @ np.swapaxes(tf_fm[:, None, :3, :3], -1, -2)
+            w = 0.5 * np.stack([w[..., 2, 1] - w[..., 1, 2], w[..., 0, 2] - w[..., 2, 0],
+                                w[..., 1, 0] - w[..., 0, 1]], axis=-1)                   # in F
+            v = dfm[..., :3, :3] @ inv_child[:3, 3] + dfm[..., :3, 3]
+            rot = left[:, None, :3, :3]
+            twist[:, b, ks, :3] += (rot @ w[..., None])[..., 0]
+            twist[:, b, ks, 3:] += (rot @ v[..., None])[..., 0]
+    return tf, twist, q_used, jac
+
+
 def body_poses(model: Model, motion) -> BodyPoses:
     """Transforms of every body in ground for every frame of ``motion``.
 
