@@ -313,6 +313,17 @@ def _surface_spec(mspec):
                              bones=tuple(bones), volume=mspec.volume, **ends)
 
 
+def _with_points(att, p_ground, pose0, model, tf_data_ground):
+    """``att`` (a `motion.SurfaceAttachment`) with the rest-pose points ``p_ground`` (K, 3) added,
+    expressed in the attachment's own frame (the mesh frame or its body's frame)."""
+    if att.in_body_frame:
+        tf = np.linalg.inv(pose0.tf_ground_body[model.body_index(att.body)])
+    else:
+        tf = tf_data_ground
+    extra = p_ground @ tf[:3, :3].T + tf[:3, 3]
+    return dataclasses.replace(att, points=np.vstack([att.points, extra]))
+
+
 def _api(package: str, name: str, module: str):
     """``package.name`` if exported as a function, else ``package.module.name`` (a checkout in
     which the name is not yet exported; ``from package import name`` could return the module)."""
@@ -393,10 +404,16 @@ def _run_muscle(ctx, mspec):
     n_v = rest.rest_vertices.shape[0]
     if ctx.transport == "bind":
         # rest surface + fibre points back to the mesh's own frame, wrapped together
-        tf_data_ground = np.linalg.inv(rest_pose(ctx.model, sspec).tf_ground_data)
+        pose0 = rest_pose(ctx.model, sspec)
+        tf_data_ground = np.linalg.inv(pose0.tf_ground_data)
         both = np.vstack([rest.rest_vertices, bundle0.points.reshape(-1, 3)])
         both = both @ tf_data_ground[:3, :3].T + tf_data_ground[:3, 3]
-        bound = dataclasses.replace(sspec, vertices=both, faces=faces)
+        # the fibre end points lie in the attachment areas by construction (Kohout 2012 §3.4):
+        # bind them as attachment points too, so they ride their bones exactly
+        ends = {"origin": bundle0.points[:, 0], "insertion": bundle0.points[:, -1]}
+        bound = dataclasses.replace(sspec, vertices=both, faces=faces, **{
+            end: _with_points(getattr(sspec, end), p_ground, pose0, ctx.model, tf_data_ground)
+            for end, p_ground in ends.items()})
         with _timed(timings, "wrap"):
             (wrapped,) = wrap_surfaces(ctx.model, stacked, [bound])
         n_all = wrapped.vertices.shape[0]
