@@ -21,6 +21,15 @@ EllipsoidJoint coordinates (OpenSim works with angular velocities there: its "mo
 an Euler-angle coordinate is the torque per unit tension about the mobilizer axis, not -dL/dq).
 This module returns -dL/dq only, the documented contract; it does not imitate those two
 OpenSim-specific quantities.
+
+Speed: per model and path selection an index plan is built once and cached (`_plan`): all
+unwrapped paths' points stacked, sorted by body, grouped in (body, path) pairs, and the
+(pair, spanned coordinate) terms of dL/dq. When no selected path wraps, the body twists come
+straight from the joint chain (no (F, B, C, 4, 4) derivative array). A numba kernel walks the
+active points of every path per frame (`motion.path_points._polyline_kernel`); the numpy twin
+`_polyline_numpy` is used without numba and is tested equal to it. Wrapped paths go through
+`motion.path_wrapping` path by path. Gait2392 walking (211 frames, 92 paths, 262 moment-arm
+pairs): 0.38 -> 0.10 ms per frame (``python bench/lines.py``; OpenSim 4.6 ~16 ms per frame).
 """
 from __future__ import annotations
 

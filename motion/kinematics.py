@@ -359,7 +359,8 @@ def _pose_twists(model: Model, motion) -> tuple:
         if len(keep):
             omega = twist[:, p, keep, :3]
             twist[:, b, keep, :3] = omega
-            twist[:, b, keep, 3:] = twist[:, p, keep, 3:] + np.cross(omega, (tf[:, b, :3, 3] - tf[:, p, :3, 3])[:, None])
+            offset = (tf[:, b, :3, 3] - tf[:, p, :3, 3])[:, None]                  # t_b - t_p
+            twist[:, b, keep, 3:] = twist[:, p, keep, 3:] + np.cross(omega, offset)
         support[b] = support[p]
         if joint.coordinates:
             cols = [cidx[c] for c in joint.coordinates]

@@ -217,7 +217,8 @@ def _point_set_positions(ps: _PointSet, tf_ground_body: np.ndarray, moving_loc: 
         pts[:, idx] = ps.loc[idx] @ np.swapaxes(rot, 1, 2) + trans[:, None]
     for i, (n, _) in enumerate(ps.moving):             # few moving points
         b = ps.bodies[n]
-        pts[:, n] = np.einsum("fij,fj->fi", tf_ground_body[:, b, :3, :3], moving_loc[:, i]) + tf_ground_body[:, b, :3, 3]
+        rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
+        pts[:, n] = np.einsum("fij,fj->fi", rot, moving_loc[:, i]) + trans
     arm = np.empty_like(pts)                           # p - t_body (moment arms about body origins)
     for b in np.unique(ps.bodies):
         on_b = slice(*np.searchsorted(ps.bodies, [b, b + 1]))
@@ -250,7 +251,7 @@ def _polyline_kernel():
         _KERNEL["kernel"] = None
         return None
 
-    @numba.njit(cache=False, fastmath=False)
+    @numba.njit(cache=True, fastmath=False)     # compiled once per machine (numba cache)
     def kernel(tf, bodies, loc, moving, moving_loc, act, slot_point, n_slots, pair_of, twist, t_pair, t_twist,
                t_path, t_coord, path_index, length, g_moving, dldq, points, mask, order):  # pragma: no cover
         n_frames, n_points, n_paths = tf.shape[0], loc.shape[0], path_index.shape[0]
