@@ -346,7 +346,7 @@ def _pose_twists(model: Model, motion) -> tuple:
     cidx = model._coord_index
     tf = np.zeros((n_frames, n_bodies, 4, 4))
     tf[:, 0] = np.eye(4)
-    twist = np.zeros((n_frames, n_bodies, n_coords, 6))
+    twist = np.zeros((n_bodies, n_coords, n_frames, 6))       # (B, C, F, 6) while building
     support = np.zeros((n_bodies, n_coords), dtype=bool)      # columns that may be nonzero
     for joint in model.joints:
         p = model.body_index(joint.parent)
@@ -357,23 +357,26 @@ def _pose_twists(model: Model, motion) -> tuple:
         tf[:, b] = left @ tf_fm @ inv_child
         keep = np.flatnonzero(support[p])
         if len(keep):
-            omega = twist[:, p, keep, :3]
-            twist[:, b, keep, :3] = omega
-            offset = (tf[:, b, :3, 3] - tf[:, p, :3, 3])[:, None]                  # t_b - t_p
-            twist[:, b, keep, 3:] = twist[:, p, keep, 3:] + np.cross(omega, offset)
+            w = twist[p, keep, :, :3]                                              # (K, F, 3)
+            d = tf[:, b, :3, 3] - tf[:, p, :3, 3]                                  # t_b - t_p
+            twist[b, keep, :, :3] = w
+            twist[b, keep, :, 3:] = twist[p, keep, :, 3:] + np.stack(
+                [w[..., 1] * d[:, 2] - w[..., 2] * d[:, 1], w[..., 2] * d[:, 0] - w[..., 0] * d[:, 2],
+                 w[..., 0] * d[:, 1] - w[..., 1] * d[:, 0]], axis=-1)              # omega x d
         support[b] = support[p]
         if joint.coordinates:
             cols = [cidx[c] for c in joint.coordinates]
             ks = np.flatnonzero(np.any(jac[:, cols, :] != 0.0, axis=(0, 1)))
             support[b, ks] = True
-            dfm = np.einsum("fcij,fck->fkij", dtf_fm, jac[:, cols][:, :, ks])           # (F, K, 4, 4)
-            w = dfm[..., :3, :3] @ np.swapaxes(tf_fm[:, None, :3, :3], -1, -2)
+            dfm = np.einsum("fcij,fck->kfij", dtf_fm, jac[:, cols][:, :, ks])           # (K, F, 4, 4)
+            w = dfm[..., :3, :3] @ np.swapaxes(tf_fm[:, :3, :3], -1, -2)
             w = 0.5 * np.stack([w[..., 2, 1] - w[..., 1, 2], w[..., 0, 2] - w[..., 2, 0],
                                 w[..., 1, 0] - w[..., 0, 1]], axis=-1)                   # in F
             v = dfm[..., :3, :3] @ inv_child[:3, 3] + dfm[..., :3, 3]
-            rot = left[:, None, :3, :3]
-            twist[:, b, ks, :3] += (rot @ w[..., None])[..., 0]
-            twist[:, b, ks, 3:] += (rot @ v[..., None])[..., 0]
+            rot = left[:, :3, :3]
+            twist[b, ks, :, :3] += (rot @ w[..., None])[..., 0]
+            twist[b, ks, :, 3:] += (rot @ v[..., None])[..., 0]
+    twist = np.moveaxis(twist, 2, 0)
     return tf, twist, q_used, jac
 
 
