@@ -182,7 +182,7 @@ def _joint_transform(joint, q: np.ndarray, cidx: dict) -> tuple:
             val, dval = ax.function.value(x), ax.function.derivative(x)
             owners.append((local[ax.coordinates[0]], dval))
         else:
-            val = np.full(n_frames, float(ax.function.value(0.0)))
+            val = np.full(1, float(ax.function.value(0.0)))      # constant: one frame, broadcast
             owners.append(None)
         r, dr = _axis_angle_matrices(ax.axis, val)
         rots.append(r)
