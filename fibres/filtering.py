@@ -191,7 +191,8 @@ def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None) -> np.n
         nearest = kernels[0](vt, landmarks)
         within = kernels[1](vt, np.ascontiguousarray(vertices[np.unique(nearest)]),
                             radius * radius)
-        return np.unique(np.concatenate([np.flatnonzero(within), nearest]))
+        within[nearest] = True          # the sorted union, without np.unique's sort
+        return np.flatnonzero(within)
     d2 = _sq_distances(vt, landmarks)                                  # (K, V)
     nearest = np.argmin(d2, axis=1)
     proj = np.unique(nearest)

@@ -45,6 +45,25 @@ def _triangles_loop(tv, centre, radius, start, dn, eps2):  # pragma: no cover - 
                             np.empty(3))
     r, e, diff, bb3 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     lower = np.empty(n_tri)
+    # per-triangle constants of the tests, computed once (the same operations as per pair)
+    te1, te2, tnrm = np.empty((n_tri, 3)), np.empty((n_tri, 3)), np.empty((n_tri, 3))
+    tnn, tthr = np.empty(n_tri), np.empty(n_tri)
+    tedge, tcc = np.empty((n_tri, 3, 3)), np.empty((n_tri, 3))
+    for k in range(n_tri):
+        for c in range(3):
+            te1[k, c] = tv[k, 1, c] - tv[k, 0, c]
+            te2[k, c] = tv[k, 2, c] - tv[k, 0, c]
+        tnrm[k, 0] = te1[k, 1] * te2[k, 2] - te1[k, 2] * te2[k, 1]
+        tnrm[k, 1] = te1[k, 2] * te2[k, 0] - te1[k, 0] * te2[k, 2]
+        tnrm[k, 2] = te1[k, 0] * te2[k, 1] - te1[k, 1] * te2[k, 0]
+        tnn[k] = tnrm[k, 0] * tnrm[k, 0] + tnrm[k, 1] * tnrm[k, 1] + tnrm[k, 2] * tnrm[k, 2]
+        tthr[k] = 1e-12 * np.sqrt(tnn[k])
+        for i in range(3):
+            j = (i + 1) % 3
+            for c in range(3):
+                tedge[k, i, c] = tv[k, j, c] - tv[k, i, c]
+            tcc[k, i] = (tedge[k, i, 0] * tedge[k, i, 0] + tedge[k, i, 1] * tedge[k, i, 1]
+                         + tedge[k, i, 2] * tedge[k, i, 2])
     for n in range(n_rays):
         for c in range(3):
             s[c], d[c] = start[n, c], dn[n, c]
@@ -65,19 +84,15 @@ def _triangles_loop(tv, centre, radius, start, dn, eps2):  # pragma: no cover - 
             if lb > 0 and lb * lb > max(best_d2, eps2) * (1.0 + 1e-9):
                 continue
             for c in range(3):
-                e1[c] = tv[k, 1, c] - tv[k, 0, c]
-                e2[c] = tv[k, 2, c] - tv[k, 0, c]
+                e1[c], e2[c], nrm[c] = te1[k, c], te2[k, c], tnrm[k, c]
                 w[c] = s[c] - tv[k, 0, c]
-            nrm[0] = e1[1] * e2[2] - e1[2] * e2[1]
-            nrm[1] = e1[2] * e2[0] - e1[0] * e2[2]
-            nrm[2] = e1[0] * e2[1] - e1[1] * e2[0]
-            nn = nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]
+            nn = tnn[k]
             # hit (Moeller-Trumbore)
             px, py, pz = d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], \
                 d[0] * e2[1] - d[1] * e2[0]
             det = e1[0] * px + e1[1] * py + e1[2] * pz
             d2, t = np.inf, 0.0
-            if abs(det) > 1e-12 * np.sqrt(nn):
+            if abs(det) > tthr[k]:
                 inv = 1.0 / det
                 u = (w[0] * px + w[1] * py + w[2] * pz) * inv
                 qx, qy, qz = w[1] * e1[2] - w[2] * e1[1], w[2] * e1[0] - w[0] * e1[2], \
@@ -104,10 +119,10 @@ def _triangles_loop(tv, centre, radius, start, dn, eps2):  # pragma: no cover - 
             for i in range(3):
                 j = (i + 1) % 3
                 for c in range(3):
-                    e[c] = tv[k, j, c] - tv[k, i, c]
+                    e[c] = tedge[k, i, c]
                     r[c] = s[c] - tv[k, i, c]
                 bb = d[0] * e[0] + d[1] * e[1] + d[2] * e[2]
-                cc = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+                cc = tcc[k, i]
                 dd = d[0] * r[0] + d[1] * r[1] + d[2] * r[2]
                 ff = e[0] * r[0] + e[1] * r[1] + e[2] * r[2]
                 den = cc - bb * bb
