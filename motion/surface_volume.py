@@ -39,7 +39,7 @@ _KERNELS: dict = {}
 def _kernels():
     """Compile (once) and return the numba kernels, or None without numba."""
     if "done" in _KERNELS:
-        return _KERNELS.get("volume"), _KERNELS.get("cubic")
+        return _KERNELS.get("volume"), _KERNELS.get("cubic_vf")
     numba = _numba()
     if numba is not None:
         @numba.njit(cache=False, fastmath=False)
@@ -54,42 +54,6 @@ def _kernels():
                             + a[1] * (b[2] * c[0] - b[0] * c[2])
                             + a[2] * (b[0] * c[1] - b[1] * c[0]))
                 out[f] = acc / 6.0
-
-        @numba.njit(cache=False, fastmath=False)
-        def cubic_kernel(p, q, faces, out):  # pragma: no cover - compiled
-            for f in range(p.shape[0]):
-                c0 = 0.0
-                c1 = 0.0
-                c2 = 0.0
-                c3 = 0.0
-                for t in range(faces.shape[0]):
-                    i0 = faces[t, 0]
-                    i1 = faces[t, 1]
-                    i2 = faces[t, 2]
-                    p0x, p0y, p0z = p[f, i0, 0], p[f, i0, 1], p[f, i0, 2]
-                    p1x, p1y, p1z = p[f, i1, 0], p[f, i1, 1], p[f, i1, 2]
-                    p2x, p2y, p2z = p[f, i2, 0], p[f, i2, 1], p[f, i2, 2]
-                    q0x, q0y, q0z = q[f, i0, 0], q[f, i0, 1], q[f, i0, 2]
-                    q1x, q1y, q1z = q[f, i1, 0], q[f, i1, 1], q[f, i1, 2]
-                    q2x, q2y, q2z = q[f, i2, 0], q[f, i2, 1], q[f, i2, 2]
-                    # cross products of the second and third vertex, by powers of k
-                    ax = p1y * p2z - p1z * p2y
-                    ay = p1z * p2x - p1x * p2z
-                    az = p1x * p2y - p1y * p2x
-                    bx = p1y * q2z - p1z * q2y + q1y * p2z - q1z * p2y
-                    by = p1z * q2x - p1x * q2z + q1z * p2x - q1x * p2z
-                    bz = p1x * q2y - p1y * q2x + q1x * p2y - q1y * p2x
-                    cx = q1y * q2z - q1z * q2y
-                    cy = q1z * q2x - q1x * q2z
-                    cz = q1x * q2y - q1y * q2x
-                    c0 += p0x * ax + p0y * ay + p0z * az
-                    c1 += q0x * ax + q0y * ay + q0z * az + p0x * bx + p0y * by + p0z * bz
-                    c2 += q0x * bx + q0y * by + q0z * bz + p0x * cx + p0y * cy + p0z * cz
-                    c3 += q0x * cx + q0y * cy + q0z * cz
-                out[f, 0] = c0 / 6.0
-                out[f, 1] = c1 / 6.0
-                out[f, 2] = c2 / 6.0
-                out[f, 3] = c3 / 6.0
 
         @numba.njit(cache=False, fastmath=False)
         def cubic_kernel_vf(p, q, faces, out):  # pragma: no cover - compiled
@@ -135,11 +99,10 @@ def _kernels():
                         out[f, v, 2] = p[v, f, 2] + kf * q[v, f, 2]
 
         _KERNELS["volume"] = volume_kernel
-        _KERNELS["cubic"] = cubic_kernel
         _KERNELS["combine_vf"] = combine_kernel_vf
         _KERNELS["cubic_vf"] = cubic_kernel_vf
     _KERNELS["done"] = True
-    return _KERNELS.get("volume"), _KERNELS.get("cubic")
+    return _KERNELS.get("volume"), _KERNELS.get("cubic_vf")
 
 
 def _as_frames(vertices) -> tuple[np.ndarray, bool]:
@@ -207,11 +170,10 @@ def volume_cubic(p, q, faces) -> np.ndarray:
     if p.shape != q.shape:
         raise ValueError(f"p and q must have the same shape, got {p.shape} and {q.shape}")
     f = _check_faces(faces, p.shape[1])
-    _, cubic_kernel = _kernels()
+    _, cubic_kernel_vf = _kernels()
+    if cubic_kernel_vf is not None:     # one compiled kernel, vertex-major (see volume_cubic_vf)
+        return volume_cubic_vf(p.transpose(1, 0, 2), q.transpose(1, 0, 2), f)
     out = np.empty((p.shape[0], 4))
-    if cubic_kernel is not None:
-        cubic_kernel(p, q, f, out)
-        return out
     for s in range(0, p.shape[0], _CHUNK):
         p0, p1, p2 = (p[s:s + _CHUNK, f[:, i]] for i in range(3))
         q0, q1, q2 = (q[s:s + _CHUNK, f[:, i]] for i in range(3))

@@ -211,19 +211,7 @@ def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POI
 
 
 def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POINTS):
-    """A wrapped path's current polyline per frame, with the arcs over the wrap objects.
-
-    Parameters
-    ----------
-    model : motion.Model
-    wrapped : motion.path_wrapping.WrappedPath
-    tf_ground_body : (F, B, 4, 4) float
-
-    Returns
-    -------
-    (F, N, 3) float
-        Points in path order, NaN-padded at the end.
-    """
+    """`path_polylines`, plus what each point of the polyline is (second return value)."""
     order = np.asarray(wrapped.order)
     pts = np.asarray(wrapped.points)
     nf, nk = order.shape
