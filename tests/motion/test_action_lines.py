@@ -1,11 +1,10 @@
-"""Action lines: OpenSim 4.6 references, live OpenSim on models built with its API, speed."""
+"""Action lines: OpenSim 4.6 references, live OpenSim on models built with its API (speed: bench/lines.py)."""
 from __future__ import annotations
 
 import importlib.util
 import subprocess
 import sys
 import textwrap
-import time
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -133,41 +132,6 @@ def test_muscle_selection_and_errors(opensim_dir):
     assert lines.point_labels[0][: len(model.path("semimem_r").points)] == tuple(
         p.name for p in model.path("semimem_r").points)
 
-
-def test_speed_gait2392(opensim_dir, osim):
-    """>= 20x faster than OpenSim 4.6 for Gait2392's 92 lengths + 262 moment arms per frame.
-
-    Both are timed here, in the same process and under the same machine load (OpenSim: one
-    frame at a time as the reference script does; ours: a whole motion in one call).
-    """
-    rc = ReferenceCase(opensim_dir, *CASES[2])
-    model = load_model(rc.model_file)
-    q_all = rc.q_used(model)
-    spans = rc.metadata["paths"]
-    om = osim.Model(str(rc.model_file))
-    state = om.initSystem()
-    cs = om.getCoordinateSet()
-    coords = [cs.get(n) for n in model.coordinate_names]
-    muscles = [om.getMuscles().get(n) for n in model.path_names]
-    osim_times = []
-    for q in q_all[:4]:
-        start = time.perf_counter()
-        for c, v in zip(coords, q):
-            c.setValue(state, float(v), False)
-        om.realizePosition(state)
-        for mus in muscles:
-            mus.getLength(state)
-            for cn in spans[mus.getName()]["spanned_coordinates"]:
-                mus.computeMomentArm(state, cs.get(cn))
-        osim_times.append(time.perf_counter() - start)
-    q = np.tile(q_all, (4, 1))                       # 284 frames
-    ours = []
-    for _ in range(3):
-        start = time.perf_counter()
-        action_lines(model, q)
-        ours.append((time.perf_counter() - start) / len(q))
-    speedup = np.median(osim_times) / min(ours)
-    assert speedup >= 20, f"only {speedup:.1f}x faster ({min(ours) * 1e3:.2f} ms vs {np.median(osim_times) * 1e3:.1f} ms)"
 
 
 # ------------------------------------------------------------------ live OpenSim on built models

@@ -106,15 +106,3 @@ def test_motion_columns_are_matched_by_name(opensim_dir):
     b = body_poses(model, np.array([[0.1, 0.3], [0.2, 0.4]])).tf_ground_body
     np.testing.assert_array_equal(a, b)
 
-
-def test_speed_gait2392(opensim_dir):
-    """Poses + derivatives for a whole motion in one vectorised call (no per-frame loop)."""
-    import time
-
-    model = load_model(opensim_dir / "Gait2392_Simbody" / "gait2392_thelen2003muscle.osim")
-    q = np.tile([c.default_value for c in model.coordinates], (1000, 1))
-    start = time.perf_counter()
-    body_pose_derivatives(model, q)
-    per_frame = (time.perf_counter() - start) / 1000
-    # OpenSim needs ~0.5 ms per frame just to set the pose; we need far less, derivatives included
-    assert per_frame < 0.5e-3
