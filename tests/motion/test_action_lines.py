@@ -15,6 +15,7 @@ from motion.kinematics import body_poses, motion_from_array
 from motion.moment_arms import opensim_moment_arms
 from motion.osim_reader import load_model
 
+from meshes import opensim_ground_transforms
 from reference import CASES, ReferenceCase, case_id
 
 
@@ -230,14 +231,7 @@ def test_live_opensim_models(osim, live_model):
         om.assemble(state)
         om.realizePosition(state)
         q_ref.append([cs.get(c).getValue(state) for c in model.coordinate_names])
-        frames = []
-        for b in bodies:
-            x = b.getTransformInGround(state)
-            tf = np.eye(4)
-            tf[:3, 3] = [x.p()[i] for i in range(3)]
-            tf[:3, :3] = [[x.R().get(i, j) for j in range(3)] for i in range(3)]
-            frames.append(tf)
-        tf_ref.append(frames)
+        tf_ref.append(opensim_ground_transforms(bodies, state))
         len_ref.append([p.getLength(state) for p in paths])
         ma_ref.append([[p.computeMomentArm(state, cs.get(c)) for c in indep] for p in paths])
     q_ref = np.array(q_ref)
@@ -354,11 +348,7 @@ def test_live_opensim_ellipsoid_joint(osim, tmp_path):
         for i in range(3):
             cs.get(i).setValue(state, float(row[i]), False)
         om.realizePosition(state)
-        x = body.getTransformInGround(state)
-        tf = np.eye(4)
-        tf[:3, 3] = [x.p()[i] for i in range(3)]
-        tf[:3, :3] = [[x.R().get(i, j) for j in range(3)] for i in range(3)]
-        tf_ref.append(tf)
+        tf_ref.append(opensim_ground_transforms([body], state)[0])
         len_ref.append(gp.getLength(state))
         ma_ref.append([gp.computeMomentArm(state, cs.get(i)) for i in range(3)])
     np.testing.assert_allclose(body_poses(model, q).tf_ground_body[:, 1], np.array(tf_ref), rtol=0, atol=1e-12)
@@ -418,14 +408,7 @@ def test_live_opensim_every_joint_type(osim, tmp_path):
         for i, v in enumerate(row):
             cs.get(i).setValue(state, float(v), False)
         om.realizePosition(state)
-        frames = []
-        for b in bodies:
-            x = b.getTransformInGround(state)
-            tf = np.eye(4)
-            tf[:3, 3] = [x.p()[i] for i in range(3)]
-            tf[:3, :3] = [[x.R().get(i, j) for j in range(3)] for i in range(3)]
-            frames.append(tf)
-        tf_ref.append(frames)
+        tf_ref.append(opensim_ground_transforms(bodies, state))
         len_ref.append(gp.getLength(state))
         ma_ref.append([gp.computeMomentArm(state, cs.get(i)) for i in range(cs.getSize())])
     np.testing.assert_allclose(body_poses(model, q).tf_ground_body[:, 1:], np.array(tf_ref), rtol=0, atol=1e-12)
@@ -457,14 +440,7 @@ def test_live_opensim_lhdl_3x_model(osim, lhdl_dir):
         for name, v in zip(model.coordinate_names, row):
             cs.get(name).setValue(state, float(v), False)
         om.realizePosition(state)
-        frames = []
-        for b in bodies:
-            x = b.getTransformInGround(state)
-            tf = np.eye(4)
-            tf[:3, 3] = [x.p()[i] for i in range(3)]
-            tf[:3, :3] = [[x.R().get(i, j) for j in range(3)] for i in range(3)]
-            frames.append(tf)
-        tf_ref.append(frames)
+        tf_ref.append(opensim_ground_transforms(bodies, state))
         len_ref.append([mus.getLength(state) for mus in muscles])
         ma_ref.append([[mus.computeMomentArm(state, cs.get(c)) for c in model.coordinate_names] for mus in muscles])
     np.testing.assert_allclose(body_poses(model, q).tf_ground_body[:, 1:], np.array(tf_ref), rtol=0, atol=1e-12)

@@ -10,26 +10,15 @@ from motion.surface_curves import resample_polylines, rotation_minimizing_frames
 from motion.surface_generate import fusiform_surface
 from motion.surface_volume import mesh_volume, solve_radial_scale, volume_cubic
 
+from meshes import capped_tube
+
 LENGTH, RADIUS = 0.2, 0.02
 
 
 def capped_cylinder(length=LENGTH, radius=RADIUS, n_around=64, n_rings=41):
     """Closed cylinder along +x from 0 to ``length`` with flat caps (outward faces)."""
-    x = np.linspace(0.0, length, n_rings)
-    phi = 2 * np.pi * np.arange(n_around) / n_around
-    ring = np.stack(np.broadcast_arrays(x[:, None], radius * np.cos(phi)[None], radius * np.sin(phi)[None]), -1)
-    verts = np.concatenate([[[0.0, 0, 0]], ring.reshape(-1, 3), [[length, 0, 0]]])
-    idx = 1 + np.arange(n_rings * n_around).reshape(n_rings, n_around)
-    nxt = np.roll(idx, -1, axis=1)
-    last = len(verts) - 1
-    faces = np.concatenate([
-        np.stack([np.zeros(n_around, int), nxt[0], idx[0]], 1),
-        np.stack([idx[:-1], nxt[:-1], nxt[1:]], -1).reshape(-1, 3),
-        np.stack([idx[:-1], nxt[1:], idx[1:]], -1).reshape(-1, 3),
-        np.stack([np.full(n_around, last), idx[-1], nxt[-1]], 1)])
-    if mesh_volume(verts, faces) < 0:
-        faces = faces[:, ::-1]
-    return verts, faces
+    return capped_tube([0.0, 0.0, 0.0], [length, 0.0, 0.0], radius, n_around=n_around, n_rings=n_rings,
+                       ref=[0.0, 1.0, 0.0])
 
 
 def rot_z(theta):

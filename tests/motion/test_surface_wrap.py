@@ -10,34 +10,15 @@ from motion.osim_builder import ModelBuilder
 from motion.osim_reader import load_model
 from motion.surface_volume import mesh_volume
 
+from meshes import capped_tube
+
 R_PULLEY, D, A, B = 0.02, 0.03, 0.15, 0.12   # pulley radius, line offset, attachment distances
 R_MUSCLE = 0.008                             # < D - R_PULLEY: the rest surface clears the pulley
 
 
 def tube(start, end, radius, n_around=48, n_rings=61):
     """Closed capped cylinder from ``start`` to ``end`` (outward faces)."""
-    start, end = np.asarray(start, float), np.asarray(end, float)
-    axis = end - start
-    u = axis / np.linalg.norm(axis)
-    e1 = np.cross(u, [0, 0, 1.0] if abs(u[2]) < 0.9 else [1.0, 0, 0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(u, e1)
-    s = np.linspace(0, 1, n_rings)
-    phi = 2 * np.pi * np.arange(n_around) / n_around
-    ring = (start + s[:, None, None] * axis
-            + radius * (np.cos(phi)[None, :, None] * e1 + np.sin(phi)[None, :, None] * e2))
-    verts = np.concatenate([start[None], ring.reshape(-1, 3), end[None]])
-    idx = 1 + np.arange(n_rings * n_around).reshape(n_rings, n_around)
-    nxt = np.roll(idx, -1, axis=1)
-    last = len(verts) - 1
-    faces = np.concatenate([
-        np.stack([np.zeros(n_around, int), nxt[0], idx[0]], 1),
-        np.stack([idx[:-1], nxt[:-1], nxt[1:]], -1).reshape(-1, 3),
-        np.stack([idx[:-1], nxt[1:], idx[1:]], -1).reshape(-1, 3),
-        np.stack([np.full(n_around, last), idx[-1], nxt[-1]], 1)])
-    if mesh_volume(verts, faces) < 0:
-        faces = faces[:, ::-1]
-    return verts, faces
+    return capped_tube(start, end, radius, n_around=n_around, n_rings=n_rings)
 
 
 def build(tmp_path, *, pulley: bool):
