@@ -308,7 +308,7 @@ class SurfaceBinding:
 def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,
                  origin_points, insertion_points, *, n_samples: int = 40,
                  rigid_radius: float | None = None, blend_radius: float | None = None,
-                 line_blend: float | None = None, rest_anchors=None) -> SurfaceBinding:
+                 line_blend: float | None = None, rest_anchors=None, free_vertices=None) -> SurfaceBinding:
     """Bind a rest surface to its action lines and attachment bodies.
 
     Parameters
@@ -336,6 +336,10 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         line, first and last included; `SurfaceBinding.deform` then matches arc length piece by
         piece between anchors, so a piece fixed on one body does not slide over that body as
         the free pieces stretch. None: one piece (global arc length).
+    free_vertices : (V,) bool or index array or None, keyword-only
+        Vertices that get no rigid attachment zone (``w_o = w_i = 0``, all belly): points
+        carried with the surface that are not part of it, e.g. fibre points, whose ends the
+        caller moves with their bodies itself (`analysis.run`). None: none.
 
     Returns
     -------
@@ -381,6 +385,9 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
 
     w_o = rigid_weight(origin_points)
     w_i = rigid_weight(insertion_points)
+    if free_vertices is not None:
+        w_o[free_vertices] = 0.0
+        w_i[free_vertices] = 0.0
     over = w_o + w_i
     scale = np.where(over > 1.0, 1.0 / np.maximum(over, 1e-30), 1.0)
     w_o, w_i = w_o * scale, w_i * scale

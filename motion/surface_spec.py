@@ -105,6 +105,10 @@ class MuscleSurfaceSpec:
     volume : float or None
         For a generated surface: its volume (m^3); None: from the muscle's max isometric
         force and optimal fibre length, else a 1:5 spindle.
+    riders : int
+        The last ``riders`` vertices are not part of the surface (no face may use them) but
+        points carried with it, e.g. fibre points: they follow the belly deformation only,
+        without the rigid attachment zones (`motion.bind_surface` ``free_vertices``).
     """
 
     name: str
@@ -117,6 +121,7 @@ class MuscleSurfaceSpec:
     insertion: SurfaceAttachment | None = None
     bones: tuple = ()
     volume: float | None = None
+    riders: int = 0
 
     def __post_init__(self):
         lines = (self.action_lines,) if isinstance(self.action_lines, str) else tuple(self.action_lines)
@@ -128,6 +133,12 @@ class MuscleSurfaceSpec:
         if self.vertices is not None:
             object.__setattr__(self, "vertices", _ro(self.vertices, 3))
             object.__setattr__(self, "faces", _ro(self.faces, 3, np.int64))
+        riders = int(self.riders)
+        if riders < 0 or (riders and (self.vertices is None or riders > len(self.vertices)
+                                      or (self.faces.size and self.faces.max() >= len(self.vertices) - riders))):
+            raise ValueError(f"muscle {self.name!r}: riders={self.riders} must count trailing vertices "
+                             "that no face uses")
+        object.__setattr__(self, "riders", riders)
         object.__setattr__(self, "rest_pose",
                            MappingProxyType({str(k): float(v) for k, v in dict(self.rest_pose).items()}))
         object.__setattr__(self, "bones", tuple(self.bones))

@@ -421,7 +421,8 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     b_i, insertion_rest = _attachment(model, spec, "insertion", rest, first_path)
     binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
                            origin_rest, insertion_rest, n_samples=n_samples,
-                           rigid_radius=rigid_radius, blend_radius=blend_radius, rest_anchors=rest_anchors)
+                           rigid_radius=rigid_radius, blend_radius=blend_radius, rest_anchors=rest_anchors,
+                           free_vertices=np.arange(len(vertices) - spec.riders, len(vertices)))
     obstacles = []
     seen = set()
     for name in spec.action_lines:

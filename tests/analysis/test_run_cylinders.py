@@ -139,14 +139,6 @@ def test_straight_cylinder_fibre_ends_ride_their_bodies_and_action_line_is_exact
     np.testing.assert_allclose(m.action_line_moment_arms[:, 0, 0], r_line, rtol=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the rest fibres are exactly straight (length = chord to 2e-16 at rest), but the bind "
-    "transport (motion.wrap_surfaces) rotates the fibre ends with their bodies (lower: q) and "
-    "carries the interior points in the action line's frame (rotated ~q/2.3 here, offsets scaled "
-    "by sqrt(L0/L) for volume, to 0.1 mm), so each fibre kinks next to its "
-    "rigid ends (interior offset from the chord 0.7 mm at 30, 2.2 mm at 60 degrees): measured "
-    "fibre length vs chord up to 0.33 % and moment arm vs closed form up to 2.9 % at 60 degrees "
-    "(both within tolerance up to 42 degrees)"))
 def test_straight_cylinder_fibres_are_the_rigid_chord(tmp_path):
     res, m, q, p0, p1q, d, r_closed = _straight(tmp_path)
     # 0.1 %: a straight fibre of the re-straightened cylinder is its chord

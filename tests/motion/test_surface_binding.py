@@ -110,6 +110,33 @@ def test_smooth_in_the_joint_angle():
     assert second < 1e-3 * first, (second, first)
 
 
+def test_free_vertices_follow_the_belly_not_the_rigid_zones(pin_cylinder):
+    """A rider (face-less extra vertex marked free) has no rigid zone: a copy of a vertex deep in
+    the insertion's rigid zone moves on the straight line's belly formula instead,
+    c(s) + k (x N + y B) with N, B the line's frame turned with the line, not with the body."""
+    binding, result, line = pin_cylinder
+    verts, faces = capped_cylinder()
+    near_end = np.array([[LENGTH - 0.002, 0.01, 0.0], [0.1, 0.0, 0.015]])   # 2 mm from the insertion cap; mid-belly
+    both = np.vstack([verts, near_end])
+    origin, insertion = np.zeros(3), np.array([LENGTH, 0.0, 0.0])
+    free = bind_surface(both, faces, [np.array([origin, insertion])], np.eye(4), np.eye(4), origin[None],
+                        insertion[None], free_vertices=[len(verts), len(verts) + 1])
+    assert free.weight_insertion[len(verts)] == 0.0 and free.weight_belly[len(verts)] == 1.0
+    theta = np.deg2rad(np.linspace(-30, 90, 25))
+    out = free.deform([line], np.tile(np.eye(4), (25, 1, 1)), pin_about([0.12, 0.03, 0.0], theta))
+    # the surface itself is unchanged by the riders (faces do not use them)
+    np.testing.assert_allclose(out.vertices[:, :len(verts)], result.vertices, atol=1e-12)
+    # closed form for a straight line: arc fraction t = x / LENGTH, frame turned by the line's angle
+    u = line[:, 1] - line[:, 0]
+    phi = np.arctan2(u[:, 1], u[:, 0])
+    k = result.radial_scale
+    for p, got in zip(near_end, out.vertices[:, len(verts):].transpose(1, 0, 2)):
+        t = p[0] / LENGTH
+        n = np.stack([-np.sin(phi), np.cos(phi), np.zeros_like(phi)], axis=1)
+        expect = line[:, 0] + t * u + k[:, None] * (p[1] * n + p[2] * np.array([0.0, 0.0, 1.0]))
+        np.testing.assert_allclose(got, expect, atol=1e-12)
+
+
 def test_volume_cubic_matches_direct_volume():
     rng = np.random.default_rng(0)
     verts, faces = capped_cylinder(n_around=16, n_rings=5)
@@ -281,3 +308,14 @@ def test_squeeze_numpy_fallback_matches_compiled_kernel(monkeypatch):
             plain = obstacle.squeezer(centres)(offsets)
         assert np.abs(compiled - offsets).max() > 1e-3        # something was squeezed
         np.testing.assert_allclose(plain, compiled, atol=1e-15)
+
+
+def test_riders_must_be_trailing_face_less_vertices():
+    from motion.surface_spec import MuscleSurfaceSpec
+
+    verts, faces = capped_cylinder()
+    both = np.vstack([verts, np.zeros((3, 3))])
+    assert MuscleSurfaceSpec("m", ("line",), vertices=both, faces=faces, riders=3).riders == 3
+    for bad in (4, -1, len(both) + 1):        # 4: the last surface vertex is used by a face
+        with pytest.raises(ValueError, match="riders"):
+            MuscleSurfaceSpec("m", ("line",), vertices=both, faces=faces, riders=bad)
