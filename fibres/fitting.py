@@ -78,8 +78,10 @@ def _as_set(points, name):
     return pts
 
 
-def _covariance_axis(vertices, centroid):
-    d = vertices - centroid
+def _covariance_axis(vertices, centroid, d=None):
+    """Eigenvector of the largest eigenvalue of the vertex covariance (Kohout 2012 eq. 1-2);
+    ``d`` is ``vertices - centroid`` when at hand."""
+    d = _centred(vertices, centroid) if d is None else d
     cov = d.T @ d / max(len(d) - 1, 1)  # Kohout 2012 eq. 1-2
     evals, evecs = np.linalg.eigh(cov)
     return evecs[:, -1]
@@ -114,15 +116,22 @@ def _boxes(vertices, c, u, v0, w0, theta):
     Returns axes (J, 3, 3) (columns x, y, z), corner (J, 3), extents (J, 3)."""
     xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
     ys = np.cross(u, xs)                                              # (J, 3)
-    d = vertices - c
+    d = _centred(vertices, c)
     a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
     keep = _support_candidates(a, b)
     a, b = a[keep], b[keep]
-    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V')
-    py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V')
     n_rot = len(theta)
-    lo = np.stack([px.min(axis=1), py.min(axis=1), np.full(n_rot, z.min())], axis=1)
-    ext = np.stack([px.max(axis=1), py.max(axis=1), np.full(n_rot, z.max())], axis=1) - lo
+    kernels = _fit_kernels()
+    if kernels is not None:
+        xy = np.empty((n_rot, 4))                     # min px, max px, min py, max py
+        kernels[1](a, b, np.cos(theta), np.sin(theta), xy)
+        x_lo, x_hi, y_lo, y_hi = xy.T
+    else:
+        px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V')
+        py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V')
+        x_lo, x_hi, y_lo, y_hi = px.min(axis=1), px.max(axis=1), py.min(axis=1), py.max(axis=1)
+    lo = np.stack([x_lo, y_lo, np.full(n_rot, z.min())], axis=1)
+    ext = np.stack([x_hi, y_hi, np.full(n_rot, z.max())], axis=1) - lo
     axes = np.stack([xs, ys, np.broadcast_to(u, xs.shape)], axis=2)
     corner = c + np.einsum("jkl,jl->jk", axes, lo)
     return axes, corner, ext
@@ -151,18 +160,22 @@ def _support_candidates(a, b):
     -------
     (V',) int64, increasing
     """
-    kernels = _screen_kernels()
+    kernels = _fit_kernels()
+    if kernels is not None:
+        dirs = np.array(_SCREEN_DIRECTIONS, dtype=np.int64)
+        phi = [2.0 * np.pi * np.arange(n) / n for n in _SCREEN_DIRECTIONS]
+        return kernels[0](np.ascontiguousarray(a, dtype=np.float64),
+                          np.ascontiguousarray(b, dtype=np.float64), dirs,
+                          np.concatenate([np.cos(p) for p in phi]),
+                          np.concatenate([np.sin(p) for p in phi]))
     idx = np.arange(a.size)
     for n_dir in _SCREEN_DIRECTIONS:
         if idx.size <= 4 * n_dir:
             break
         phi = 2.0 * np.pi * np.arange(n_dir) / n_dir
         pa, pb = a[idx], b[idx]
-        if kernels is None:                                 # pragma: no cover - optional
-            proj = np.cos(phi)[:, None] * pa + np.sin(phi)[:, None] * pb  # (n_dir, n)
-            ext = np.argmax(proj, axis=1)           # counter-clockwise around the hull
-        else:
-            ext = kernels[0](pa, pb, np.cos(phi), np.sin(phi))
+        proj = np.cos(phi)[:, None] * pa + np.sin(phi)[:, None] * pb  # (n_dir, n)
+        ext = np.argmax(proj, axis=1)               # counter-clockwise around the hull
         ext = ext[np.append(ext[1:] != ext[:-1], ext[-1] != ext[0])]     # distinct corners
         if np.unique(ext).size < 3:
             break
@@ -170,61 +183,143 @@ def _support_candidates(a, b):
         ea, eb = np.roll(qa, -1) - qa, np.roll(qb, -1) - qb               # polygon edges
         spread = max(float(np.ptp(pa)), float(np.ptp(pb)))
         margin = 1e-9 * spread * np.hypot(ea, eb)                          # distance * |edge|
-        if kernels is None:                                 # pragma: no cover - optional
-            inside = np.ones(idx.size, dtype=bool)
-            for k in range(ext.size):
-                inside &= ea[k] * (pb - qb[k]) - eb[k] * (pa - qa[k]) > margin[k]
-        else:
-            inside = kernels[1](pa, pb, qa, qb, ea, eb, margin)
+        inside = np.ones(idx.size, dtype=bool)
+        for k in range(ext.size):  # polygon edges (at most 128)
+            inside &= ea[k] * (pb - qb[k]) - eb[k] * (pa - qa[k]) > margin[k]
         idx = idx[~inside]
     return idx
 
 
-_SCREEN = []
+_FIT = []
 
 
-def _screen_kernels():
-    """(argmax per direction, inside-all-edges) compiled with numba, or None."""
-    if not _SCREEN:
+def _fit_kernels():
+    """(support screen, box extents, nearest landmark distances, centring, row sums)
+    compiled with numba, or None (then numpy)."""
+    if not _FIT:
         try:
             import numba
         except ImportError:                                     # pragma: no cover - optional
-            _SCREEN.append(None)
+            _FIT.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True)
-            _SCREEN.append((jit(_extremes_loop), jit(_inside_loop)))
-    return _SCREEN[0]
+            _FIT.append((jit(_screen_loop), jit(_extents_loop), jit(_nearest_loop),
+                         jit(_centred_loop), jit(_row_sum_loop)))
+    return _FIT[0]
 
 
-def _extremes_loop(a, b, c, s):  # pragma: no cover - compiled by numba
-    """First index of the maximum of ``c[k] a + s[k] b`` for every direction k."""
-    n_dir = c.size
-    best = np.full(n_dir, -np.inf)
-    arg = np.zeros(n_dir, dtype=np.int64)
-    for i in range(a.size):
+def _screen_loop(a, b, dirs, cos_all, sin_all):  # pragma: no cover - compiled by numba
+    """`_support_candidates` in one call: the array version's polygons, margins and tests
+    (hence its indices), directions ``cos_all``, ``sin_all`` of all passes back to back;
+    each pass gathers its points contiguously and tests them edge by edge (vectorised)."""
+    idx = np.arange(a.size)
+    off = 0
+    for n_dir in dirs:
+        c = cos_all[off:off + n_dir]
+        s = sin_all[off:off + n_dir]
+        off += n_dir
+        m = idx.size
+        if m <= 4 * n_dir:
+            break
+        pa = np.empty(m)
+        pb = np.empty(m)
+        for i in range(m):
+            pa[i] = a[idx[i]]
+            pb[i] = b[idx[i]]
+        best = np.full(n_dir, -np.inf)
+        arg = np.zeros(n_dir, dtype=np.int64)
+        for i in range(m):
+            for k in range(n_dir):
+                p = c[k] * pa[i] + s[k] * pb[i]
+                if p > best[k]:         # first maximum, as argmax (values are finite)
+                    best[k] = p
+                    arg[k] = i
+        q = np.empty(n_dir, dtype=np.int64)
+        nq = 0
         for k in range(n_dir):
-            p = c[k] * a[i] + s[k] * b[i]
-            if p > best[k]:
-                best[k] = p
-                arg[k] = i
-    return arg
+            if arg[k] != arg[k + 1 if k + 1 < n_dir else 0]:
+                q[nq] = arg[k]
+                nq += 1
+        if nq == 0 or np.unique(q[:nq]).size < 3:
+            break
+        spread = max(pa.max() - pa.min(), pb.max() - pb.min())
+        inside = np.ones(m, dtype=np.bool_)
+        for k in range(nq):
+            kn = k + 1 if k + 1 < nq else 0
+            qa, qb = pa[q[k]], pb[q[k]]
+            ea, eb = pa[q[kn]] - qa, pb[q[kn]] - qb
+            margin = 1e-9 * spread * np.hypot(ea, eb)
+            for i in range(m):
+                inside[i] &= ea * (pb[i] - qb) - eb * (pa[i] - qa) > margin
+        keep = np.empty(m, dtype=np.int64)
+        n_keep = 0
+        for i in range(m):
+            keep[n_keep] = idx[i]
+            n_keep += not inside[i]
+        idx = keep[:n_keep]
+    return idx
 
 
-def _inside_loop(a, b, qa, qb, ea, eb, margin):  # pragma: no cover - compiled by numba
-    """Whether each point lies farther than ``margin / |edge|`` inside every edge."""
-    out = np.empty(a.size, dtype=np.bool_)
-    for i in range(a.size):
-        inside = True
-        for k in range(qa.size):
-            if not ea[k] * (b[i] - qb[k]) - eb[k] * (a[i] - qa[k]) > margin[k]:
-                inside = False
-                break
-        out[i] = inside
+def _extents_loop(a, b, ct, st, out):  # pragma: no cover - compiled by numba
+    """Per rotation j: min and max of ``px = ct a + st b`` and ``py = (-st) a + ct b`` into
+    ``out`` (J, 4), with the array version's products and sums (the same bits)."""
+    for j in range(ct.size):
+        c, s = ct[j], st[j]
+        ns = -s
+        x_lo = x_hi = c * a[0] + s * b[0]
+        y_lo = y_hi = ns * a[0] + c * b[0]
+        for i in range(1, a.size):
+            px = c * a[i] + s * b[i]
+            py = ns * a[i] + c * b[i]
+            x_lo = min(x_lo, px)
+            x_hi = max(x_hi, px)
+            y_lo = min(y_lo, py)
+            y_hi = max(y_hi, py)
+        out[j, 0] = x_lo
+        out[j, 1] = x_hi
+        out[j, 2] = y_lo
+        out[j, 3] = y_hi
+
+
+def _nearest_loop(area, landmarks, out):  # pragma: no cover - compiled by numba
+    """``out[j, k]``: distance from area point (j, k) (J, Ka, 3) to its closest landmark
+    (K, 3), with the operations of the array version (``(dx dx + dy dy) + dz dz``)."""
+    for j in range(area.shape[0]):
+        for k in range(area.shape[1]):
+            best = np.inf
+            for m in range(landmarks.shape[0]):
+                dx = area[j, k, 0] - landmarks[m, 0]
+                dy = area[j, k, 1] - landmarks[m, 1]
+                dz = area[j, k, 2] - landmarks[m, 2]
+                best = min(best, np.sqrt(dx * dx + dy * dy + dz * dz))
+            out[j, k] = best
+
+
+def _centred_loop(v, c):  # pragma: no cover - compiled by numba
+    """``v - c`` for (V, 3) vertices (numpy broadcasts a 3-element inner loop, ~5x slower)."""
+    out = np.empty(v.shape)
+    for i in range(v.shape[0]):
+        out[i, 0] = v[i, 0] - c[0]
+        out[i, 1] = v[i, 1] - c[1]
+        out[i, 2] = v[i, 2] - c[2]
     return out
+
+
+def _centred(vertices, c):
+    """(V, 3) ``vertices - c``, bit for bit."""
+    kernels = _fit_kernels()
+    if kernels is None or not vertices.flags.c_contiguous:
+        return vertices - c
+    return kernels[3](vertices, np.ascontiguousarray(c, dtype=np.float64))
 
 
 def _closest_sum(area, landmarks):
     """Sum over area points of the distance to the closest landmark: area (J, Ka, 3)."""
+    kernels = _fit_kernels()
+    if kernels is not None:
+        near = np.empty(area.shape[:2])
+        kernels[2](np.ascontiguousarray(area), np.ascontiguousarray(landmarks), near)
+        return near.sum(axis=1)
     d2 = 0.0
     for c in range(3):      # component-wise: a reduction over the size-3 axis is slow
         dc = area[:, :, c, None] - landmarks[:, c]                      # (J, Ka, K)
@@ -333,24 +428,10 @@ def _mean_rows(vertices):
     array numpy adds the rows one after the other (a 3-element inner loop per row, ~10x
     slower than this compiled loop); other layouts go to numpy (whose summation order
     then differs)."""
-    kernel = _row_sum_kernel()
-    if kernel is None or vertices.shape[0] == 0 or not vertices.flags.c_contiguous:
+    kernels = _fit_kernels()
+    if kernels is None or vertices.shape[0] == 0 or not vertices.flags.c_contiguous:
         return vertices.mean(axis=0)        # (other layouts: numpy's own summation order)
-    return kernel(vertices) / vertices.shape[0]
-
-
-_ROW_SUM = []
-
-
-def _row_sum_kernel():
-    if not _ROW_SUM:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _ROW_SUM.append(None)
-        else:
-            _ROW_SUM.append(numba.njit(cache=True, nogil=True)(_row_sum_loop))
-    return _ROW_SUM[0]
+    return kernels[4](vertices) / vertices.shape[0]
 
 
 def _row_sum_loop(v):  # pragma: no cover - compiled by numba
@@ -388,9 +469,10 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
                              "insertion on the other).")
     method = axis
     if axis in ("covariance", "auto"):
-        cov_axis = _covariance_axis(vertices, centroid)
+        d = _centred(vertices, centroid)
+        cov_axis = _covariance_axis(vertices, centroid, d)
         if axis == "auto":
-            length = float(np.ptp((vertices - centroid) @ cov_axis))
+            length = float(np.ptp(d @ cov_axis))
             method = "covariance" if dist < AUTO_MIN_SEPARATION * length else "attachments"
     if method == "attachments":
         u = direction / dist

@@ -26,29 +26,138 @@ def _kernels():
         except ImportError:                                     # pragma: no cover - optional
             _KERNELS.append(None)
         else:
+            global _pair, _across_distance
             jit = numba.njit(cache=True, nogil=True)
-            _KERNELS.append((jit(_triangles_loop), jit(_full_faces_loop)))
+            _pair = jit(_pair_loop)
+            _across_distance = jit(_across_distance_loop)
+            _KERNELS.append((jit(_triangles_loop), jit(_full_faces_loop), jit(_bounds_loop)))
     return _KERNELS[0]
 
 
-def _triangles_loop(tv, centre, radius, start, dn, eps2):  # pragma: no cover - numba
+#: the compiled `_pair_loop` and `_across_distance_loop` (set by `_kernels`), called by
+#: `_triangles_loop`
+_pair = None
+_across_distance = None
+
+
+def _across_distance_loop(uv):  # pragma: no cover - compiled by numba
+    """Distance from the origin to the 2D triangle ``uv`` (3, 2) (either orientation; 0
+    inside): the distance from a line to a triangle, both seen along the line."""
+    o0 = uv[0, 0] * uv[1, 1] - uv[0, 1] * uv[1, 0]     # orientations of (o, a, b) etc.
+    o1 = uv[1, 0] * uv[2, 1] - uv[1, 1] * uv[2, 0]
+    o2 = uv[2, 0] * uv[0, 1] - uv[2, 1] * uv[0, 0]
+    if (o0 >= 0 and o1 >= 0 and o2 >= 0) or (o0 <= 0 and o1 <= 0 and o2 <= 0):
+        return 0.0
+    best = np.inf
+    for i in range(3):  # the three edges
+        j = i + 1 if i < 2 else 0
+        pu, pv = uv[i, 0], uv[i, 1]
+        eu, ev = uv[j, 0] - pu, uv[j, 1] - pv
+        ee = eu * eu + ev * ev
+        w = 0.0
+        if ee > 0:
+            w = min(max(-(pu * eu + pv * ev) / ee, 0.0), 1.0)
+        x, y = pu + w * eu, pv + w * ev
+        best = min(best, x * x + y * y)
+    return np.sqrt(best)
+
+
+def _pair_loop(k, s, d, tv, te1, te2, tnrm, tnn, tthr, tedge, tcc, bb3):  # pragma: no cover
+    """Squared distance and ray parameter (d2, t) of the closest pair between the ray
+    ``s + t d`` and triangle ``k``, its barycentric coordinates into ``bb3`` (3,): the
+    formulas of `_ray_triangle_pairs` for one pair, with the triangle's constants (edges,
+    normal, |n|^2, hit threshold, edge vectors and their squared lengths) precomputed."""
+    e1x, e1y, e1z = te1[k, 0], te1[k, 1], te1[k, 2]
+    e2x, e2y, e2z = te2[k, 0], te2[k, 1], te2[k, 2]
+    nx, ny, nz = tnrm[k, 0], tnrm[k, 1], tnrm[k, 2]
+    wx, wy, wz = s[0] - tv[k, 0, 0], s[1] - tv[k, 0, 1], s[2] - tv[k, 0, 2]
+    nn = tnn[k]
+    # hit (Moeller-Trumbore)
+    px, py, pz = d[1] * e2z - d[2] * e2y, d[2] * e2x - d[0] * e2z, d[0] * e2y - d[1] * e2x
+    det = e1x * px + e1y * py + e1z * pz
+    d2, t = np.inf, 0.0
+    if abs(det) > tthr[k]:
+        inv = 1.0 / det
+        u = (wx * px + wy * py + wz * pz) * inv
+        qx, qy, qz = wy * e1z - wz * e1y, wz * e1x - wx * e1z, wx * e1y - wy * e1x
+        v = (d[0] * qx + d[1] * qy + d[2] * qz) * inv
+        th = (e2x * qx + e2y * qy + e2z * qz) * inv
+        if u >= 0 and v >= 0 and u + v <= 1 and th >= 0:
+            d2, t = 0.0, th
+            bb3[0], bb3[1], bb3[2] = 1.0 - u - v, u, v
+    # ray start against the interior
+    if nn > 0:
+        cx, cy, cz = wy * e2z - wz * e2y, wz * e2x - wx * e2z, wx * e2y - wy * e2x
+        beta = (cx * nx + cy * ny + cz * nz) / nn
+        cx, cy, cz = e1y * wz - e1z * wy, e1z * wx - e1x * wz, e1x * wy - e1y * wx
+        gamma = (cx * nx + cy * ny + cz * nz) / nn
+        height = wx * nx + wy * ny + wz * nz
+        dp = height * height / nn
+        if beta >= 0 and gamma >= 0 and beta + gamma <= 1 and dp < d2:
+            d2, t = dp, 0.0
+            bb3[0], bb3[1], bb3[2] = 1.0 - beta - gamma, beta, gamma
+    # ray against the edges
+    for i in range(3):
+        j = (i + 1) % 3
+        ex, ey, ez = tedge[k, i, 0], tedge[k, i, 1], tedge[k, i, 2]
+        rx, ry, rz = s[0] - tv[k, i, 0], s[1] - tv[k, i, 1], s[2] - tv[k, i, 2]
+        bb = d[0] * ex + d[1] * ey + d[2] * ez
+        cc = tcc[k, i]
+        dd = d[0] * rx + d[1] * ry + d[2] * rz
+        ff = ex * rx + ey * ry + ez * rz
+        den = cc - bb * bb
+        wq = (ff - bb * dd) / den if den > 1e-12 * cc else 0.0
+        wq = min(max(wq, 0.0), 1.0)
+        te = wq * bb - dd
+        if te < 0:
+            te = 0.0
+            wq = min(max(ff / cc, 0.0), 1.0) if cc > 0 else 0.0
+        fx = rx + te * d[0] - wq * ex
+        fy = ry + te * d[1] - wq * ey
+        fz = rz + te * d[2] - wq * ez
+        de = fx * fx + fy * fy + fz * fz
+        if de < d2:
+            d2, t = de, te
+            bb3[0], bb3[1], bb3[2] = 0.0, 0.0, 0.0
+            bb3[i], bb3[j] = 1.0 - wq, wq
+    return d2, t
+
+
+def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled by numba
     """`closest_on_triangles` for triangles (T, 3, 3), starts (N, 3), unit directions
-    (N, 3): the formulas of `_ray_triangle_pairs`, one pair at a time, and the same
-    selection (first touching pair along the ray, else the nearest). A triangle whose
-    bounding sphere (centre (T, 3), radius (T,)) is farther from the ray than the best
-    distance so far (and than the touching tolerance) is skipped: it can neither touch
-    the ray nor be nearer."""
+    (N, 3): `_pair_loop` for the pairs that can matter, and the selection of the array
+    version (the first touching pair along the ray, else the nearest).
+
+    The selection is the lexicographic minimum of (t, rank) over the touching pairs, else of
+    (d2, rank), where rank orders the triangles as the plain loop visits them (the most
+    promising one first, then all in index order) -- so it does not depend on which pairs
+    are evaluated, as long as every pair that could win is. Two exact lower bounds of a
+    pair's distance skip the others (farther than the best pair so far and than the
+    touching tolerance, with a 1e-9 relative margin): the distance from the ray to the
+    triangle's bounding sphere (centre = corner mean, radius = farthest corner), and the
+    distance from the ray to the triangle's bounding box in a frame along the ray
+    (``sqrt(du^2 + dv^2 + max(0, -t_max)^2)``, less ``slack`` for the rounding of the
+    frame coordinates). The remaining triangles are evaluated in increasing order of the
+    box bound, until the next bound exceeds the best distance."""
     n_rays, n_tri = start.shape[0], tv.shape[0]
     index = np.zeros(n_rays, np.int64)
     bary = np.zeros((n_rays, 3))
-    s, d, w, e1, e2, nrm = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
-                            np.empty(3))
-    r, e, diff, bb3 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    s, d, bb3 = np.empty(3), np.empty(3), np.empty(3)
+    p1, p2 = np.empty(3), np.empty(3)
     lower = np.empty(n_tri)
+    cand_k = np.empty(n_tri, np.int64)
+    cand_lb = np.empty(n_tri)
+    uv = np.empty((3, 2))                                   # corners across the ray
+    cs = np.empty((3, 3, n_tri))                 # corner, coordinate, triangle
+    for k in range(n_tri):
+        for i in range(3):
+            for c in range(3):
+                cs[i, c, k] = tv[k, i, c]
     # per-triangle constants of the tests, computed once (the same operations as per pair)
     te1, te2, tnrm = np.empty((n_tri, 3)), np.empty((n_tri, 3)), np.empty((n_tri, 3))
     tnn, tthr = np.empty(n_tri), np.empty(n_tri)
     tedge, tcc = np.empty((n_tri, 3, 3)), np.empty((n_tri, 3))
+    ox, oy, oz, radius = np.empty(n_tri), np.empty(n_tri), np.empty(n_tri), np.empty(n_tri)
     for k in range(n_tri):
         for c in range(3):
             te1[k, c] = tv[k, 1, c] - tv[k, 0, c]
@@ -64,87 +173,95 @@ def _triangles_loop(tv, centre, radius, start, dn, eps2):  # pragma: no cover - 
                 tedge[k, i, c] = tv[k, j, c] - tv[k, i, c]
             tcc[k, i] = (tedge[k, i, 0] * tedge[k, i, 0] + tedge[k, i, 1] * tedge[k, i, 1]
                          + tedge[k, i, 2] * tedge[k, i, 2])
+        # bounding sphere (numpy's mean over the corners and norm over x, y, z)
+        ox[k] = (tv[k, 0, 0] + tv[k, 1, 0] + tv[k, 2, 0]) / 3.0
+        oy[k] = (tv[k, 0, 1] + tv[k, 1, 1] + tv[k, 2, 1]) / 3.0
+        oz[k] = (tv[k, 0, 2] + tv[k, 1, 2] + tv[k, 2, 2]) / 3.0
+        far = 0.0
+        for i in range(3):
+            qx, qy, qz = tv[k, i, 0] - ox[k], tv[k, i, 1] - oy[k], tv[k, i, 2] - oz[k]
+            far = max(far, np.sqrt(qx * qx + qy * qy + qz * qz))
+        radius[k] = far * (1 + 1e-12)
     for n in range(n_rays):
         for c in range(3):
             s[c], d[c] = start[n, c], dn[n, c]
-        best_touch, best_d2 = np.inf, np.inf
-        k_touch, k_near = -1, 0
-        b_touch, b_near = np.zeros(3), np.zeros(3)
+        s0, s1, s2, d0, d1, d2_ = s[0], s[1], s[2], d[0], d[1], d[2]
         for k in range(n_tri):  # lower bounds: the sphere's distance from the ray
-            rx, ry, rz = centre[k, 0] - s[0], centre[k, 1] - s[1], centre[k, 2] - s[2]
-            ta = max(rx * d[0] + ry * d[1] + rz * d[2], 0.0)
-            rx, ry, rz = rx - ta * d[0], ry - ta * d[1], rz - ta * d[2]
+            rx, ry, rz = ox[k] - s0, oy[k] - s1, oz[k] - s2
+            ta = max(rx * d0 + ry * d1 + rz * d2_, 0.0)
+            rx, ry, rz = rx - ta * d0, ry - ta * d1, rz - ta * d2_
             lower[k] = np.sqrt(rx * rx + ry * ry + rz * rz) - radius[k]
         k0 = np.argmin(lower)
-        for m in range(n_tri + 1):  # the most promising triangle first, then all in order
-            k = k0 if m == 0 else m - 1
-            if m > 0 and k == k0:
-                continue
+        # (p1, p2, d): an orthonormal frame along the ray
+        ax = 0 if abs(d0) <= abs(d1) and abs(d0) <= abs(d2_) else (
+            1 if abs(d1) <= abs(d2_) else 2)
+        for c in range(3):
+            p1[c] = -d[ax] * d[c]
+        p1[ax] += 1.0
+        norm = np.sqrt(p1[0] * p1[0] + p1[1] * p1[1] + p1[2] * p1[2])
+        for c in range(3):
+            p1[c] /= norm
+        p2[0] = d1 * p1[2] - d2_ * p1[1]
+        p2[1] = d2_ * p1[0] - d0 * p1[2]
+        p2[2] = d0 * p1[1] - d1 * p1[0]
+        # the most promising triangle first (rank -1)
+        d2, t = _pair(k0, s, d, tv, te1, te2, tnrm, tnn, tthr, tedge, tcc, bb3)
+        best_d2, k_near, r_near = d2, k0, -1
+        b_near = bb3.copy()
+        best_touch, k_touch, r_touch = np.inf, -1, n_tri
+        b_touch = np.zeros(3)
+        if d2 <= eps2:
+            best_touch, k_touch, r_touch = t, k0, -1
+            b_touch[:] = bb3
+        # candidates: the triangles neither bound rules out (rank = index)
+        thr = max(best_d2, eps2) * (1.0 + 1e-9)
+        n_c = 0
+        for k in range(n_tri):
             lb = lower[k]
+            if k == k0 or (lb > 0 and lb * lb > thr):
+                continue
+            u_lo, u_hi, v_lo, v_hi, t_hi = np.inf, -np.inf, np.inf, -np.inf, -np.inf
+            for i in range(3):
+                qx, qy, qz = cs[i, 0, k] - s0, cs[i, 1, k] - s1, cs[i, 2, k] - s2
+                pu = qx * p1[0] + qy * p1[1] + qz * p1[2]
+                pv = qx * p2[0] + qy * p2[1] + qz * p2[2]
+                u_lo, u_hi = min(u_lo, pu), max(u_hi, pu)
+                v_lo, v_hi = min(v_lo, pv), max(v_hi, pv)
+                t_hi = max(t_hi, qx * d0 + qy * d1 + qz * d2_)
+            gu = max(max(u_lo, -u_hi), 0.0)
+            gv = max(max(v_lo, -v_hi), 0.0)
+            gt = max(-t_hi, 0.0)
+            box = np.sqrt(gu * gu + gv * gv + gt * gt) - slack[n]
+            if box > 0 and box * box > thr:
+                continue
+            cand_k[n_c] = k
+            cand_lb[n_c] = box * box if box > 0 else 0.0
+            n_c += 1
+        # evaluate by increasing box bound while it can beat the best
+        while n_c > 0:
+            m = 0
+            for c in range(1, n_c):
+                if cand_lb[c] < cand_lb[m]:
+                    m = c
+            k = cand_k[m]
+            if cand_lb[m] > max(best_d2, eps2) * (1.0 + 1e-9):
+                break
+            n_c -= 1
+            cand_k[m], cand_lb[m] = cand_k[n_c], cand_lb[n_c]
+            # the line's distance to the triangle: the origin's to the corners across it
+            for i in range(3):
+                qx, qy, qz = cs[i, 0, k] - s0, cs[i, 1, k] - s1, cs[i, 2, k] - s2
+                uv[i, 0] = qx * p1[0] + qy * p1[1] + qz * p1[2]
+                uv[i, 1] = qx * p2[0] + qy * p2[1] + qz * p2[2]
+            lb = _across_distance(uv) - slack[n]
             if lb > 0 and lb * lb > max(best_d2, eps2) * (1.0 + 1e-9):
                 continue
-            for c in range(3):
-                e1[c], e2[c], nrm[c] = te1[k, c], te2[k, c], tnrm[k, c]
-                w[c] = s[c] - tv[k, 0, c]
-            nn = tnn[k]
-            # hit (Moeller-Trumbore)
-            px, py, pz = d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], \
-                d[0] * e2[1] - d[1] * e2[0]
-            det = e1[0] * px + e1[1] * py + e1[2] * pz
-            d2, t = np.inf, 0.0
-            if abs(det) > tthr[k]:
-                inv = 1.0 / det
-                u = (w[0] * px + w[1] * py + w[2] * pz) * inv
-                qx, qy, qz = w[1] * e1[2] - w[2] * e1[1], w[2] * e1[0] - w[0] * e1[2], \
-                    w[0] * e1[1] - w[1] * e1[0]
-                v = (d[0] * qx + d[1] * qy + d[2] * qz) * inv
-                th = (e2[0] * qx + e2[1] * qy + e2[2] * qz) * inv
-                if u >= 0 and v >= 0 and u + v <= 1 and th >= 0:
-                    d2, t = 0.0, th
-                    bb3[0], bb3[1], bb3[2] = 1.0 - u - v, u, v
-            # ray start against the interior
-            if nn > 0:
-                cx, cy, cz = w[1] * e2[2] - w[2] * e2[1], w[2] * e2[0] - w[0] * e2[2], \
-                    w[0] * e2[1] - w[1] * e2[0]
-                beta = (cx * nrm[0] + cy * nrm[1] + cz * nrm[2]) / nn
-                cx, cy, cz = e1[1] * w[2] - e1[2] * w[1], e1[2] * w[0] - e1[0] * w[2], \
-                    e1[0] * w[1] - e1[1] * w[0]
-                gamma = (cx * nrm[0] + cy * nrm[1] + cz * nrm[2]) / nn
-                height = w[0] * nrm[0] + w[1] * nrm[1] + w[2] * nrm[2]
-                dp = height * height / nn
-                if beta >= 0 and gamma >= 0 and beta + gamma <= 1 and dp < d2:
-                    d2, t = dp, 0.0
-                    bb3[0], bb3[1], bb3[2] = 1.0 - beta - gamma, beta, gamma
-            # ray against the edges
-            for i in range(3):
-                j = (i + 1) % 3
-                for c in range(3):
-                    e[c] = tedge[k, i, c]
-                    r[c] = s[c] - tv[k, i, c]
-                bb = d[0] * e[0] + d[1] * e[1] + d[2] * e[2]
-                cc = tcc[k, i]
-                dd = d[0] * r[0] + d[1] * r[1] + d[2] * r[2]
-                ff = e[0] * r[0] + e[1] * r[1] + e[2] * r[2]
-                den = cc - bb * bb
-                wq = (ff - bb * dd) / den if den > 1e-12 * cc else 0.0
-                wq = min(max(wq, 0.0), 1.0)
-                te = wq * bb - dd
-                if te < 0:
-                    te = 0.0
-                    wq = min(max(ff / cc, 0.0), 1.0) if cc > 0 else 0.0
-                de = 0.0
-                for c in range(3):
-                    diff[c] = r[c] + te * d[c] - wq * e[c]
-                    de += diff[c] * diff[c]
-                if de < d2:
-                    d2, t = de, te
-                    bb3[0], bb3[1], bb3[2] = 0.0, 0.0, 0.0
-                    bb3[i], bb3[j] = 1.0 - wq, wq
-            if d2 <= eps2 and t < best_touch:
-                best_touch, k_touch = t, k
+            d2, t = _pair(k, s, d, tv, te1, te2, tnrm, tnn, tthr, tedge, tcc, bb3)
+            if d2 <= eps2 and (t < best_touch or (t == best_touch and k < r_touch)):
+                best_touch, k_touch, r_touch = t, k, k
                 b_touch[:] = bb3
-            if d2 < best_d2:
-                best_d2, k_near = d2, k
+            if d2 < best_d2 or (d2 == best_d2 and k < r_near):
+                best_d2, k_near, r_near = d2, k, k
                 b_near[:] = bb3
         if k_touch >= 0:
             index[n] = k_touch
@@ -153,6 +270,18 @@ def _triangles_loop(tv, centre, radius, start, dn, eps2):  # pragma: no cover - 
             index[n] = k_near
             bary[n] = b_near
     return index, bary
+
+
+def _bounds_loop(tv):  # pragma: no cover - compiled by numba
+    """Per-coordinate minimum and maximum (3,) of the corners of (T, 3, 3) triangles."""
+    lo = tv[0, 0].copy()
+    hi = tv[0, 0].copy()
+    for k in range(tv.shape[0]):
+        for i in range(3):
+            for c in range(3):
+                lo[c] = min(lo[c], tv[k, i, c])
+                hi[c] = max(hi[c], tv[k, i, c])
+    return lo, hi
 
 
 def _full_faces_loop(faces, inside):  # pragma: no cover - compiled by numba
@@ -303,14 +432,16 @@ def closest_on_triangles(tv, start, direction, *, chunk: int = 1 << 16):
     if n == 0 or len(tv) == 0:
         return index, bary
     flat = tv.reshape(-1, 3)
-    eps2 = (1e-12 * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))) ** 2
     kernels = _kernels()
     if kernels is not None:
-        centre = tv.mean(axis=1)
-        radius = np.linalg.norm(tv - centre[:, None], axis=2).max(axis=1) * (1 + 1e-12)
-        return kernels[0](np.ascontiguousarray(tv), centre, radius,
-                          np.ascontiguousarray(start, dtype=float),
-                          np.ascontiguousarray(dn, dtype=float), eps2)
+        tv = np.ascontiguousarray(tv)
+        lo, hi = kernels[2](tv)                       # flat.min(axis=0), flat.max(axis=0)
+        eps2 = (1e-12 * float(np.linalg.norm(hi - lo))) ** 2
+        start = np.ascontiguousarray(start, dtype=float)
+        # rounding bound of the ray-frame coordinates: 1e-14 of the coordinates' size
+        slack = 1e-14 * (np.abs(start).max(axis=1) + max(np.abs(lo).max(), np.abs(hi).max()))
+        return kernels[0](tv, start, np.ascontiguousarray(dn, dtype=float), eps2, slack)
+    eps2 = (1e-12 * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))) ** 2
     step = max(1, chunk // len(tv))
     for lo in range(0, n, step):  # blocks of fibres, not single fibres
         sl = slice(lo, lo + step)

@@ -84,11 +84,9 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
     f = np.ascontiguousarray(faces, dtype=np.int64)
     if f.ndim != 2 or f.shape[1] != 3:
         raise ValueError(f"faces must have shape (T, 3), got {f.shape}")
-    kernels = _topology_kernels()
-    if kernels is not None and f.size:
-        key = kernels[0](f, np.int64(n_vertices))
-        order = np.argsort(key, kind="stable")
-        out = kernels[1](f, key, order)
+    kernel = _topology_kernel()
+    if kernel is not None and f.size:
+        out = kernel(f, np.int64(n_vertices))
         if out[0]:                                          # every edge exactly twice
             return MeshTopology(f, out[1], out[2], out[3], int(n_vertices), bool(out[4]))
     a = f.reshape(-1)
@@ -142,56 +140,91 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
 _TOPOLOGY = []
 
 
-def _topology_kernels():
-    """(half-edge keys, paired tables) of `mesh_topology` compiled with numba, or None."""
+def _topology_kernel():
+    """`_topology_loop` compiled with numba, or None (then the array version)."""
     if not _TOPOLOGY:
         try:
             import numba
         except ImportError:                                 # pragma: no cover - optional
             _TOPOLOGY.append(None)
         else:
-            jit = numba.njit(cache=True, nogil=True)
-            _TOPOLOGY.append((jit(_keys_loop), jit(_paired_loop)))
+            _TOPOLOGY.append(numba.njit(cache=True, nogil=True)(_topology_loop))
     return _TOPOLOGY[0]
 
 
-def _keys_loop(f, n_vertices):  # pragma: no cover - compiled by numba
-    """Key ``min * n_vertices + max`` of half-edge ``3 t + j`` (``f[t, j] -> f[t, j+1]``)."""
-    key = np.empty(f.size, dtype=np.int64)
-    for t in range(f.shape[0]):
-        for j in range(3):
-            a = f[t, j]
-            b = f[t, (j + 1) % 3]
-            key[3 * t + j] = min(a, b) * n_vertices + max(a, b)
-    return key
+def _topology_loop(f, n_vertices):  # pragma: no cover - compiled by numba
+    """`mesh_topology` of a mesh whose edges are each shared by exactly two faces, in
+    O(T + V): the half-edges are bucketed by their smaller vertex (a counting sort in
+    half-edge order) and each bucket (a vertex's few edges) is insertion-sorted by the
+    larger vertex. Both sorts are stable, so the order is that of a stable argsort of the
+    keys ``min * V + max`` and edge ``e`` is the pair of sorted positions ``2e, 2e+1``,
+    exactly as in the array version. The sorted half-edges carry their larger vertex and
+    ``2 h + (runs min -> max)``, so that the pairing reads them in order.
 
-
-def _paired_loop(f, key, order):  # pragma: no cover - compiled by numba
-    """`_paired_topology` from the stably sorted half-edges, after checking that the keys
-    come in pairs (else ``ok`` is False and nothing else is meaningful)."""
-    n = key.size
+    Returns (ok, edges, face_edges, neighbours, oriented); ``ok`` is False (and nothing
+    else meaningful) when a vertex index is out of range or an edge is not used exactly
+    twice."""
+    n_t = f.shape[0]
+    n = 3 * n_t
     n_e = n // 2
     edges = np.empty((n_e, 2), dtype=np.int64)
-    face_edges = np.empty((f.shape[0], 3), dtype=np.int64)
-    neighbours = np.empty((f.shape[0], 3), dtype=np.int64)
+    face_edges = np.empty((n_t, 3), dtype=np.int64)
+    neighbours = np.empty((n_t, 3), dtype=np.int64)
     if n % 2:
         return False, edges, face_edges, neighbours, False
-    oriented = True
-    for e in range(n_e):
-        h0 = order[2 * e]
-        h1 = order[2 * e + 1]
-        if key[h0] != key[h1] or (e > 0 and key[h0] == key[order[2 * e - 1]]):
+    start = np.zeros(n_vertices + 1, dtype=np.int64)
+    for t in range(n_t):
+        a0, a1, a2 = f[t, 0], f[t, 1], f[t, 2]
+        if min(a0, min(a1, a2)) < 0 or max(a0, max(a1, a2)) >= n_vertices:
             return False, edges, face_edges, neighbours, False
-        a0 = f[h0 // 3, h0 % 3]
-        b0 = f[h0 // 3, (h0 % 3 + 1) % 3]
-        a1 = f[h1 // 3, h1 % 3]
-        edges[e, 0] = min(a0, b0)
-        edges[e, 1] = max(a0, b0)
-        face_edges[h0 // 3, h0 % 3] = e
-        face_edges[h1 // 3, h1 % 3] = e
-        neighbours[h0 // 3, h0 % 3] = h1 // 3
-        neighbours[h1 // 3, h1 % 3] = h0 // 3
-        if a0 != f[h1 // 3, (h1 % 3 + 1) % 3] or a1 != b0:
+        start[min(a0, a1) + 1] += 1
+        start[min(a1, a2) + 1] += 1
+        start[min(a2, a0) + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+    fill = start[:n_vertices].copy()
+    s_hi = np.empty(n, dtype=np.int64)
+    s_h = np.empty(n, dtype=np.int64)
+    for t in range(n_t):
+        for j in range(3):
+            a = f[t, j]
+            b = f[t, j + 1] if j < 2 else f[t, 0]
+            lo = min(a, b)
+            p = fill[lo]
+            fill[lo] = p + 1
+            s_hi[p] = max(a, b)
+            s_h[p] = 2 * (3 * t + j) + (a < b)
+    for v in range(n_vertices):
+        for i in range(start[v] + 1, start[v + 1]):
+            k = s_hi[i]
+            x = s_h[i]
+            m = i - 1
+            while m >= start[v] and s_hi[m] > k:
+                s_hi[m + 1] = s_hi[m]
+                s_h[m + 1] = s_h[m]
+                m -= 1
+            s_hi[m + 1] = k
+            s_h[m + 1] = x
+    fe = face_edges.ravel()
+    nb = neighbours.ravel()
+    oriented = True
+    v = 0
+    for e in range(n_e):
+        p = 2 * e
+        while start[v + 1] <= p:
+            v += 1
+        if start[v + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
+                p > start[v] and s_hi[p - 1] == s_hi[p]):
+            return False, edges, face_edges, neighbours, False
+        h0 = s_h[p] >> 1
+        h1 = s_h[p + 1] >> 1
+        edges[e, 0] = v
+        edges[e, 1] = s_hi[p]
+        fe[h0] = e
+        fe[h1] = e
+        nb[h0] = h1 // 3
+        nb[h1] = h0 // 3
+        if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != v:   # not one each way
             oriented = False
     return True, edges, face_edges, neighbours, oriented
 

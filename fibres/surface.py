@@ -436,23 +436,28 @@ def _pieces_kernel():
 
 
 def _pieces_loop(nb):  # pragma: no cover - compiled by numba
-    """Union-find (path halving) over the face adjacency; returns the number of roots."""
+    """Flood fill (depth first, an explicit stack) over the face adjacency; returns the
+    number of pieces. Every face is pushed once, so the stack never exceeds T."""
     n = nb.shape[0]
-    parent = np.arange(n)
-    pieces = n
-    for t in range(n):
-        for j in range(3):
-            x = t
-            while parent[x] != x:
-                parent[x] = parent[parent[x]]
-                x = parent[x]
-            y = nb[t, j]
-            while parent[y] != y:
-                parent[y] = parent[parent[y]]
-                y = parent[y]
-            if x != y:
-                parent[max(x, y)] = min(x, y)
-                pieces -= 1
+    seen = np.zeros(n, dtype=np.bool_)
+    stack = np.empty(n, dtype=np.int64)
+    pieces = 0
+    for s in range(n):
+        if seen[s]:
+            continue
+        pieces += 1
+        seen[s] = True
+        stack[0] = s
+        top = 1
+        while top > 0:
+            top -= 1
+            t = stack[top]
+            for j in range(3):
+                u = nb[t, j]
+                if not seen[u]:
+                    seen[u] = True
+                    stack[top] = u
+                    top += 1
     return pieces
 
 

@@ -207,3 +207,30 @@ def test_bridge_loops_is_continuous_through_a_pinch_and_an_island():
     p1 = bridge_loops(a, _no_material(40), b, _no_material(40))[0]
     p2 = bridge_loops(a, _no_material(40), b2, _no_material(40))[0]
     assert np.abs(p1 - p2).max() <= 1e-5
+
+
+def test_compiled_topology_equals_the_array_version_on_shuffled_and_open_meshes(monkeypatch):
+    # vertex labels shuffled (edges sorted by their smaller vertex far from face order) and
+    # faces shuffled: the counting-sort kernel must give the array version's tables; an open
+    # mesh (a face removed) goes to the array version's refusal
+    pytest.importorskip("numba")
+    from fibres import slicing
+
+    rng = np.random.default_rng(7)
+    m = trimesh.creation.icosphere(subdivisions=3)
+    relabel = rng.permutation(len(m.vertices))
+    faces = relabel[np.asarray(m.faces)][rng.permutation(len(m.faces))]
+    faces = np.roll(faces, 1, axis=1)                      # same triangles, other first corner
+    got = mesh_topology(faces, len(m.vertices))
+    with monkeypatch.context() as mp:
+        mp.setattr(slicing, "_TOPOLOGY", [None])
+        ref = mesh_topology(faces, len(m.vertices))
+    for name in ("edges", "face_edges", "neighbours"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
+    assert got.oriented and ref.oriented
+    # every edge once in each direction: the neighbour across edge j of face t sees t back
+    t = np.arange(len(faces))[:, None]
+    back = got.face_edges[got.neighbours] == got.face_edges[:, :, None]
+    assert (got.neighbours[got.neighbours, np.argmax(back, axis=2)] == t).all()
+    with pytest.raises(ValueError, match="exactly two faces"):
+        mesh_topology(faces[1:], len(m.vertices))

@@ -265,3 +265,54 @@ def test_pieces_touching_at_one_vertex_are_not_clean():
     assert clean_topology(v, f) is None
     _, ref_f, repairs = _repair(v, f, None)
     assert len(ref_f) == 4 and any("stray piece" in r for r in repairs)
+
+
+@pytest.mark.parametrize("n_pieces", [1, 2, 5])
+def test_compiled_pieces_count_equals_scipy(n_pieces, monkeypatch):
+    # the compiled flood fill counts the same edge-connected pieces as scipy's connected
+    # components (the fallback), with the pieces' faces interleaved in the face list
+    pytest.importorskip("numba")
+    import fibres.surface as fs
+    from fibres.slicing import mesh_topology
+
+    m = trimesh.creation.icosphere(subdivisions=2)
+    v0, f0 = np.asarray(m.vertices), np.asarray(m.faces)
+    v = np.vstack([v0 + [3.0 * p, 0, 0] for p in range(n_pieces)])
+    f = np.vstack([f0 + p * len(v0) for p in range(n_pieces)])
+    f = f[np.random.default_rng(n_pieces).permutation(len(f))]
+    nb = mesh_topology(f, len(v)).neighbours
+    assert fs._n_pieces(nb) == n_pieces
+    monkeypatch.setattr(fs, "_PIECES", [None])
+    assert fs._n_pieces(nb) == n_pieces
+
+
+def test_attachment_area_closest_points_compiled_equal_numpy(monkeypatch):
+    # fibres.ray_triangles (the attachment filter's new fibre ends on the area's surface):
+    # the compiled loop prunes pairs with exact lower bounds (bounding sphere, box and
+    # 2D distance across the ray) and evaluates the rest by increasing bound; rays grazing
+    # a curved patch (many nearly equidistant triangles, closest points on shared edges
+    # and vertices) and rays hitting it must give the unpruned numpy answer (the same
+    # point: 1e-12 of the unit-size coordinates covers rounding of the pair formulas)
+    pytest.importorskip("numba")
+    import fibres.ray_triangles as rt
+
+    m = trimesh.creation.icosphere(subdivisions=4)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    cap = f[(v[f][:, :, 2] > 0.6).all(axis=1)]               # a spherical cap patch
+    tv = v[cap]
+    rng = np.random.default_rng(11)
+    n = 300
+    start = np.c_[rng.uniform(-1.2, 1.2, (n, 2)), rng.uniform(0.5, 1.5, n)]
+    direction = np.c_[rng.standard_normal((n, 2)), 0.3 * rng.standard_normal(n)]
+    direction[: n // 3, 2] = -1.0                            # some rays hit the cap
+    got_k, got_b = rt.closest_on_triangles(tv, start, direction)
+    monkeypatch.setattr(rt, "_KERNELS", [None])
+    ref_k, ref_b = rt.closest_on_triangles(tv, start, direction)
+    got = np.einsum("nk,nkc->nc", got_b, tv[got_k])
+    ref = np.einsum("nk,nkc->nc", ref_b, tv[ref_k])
+    np.testing.assert_allclose(got, ref, atol=1e-12)
+    # a point inside a triangle has one owner; on shared edges and vertices the owners may
+    # differ (the compiled loop ranks the most promising triangle first, numpy by index)
+    inside = (got_b > 1e-9).all(axis=1)
+    assert 20 < inside.sum() < n and (got_b.max(axis=1) > 1 - 1e-12).sum() > 20
+    np.testing.assert_array_equal(got_k[inside], ref_k[inside])
