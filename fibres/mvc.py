@@ -208,55 +208,92 @@ _mvc_scalar = None
 
 def _mvc_map_vec(pts, groups, wts, src_x, src_y, src, dst, offsets, eps,
                  res):  # pragma: no cover - compiled by numba
-    """`_mvc_map_loop` with the square roots and divisions of each point as separate loops
-    over the polygon's vertices, which the compiler vectorises; the weights are then summed
-    in vertex order. Same operations in the same order as `_mvc_map_loop`, hence the same
-    result bit for bit. A point on a vertex or an edge goes through `_mvc_map_loop`."""
-    k_max = 0
-    for g in range(offsets.size - 1):
-        k_max = max(k_max, offsets[g + 1] - offsets[g])
-    sx = np.empty(k_max + 1)
-    sy = np.empty(k_max + 1)
-    r = np.empty(k_max + 1)
-    t = np.empty(k_max + 1)
-    w = np.empty(k_max)
-    for j in range(pts.shape[0]):
-        lo = offsets[groups[j]]
-        k = offsets[groups[j] + 1] - lo
-        x = pts[j, 0]
-        y = pts[j, 1]
-        for i in range(k):
-            sx[i] = src_x[lo + i] - x
-            sy[i] = src_y[lo + i] - y
-        sx[k] = sx[0]
-        sy[k] = sy[0]
-        for i in range(k + 1):
-            r[i] = np.sqrt(sx[i] * sx[i] + sy[i] * sy[i])
-        special = 0
-        for i in range(k):
-            # edge i -> i+1 (the last one k-1 -> 0): t[i + 1] = tan(alpha_i / 2)
-            cross = sx[i] * sy[i + 1] - sy[i] * sx[i + 1]
-            dot = sx[i] * sx[i + 1] + sy[i] * sy[i + 1]
-            rr = r[i] * r[i + 1]
-            t[i + 1] = cross / (rr + dot)
-            special += (r[i] == 0.0) | (((abs(cross) <= eps * rr) | (rr + dot <= 0.0))
-                                        & (dot < 0.0))
-        if special:
-            _mvc_scalar(pts[j:j + 1], groups[j:j + 1], wts[j:j + 1], src, dst, offsets, eps,
-                        res[j:j + 1])
+    """`_mvc_map_loop` with the points as the inner loop: the points are bucketed by
+    polygon and, for each polygon vertex in turn, every point of that polygon advances by
+    one edge (its current vector to the vertex, distance and previous half-angle tangent
+    are kept per point), so the roots and divisions run over independent points and the
+    compiler vectorises them. Per point these are the same operations in the same order
+    as `_mvc_map_loop` (the weights summed in vertex order), hence the same result bit for
+    bit. A point on a vertex or an edge goes through `_mvc_map_loop`."""
+    n = pts.shape[0]
+    n_g = offsets.size - 1
+    start = np.zeros(n_g + 1, dtype=np.int64)         # points bucketed by polygon (stable)
+    for j in range(n):
+        start[groups[j] + 1] += 1
+    for g in range(n_g):
+        start[g + 1] += start[g]
+    fill = start[:n_g].copy()
+    order = np.empty(n, dtype=np.int64)
+    for j in range(n):
+        order[fill[groups[j]]] = j
+        fill[groups[j]] += 1
+    m_max = 0
+    for g in range(n_g):
+        m_max = max(m_max, start[g + 1] - start[g])
+    px, py, sw, ax, ay = (np.empty(m_max), np.empty(m_max), np.empty(m_max),
+                          np.empty(m_max), np.empty(m_max))
+    csx, csy, cr, tp = np.empty(m_max), np.empty(m_max), np.empty(m_max), np.empty(m_max)
+    sx0, sy0, r0 = np.empty(m_max), np.empty(m_max), np.empty(m_max)
+    special = np.empty(m_max, dtype=np.int64)
+    for g in range(n_g):
+        m = start[g + 1] - start[g]
+        if m == 0:
             continue
-        t[0] = t[k]
-        for i in range(k):
-            w[i] = (t[i] + t[i + 1]) / r[i]
-        sumw = 0.0
-        ax = 0.0
-        ay = 0.0
-        for i in range(k):
-            sumw += w[i]
-            ax += w[i] * dst[lo + i, 0]
-            ay += w[i] * dst[lo + i, 1]
-        res[j, 0] = wts[j] * (ax / sumw)
-        res[j, 1] = wts[j] * (ay / sumw)
+        lo = offsets[g]
+        k = offsets[g + 1] - lo
+        for q in range(m):
+            j = order[start[g] + q]
+            px[q] = pts[j, 0]
+            py[q] = pts[j, 1]
+        # vertex 0, and the tangent of the last edge (k-1 -> 0), which enters w_0
+        ux, uy = src_x[lo], src_y[lo]
+        lx, ly = src_x[lo + k - 1], src_y[lo + k - 1]
+        for q in range(m):
+            sx = ux - px[q]
+            sy = uy - py[q]
+            r = np.sqrt(sx * sx + sy * sy)
+            sxl = lx - px[q]
+            syl = ly - py[q]
+            rl = np.sqrt(sxl * sxl + syl * syl)
+            cross = sxl * sy - syl * sx
+            dot = sxl * sx + syl * sy
+            rr = rl * r
+            tp[q] = cross / (rr + dot)
+            special[q] = (rl == 0.0) | (((abs(cross) <= eps * rr) | (rr + dot <= 0.0))
+                                        & (dot < 0.0))
+            csx[q], csy[q], cr[q] = sx, sy, r
+            sx0[q], sy0[q], r0[q] = sx, sy, r
+            sw[q] = 0.0
+            ax[q] = 0.0
+            ay[q] = 0.0
+        for i in range(k):  # vertex i: edge i -> i+1, weight w_i
+            last = i == k - 1
+            nx, ny = src_x[lo + i + 1 - k * last], src_y[lo + i + 1 - k * last]
+            dxi, dyi = dst[lo + i, 0], dst[lo + i, 1]
+            for q in range(m):
+                sxn = nx - px[q]
+                syn = ny - py[q]
+                rn = np.sqrt(sxn * sxn + syn * syn)
+                cross = csx[q] * syn - csy[q] * sxn
+                dot = csx[q] * sxn + csy[q] * syn
+                rr = cr[q] * rn
+                t = cross / (rr + dot)
+                special[q] |= (cr[q] == 0.0) | (((abs(cross) <= eps * rr) | (rr + dot <= 0.0))
+                                                & (dot < 0.0))
+                w = (tp[q] + t) / cr[q]
+                sw[q] += w
+                ax[q] += w * dxi
+                ay[q] += w * dyi
+                tp[q] = t
+                csx[q], csy[q], cr[q] = sxn, syn, rn
+        for q in range(m):
+            j = order[start[g] + q]
+            if special[q]:
+                _mvc_scalar(pts[j:j + 1], groups[j:j + 1], wts[j:j + 1], src, dst, offsets,
+                            eps, res[j:j + 1])
+            else:
+                res[j, 0] = wts[j] * (ax[q] / sw[q])
+                res[j, 1] = wts[j] * (ay[q] / sw[q])
 
 
 def _mvc_map_loop(pts, groups, wts, src, dst, offsets, eps, res):  # pragma: no cover - numba

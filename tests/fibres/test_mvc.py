@@ -164,3 +164,29 @@ def test_vectorised_kernel_equals_the_point_loop_bit_for_bit():
     mvc._mvc_scalar(pts, groups, weights, src, dst, offsets, mvc._ON_EDGE, ref)
     assert np.array_equal(got, ref)
     assert np.array_equal(got[:300], weights[:300, None] * targets[0])
+
+
+def test_point_major_kernel_with_empty_and_single_point_polygons():
+    # the compiled map buckets the points by polygon and advances all points of a polygon
+    # together: polygons without points, with one point, and points given in any group
+    # order must still equal the one-point loop bit for bit (and the exact vertex rule)
+    pytest.importorskip("numba")
+    from fibres.mvc import _kernel, mvc_map
+
+    _kernel()
+    rng = np.random.default_rng(12)
+    polys = [SQUARE * 2.0, ARROW, SQUARE[::-1] + 0.5, ARROW * 3.0]
+    targets = [p[::-1] * 0.9 + 0.2 for p in polys]
+    groups = np.r_[np.full(50, 3), [1], np.full(70, 0)]              # polygon 2 gets none
+    pts = rng.uniform(0.1, 1.9, (groups.size, 2))
+    pts[groups == 3] *= 1.5
+    pts[50] = ARROW[4]                                              # on a vertex
+    order = rng.permutation(groups.size)
+    pts, groups = pts[order], groups[order]
+    got = mvc_map(pts, groups, polys, targets)
+    src, dst = np.concatenate(polys), np.concatenate(targets)
+    offsets = np.r_[0, np.cumsum([len(p) for p in polys])]
+    ref = np.empty_like(pts)
+    mvc._mvc_scalar(pts, groups, np.ones(len(pts)), src, dst, offsets, mvc._ON_EDGE, ref)
+    assert np.array_equal(got, ref)
+    assert np.array_equal(got[groups == 1][0], targets[1][4])
