@@ -86,7 +86,7 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
         raise ValueError(f"faces must have shape (T, 3), got {f.shape}")
     kernel = _topology_kernel()
     if kernel is not None and f.size:
-        out = kernel(f, np.int64(n_vertices))
+        out = kernel(f, np.int64(n_vertices), False)
         if out[0]:                                          # every edge exactly twice
             return MeshTopology(f, out[1], out[2], out[3], int(n_vertices), bool(out[4]))
     a = f.reshape(-1)
@@ -121,6 +121,26 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
                         oriented)
 
 
+def _closed_topology(f, n_vertices):
+    """`mesh_topology` of (T, 3) int64 faces with its indices in range, with the number of
+    edge-connected pieces and whether every vertex is used -- in one compiled pass (for
+    `fibres.surface.clean_mesh_geometry`), or None without numba or when some edge is not
+    shared by exactly two faces.
+
+    Returns
+    -------
+    (MeshTopology, n_pieces, all_used) or None
+    """
+    kernel = _topology_kernel()
+    if kernel is None or not f.size:
+        return None
+    out = kernel(f, np.int64(n_vertices), True)
+    if not out[0]:
+        return None
+    return (MeshTopology(f, out[1], out[2], out[3], int(n_vertices), bool(out[4])),
+            int(out[5]), bool(out[6]))
+
+
 def _paired_topology(f, a, b, lo, hi, order, n_vertices):
     """`mesh_topology` when the sorted half-edge keys come in pairs (each edge shared by
     exactly two faces): edge ``e`` is the pair of sorted positions ``2e, 2e+1``."""
@@ -152,39 +172,47 @@ def _topology_kernel():
     return _TOPOLOGY[0]
 
 
-def _topology_loop(f, n_vertices):  # pragma: no cover - compiled by numba
+def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by numba
     """`mesh_topology` of a mesh whose edges are each shared by exactly two faces, in
     O(T + V): the half-edges are bucketed by their smaller vertex (a counting sort in
     half-edge order) and each bucket (a vertex's few edges) is insertion-sorted by the
     larger vertex. Both sorts are stable, so the order is that of a stable argsort of the
     keys ``min * V + max`` and edge ``e`` is the pair of sorted positions ``2e, 2e+1``,
     exactly as in the array version. The sorted half-edges carry their larger vertex and
-    ``2 h + (runs min -> max)``, so that the pairing reads them in order.
+    ``2 h + (runs min -> max)`` (int32 while T < 2**29), so that the pairing reads them in
+    order. With ``pieces``, the faces of each pair are also joined in a union-find (path
+    halving) and the used vertices marked.
 
-    Returns (ok, edges, face_edges, neighbours, oriented); ``ok`` is False (and nothing
-    else meaningful) when a vertex index is out of range or an edge is not used exactly
-    twice."""
+    Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used); ``ok`` is
+    False (and nothing else meaningful) when a vertex index is out of range, an edge is
+    not used exactly twice or the mesh is too large for the int32 tables; ``n_pieces``
+    is 0 and ``all_used`` False without ``pieces``."""
     n_t = f.shape[0]
     n = 3 * n_t
     n_e = n // 2
     edges = np.empty((n_e, 2), dtype=np.int64)
     face_edges = np.empty((n_t, 3), dtype=np.int64)
     neighbours = np.empty((n_t, 3), dtype=np.int64)
-    if n % 2:
-        return False, edges, face_edges, neighbours, False
-    start = np.zeros(n_vertices + 1, dtype=np.int64)
+    if n % 2 or n_t >= 2 ** 29 or n_vertices >= 2 ** 31:
+        return False, edges, face_edges, neighbours, False, 0, False
+    start = np.zeros(n_vertices + 1, dtype=np.int32)
+    used = np.zeros(n_vertices if pieces else 0, dtype=np.bool_)
     for t in range(n_t):
         a0, a1, a2 = f[t, 0], f[t, 1], f[t, 2]
         if min(a0, min(a1, a2)) < 0 or max(a0, max(a1, a2)) >= n_vertices:
-            return False, edges, face_edges, neighbours, False
+            return False, edges, face_edges, neighbours, False, 0, False
         start[min(a0, a1) + 1] += 1
         start[min(a1, a2) + 1] += 1
         start[min(a2, a0) + 1] += 1
+        if pieces:
+            used[a0] = True
+            used[a1] = True
+            used[a2] = True
     for v in range(n_vertices):
         start[v + 1] += start[v]
     fill = start[:n_vertices].copy()
-    s_hi = np.empty(n, dtype=np.int64)
-    s_h = np.empty(n, dtype=np.int64)
+    s_hi = np.empty(n, dtype=np.int32)
+    s_h = np.empty(n, dtype=np.int32)
     for t in range(n_t):
         for j in range(3):
             a = f[t, j]
@@ -207,6 +235,8 @@ def _topology_loop(f, n_vertices):  # pragma: no cover - compiled by numba
             s_h[m + 1] = x
     fe = face_edges.ravel()
     nb = neighbours.ravel()
+    parent = np.arange(n_t if pieces else 0).astype(np.int32)
+    n_pieces = n_t
     oriented = True
     v = 0
     for e in range(n_e):
@@ -215,18 +245,36 @@ def _topology_loop(f, n_vertices):  # pragma: no cover - compiled by numba
             v += 1
         if start[v + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
                 p > start[v] and s_hi[p - 1] == s_hi[p]):
-            return False, edges, face_edges, neighbours, False
+            return False, edges, face_edges, neighbours, False, 0, False
         h0 = s_h[p] >> 1
         h1 = s_h[p + 1] >> 1
+        t0 = h0 // 3
+        t1 = h1 // 3
         edges[e, 0] = v
         edges[e, 1] = s_hi[p]
         fe[h0] = e
         fe[h1] = e
-        nb[h0] = h1 // 3
-        nb[h1] = h0 // 3
+        nb[h0] = t1
+        nb[h1] = t0
         if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != v:   # not one each way
             oriented = False
-    return True, edges, face_edges, neighbours, oriented
+        if pieces:
+            x = t0
+            while parent[x] != x:
+                parent[x] = parent[parent[x]]
+                x = parent[x]
+            y = t1
+            while parent[y] != y:
+                parent[y] = parent[parent[y]]
+                y = parent[y]
+            if x != y:
+                parent[max(x, y)] = min(x, y)
+                n_pieces -= 1
+    all_used = pieces
+    if pieces:
+        for v in range(n_vertices):
+            all_used &= used[v]
+    return True, edges, face_edges, neighbours, oriented, n_pieces if pieces else 0, all_used
 
 
 @dataclass(frozen=True)
@@ -329,7 +377,13 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     # below); the "up" half-edge's twin is the down half-edge of the next node.
     node_face, node_slice, down, nxt = _crossings(d, faces, topology.neighbours, h)
     order, loop_start = _loop_order(nxt, node_slice, h.size)
-    node_face = node_face[order]
+    kernel = _crossings_kernel(2)
+    if kernel is not None and local_t.dtype == np.float64:
+        pts, node_edge, t, node_slice = kernel(order, node_face, node_slice, down, faces,
+                                               face_edges, local_t, h)
+        return Sections(h.copy(), pts, node_edge, t, loop_start,
+                        node_slice[loop_start[:-1]], tf)
+    node_face = node_face[order]                            # pragma: no cover - optional
     node_slice = node_slice[order]
     down = down[order]
     node_edge = face_edges[node_face, down]
@@ -447,7 +501,8 @@ _CROSSINGS = []
 
 
 def _crossings_kernel(which):
-    """Compiled `_crossings_loop` (0) or `_loop_order_loop` (1), or None without numba."""
+    """Compiled `_crossings_loop` (0), `_loop_order_loop` (1) or `_points_loop` (2), or
+    None without numba."""
     if not _CROSSINGS:
         try:
             import numba
@@ -455,8 +510,36 @@ def _crossings_kernel(which):
             _CROSSINGS.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True)
-            _CROSSINGS.append((jit(_crossings_loop), jit(_loop_order_loop)))
+            _CROSSINGS.append((jit(_crossings_loop), jit(_loop_order_loop),
+                               jit(_points_loop)))
     return None if _CROSSINGS[0] is None else _CROSSINGS[0][which]
+
+
+def _points_loop(order, node_face, node_slice, down, faces, face_edges, local_t,
+                 h):  # pragma: no cover - compiled by numba
+    """The section points of `slice_mesh` in loop order: (points (Q, 2), edge (Q,), t (Q,),
+    plane (Q,)) -- the array version's gathers and formulas, node by node."""
+    n = order.size
+    pts = np.empty((n, 2))
+    edge = np.empty(n, dtype=np.int64)
+    t_out = np.empty(n)
+    plane = np.empty(n, dtype=np.int64)
+    for q in range(n):
+        node = order[q]
+        f = node_face[node]
+        s = node_slice[node]
+        dn = down[node]
+        a = faces[f, dn]                                    # above end of the edge
+        b = faces[f, dn + 1 if dn < 2 else 0]              # below end
+        da = local_t[2, a]
+        t = (h[s] - da) / (local_t[2, b] - da)
+        ua, va = local_t[0, a], local_t[1, a]
+        pts[q, 0] = ua + t * (local_t[0, b] - ua)
+        pts[q, 1] = va + t * (local_t[1, b] - va)
+        t_out[q] = 1.0 - t if a > b else t                  # t measured from edges[:, 0]
+        edge[q] = face_edges[f, dn]
+        plane[q] = s
+    return pts, edge, t_out, plane
 
 
 def _crossings_loop(d, faces, neighbours, h):  # pragma: no cover - compiled by numba

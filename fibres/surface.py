@@ -294,8 +294,15 @@ def clean_mesh_geometry(v, f):
     """
     from trimesh import tol, util
 
+    from .slicing import _closed_topology
+
     n_v = len(v)
-    if len(f) < 4 or np.bincount(f.ravel(), minlength=n_v).min() == 0:
+    if len(f) < 4:
+        return None, None
+    closed = _closed_topology(f, n_v)          # topology, pieces, all vertices used
+    if closed is None and np.bincount(f.ravel(), minlength=n_v).min() == 0:
+        return None, None
+    if closed is not None and not closed[2]:
         return None, None
     if _has_duplicate_rows((v * 10 ** util.decimal_to_digits(tol.merge)).round()
                            .astype(np.int64)):
@@ -306,7 +313,7 @@ def clean_mesh_geometry(v, f):
                                       2 * tol.merge)
         if not ok:
             return None, None
-        return _clean_topology_rest(v, f, volume, edge_sum / (3 * len(f)))
+        return _clean_topology_rest(v, f, volume, edge_sum / (3 * len(f)), closed)
     vt = np.ascontiguousarray(v.T)                                 # (3, V)
     a, b, c = np.take(vt, np.ascontiguousarray(f.T), axis=1).transpose(1, 0, 2)  # (3, T) each
     ab, ac, bc = b - a, c - a, c - b
@@ -318,18 +325,24 @@ def clean_mesh_geometry(v, f):
             & (area2 > 2 * tol.merge * np.maximum(np.maximum(lab, lbc), lac))).all():
         return None, None
     return _clean_topology_rest(v, f, float(_dot3(a, _cross3(b, c)).sum()),
-                                float((lab.sum() + lbc.sum() + lac.sum()) / (3 * len(f))))
+                                float((lab.sum() + lbc.sum() + lac.sum()) / (3 * len(f))),
+                                closed)
 
 
-def _clean_topology_rest(v, f, volume, mean_edge):
-    """The topological steps of `clean_mesh_geometry` and the volume check."""
+def _clean_topology_rest(v, f, volume, mean_edge, closed=None):
+    """The topological steps of `clean_mesh_geometry` and the volume check; ``closed``:
+    `fibres.slicing._closed_topology` of the faces when at hand."""
     from .slicing import mesh_topology
 
-    try:
-        topology = mesh_topology(f, len(v))
-    except ValueError:
-        return None, None
-    if not topology.oriented or _n_pieces(topology.neighbours) != 1:
+    if closed is not None:
+        topology, n_pieces = closed[0], closed[1]
+    else:
+        try:
+            topology = mesh_topology(f, len(v))
+        except ValueError:
+            return None, None
+        n_pieces = _n_pieces(topology.neighbours) if topology.oriented else 0
+    if not topology.oriented or n_pieces != 1:
         return None, None
     vt = np.ascontiguousarray(v.T)
     size = float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))

@@ -234,3 +234,27 @@ def test_compiled_topology_equals_the_array_version_on_shuffled_and_open_meshes(
     assert (got.neighbours[got.neighbours, np.argmax(back, axis=2)] == t).all()
     with pytest.raises(ValueError, match="exactly two faces"):
         mesh_topology(faces[1:], len(m.vertices))
+
+
+def test_compiled_section_points_equal_the_array_version(monkeypatch):
+    # slice_mesh's compiled tail (points, edges, edge parameters in loop order) must give
+    # the array version's sections bit for bit, on a twisted, tilted mesh with several
+    # loops per plane
+    pytest.importorskip("numba")
+    from fibres import slicing
+
+    m = trimesh.creation.icosphere(subdivisions=3)
+    v = np.vstack([m.vertices, np.asarray(m.vertices) * [1.0, 0.5, 1.3] + [2.2, 0, 0.1]])
+    f = np.vstack([m.faces, np.asarray(m.faces) + len(m.vertices)])
+    topo = mesh_topology(f, len(v))
+    tf = np.eye(4)
+    tf[:3, :3] = trimesh.transformations.rotation_matrix(0.4, [1, 2, 0.5])[:3, :3]
+    tf[:3, 3] = [0.1, -0.2, 0.05]
+    local = tf[:3, :3].T @ (v - tf[:3, 3]).T
+    h = np.linspace(local[2].min() + 1e-6, local[2].max() - 1e-6, 23)
+    got = slice_mesh(v, topo, tf, h)
+    monkeypatch.setattr(slicing, "_CROSSINGS", [None])
+    ref = slice_mesh(v, topo, tf, h)
+    for name in ("points", "edge", "t", "loop_start", "loop_slice"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
+    assert got.loop_start.size - 1 > h.size                   # several loops on some planes
