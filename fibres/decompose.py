@@ -12,7 +12,10 @@ Kohout, Clapworthy, Martelli & Viceconti, "Muscle fibres modelling", GRAPP 2012,
    each point from the rectangle to the contour (§3.3; `fibres.slicing`,
    `fibres.contours`, `fibres.correspondence`, `fibres.mvc`, `fibres.morph`);
 4. the fibres are trimmed near the attachment areas and reconstructed to the surface
-   (§3.4; `fibres.filtering`), then smoothed (`fibres.smoothing`).
+   (§3.4; `fibres.filtering`), then smoothed (`fibres.smoothing`);
+5. (our addition) inner points left outside the surface by the straight reconstructed
+   segments, the resampling chords and the morph's folds are pulled back in along their
+   shortest path, smoothly (`fibres.containment`).
 
 The discrete choices are recorded in a `DecompositionPlan` (`fibres.plan`) and can be
 reused for a deformed copy of the same mesh, so that fibre ``k`` stays the same fibre.
@@ -24,6 +27,7 @@ import dataclasses
 import numpy as np
 
 from .bundle import FibreBundle
+from .containment import CONTAIN_REACH, apply_containment, containment_choice
 from .contours import choose_loops
 from .errors import InputError
 from .filtering import apply_filter, filter_choices
@@ -34,6 +38,7 @@ from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
 from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .surface import Surface, as_points, as_surface, clean_mesh_geometry
+from .surface_distance import SurfaceGrid
 from .templates import Template, get_template
 
 __all__ = ["decompose", "make_plan"]
@@ -231,13 +236,15 @@ def _with_choice(plan, choice):
 
 def _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed):
     """Template fibres at the Sobol parameters, morphed into the muscle (§3.1, §3.3).
-    Returns (rs (N, 2), points (N, R + 1, 3))."""
+    Returns (rs (N, 2), points (N, R + 1, 3), the template fibres mapped affinely into the
+    box (N, R + 1, 3): the attachment filter's ray directions)."""
     rs = sobol_rs(int(n_fibres), seed=seed)
     unit = tmpl.fibre_points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
     flat = (unit * box.extents).reshape(-1, 3)
     uv = morph_local(flat[:, :2], flat[:, 2], heights, P, Q)
     pts = box.corner + np.concatenate([uv, flat[:, 2:]], axis=1) @ box.axes.T
-    return rs, pts.reshape(unit.shape)
+    boxed = box.corner + flat @ box.axes.T
+    return rs, pts.reshape(unit.shape), boxed.reshape(unit.shape)
 
 
 def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
@@ -262,11 +269,16 @@ def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
         return fc
     if plan.rest_origin is None or plan.rest_insertion is None:
         return None
-    v = plan.rest_vertices
-    box, heights, P, Q, _, _ = _sweep(plan, v, plan.rest_origin, plan.rest_insertion, fresh=True)
-    _, pts = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
-    fc = filter_choices(pts, (v, plan.topology.faces), plan.rest_origin, plan.rest_insertion,
-                        box.axes[:, 2], seed=seed, template=spec)
+    v, faces = plan.rest_vertices, plan.topology.faces
+    o, i = plan.rest_origin, plan.rest_insertion
+    box, heights, P, Q, _, _ = _sweep(plan, v, o, i, fresh=True)
+    _, pts, boxed = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
+    fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2], seed=seed, template=spec,
+                        reference=boxed)
+    # the containment's watched points, on the rest pose's final fibres
+    rest = smooth(apply_filter(pts, v, o, i, box.axes[:, 2], fc)[0], k=4.0,
+                  iterations=DEFAULT_ITERATIONS, max_shift=DECOMPOSE_MAX_SHIFT)
+    fc = dataclasses.replace(fc, contain=containment_choice(rest, v, faces))
     cache[key] = fc
     notes.append("attachment filter: choices made on the plan's rest pose (the plan had none "
                  "for these fibres)")
@@ -276,7 +288,8 @@ def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
 def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,
               resolution: int = 19, seed: int = 0, units: str = "m", template_params=None,
               smoothing_iterations: int = DEFAULT_ITERATIONS, filter_attachments: bool = True,
-              plan: DecompositionPlan | None = None, axis: str = "auto") -> FibreBundle:
+              plan: DecompositionPlan | None = None, axis: str = "auto",
+              contain: bool = True) -> FibreBundle:
     """Decompose a closed muscle surface into fibres (Kohout et al., GRAPP 2012).
 
     Parameters
@@ -314,10 +327,20 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         fewer fibres), gets the filter's choices made once on its rest pose.
     axis : {"auto", "attachments", "covariance"}, keyword-only
         Principal-axis rule when no plan is given.
+    contain : bool, keyword-only
+        Finally pull every inner fibre point that lies outside the surface back in along
+        its shortest path, smoothly (`fibres.containment`; our addition to the paper: its
+        straight reconstructed end segments, resampling chords and mean value coordinates
+        on non-convex contours leave points up to ~4 mm outside curved muscles). Points
+        inside are not moved; pulled points end less than 0.2 mm outside. The watched
+        points are chosen on the rest pose and kept in the plan (with the attachment
+        filter's choices).
 
     Returns
     -------
     FibreBundle
+        ``flags`` holds ``trimmed`` and ``reconstructed`` (attachment filter) and
+        ``contained`` (a point was pulled in).
     """
     if isinstance(n_fibres, bool) or not isinstance(n_fibres, (int, np.integer)) or n_fibres < 1:
         raise ValueError(f"n_fibres must be a positive integer, got {n_fibres!r}")
@@ -337,24 +360,36 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         plan = _with_choice(plan, choice)
     notes.extend(sweep_notes)
 
-    rs, pts = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
+    rs, pts, boxed = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
 
     flags = {}
+    fc = None
     if filter_attachments:
-        fc = None
         if fresh:
             fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2], seed=seed,
-                                template=template_spec(tmpl), mean_edge=mean_edge)
-            plan = dataclasses.replace(plan, filter_choice=fc)
+                                template=template_spec(tmpl), mean_edge=mean_edge,
+                                reference=boxed)
         else:
             fc = _plan_filter_choice(plan, tmpl, int(n_fibres), int(resolution), seed, notes)
             if fc is None:  # a plan without rest landmarks: choices made on this frame
                 notes.append("attachment filter: choices made on this frame (the plan has "
                              "no rest landmarks)")
-                fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2])
+                fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2], reference=boxed)
         pts, trimmed, rebuilt = apply_filter(pts, v, o, i, box.axes[:, 2], fc)
         flags = {"trimmed": trimmed, "reconstructed": rebuilt}
     if smoothing_iterations:
         pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations),
                      max_shift=DECOMPOSE_MAX_SHIFT)
+    if contain:
+        cc = fc.contain if fc is not None and fc.contain is not None else None
+        if cc is not None and cc.n_points != pts.shape[1]:
+            cc = None
+        grid = None
+        if fresh and fc is not None:    # watched points chosen on the rest pose, kept
+            grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)
+            cc = containment_choice(pts, v, faces, grid=grid)
+            fc = dataclasses.replace(fc, contain=cc)
+        pts, flags["contained"] = apply_containment(pts, v, faces, cc, grid=grid)
+    if fresh and fc is not None:
+        plan = dataclasses.replace(plan, filter_choice=fc)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

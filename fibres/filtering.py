@@ -44,19 +44,34 @@ of the new segment, or a fractional fibre index between the two cuts). Every out
 then a smooth function of the morphed fibre, the surface and the landmarks; on the rest pose
 it is the paper's arc-length resampling (to rounding). No KD-tree or search per frame.
 
+Rays (our departure from the paper, `filter_choices(reference=...)`). The paper's ray
+continues the last kept MORPHED segment; near a wide attachment the morph bends the fibres
+towards the narrow end of the muscle (the very convergence this filter is meant to undo), so
+their rays meet the area on one side: gluteus medius' fibres left one end of the
+iliac crest empty (largest landmark-to-fibre-start gap 22.5 mm). When `reference` (the same
+fibres mapped affinely into the fitted box, i.e. the template's own directions) is given, a
+fibre whose reference ray HITS the area ends there; the others keep the paper's ray. The gap
+falls to 14.6 mm (gluteus maximus 58 -> 38 mm; iliacus and psoas unchanged). The choice is
+made once on the rest pose (a material point), so motions stay smooth.
+
 Inside the surface (measured on the LHDL hip muscles, 100 fibres x 16 points): the morph
 keeps points within 1.5 mm of the surface; after this filter (no smoothing) up to 4.2 mm lie
-outside (glut_max 3.4, glut_med 4.1, iliacus 4.2, psoas 3.5 mm; with the closest vertex instead
-of the closest surface point: 2.9, 4.3, 4.1, 3.5 mm), from two sources that are the method's
-own: (1) the straight new segment from the cut point to the attachment area crosses concave
-parts of the surface when the cutting plane is far from the area (segments of 44-96 mm on
-glut_med / iliacus; with vertex targets no vertex of the area was reachable in a straight line
-from the cut point for the worst fibres -- tried: the closest of the 64 nearest-to-the-ray
-vertices whose segment crosses no triangle -- 4.3 -> 4.2 mm at 5-10x the rest-pose cost, not
-kept); (2) resampled points
-on the kept part lie on chords between morphed points, which cut concave walls for fibres
+outside, from two sources that are the method's own: (1) the straight new segment from the
+cut point to the attachment area crosses concave parts of the surface when the cutting plane
+is far from the area (segments of 44-96 mm on glut_med / iliacus); (2) resampled points on
+the kept part lie on chords between morphed points, which cut concave walls for fibres
 running along the surface (up to 3.4 mm, iliacus / psoas). We keep the paper's straight
-segment and chords and report the numbers (tests/fibres/test_decompose_lhdl.py).
+segment and chords here; `fibres.containment` pulls the points that end outside back in
+after smoothing (`fibres.decompose`; then every point is within 0.2 mm).
+
+Cutting planes. "Two cutting planes perpendicular to the principal axis passing through the
+extremal (in the direction of the principal axis) landmarks" (§3.4): we take, for the
+origin, the landmark farthest along the axis towards the insertion (and the reverse for the
+insertion), so every fibre loses its whole stretch alongside the area, as in the paper's
+Fig. 9. Tried and not kept: the other extreme (planes through the landmarks farthest from
+the other attachment) keeps the morph's convergence, every gluteus medius fibre then starts
+at the crest's top (landmark gap 108 mm); per-fibre planes through the innermost landmark
+above each fibre kept fibres converging to the top as well (gap 36 mm).
 """
 from __future__ import annotations
 
@@ -116,6 +131,9 @@ class FilterChoice:
         Sobol seed of the fibres (the choices hold for fibres 0..N-1 of that seed).
     template : tuple or None
         ``(name, params)`` of the fibre template.
+    contain : fibres.containment.ContainChoice or None
+        The points watched by the final containment step, chosen on the same rest pose
+        after filtering and smoothing (`fibres.decompose`).
     """
 
     landmarks: np.ndarray
@@ -129,6 +147,7 @@ class FilterChoice:
     param: np.ndarray
     seed: int = 0
     template: tuple | None = None
+    contain: object = None
 
     def __post_init__(self):
         for name, dt in (("landmarks", np.int64), ("cut", bool), ("segment", np.int64),
@@ -164,7 +183,8 @@ class FilterChoice:
         return FilterChoice(self.landmarks, self.cut[:n], self.segment[:n], self.cut_param[:n],
                             self.target_face[:n], self.target_vertices[:n],
                             self.target_bary[:n], self.piece[:n], self.param[:n], self.seed,
-                            self.template)
+                            self.template,
+                            None if self.contain is None else self.contain.head(n))
 
 
 def _vertices_faces(surface):
@@ -333,7 +353,8 @@ def _cuts(pts, h, segment, level, fallback, slack):
 
 
 def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
-                   template=None, mean_edge: float | None = None) -> FilterChoice:
+                   template=None, mean_edge: float | None = None,
+                   reference=None) -> FilterChoice:
     """Make the attachment filter's choices on one (rest-pose) decomposition.
 
     Kohout et al. (GRAPP 2012) §3.4: cutting planes through the extreme landmarks, the
@@ -355,6 +376,10 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     mean_edge : float, optional, keyword-only
         Mean length of the surface's face edges when already known (e.g. from
         `fibres.surface.clean_mesh_geometry`); computed when None.
+    reference : (N, P, 3) float, optional, keyword-only
+        The same fibres before the morph (the template mapped affinely into the fitted
+        box): the rays then follow the reference fibre's segment at the cut instead of the
+        morphed one (module docstring, "Rays"); None: the paper's morphed segment.
 
     Returns
     -------
@@ -417,6 +442,15 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
             corners, owner = region_triangles(faces, region, len(verts))
             d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
             k, w = closest_on_triangles(verts[corners], c[sel], d)
+            if reference is not None:  # the template's direction where its ray hits the area
+                ref = np.asarray(reference, dtype=np.float64)
+                d2 = ref[rows[sel], b[sel]] - ref[rows[sel], a[sel]]
+                k2, w2 = closest_on_triangles(verts[corners], c[sel], d2)
+                q = np.einsum("nkc,nk->nc", verts[corners[k2]], w2) - c[sel]
+                d2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
+                along = np.maximum(np.einsum("nc,nc->n", q, d2), 0.0)
+                hit = np.linalg.norm(q - along[:, None] * d2, axis=1) <= tol
+                k, w = np.where(hit, k2, k), np.where(hit[:, None], w2, w)
             face = owner[k]
             # barycentric coordinates on the owning face's corners (a point: all on its slot)
             match = faces[face][:, :, None] == corners[k][:, None, :]       # (n, 3, 3)

@@ -6,24 +6,30 @@ not reach it. The psoas origins lie on lumbar vertebrae missing from the data se
 from the muscle; they are used as given (they still define the axis and the trimming
 plane; reconstructed ends land on the surface nearest to them).
 
-Measured with this code (mm), full chain (attachment filter + 5 smoothing steps, each point's
-smoothing shift softly bounded by 1 mm) / morph only:
+Measured with this code (mm, 100 fibres x 16 points, parallel template, default chain:
+attachment filter, 5 smoothing steps with each shift softly bounded by 1 mm, then the
+containment pull `fibres.containment`); "outside" is VTK's exact distance to the surface,
+start/end is the distance from each fibre's first/last point to the nearest origin/insertion
+landmark (the landmarks lie on bone, a few mm off the muscle surface), "gap" is the largest
+distance from an origin landmark to the nearest fibre start (how much of the area is left
+without fibres):
 
-=========== ===================== ================= ================= ==================
-muscle      most outside, full    most outside,     start -> origin   end -> insertion
-            chain                 morph only        landmark (max)    landmark (max)
-=========== ===================== ================= ================= ==================
-glut_max_r  3.8                   0.03              10.9              18.1
-glut_med_r  4.2                   1.50              12.8              9.2
-iliacus_r   4.2                   1.50              11.5              9.6
-psoas_r     4.1                   0.49              10.2              2.2
-=========== ===================== ================= ================= ==================
+=========== ========= ============= ================= =============== ===========
+muscle      most      morph only    start -> origin   end -> insert.  origin gap
+            outside   (no pull)     max / median      max / median    (before)
+=========== ========= ============= ================= =============== ===========
+glut_max_r  0.20      0.03          11.0 / 6.1        18.1 / 15.0     37.7 (58.4)
+glut_med_r  0.20      1.50          12.8 / 7.0        9.2 / 5.8       14.6 (22.5)
+iliacus_r   0.20      1.50          11.7 / 6.7        9.5 / 6.0       19.3 (19.3)
+psoas_r     0.20      0.49          10.1 / 8.3        2.2 / 2.2       11.1 (11.1)
+=========== ========= ============= ================= =============== ===========
 
-The full chain does NOT reach "inside or within 1 mm": what remains outside comes from the
-attachment filter itself (Kohout §3.4) -- the straight new end segment from the cut point to
-the attachment-area surface point closest to the ray crosses concave parts of the surface (up to 4.3 mm, glut_med), and
-the resampled points on the kept part lie on chords between morphed points (up to 3.4 mm,
-iliacus). Smoothing without the bound added up to 4 mm more (psoas 8.1 mm).
+Every fibre point is inside the surface or less than 0.2 mm outside it (before the pull: up
+to 4.2 mm outside, 92-99.8 % within 1 mm: the straight reconstructed end segments and the
+resampling chords of Kohout §3.4 cut the concave walls; smoothing without its bound added up
+to 4 mm more). The "before" gaps are those of the paper's rays alone: the new ends now follow
+the template's own direction where that ray meets the area (`fibres.filtering`, "Rays"),
+which spreads gluteus medius' fibres over the left end of the iliac crest.
 
 Original and clean meshes give the same numbers (the repair makes them identical).
 """
@@ -36,13 +42,18 @@ from scipy.spatial import cKDTree
 from fibres import as_surface, decompose
 
 MUSCLES = ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
-# the measured worst values above with ~20 % margin (the end points come from the
-# attachment filter: the area surface point closest to each fibre's end ray)
-START_MM = {"glut_max_r": 13.0, "glut_med_r": 15.5, "iliacus_r": 14.0, "psoas_r": 12.5}
-END_MM = {"glut_max_r": 22.0, "glut_med_r": 11.5, "iliacus_r": 13.0, "psoas_r": 3.5}
-# full chain: at most 5.5 mm outside (measured 3.4-4.3 mm: the filter's straight end segments
-# and chords, see above; ~25 % margin)
-FULL_OUTSIDE_MM = 5.5
+# the measured values above (max, median) with ~20 % margin (the end points come from the
+# attachment filter: a point of the area's surface on or nearest to each fibre's end ray)
+START_MM = {"glut_max_r": (13.5, 7.5), "glut_med_r": (15.5, 8.5), "iliacus_r": (14.0, 8.0),
+            "psoas_r": (12.5, 10.0)}
+END_MM = {"glut_max_r": (22.0, 18.0), "glut_med_r": (11.5, 7.0), "iliacus_r": (11.5, 7.5),
+          "psoas_r": (3.0, 3.0)}
+# the largest origin landmark -> nearest fibre start distance, measured +~20 %
+ORIGIN_GAP_MM = {"glut_max_r": 45.0, "glut_med_r": 17.5, "iliacus_r": 23.0, "psoas_r": 13.5}
+# the containment pull leaves a point at most m = 0.2 mm outside (fibres.containment:
+# s' = m (1 - exp(-s / m)) < m, by the exact point-triangle distance that VTK also uses;
+# 0.05 mm for the soft blend over ties and rounding); the acceptance asks for 1 mm
+OUTSIDE_MM = 0.25
 
 
 def _landmarks(lhdl_dir, muscle):
@@ -77,7 +88,7 @@ def decomposed(lhdl_dir):
                 surface = as_surface(lhdl_dir / folder / f"{muscle}.vtk", units="mm")
             full = decompose(surface, origin, insertion, units="mm", n_fibres=100, resolution=15)
             core = decompose(surface, origin, insertion, units="mm", n_fibres=100, resolution=15,
-                             filter_attachments=False, smoothing_iterations=0)
+                             filter_attachments=False, smoothing_iterations=0, contain=False)
             out[muscle, folder] = surface, origin * 1e-3, insertion * 1e-3, full, core
     return out
 
@@ -93,19 +104,21 @@ def test_lhdl_fibres_inside_and_between_the_attachments(decomposed, muscle, fold
     sd_core = _signed_distance_mm(surface, core.points)
     assert sd_core.min() >= -2.0
     assert np.mean(sd_core >= -1.0) >= 0.99
-    # the full chain: trimming + straight reconstruction cut the concave walls of curved
-    # muscles; the smoothing shift is bounded by 1 mm. Pinned at the measured values:
-    # 91.7 % (psoas) to 99.7 % (glut_max) of the points inside or within 1 mm
+    # the full chain, ending with the containment pull: every point inside or within 1 mm
+    # (the acceptance), in fact within the pull's margin
     sd = _signed_distance_mm(surface, full.points)
-    assert sd.min() >= -FULL_OUTSIDE_MM
-    assert np.mean(sd >= -1.0) >= 0.9
+    assert sd.min() >= -1.0
+    assert sd.min() >= -OUTSIDE_MM
     # every fibre starts near its origin area and ends near its insertion area ...
     d_start = cKDTree(origin).query(full.points[:, 0])[0] * 1e3
     d_end = cKDTree(insertion).query(full.points[:, -1])[0] * 1e3
-    assert d_start.max() <= START_MM[muscle] and d_end.max() <= END_MM[muscle]
+    assert d_start.max() <= START_MM[muscle][0] and np.median(d_start) <= START_MM[muscle][1]
+    assert d_end.max() <= END_MM[muscle][0] and np.median(d_end) <= END_MM[muscle][1]
     # ... and far from the other one (the fibres run the right way round)
-    assert (cKDTree(insertion).query(full.points[:, 0])[0] * 1e3).min() > 3 * START_MM[muscle]
-    assert (cKDTree(origin).query(full.points[:, -1])[0] * 1e3).min() > 3 * END_MM[muscle]
+    assert (cKDTree(insertion).query(full.points[:, 0])[0] * 1e3).min() > 3 * START_MM[muscle][0]
+    assert (cKDTree(origin).query(full.points[:, -1])[0] * 1e3).min() > 3 * END_MM[muscle][0]
+    # the starts spread over the origin area: no landmark far from every fibre start
+    assert cKDTree(full.points[:, 0]).query(origin)[0].max() * 1e3 <= ORIGIN_GAP_MM[muscle]
 
 
 def test_lhdl_original_and_clean_agree(decomposed):
@@ -175,7 +188,11 @@ def test_lhdl_bend_sweep_with_the_plan_gives_smooth_fibre_lengths(decomposed, mu
 # (before the plan's loops and correspondence points followed the anchors: filter off 56,
 # 8.7, 34, 7.4); the remaining large steps are planes whose section changes topology (two
 # loops merging: iliacus planes 1-2 at 15-17 degrees, glut_med plane 6). Bounds ~20 % above.
-SWEEP_STEP_RATIO = {("glut_max_r", True): 2.1, ("glut_med_r", True): 4.6,
+# Filter on now includes the containment pull (off for the morph-only runs, which measure the
+# morph itself); glut_max 1.71 -> 2.23 came with the template-direction rays: fibre 11's
+# longer insertion segment lengthens by 0.32 mm per 0.1 degree at 13-14 degrees, steadily
+# (checked in 0.1-degree steps: 0.316-0.336 mm), not a jump.
+SWEEP_STEP_RATIO = {("glut_max_r", True): 2.7, ("glut_med_r", True): 4.6,
                     ("iliacus_r", True): 2.8, ("psoas_r", True): 5.5,
                     ("glut_max_r", False): 1.5, ("glut_med_r", False): 10.7,
                     ("iliacus_r", False): 20.6, ("psoas_r", False): 7.8}
@@ -198,7 +215,7 @@ def test_lhdl_bend_sweep_plan_is_smooth(decomposed, muscle, filt):
     def lengths(deg):
         b = decompose((bend(v, deg), f), bend(origin, deg), bend(insertion, deg), plan=plan,
                       n_fibres=100, resolution=15, filter_attachments=filt,
-                      smoothing_iterations=5 if filt else 0)
+                      smoothing_iterations=5 if filt else 0, contain=filt)
         notes.update(b.notes)
         return b.lengths()
 
@@ -243,7 +260,7 @@ def test_lhdl_bend_sweep_with_the_whole_section(decomposed, muscle, monkeypatch)
     def lengths(deg):
         b = decompose((bend(v, deg), f), bend(origin, deg), bend(insertion, deg),
                       plan=core.plan, n_fibres=100, resolution=15, filter_attachments=False,
-                      smoothing_iterations=0)
+                      smoothing_iterations=0, contain=False)
         notes.update(b.notes)
         return b.lengths()
 

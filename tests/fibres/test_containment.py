@@ -1,0 +1,250 @@
+"""fibres.containment (the smooth pull back inside) and fibres.surface_distance.
+
+Reference shapes with closed-form distances: a torus (a bent tube: its inner wall is concave)
+and an extruded V notch (two walls meeting in a concave edge). Mesh sagitta bounds the
+difference between the polygonal surface and the analytic one.
+"""
+import numpy as np
+import pytest
+import trimesh
+
+import fibres.surface_distance as sdist
+from fibres.containment import (CONTAIN_MARGIN, CONTAIN_SOFTNESS, apply_containment, contain,
+                                containment_choice)
+from fibres.surface_distance import KAPPA, SurfaceGrid, surface_distance
+
+R, RHO = 0.05, 0.01                       # torus major / minor radius (m)
+N_MAJOR, N_MINOR = 96, 32
+# the mesh's vertices lie on the torus and its faces within the sagittas of the two polygon
+# directions of it (inside where the torus is convex, outside on the concave inner wall):
+# (R + RHO)(1 - cos(pi / 96)) + RHO (1 - cos(pi / 32)) = 8.0e-5 m
+SAG = (R + RHO) * (1 - np.cos(np.pi / N_MAJOR)) + RHO * (1 - np.cos(np.pi / N_MINOR))
+M = CONTAIN_MARGIN
+
+
+@pytest.fixture(scope="module")
+def torus():
+    m = trimesh.creation.torus(major_radius=R, minor_radius=RHO, major_sections=N_MAJOR,
+                               minor_sections=N_MINOR)
+    assert m.is_watertight and m.volume > 0
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def torus_sd(x):
+    """Analytic signed distance to the torus (positive outside)."""
+    return np.hypot(np.hypot(x[..., 0], x[..., 1]) - R, x[..., 2]) - RHO
+
+
+def chords(n_points=16):
+    """Straight fibres between points of the tube's centre circle 30-90 degrees apart, at
+    heights within the tube: they cut through the hole (outside) for wide angles, by at most
+    R (1 - cos 45 deg) - RHO = 4.6 mm (within the default reach, 8 mm)."""
+    rng = np.random.default_rng(3)
+    phi0 = rng.uniform(0, 2 * np.pi, 40)
+    phi1 = phi0 + rng.uniform(np.deg2rad(30), np.deg2rad(90), 40)
+    z = rng.uniform(-0.5, 0.5, (40, 2)) * RHO
+    a = np.c_[R * np.cos(phi0), R * np.sin(phi0), z[:, 0]]
+    b = np.c_[R * np.cos(phi1), R * np.sin(phi1), z[:, 1]]
+    t = np.linspace(0, 1, n_points)[None, :, None]
+    return a[:, None] + t * (b - a)[:, None]
+
+
+def test_torus_chords_end_inside_or_within_the_margin(torus):
+    v, f = torus
+    fib = chords()
+    before = torus_sd(fib)
+    assert before.max() > 3e-3                # not vacuous: chords leave through the hole
+    out, moved = contain(fib, v, f)
+    after = torus_sd(out)
+    # the pull leaves points less than m outside the mesh: by the exact distances of the
+    # blend, after two steps within 1 um of s' < m (measured 0.2008 mm), and by the torus's
+    # own distance within the sagitta of that (measured 0.219 mm)
+    mesh_sd, _ = surface_distance(out, v, f, reach=0.008, softness=CONTAIN_SOFTNESS)
+    assert np.nanmax(mesh_sd) <= M + 1e-6
+    assert after.max() <= M + 1e-6 + SAG
+    # pulled points land near s' = m (1 - exp(-s / m)) of the mesh: within the sagitta (mesh
+    # vs torus) and the soft blend's bias (KAPPA tau) of the torus surface
+    was_out = before > SAG
+    assert after[was_out].min() >= -(SAG + KAPPA * CONTAIN_SOFTNESS)
+    assert moved[(before[:, 1:-1] > SAG).any(axis=1)].all()
+    assert not moved[(before[:, 1:-1] < -SAG).all(axis=1)].any()
+    # ends never move; points inside the mesh never move (bit for bit)
+    np.testing.assert_array_equal(out[:, [0, -1]], fib[:, [0, -1]])
+    deep = before < -SAG                       # inside the mesh for sure
+    np.testing.assert_array_equal(out[deep], fib[deep])
+
+
+def test_a_point_inside_is_not_moved(torus):
+    v, f = torus
+    rng = np.random.default_rng(8)
+    phi = rng.uniform(0, 2 * np.pi, 300)
+    r = RHO * np.sqrt(rng.uniform(0, 1, 300)) * (1 - 2 * SAG / RHO)
+    th = rng.uniform(0, 2 * np.pi, 300)
+    x = np.c_[(R + r * np.cos(th)) * np.cos(phi), (R + r * np.cos(th)) * np.sin(phi),
+              r * np.sin(th)].reshape(100, 3, 3)
+    assert torus_sd(x).max() < -SAG
+    out, moved = contain(x, v, f)
+    np.testing.assert_array_equal(out, x)
+    assert not moved.any()
+
+
+def test_rigid_motion_moves_the_result_rigidly(torus):
+    v, f = torus
+    fib = chords()
+    ax = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    k = np.array([[0, -ax[2], ax[1]], [ax[2], 0, -ax[0]], [-ax[1], ax[0], 0]])
+    rot = np.eye(3) + np.sin(0.7) * k + (1 - np.cos(0.7)) * k @ k
+    t = np.array([0.3, -0.2, 0.5])
+    out, _ = contain(fib, v, f)
+    moved, _ = contain(fib @ rot.T + t, v @ rot.T + t, f)
+    # rounding of coordinates ~0.5 m from the origin (1e-16 relative) through a few steps
+    assert np.abs(moved - (out @ rot.T + t)).max() <= 1e-12
+
+
+def _slab():
+    """A box 40 x 40 x 20 mm (metres), subdivided."""
+    m = trimesh.creation.box(extents=(0.04, 0.04, 0.02)).subdivide().subdivide()
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def test_flat_face_pull_is_the_c1_depth_map():
+    # a point on the normal through the middle of the top face (z = 0.01) at signed distance
+    # s goes to s' = m (1 - exp(-s / m)) for s > 0 and stays for s <= 0: exactly (the closest
+    # point is in the face's interior, its direction the face normal)
+    v, f = _slab()
+    top = f[(v[f][:, :, 2] > 0.01 - 1e-12).all(axis=1)][0]
+    c = v[top].mean(axis=0)       # a top triangle's centroid: its edges are > KAPPA tau away
+    s = np.linspace(-1e-3, 5e-3, 61)
+    mid = np.c_[np.full(61, c[0]), np.full(61, c[1]), 0.01 + s]
+    fib = np.stack([np.zeros((61, 3)), mid, np.zeros((61, 3))], axis=1)
+    out, _ = contain(fib, v, f)
+    expect = np.where(s > 0, M * -np.expm1(-np.maximum(s, 0) / M), s)
+    # to the soft blend: far out, coplanar neighbours within KAPPA tau of the nearest
+    # triangle get a little weight and tilt the direction (measured 4e-8 m at s = 5 mm)
+    np.testing.assert_allclose(out[:, 1, 2] - 0.01, expect, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(out[:, 1, :2], mid[:, :2], rtol=0, atol=1e-7)
+    np.testing.assert_array_equal(out[s <= 0, 1], mid[s <= 0])       # inside: not moved
+    # C1 at the surface: the map's slope is 1 on both sides of s = 0 (the central difference
+    # over +-e differs from 1 by the curvature term e / (4 m) = 1.25e-4)
+    e = 1e-7
+    pts = np.stack([np.zeros((2, 3)), [[c[0], c[1], 0.01 - e], [c[0], c[1], 0.01 + e]],
+                    np.zeros((2, 3))], axis=1)
+    z = contain(pts, v, f)[0][:, 1, 2]
+    assert abs((z[1] - z[0]) / (2 * e) - 1) <= e / (2 * M)
+
+
+def _notch():
+    """A prism (metres) whose top has a V notch: a pentagon (0,0) (40,0) (40,20) (20,10)
+    (0,20) mm extruded 20 mm along z; its walls meet in a concave edge at x = 20 mm."""
+    poly = np.array([[0, 0], [40, 0], [40, 20], [20, 10], [0, 20]], float) * 1e-3
+    n = len(poly)
+    v = np.vstack([np.c_[poly, np.zeros(n)], np.c_[poly, np.full(n, 0.02)]])
+    cap = np.array([[3, 4, 0], [3, 0, 1], [3, 1, 2]])          # a fan from the reflex corner
+    sides = [[i, (i + 1) % n, n + (i + 1) % n] for i in range(n)] + \
+            [[i, n + (i + 1) % n, n + i] for i in range(n)]
+    f = np.vstack([cap[:, ::-1], cap + n, sides])
+    m = trimesh.Trimesh(v, f, process=False)
+    m.fix_normals()
+    assert m.is_watertight and m.volume > 0
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def test_pull_is_continuous_across_the_medial_plane_of_a_concave_notch():
+    # points outside in the notch, 4 mm above its edge, crossing the plane x = 20 mm where
+    # both walls are equally near (the single closest wall would jump from one side to the
+    # other: a jump of ~5.6 mm); the soft blend turns the direction continuously
+    v, f = _notch()
+    x = 0.02 + np.linspace(-3e-4, 3e-4, 601)
+    mid = np.c_[x, np.full_like(x, 0.014), np.full_like(x, 0.01)]
+    fib = np.stack([np.tile([0.01, 0.005, 0.01], (len(x), 1)), mid,
+                    np.tile([0.03, 0.005, 0.01], (len(x), 1))], axis=1)
+    out = contain(fib, v, f)[0][:, 1]
+    step = np.linalg.norm(np.diff(out, axis=0), axis=1).max()
+    # steepest where the blend turns (over ~tau = 0.05 mm): measured 0.06 mm per 1 um step,
+    # far from a 5.6 mm jump; halving the step halves it (continuous, not a jump)
+    assert step <= 0.2e-3
+    half = contain(np.stack([fib[:-1, 0], 0.5 * (mid[:-1] + mid[1:]), fib[:-1, 2]], axis=1),
+                   v, f)[0][:, 1]
+    fine = np.linalg.norm(np.r_[half - out[:-1], out[1:] - half], axis=1).max()
+    assert fine <= 0.6 * step
+    # and the pulled points end near the walls: on the medial plane the blended direction
+    # bisects them, so the two steps leave a point slightly farther out than m (measured
+    # 0.24 mm); elsewhere within m
+    sd, _ = surface_distance(out, v, f, reach=0.01, softness=CONTAIN_SOFTNESS)
+    assert sd.max() <= 1.5 * M
+
+
+def test_surface_distance_matches_the_torus(torus):
+    v, f = torus
+    rng = np.random.default_rng(2)
+    x = rng.uniform(-1, 1, (2000, 3)) * [R + 2 * RHO, R + 2 * RHO, 2 * RHO]
+    s, n = surface_distance(x, v, f, reach=0.008, softness=CONTAIN_SOFTNESS)
+    exact = torus_sd(x)
+    ok = np.isfinite(s)
+    assert ok.sum() > 500
+    # the mesh is within SAG inside the torus; the blend overestimates by < KAPPA tau
+    assert np.abs(s[ok] - exact[ok]).max() <= SAG + KAPPA * CONTAIN_SOFTNESS
+    # -inf only for points farther than reach (8 mm) from the surface, or inside and
+    # deeper than one grid cell
+    assert ((exact[~ok] > 8e-3 - SAG) | (exact[~ok] < 0)).all()
+    assert np.allclose(np.linalg.norm(n[ok], axis=1), 1.0)
+
+
+def test_compiled_and_numpy_paths_agree(torus, monkeypatch):
+    v, f = torus
+    fib = chords()
+    rng = np.random.default_rng(4)
+    x = rng.uniform(-1, 1, (400, 3)) * [R + 2 * RHO, R + 2 * RHO, 2 * RHO]
+    s1, n1 = surface_distance(x, v, f, reach=0.008, softness=CONTAIN_SOFTNESS)
+    c1, m1 = contain(fib, v, f)
+    monkeypatch.setattr(sdist, "_KERNELS", [None])
+    s2, n2 = surface_distance(x, v, f, reach=0.008, softness=CONTAIN_SOFTNESS)
+    c2, m2 = contain(fib, v, f)
+    both = np.isfinite(s1)
+    # the same formulas on the same triangles: equal to rounding; the compiled path does
+    # not measure points deep in enclosed cells (-inf), the numpy path does (inside)
+    np.testing.assert_allclose(s1[both], s2[both], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(n1[both], n2[both], rtol=0, atol=1e-12)
+    assert (s2[~both] < 0).all()
+    np.testing.assert_allclose(c1, c2, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(m1, m2)
+
+
+def test_choice_watches_the_points_near_or_outside_and_reapplies(torus):
+    v, f = torus
+    fib = chords()
+    ch = containment_choice(fib, v, f)
+    sd = torus_sd(fib).ravel()
+    inner = np.zeros(fib.shape[:2], bool)
+    inner[:, 1:-1] = True
+    inner = inner.ravel()
+    # every inner point outside or within 2 mm is watched (SAG: mesh vs torus); no end
+    must = inner & (sd > -2e-3 + SAG)
+    assert np.isin(np.flatnonzero(must), ch.index).all()
+    assert inner[ch.index].all()
+    # applying the choice equals measuring every inner point (the unwatched are inside)
+    np.testing.assert_array_equal(apply_containment(fib, v, f, ch)[0], contain(fib, v, f)[0])
+    # the first n fibres' choice is the head of the choice
+    np.testing.assert_array_equal(apply_containment(fib[:7], v, f, ch)[0],
+                                  contain(fib[:7], v, f)[0])
+
+
+def test_grid_cell_size_does_not_change_the_distances(torus):
+    v, f = torus
+    x = chords().reshape(-1, 3)
+    a = SurfaceGrid(v, f, reach=0.008).signed_distance(x, tau=CONTAIN_SOFTNESS)
+    b = SurfaceGrid(v, f, reach=0.008, cell=0.0031).signed_distance(x, tau=CONTAIN_SOFTNESS)
+    fin = np.isfinite(a[0]) & np.isfinite(b[0])
+    assert fin.sum() > 0.5 * len(x)
+    np.testing.assert_allclose(a[0][fin], b[0][fin], rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, np.nan])
+def test_bad_parameters_are_refused(torus, bad):
+    v, f = torus
+    with pytest.raises(ValueError, match="margin"):
+        contain(chords(), v, f, margin=bad)
+    with pytest.raises(ValueError, match="reach"):
+        surface_distance(np.zeros(3), v, f, reach=bad, softness=1e-4)
+    with pytest.raises(ValueError, match="points"):
+        contain(np.zeros((4, 3)), v, f)
