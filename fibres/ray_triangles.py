@@ -18,7 +18,7 @@ _KERNELS = []
 
 
 def _kernels():
-    """(closest triangle point to each ray, faces with all corners marked) compiled with
+    """(closest triangle point to each ray, area triangles, corner bounds) compiled with
     numba, or None (then numpy)."""
     if not _KERNELS:
         try:
@@ -30,7 +30,7 @@ def _kernels():
             jit = numba.njit(cache=True, nogil=True)
             _pair = jit(_pair_loop)
             _across_distance = jit(_across_distance_loop)
-            _KERNELS.append((jit(_triangles_loop), jit(_full_faces_loop), jit(_bounds_loop)))
+            _KERNELS.append((jit(_triangles_loop), jit(_region_loop), jit(_bounds_loop)))
     return _KERNELS[0]
 
 
@@ -284,12 +284,46 @@ def _bounds_loop(tv):  # pragma: no cover - compiled by numba
     return lo, hi
 
 
-def _full_faces_loop(faces, inside):  # pragma: no cover - compiled by numba
-    """Whether all three corners of each face (T, 3) are marked in ``inside`` (V,)."""
-    out = np.zeros(faces.shape[0], np.bool_)
-    for t in range(faces.shape[0]):
-        out[t] = inside[faces[t, 0]] and inside[faces[t, 1]] and inside[faces[t, 2]]
-    return out
+def _region_loop(faces, region, n_vertices):  # pragma: no cover - compiled by numba
+    """`region_triangles` in one pass over the faces (the array version's outputs: full
+    faces in index order, then the lone area vertices in area order, each owned by the
+    last face holding it in the corner-by-corner scan)."""
+    n_t = faces.shape[0]
+    inside = np.zeros(n_vertices, np.bool_)
+    for r in region:
+        inside[r] = True
+    full = np.empty(n_t, np.int64)
+    n_full = 0
+    covered = np.zeros(n_vertices, np.bool_)
+    for t in range(n_t):
+        if inside[faces[t, 0]] and inside[faces[t, 1]] and inside[faces[t, 2]]:
+            full[n_full] = t
+            n_full += 1
+            covered[faces[t, 0]] = True
+            covered[faces[t, 1]] = True
+            covered[faces[t, 2]] = True
+    n_lone = 0
+    for r in region:
+        n_lone += not covered[r]
+    corners = np.empty((n_full + n_lone, 3), np.int64)
+    face = np.empty(n_full + n_lone, np.int64)
+    for q in range(n_full):
+        t = full[q]
+        corners[q, 0], corners[q, 1], corners[q, 2] = faces[t, 0], faces[t, 1], faces[t, 2]
+        face[q] = t
+    if n_lone:
+        owner = np.full(n_vertices, -1, np.int64)
+        for j in range(3):  # corner by corner, the last face wins (as the array version)
+            for t in range(n_t):
+                if inside[faces[t, j]] and not covered[faces[t, j]]:
+                    owner[faces[t, j]] = t
+        q = n_full
+        for r in region:
+            if not covered[r]:
+                corners[q, 0], corners[q, 1], corners[q, 2] = r, r, r
+                face[q] = owner[r]
+                q += 1
+    return corners, face
 
 
 def region_triangles(faces, region, n_vertices):
@@ -311,14 +345,15 @@ def region_triangles(faces, region, n_vertices):
     face : (T',) int
         For each, a face of the mesh holding it (for a point: a face with that corner).
     """
+    kernels = _kernels()
+    if kernels is not None:
+        return kernels[1](np.ascontiguousarray(faces, dtype=np.int64),
+                          np.ascontiguousarray(region, dtype=np.int64), int(n_vertices))
     inside = np.zeros(n_vertices, bool)
     inside[region] = True
     f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
-    kernels = _kernels()
-    if kernels is not None:
-        full = np.flatnonzero(kernels[1](faces, inside))
-    else:  # column by column (faces may be a strided view; a (T, 3) gather is ~6x slower)
-        full = np.flatnonzero(inside[f0] & inside[f1] & inside[f2])
+    # column by column (faces may be a strided view; a (T, 3) gather is ~6x slower)
+    full = np.flatnonzero(inside[f0] & inside[f1] & inside[f2])
     covered = np.zeros(n_vertices, bool)
     covered[faces[full].ravel()] = True
     lone = region[~covered[region]]
