@@ -8,7 +8,11 @@ repeats (median), both without a plan (every choice made afresh, the rest-pose c
 with the plan of the first run reused on a slightly deformed copy (the per-frame cost of a
 motion).
 
-    OMP_NUM_THREADS=1 python bench/decompose.py [--repeats 15] [--profile]
+    OMP_NUM_THREADS=1 python bench/decompose.py [--repeats 15] [--profile] [--breakdown]
+
+``--breakdown`` times the stages of the 15K x 100 rest-pose decomposition (no plan) in
+context: each stage function is wrapped with a CPU-time timer for the run (inclusive
+times; the functions called inside a stage are listed indented under it).
 """
 from __future__ import annotations
 
@@ -71,13 +75,89 @@ def _median_ms(fn, repeats):
     return 1e3 * float(np.median(wall)), 1e3 * float(np.median(cpu))
 
 
+#: (module, function, users importing it by name) timed by --breakdown; indented rows are
+#: inside the row above them
+_STAGES = (("fibres.decompose", "_clean_tuple", ()),
+           ("fibres.surface", "clean_mesh_geometry", ("fibres.decompose",)),
+           ("fibres.decompose", "_new_plan", ()),
+           ("fibres.fitting", "principal_frame", ("fibres.decompose",)),
+           ("fibres.decompose", "_cross_section_ref", ()),
+           ("fibres.fitting", "fit_box", ("fibres.decompose",)),
+           ("fibres.decompose", "_sweep", ()),
+           ("fibres.plan", "box_and_local", ("fibres.decompose",)),
+           ("fibres.slicing", "slice_mesh", ("fibres.decompose",)),
+           ("fibres.contours", "choose_loops", ("fibres.decompose",)),
+           ("fibres.morph", "slice_maps", ("fibres.decompose",)),
+           ("fibres.decompose", "_morph_fibres", ()),
+           ("fibres.mvc", "mvc_map", ("fibres.morph",)),
+           ("fibres.filtering", "filter_choices", ("fibres.decompose",)),
+           ("fibres.ray_triangles", "region_triangles", ("fibres.filtering",)),
+           ("fibres.ray_triangles", "closest_on_triangles", ("fibres.filtering",)),
+           ("fibres.filtering", "apply_filter", ("fibres.decompose",)),
+           ("fibres.smoothing", "smooth", ("fibres.decompose",)))
+_INNER = {"clean_mesh_geometry", "principal_frame", "_cross_section_ref", "fit_box",
+          "box_and_local", "slice_mesh", "choose_loops", "slice_maps", "mvc_map",
+          "region_triangles", "closest_on_triangles"}
+
+
+def breakdown(n_runs: int = 40):
+    """Per-stage CPU time (ms per decomposition, min over 3 rounds of ``n_runs``) of the 15K
+    x 100 rest-pose decomposition, measured in context by wrapping the stage functions."""
+    import importlib
+
+    from fibres import decompose
+
+    acc = {}
+
+    def timed(name, fn):
+        def run(*a, **k):
+            t0 = time.process_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                acc[name] = acc.get(name, 0.0) + time.process_time() - t0
+        return run
+
+    saved = []
+    for mod_name, name, users in _STAGES:  # wrap each stage where it is looked up
+        fn = getattr(importlib.import_module(mod_name), name)
+        for m in (mod_name,) + users:
+            mod = importlib.import_module(m)
+            saved.append((mod, name, getattr(mod, name)))
+            setattr(mod, name, timed(name, fn))
+    v, f, o, i = fusiform_surface(15_000)
+    try:
+        decompose((v, f), o, i)                                  # warm-up
+        best, total = {}, float("inf")
+        for _ in range(3):  # rounds
+            acc.clear()
+            t0 = time.process_time()
+            for _ in range(n_runs):  # decompositions
+                decompose((v, f), o, i)
+            total = min(total, (time.process_time() - t0) / n_runs)
+            for k, t in acc.items():
+                best[k] = min(best.get(k, float("inf")), t / n_runs)
+    finally:
+        for mod, name, fn in saved:
+            setattr(mod, name, fn)
+    print(f"stages of one 15K x 100 rest-pose decomposition, CPU ms (total {1e3 * total:.2f})")
+    for _, name, _ in _STAGES:
+        indent = "    " if name in _INNER else "  "
+        print(f"{indent}{name:<24s} {1e3 * best.get(name, 0.0):7.3f}")
+
+
 def main(argv=None):
     from fibres import decompose
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--profile", action="store_true", help="cProfile the 15K x 100 case")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="time the stages of the 15K x 100 rest-pose case and stop")
     args = ap.parse_args(argv)
+    if args.breakdown:
+        breakdown()
+        return
     print("median over repeats, ms: wall (cpu). no plan = rest pose, every choice afresh; "
           "plan = per frame; core = plan, no attachment filter, no smoothing")
     print(f"{'vertices':>9} {'fibres':>6} {'points':>6} {'no plan':>16} {'plan':>16} "
