@@ -19,24 +19,20 @@ Points inside (``s <= 0``) do not move at all and fibre ends (on the attachment 
 move. A far-outside point ends less than ``m`` outside (0.2 mm in `fibres.decompose`); a
 second step from the new closest point puts points near mesh edges and vertices at ``s'`` too.
 
-Watched points (a speed-up for motions). `containment_choice` marks, on one pose (the rest
-pose, kept in the `fibres.DecompositionPlan` with the attachment filter's choices), the inner
-points that are outside or within `watch` (2 mm) of the surface; `apply_containment` then
-measures only those on every frame (the search is made afresh per frame: fibres slide along
-the surface when it deforms, so a frozen set of candidate triangles would go stale). Points
-deeper than `watch` on the rest pose are taken as staying inside. Points with no triangle
-within `reach` (8 mm) are taken as inside (the chain's excursions are a few mm).
+Every inner point is measured on every call (each frame of a motion): no points are chosen on
+the rest pose and skipped later, because fibres slide along the surface as it deforms (on the
+LHDL bend sweeps of tests/fibres/test_decompose_lhdl.py a point's depth changes by up to 8 mm
+over 20 degrees, and points 3.5 mm deep at rest end up outside). Points with no triangle within
+`reach` (8 mm) are taken as inside (the chain's excursions are a few mm); points in grid cells
+enclosed by the surface are inside without a search (`fibres.surface_distance`).
 """
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 from .surface_distance import SurfaceGrid
 
-__all__ = ["ContainChoice", "containment_choice", "apply_containment", "contain",
-           "CONTAIN_MARGIN", "CONTAIN_REACH", "CONTAIN_SOFTNESS", "CONTAIN_WATCH"]
+__all__ = ["contain", "CONTAIN_MARGIN", "CONTAIN_REACH", "CONTAIN_SOFTNESS"]
 
 #: depth scale m (metres) of the pull: points far outside end less than m outside
 CONTAIN_MARGIN = 2e-4
@@ -44,42 +40,6 @@ CONTAIN_MARGIN = 2e-4
 CONTAIN_REACH = 8e-3
 #: soft-min width tau (metres) of the blend over the nearest triangles
 CONTAIN_SOFTNESS = 5e-5
-#: inner points within this depth (metres) on the choice's pose are watched
-CONTAIN_WATCH = 2e-3
-
-
-@dataclass(frozen=True)
-class ContainChoice:
-    """The inner fibre points that `apply_containment` measures.
-
-    Attributes
-    ----------
-    index : (W,) int64
-        Flat indices ``fibre * P + point`` of the watched points (never an end point),
-        ascending.
-    n_points : int
-        P, points per fibre.
-    cell : float
-        Grid cell size used on the choice's pose (reused for speed; results do not depend
-        on it).
-    """
-
-    index: np.ndarray
-    n_points: int
-    cell: float | None = None
-
-    def __post_init__(self):
-        a = np.array(self.index, dtype=np.int64, copy=True)
-        if a.ndim != 1:
-            raise ValueError("index must be (W,)")
-        a.flags.writeable = False
-        object.__setattr__(self, "index", a)
-        object.__setattr__(self, "n_points", int(self.n_points))
-
-    def head(self, n: int) -> "ContainChoice":
-        """The choices of the first ``n`` fibres."""
-        return ContainChoice(self.index[self.index < n * self.n_points], self.n_points,
-                             self.cell)
 
 
 def _check(**values):
@@ -100,67 +60,28 @@ def _inner(n, p):
     return (np.arange(n)[:, None] * p + np.arange(1, p - 1)[None]).ravel()
 
 
-def containment_choice(points, vertices, faces, *, watch: float = CONTAIN_WATCH,
-                       reach: float = CONTAIN_REACH, grid: SurfaceGrid | None = None
-                       ) -> ContainChoice:
-    """Mark the inner fibre points that are outside or within `watch` of the surface.
+def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
+            softness: float = CONTAIN_SOFTNESS, reach: float = CONTAIN_REACH,
+            iterations: int = 2):
+    """Pull the inner fibre points that lie outside a closed surface back in (module
+    docstring).
 
     Parameters
     ----------
     points : (N, P, 3) float
+        Fibres; the first and last point of each never move.
     vertices : (V, 3) float
     faces : (T, 3) int
         Closed, consistently and outward wound surface.
-    watch : float, keyword-only
-        Depth (metres) down to which inside points are watched.
-    reach : float, keyword-only
-        Points farther from every triangle are taken as inside.
-    grid : SurfaceGrid, optional, keyword-only
-        The surface already prepared (same vertices and faces).
-
-    Returns
-    -------
-    ContainChoice
-    """
-    _check(watch=watch, reach=reach)
-    pts = _as_fibres(points)
-    n, p = pts.shape[:2]
-    grid = SurfaceGrid(vertices, faces, reach=reach) if grid is None else grid
-    if n == 0 or p < 3:
-        return ContainChoice(np.zeros(0, np.int64), p, grid.cell)
-    flat = _inner(n, p)
-    s, _ = grid.signed_distance(pts.reshape(-1, 3)[flat], tau=CONTAIN_SOFTNESS, watch=watch)
-    return ContainChoice(flat[np.isfinite(s) & (s > -watch)], p, grid.cell)
-
-
-def apply_containment(points, vertices, faces, choice: ContainChoice | None = None, *,
-                      margin: float = CONTAIN_MARGIN, softness: float = CONTAIN_SOFTNESS,
-                      reach: float = CONTAIN_REACH, iterations: int = 2,
-                      grid: SurfaceGrid | None = None):
-    """Pull the inner points that lie outside the surface back in (module docstring).
-
-    Parameters
-    ----------
-    points : (N, P, 3) float
-        Fibres.
-    vertices : (V, 3) float
-    faces : (T, 3) int
-        Closed, consistently and outward wound surface (the choice's pose or a deformed
-        copy with the same faces).
-    choice : ContainChoice, optional
-        Measure only these points (N <= the choice's fibres, same P); None: every inner
-        point.
     margin : float, keyword-only
         m: a point at signed distance s > 0 goes to ``m (1 - exp(-s / m))`` (< m).
     softness : float, keyword-only
-        Soft-min width tau of the distance blend.
+        Soft-min width tau of the distance blend (`fibres.surface_distance`).
     reach : float, keyword-only
         Points farther from every triangle are taken as inside.
     iterations : int, keyword-only
         Pull steps (>= 1): the first moves by ``s - s'`` along the shortest path, the
         others correct towards the same ``s'`` from the new closest point.
-    grid : SurfaceGrid, optional, keyword-only
-        The surface already prepared (same vertices and faces).
 
     Returns
     -------
@@ -175,23 +96,24 @@ def apply_containment(points, vertices, faces, choice: ContainChoice | None = No
         raise ValueError(f"iterations must be a positive integer, got {iterations!r}")
     out = _as_fibres(points)
     n, p = out.shape[:2]
+    if n == 0 or p < 3:
+        return out, np.zeros(n, bool)
+    grid = SurfaceGrid(vertices, faces, reach=reach)
+    index = _inner(n, p)
+    # points in enclosed grid cells are inside: not measured (watch = 0)
+    s, d = grid.signed_distance(out.reshape(-1, 3)[index], tau=softness, watch=0.0)
+    return _pull(out, index, s, d, grid, margin, softness, iterations)
+
+
+def _pull(out, index, s, d, grid, margin, softness, iterations):
+    """Move the points ``index`` (flat) of out (N, P, 3) with signed distance s > 0 along
+    -d to ``s'`` (module docstring), in place; returns (out, moved (N,))."""
+    n, p = out.shape[:2]
     moved = np.zeros(n, bool)
-    if choice is None:
-        index = _inner(n, p) if p >= 3 else np.zeros(0, np.int64)
-        cell = None
-    else:
-        if p != choice.n_points:
-            raise ValueError(f"the choice is for {choice.n_points} points per fibre, got {p}")
-        index, cell = choice.head(n).index, choice.cell
-    if len(index) == 0:
-        return out, moved
-    if grid is None:
-        grid = SurfaceGrid(vertices, faces, reach=reach, cell=cell)
-    flat = out.reshape(-1, 3)
-    s, d = grid.signed_distance(flat[index], tau=softness)
     outside = s > 0
     if not outside.any():
         return out, moved
+    flat = out.reshape(-1, 3)
     rows, s, d = index[outside], s[outside], d[outside]
     target = margin * -np.expm1(-s / margin)
     y = flat[rows] - (s - target)[:, None] * d
@@ -202,16 +124,3 @@ def apply_containment(points, vertices, faces, choice: ContainChoice | None = No
     moved[rows // p] = True
     return out, moved
 
-
-def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
-            softness: float = CONTAIN_SOFTNESS, reach: float = CONTAIN_REACH,
-            iterations: int = 2):
-    """`apply_containment` on every inner point (no choice).
-
-    Returns
-    -------
-    points : (N, P, 3) float64
-    moved : (N,) bool
-    """
-    return apply_containment(points, vertices, faces, None, margin=margin, softness=softness,
-                             reach=reach, iterations=iterations)

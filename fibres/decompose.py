@@ -27,7 +27,7 @@ import dataclasses
 import numpy as np
 
 from .bundle import FibreBundle
-from .containment import CONTAIN_REACH, apply_containment, containment_choice
+from .containment import contain as contain_points
 from .contours import choose_loops
 from .errors import InputError
 from .filtering import apply_filter, filter_choices
@@ -38,7 +38,6 @@ from .sampling import sobol_rs
 from .slicing import mesh_topology, slice_mesh
 from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .surface import Surface, as_points, as_surface, clean_mesh_geometry
-from .surface_distance import SurfaceGrid
 from .templates import Template, get_template
 
 __all__ = ["decompose", "make_plan"]
@@ -275,10 +274,6 @@ def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
     _, pts, boxed = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
     fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2], seed=seed, template=spec,
                         reference=boxed)
-    # the containment's watched points, on the rest pose's final fibres
-    rest = smooth(apply_filter(pts, v, o, i, box.axes[:, 2], fc)[0], k=4.0,
-                  iterations=DEFAULT_ITERATIONS, max_shift=DECOMPOSE_MAX_SHIFT)
-    fc = dataclasses.replace(fc, contain=containment_choice(rest, v, faces))
     cache[key] = fc
     notes.append("attachment filter: choices made on the plan's rest pose (the plan had none "
                  "for these fibres)")
@@ -332,9 +327,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         its shortest path, smoothly (`fibres.containment`; our addition to the paper: its
         straight reconstructed end segments, resampling chords and mean value coordinates
         on non-convex contours leave points up to ~4 mm outside curved muscles). Points
-        inside are not moved; pulled points end less than 0.2 mm outside. The watched
-        points are chosen on the rest pose and kept in the plan (with the attachment
-        filter's choices).
+        inside are not moved; pulled points end less than 0.2 mm outside. Every inner
+        point is measured on every call (no choice is kept in the plan).
 
     Returns
     -------
@@ -381,15 +375,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations),
                      max_shift=DECOMPOSE_MAX_SHIFT)
     if contain:
-        cc = fc.contain if fc is not None and fc.contain is not None else None
-        if cc is not None and cc.n_points != pts.shape[1]:
-            cc = None
-        grid = None
-        if fresh and fc is not None:    # watched points chosen on the rest pose, kept
-            grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)
-            cc = containment_choice(pts, v, faces, grid=grid)
-            fc = dataclasses.replace(fc, contain=cc)
-        pts, flags["contained"] = apply_containment(pts, v, faces, cc, grid=grid)
+        pts, flags["contained"] = contain_points(pts, v, faces)
     if fresh and fc is not None:
         plan = dataclasses.replace(plan, filter_choice=fc)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

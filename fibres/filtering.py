@@ -51,7 +51,7 @@ their rays meet the area on one side: gluteus medius' fibres left one end of the
 iliac crest empty (largest landmark-to-fibre-start gap 22.5 mm). When `reference` (the same
 fibres mapped affinely into the fitted box, i.e. the template's own directions) is given, a
 fibre whose reference ray HITS the area ends there; the others keep the paper's ray. The gap
-falls to 14.6 mm (gluteus maximus 58 -> 38 mm; iliacus and psoas unchanged). The choice is
+falls to 15.8 mm (gluteus maximus 58 -> 45 mm; iliacus and psoas unchanged, 19 and 11 mm). The choice is
 made once on the rest pose (a material point), so motions stay smooth.
 
 Inside the surface (measured on the LHDL hip muscles, 100 fibres x 16 points): the morph
@@ -131,9 +131,6 @@ class FilterChoice:
         Sobol seed of the fibres (the choices hold for fibres 0..N-1 of that seed).
     template : tuple or None
         ``(name, params)`` of the fibre template.
-    contain : fibres.containment.ContainChoice or None
-        The points watched by the final containment step, chosen on the same rest pose
-        after filtering and smoothing (`fibres.decompose`).
     """
 
     landmarks: np.ndarray
@@ -147,7 +144,6 @@ class FilterChoice:
     param: np.ndarray
     seed: int = 0
     template: tuple | None = None
-    contain: object = None
 
     def __post_init__(self):
         for name, dt in (("landmarks", np.int64), ("cut", bool), ("segment", np.int64),
@@ -183,8 +179,7 @@ class FilterChoice:
         return FilterChoice(self.landmarks, self.cut[:n], self.segment[:n], self.cut_param[:n],
                             self.target_face[:n], self.target_vertices[:n],
                             self.target_bary[:n], self.piece[:n], self.param[:n], self.seed,
-                            self.template,
-                            None if self.contain is None else self.contain.head(n))
+                            self.template)
 
 
 def _vertices_faces(surface):

@@ -24,7 +24,8 @@ empty path joins inside and outside). A point in an enclosed empty cell is insid
 surface cell touches its cell it is deeper than one cell (``s = -inf``), otherwise it looks
 for triangles within ``watch`` only. Other points visit rings of cells around their own until
 the ring's distance exceeds the current bound ``min(d_min + KAPPA tau, reach)``, skipping
-empty cells, far cells and triangles whose bounding sphere or plane is too far. Compiled
+empty cells, far cells and triangles too far by a lower bound (the distance to the triangle's
+plane and, within it, to its bounding circle). Compiled
 with numba; the numpy fallback tests every triangle (the same formulas; equal where both
 report a distance).
 """
@@ -35,7 +36,7 @@ import numpy as np
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
 
 #: triangles farther than d_min + KAPPA tau get no weight in the blend
-KAPPA = 12.0
+KAPPA = 8.0
 #: grid cell size in mean edge lengths
 CELL_EDGES = 1.5
 
@@ -57,7 +58,8 @@ def _kernels():
             glb = dict(globals(), _closest_point=jit(_closest_point), _blend=jit(_blend))
             query = types.FunctionType(_query_loop.__code__, glb, "_query_loop")
             _KERNELS.append({"edges": jit(_edge_loop), "grid": jit(_grid_loop),
-                             "label": jit(_label_loop), "query": jit(query)})
+                             "label": jit(_label_loop), "query": jit(query),
+                             "bounds": jit(_bounds_loop)})
     return _KERNELS[0]
 
 
@@ -106,6 +108,17 @@ def _edge_loop(v, faces):  # pragma: no cover - compiled by numba
             dx, dy, dz = v[b, 0] - v[a, 0], v[b, 1] - v[a, 1], v[b, 2] - v[a, 2]
             total += np.sqrt(dx * dx + dy * dy + dz * dz)
     return total / max(3 * faces.shape[0], 1)
+
+
+def _bounds_loop(v):  # pragma: no cover - compiled by numba
+    """Coordinate-wise minimum and maximum of the vertices (V, 3)."""
+    lo = v[0].copy()
+    hi = v[0].copy()
+    for i in range(1, v.shape[0]):
+        for k in range(3):
+            lo[k] = min(lo[k], v[i, k])
+            hi[k] = max(hi[k], v[i, k])
+    return lo, hi
 
 
 def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numba
@@ -207,7 +220,7 @@ def _label_loop(start, dims):  # pragma: no cover - compiled by numba
 
 
 def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, items, label,
-                reach, watch, tau, kappa, out_s, out_n):  # pragma: no cover - numba
+                labelled, reach, watch, tau, kappa, out_s, out_n):  # pragma: no cover - numba
     """The grid search of the module docstring, then `_blend`, for every point."""
     n_tri = faces.shape[0]
     nx, ny, nz = dims[0], dims[1], dims[2]
@@ -225,23 +238,34 @@ def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, it
         enclosed = False
         if 0 <= ci < nx and 0 <= cj < ny and 0 <= ck < nz:
             q = (ci * ny + cj) * nz + ck
-            if label[q] == 3:       # an enclosed empty cell: inside
+            if labelled and label[q] == 3:       # an enclosed empty cell: inside
                 enclosed = True
                 lim = watch
-                deep = True         # no surface cell around: deeper than one cell
-                for di in range(-1, 2):
-                    for dj in range(-1, 2):
-                        for dk in range(-1, 2):
-                            if label[((ci + di) * ny + cj + dj) * nz + ck + dk] == 1:
-                                deep = False
+                deep = watch <= 0.0  # no surface cell around: deeper than one cell
+                if not deep:
+                    deep = True
+                    for di in range(-1, 2):
+                        for dj in range(-1, 2):
+                            for dk in range(-1, 2):
+                                if label[((ci + di) * ny + cj + dj) * nz + ck + dk] == 1:
+                                    deep = False
                 if deep:
                     out_s[p] = -np.inf
                     out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
                     continue
-            for e in range(start[q], start[q + 1]):  # seed the bound: own cell's spheres
+            seed, near = -1, np.inf   # seed the bound: the own cell's nearest centroid's
+            for e in range(start[q], start[q + 1]):   # triangle, measured exactly
                 t = items[e]
                 ex, ey, ez = px - centre[t, 0], py - centre[t, 1], pz - centre[t, 2]
-                lim = min(lim, np.sqrt(ex * ex + ey * ey + ez * ez) + radius[t] + keep)
+                e2 = ex * ex + ey * ey + ez * ez
+                if e2 < near:
+                    seed, near = t, e2
+            if seed >= 0:
+                a, b, c = faces[seed, 0], faces[seed, 1], faces[seed, 2]
+                qx, qy, qz = _closest_point(v[a, 0], v[a, 1], v[a, 2], v[b, 0], v[b, 1],
+                                            v[b, 2], v[c, 0], v[c, 1], v[c, 2], px, py, pz)
+                dx, dy, dz = px - qx, py - qy, pz - qz
+                lim = min(lim, np.sqrt(dx * dx + dy * dy + dz * dz) + keep)
         best = np.inf
         nb = 0
         r = 0
@@ -271,13 +295,15 @@ def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, it
                             if stamp[t] == p:
                                 continue
                             stamp[t] = p
+                            # lower bound: the plane distance h and the in-plane distance
+                            # beyond the bounding circle (centre in the plane, radius r)
                             ex, ey, ez = px - centre[t, 0], py - centre[t, 1], pz - centre[t, 2]
-                            if np.sqrt(ex * ex + ey * ey + ez * ez) - radius[t] > lim:
+                            e2 = ex * ex + ey * ey + ez * ez
+                            h = ex * nrm[t, 0] + ey * nrm[t, 1] + ez * nrm[t, 2]
+                            w = max(np.sqrt(max(e2 - h * h, 0.0)) - radius[t], 0.0)
+                            if h * h + w * w > lim * lim:
                                 continue
                             a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-                            hx, hy, hz = px - v[a, 0], py - v[a, 1], pz - v[a, 2]
-                            if abs(hx * nrm[t, 0] + hy * nrm[t, 1] + hz * nrm[t, 2]) > lim:
-                                continue
                             qx, qy, qz = _closest_point(v[a, 0], v[a, 1], v[a, 2], v[b, 0],
                                                         v[b, 1], v[b, 2], v[c, 0], v[c, 1],
                                                         v[c, 2], px, py, pz)
@@ -413,9 +439,13 @@ class SurfaceGrid:
     cell : float, optional
         Grid cell size (default ``max(CELL_EDGES x mean edge, reach / 8)``); the result does
         not depend on it, only the speed.
+    labelled : bool
+        Label the empty cells inside/outside (module docstring); without the labels every
+        point is searched up to `reach` (cheaper to build when few points are queried).
     """
 
-    def __init__(self, vertices, faces, *, reach: float, cell: float | None = None):
+    def __init__(self, vertices, faces, *, reach: float, cell: float | None = None,
+                 labelled: bool = True):
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self.reach = float(reach)
@@ -426,7 +456,7 @@ class SurfaceGrid:
             return
         if cell is None:
             cell = max(CELL_EDGES * self.kernels["edges"](v, f), reach / 8.0)
-        lo, hi = v.min(axis=0), v.max(axis=0)
+        lo, hi = self.kernels["bounds"](v)
         # at most ~4 cells per triangle: coarser cells for very fine meshes in big boxes
         cell = max(float(cell), float(np.prod(hi - lo + 3 * cell) / (4.0 * len(f) + 1.0))
                    ** (1 / 3), 1e-12)
@@ -434,18 +464,22 @@ class SurfaceGrid:
         self.dims = np.floor((hi - lo) / cell).astype(np.int64) + 3
         self.nrm, self.centre, self.radius, self.start, self.items = self.kernels["grid"](
             v, f, self.lo, cell, self.dims)
-        self.label = self.kernels["label"](self.start, self.dims)
+        self.labelled = bool(labelled)
+        self.label = (self.kernels["label"](self.start, self.dims) if labelled
+                      else np.zeros(1, np.int8))
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None):
         """(s (n,), outward direction (n, 3)) of points (n, 3); ``watch``: how far a point
-        in an enclosed cell looks (default `reach`; the numpy fallback ignores it)."""
+        in an enclosed cell looks (default `reach`; 0: not at all, it is inside, ``-inf``;
+        the numpy fallback ignores it)."""
         x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         watch = self.reach if watch is None else float(watch)
         if self.kernels is not None:
             s, n = np.empty(len(x)), np.empty((len(x), 3))
             self.kernels["query"](x, self.vertices, self.faces, self.nrm, self.centre,
                                   self.radius, self.lo, self.cell, self.dims, self.start,
-                                  self.items, self.label, self.reach, watch, float(tau),
+                                  self.items, self.label, self.labelled, self.reach, watch,
+                                  float(tau),
                                   KAPPA, s, n)
             return s, n
         return _brute(x, self.vertices, self.faces, self.reach, float(tau))

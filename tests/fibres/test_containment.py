@@ -9,8 +9,7 @@ import pytest
 import trimesh
 
 import fibres.surface_distance as sdist
-from fibres.containment import (CONTAIN_MARGIN, CONTAIN_SOFTNESS, apply_containment, contain,
-                                containment_choice)
+from fibres.containment import CONTAIN_MARGIN, CONTAIN_SOFTNESS, contain
 from fibres.surface_distance import KAPPA, SurfaceGrid, surface_distance
 
 R, RHO = 0.05, 0.01                       # torus major / minor radius (m)
@@ -208,25 +207,6 @@ def test_compiled_and_numpy_paths_agree(torus, monkeypatch):
     assert (s2[~both] < 0).all()
     np.testing.assert_allclose(c1, c2, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(m1, m2)
-
-
-def test_choice_watches_the_points_near_or_outside_and_reapplies(torus):
-    v, f = torus
-    fib = chords()
-    ch = containment_choice(fib, v, f)
-    sd = torus_sd(fib).ravel()
-    inner = np.zeros(fib.shape[:2], bool)
-    inner[:, 1:-1] = True
-    inner = inner.ravel()
-    # every inner point outside or within 2 mm is watched (SAG: mesh vs torus); no end
-    must = inner & (sd > -2e-3 + SAG)
-    assert np.isin(np.flatnonzero(must), ch.index).all()
-    assert inner[ch.index].all()
-    # applying the choice equals measuring every inner point (the unwatched are inside)
-    np.testing.assert_array_equal(apply_containment(fib, v, f, ch)[0], contain(fib, v, f)[0])
-    # the first n fibres' choice is the head of the choice
-    np.testing.assert_array_equal(apply_containment(fib[:7], v, f, ch)[0],
-                                  contain(fib[:7], v, f)[0])
 
 
 def test_grid_cell_size_does_not_change_the_distances(torus):
