@@ -6,7 +6,9 @@ Ray/triangle hit: Moeller & Trumbore, "Fast, minimum storage ray-triangle inters
 J. Graphics Tools 2(1), 1997. Closest points of a ray and a segment: Ericson, Real-Time
 Collision Detection (2005), §5.1.9 (clamped segment-segment closest points), with the ray's
 upper bound removed. Vectorised over rays x triangles in numpy; a numba-compiled twin of the
-same formulas (with bounding-sphere pruning) is used when numba is installed.
+same formulas is used when numba is installed, which skips the pairs that exact lower bounds
+(bounding sphere, bounding box and line distance seen along the ray) show cannot win and
+evaluates the rest nearest bound first -- the same answers, ~2x faster on the bench areas.
 """
 from __future__ import annotations
 
@@ -131,14 +133,16 @@ def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled 
     The selection is the lexicographic minimum of (t, rank) over the touching pairs, else of
     (d2, rank), where rank orders the triangles as the plain loop visits them (the most
     promising one first, then all in index order) -- so it does not depend on which pairs
-    are evaluated, as long as every pair that could win is. Two exact lower bounds of a
+    are evaluated, as long as every pair that could win is. Three exact lower bounds of a
     pair's distance skip the others (farther than the best pair so far and than the
     touching tolerance, with a 1e-9 relative margin): the distance from the ray to the
-    triangle's bounding sphere (centre = corner mean, radius = farthest corner), and the
+    triangle's bounding sphere (centre = corner mean, radius = farthest corner); the
     distance from the ray to the triangle's bounding box in a frame along the ray
-    (``sqrt(du^2 + dv^2 + max(0, -t_max)^2)``, less ``slack`` for the rounding of the
-    frame coordinates). The remaining triangles are evaluated in increasing order of the
-    box bound, until the next bound exceeds the best distance."""
+    (``sqrt(du^2 + dv^2 + max(0, -t_max)^2)``); and the distance from the ray's line to the
+    triangle, both projected along the ray (`_across_distance_loop`) -- the last two less
+    ``slack`` for the rounding of the frame coordinates. The remaining triangles are
+    evaluated in increasing order of the box bound, until the next bound exceeds the best
+    distance."""
     n_rays, n_tri = start.shape[0], tv.shape[0]
     index = np.zeros(n_rays, np.int64)
     bary = np.zeros((n_rays, 3))

@@ -175,13 +175,13 @@ def _topology_kernel():
 def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by numba
     """`mesh_topology` of a mesh whose edges are each shared by exactly two faces, in
     O(T + V): the half-edges are bucketed by their smaller vertex (a counting sort in
-    half-edge order) and each bucket (a vertex's few edges) is insertion-sorted by the
-    larger vertex. Both sorts are stable, so the order is that of a stable argsort of the
+    half-edge order; Cormen et al., Introduction to Algorithms, §8.2) and each bucket (a
+    vertex's few edges) is insertion-sorted by the larger vertex. Both sorts are stable, so the order is that of a stable argsort of the
     keys ``min * V + max`` and edge ``e`` is the pair of sorted positions ``2e, 2e+1``,
     exactly as in the array version. The sorted half-edges carry their larger vertex and
     ``2 h + (runs min -> max)`` (int32 while T < 2**29), so that the pairing reads them in
     order. With ``pieces``, the faces of each pair are also joined in a union-find (path
-    halving) and the used vertices marked.
+    halving; Tarjan & van Leeuwen, J. ACM 31(2), 1984) and the used vertices marked.
 
     Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used); ``ok`` is
     False (and nothing else meaningful) when a vertex index is out of range, an edge is
