@@ -81,6 +81,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     import fibres
+    from fibres.containment import CONTAIN_SOFTNESS
+    from fibres.surface_distance import surface_distance
 
     args.out_dir.mkdir(parents=True, exist_ok=True)
     folder = LHDL / ("muscles_clean" if args.clean else "muscles")
@@ -97,8 +99,11 @@ def main(argv=None):
         bundle = fibres.decompose(surface, o, i, template=template, n_fibres=args.fibres)
         dt = time.perf_counter() - t0
         flags = {k: int(np.sum(v)) for k, v in bundle.flags.items()}
+        s, _ = surface_distance(bundle.points, surface.vertices, surface.faces, reach=0.02,
+                                softness=CONTAIN_SOFTNESS)
         print(f"{muscle}: {template}, {bundle.points.shape[0]} fibres in {dt * 1e3:.0f} ms; "
-              f"flags {flags}; notes {len(bundle.notes)}")
+              f"flags {flags}; notes {len(bundle.notes)}; most outside "
+              f"{max(np.nanmax(s), 0.0) * 1e3:.2f} mm")
         for note in bundle.notes[:5]:
             print(f"  note: {note}")
         path = args.out_dir / f"{muscle}.png"

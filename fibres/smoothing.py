@@ -13,7 +13,8 @@ points through the concave wall (measured up to 11 mm outside on LHDL psoas afte
 With ``max_shift`` = s the total displacement D of every point is softly saturated,
 ``D' = D / sqrt(1 + |D|^2 / s^2)`` (|D'| < s, D' ~ D for |D| << s, smooth in D so a motion's
 fibres stay smooth): a point that was inside the surface ends at most s outside it.
-`fibres.decompose` uses `DECOMPOSE_MAX_SHIFT`.
+`fibres.decompose` uses `DECOMPOSE_MAX_SHIFT` and then pulls every point left outside back in
+(`fibres.containment`).
 """
 from __future__ import annotations
 

@@ -86,6 +86,29 @@ def test_origin_side_trim_and_reconstruct(cube):
     assert len(np.unique(out[:, 0], axis=0)) > len(fib) // 4
 
 
+def test_reference_rays_end_where_they_hit_the_area(cube):
+    # the template's own direction (the reference fibres) replaces the morphed segment's
+    # where its ray from the cut hits the area: here a ray towards -x from every cut point
+    # (z = 0.3, y in [0.38, 0.62]) hits the area on the wall x = 0 at (0, y, 0.3) -- inside
+    # the area (landmarks y in [0.2, 0.8], z in [0, 0.3]): the new start is that hit point
+    from fibres.filtering import apply_filter, filter_choices
+
+    v, f = cube
+    fib = _converging_fibres()
+    origin, insertion = _grid_on_x0(0.0, 0.3), np.array([[0.5, 0.5, 1.0]])
+    toward_wall = np.zeros_like(fib)
+    toward_wall[..., 0] = np.arange(P) * 0.01              # segment a -> b points along -x
+    ch = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1], reference=toward_wall)
+    out = apply_filter(fib, v, origin, insertion, [0, 0, 1], ch)[0]
+    cut = fib[:, 0] + 0.3 * (fib[:, -1] - fib[:, 0])       # the line crosses z = 0.3
+    np.testing.assert_allclose(out[:, 0], np.c_[np.zeros(len(fib)), cut[:, 1:]], atol=1e-12)
+    # a reference ray that misses the area (towards +x, the far wall) keeps the paper's ray
+    plain = trim_and_reconstruct(fib, (v, f), origin, insertion, [0, 0, 1])[0]
+    ch = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1], reference=-toward_wall)
+    np.testing.assert_array_equal(apply_filter(fib, v, origin, insertion, [0, 0, 1], ch)[0],
+                                  plain)
+
+
 def test_insertion_side_is_symmetric(cube):
     v, f = cube
     fib = _converging_fibres()[:, ::-1]          # now they meet at the TOP end... reversed
