@@ -16,8 +16,10 @@ the result continuous in the point's height (a nearest-plane rule would jump bet
 planes), exact for points lying on a plane (the parallel template at the default slice
 fractions puts every point on a plane, i.e. exactly the paper's sweep), and it costs one
 MVC evaluation per point and neighbouring plane (`fibres.mvc.mvc_map`, compiled).
-Plans. `slice_maps` makes the paper's choices (start vertex closest to ``Q0``, minimal
-split) and records them as material points of the surface; `anchored_maps` re-inserts
+Plans. `slice_maps` makes the paper's choices, made continuous (start at the soft closest
+contour point to ``Q0``, split points at the perimeter-ratio positions,
+`fibres.correspondence`)
+and records them as material points of the surface; `anchored_maps` re-inserts
 those points, carried along with a deformed copy, as start and split points, which keeps
 the correspondence continuous in the vertex positions (`fibres.plan`).
 
@@ -34,7 +36,8 @@ import numpy as np
 
 from .contours import anchored_loops, bridge_loops, clockwise_contour
 from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD, anchor_kernel,
-                             correspond, rectangle, split_chain)
+                             correspond_continuous, insert_points, rectangle, soft_start,
+                             split_chain, split_fractions)
 from .mvc import mvc_map
 from .plan import rest_geometry, rest_loop_counts
 from .slicing import MeshTopology, Sections
@@ -68,24 +71,10 @@ def slice_fractions(resolution: int) -> np.ndarray:
     return f
 
 
-def _refine(points, edge, av, aw):
-    """Insert edge midpoints until the contour has at least 4 vertices (4 rectangle sides);
-    a midpoint's material anchor is the mean of its two neighbours' anchors."""
-    while points.shape[0] < 4:
-        nxt = np.roll(np.arange(points.shape[0]), -1)
-        mid = 0.5 * (points + points[nxt])
-        mid_v = np.concatenate([av[:, :2], av[nxt, :2]], axis=1)
-        mid_w = 0.5 * np.concatenate([aw[:, :2], aw[nxt, :2]], axis=1)
-        points = np.stack([points, mid], axis=1).reshape(-1, 2)
-        edge = np.stack([edge, np.full_like(edge, -1)], axis=1).reshape(-1)
-        av = np.stack([av, mid_v], axis=1).reshape(-1, 4)
-        aw = np.stack([aw, mid_w], axis=1).reshape(-1, 4)
-    return points, edge, av, aw
-
-
 def _clockwise_all(sections: Sections, chosen, topology: MeshTopology, *, anchors=True):
-    """The chosen loops, clockwise and concatenated, with each vertex's mesh edge and its
-    material anchor (the two edge vertices and weights ``1 - t, t``, padded to 4)."""
+    """The chosen loops, clockwise and concatenated, with each vertex's mesh edge, its
+    material anchor (`_vertex_anchors`; zeros without ``anchors``), the contour sizes and
+    offsets, and the section index of each vertex."""
     n_s = chosen.size
     lo = sections.loop_start[chosen]
     m = sections.loop_start[chosen + 1] - lo
@@ -99,34 +88,36 @@ def _clockwise_all(sections: Sections, chosen, topology: MeshTopology, *, anchor
     pts = sections.points[idx]
     edge = sections.edge[idx]
     if anchors:
-        t = sections.t[idx]
-        ends = topology.edges[edge]
-        av = np.concatenate([ends, ends], axis=1)
-        aw = np.stack([1.0 - t, t, np.zeros_like(t), np.zeros_like(t)], axis=1)
+        av, aw = _vertex_anchors(sections, topology, idx)
     else:
         av = np.zeros((idx.size, 4), dtype=np.int64)
         aw = np.zeros((idx.size, 4))
-    notes = []
-    if (m < 4).any():
-        parts = [np.split(x, offs[1:-1]) for x in (pts, edge, av, aw)]
-        for s in np.flatnonzero(m < 4):
-            notes.append(f"slice {s}: contour of {m[s]} vertices refined with midpoints")
-            (parts[0][s], parts[1][s], parts[2][s], parts[3][s]) = _refine(
-                parts[0][s], parts[1][s], parts[2][s], parts[3][s])
-        pts, edge, av, aw = (np.concatenate(x) for x in parts)
-        m = np.array([len(x) for x in parts[0]])
-        offs = np.concatenate([[0], np.cumsum(m)])
-    return pts, edge, av, aw, m, offs, notes
+    # (a contour of 3 vertices needs no refinement: the four correspondence points are
+    # inserted into it, `_insert_and_subdivide`)
+    return pts, edge, av, aw, m, offs, idx
+
+
+def _vertex_anchors(sections: Sections, topology: MeshTopology, idx):
+    """Material anchors of section points ``idx``: their mesh edge's two end vertices and
+    weights ``1 - t, t``, padded to 4 (vertices repeated, weights 0)."""
+    t = sections.t[idx]
+    ends = topology.edges[sections.edge[idx]]
+    av = np.concatenate([ends, ends], axis=-1)
+    z = np.zeros_like(t)
+    return av, np.stack([1.0 - t, t, z, z], axis=-1)
 
 
 def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
-    """Correspondence of every plane (Kohout 2012 §3.3): contour ``P``, subdivided rectangle
-    ``Q``, with the paper's choices (start vertex closest to ``Q0``, minimal-error split).
+    """Correspondence of every plane (Kohout 2012 §3.3, continuous rule): contour ``P``,
+    subdivided rectangle ``Q``.
 
-    All planes at once on the concatenated contours (orientation, start vertex, rolling,
-    arc lengths, side subdivision); only the split search
-    (`fibres.correspondence.split_chain`) runs per plane. Same result as applying
-    `fibres.correspondence.correspond` to each plane.
+    The start ``P0`` is the (soft) closest point of the contour to ``Q0``
+    (`fibres.correspondence.soft_start`) and the split points lie at the arc fractions of
+    the rectangle's corners after it, i.e. where the paper's error
+    ``sum_j (side_j - k length_j)^2`` vanishes; the four points are inserted into the
+    contour as vertices (`fibres.correspondence.correspond_continuous` per plane; why not
+    the paper's vertex snapping: see `fibres.correspondence`). All planes at once on the
+    concatenated contours.
 
     Parameters
     ----------
@@ -139,13 +130,15 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
 
     Returns
     -------
-    P, Q : tuple of (m_s, 2) float arrays
+    P, Q : tuple of (m_s + 4, 2) float arrays
     choice : (S, 4) int64
-        Mesh edges of the start vertex and of the first vertices of parts 2-4 (-1 for a
-        refined midpoint).
+        Mesh edge of the contour vertex nearest to each of the four points (start, first
+        points of parts 2-4) along its segment.
     anchors : ((S, 4, 4) int64, (S, 4, 4) float)
-        The same four points as material points of the mesh: vertex indices and weights
-        (``X = sum_k w_k V_k``), for `anchored_maps` on deformed copies.
+        The four points as material points of the mesh: vertex indices and weights
+        (``X = sum_k w_k V_k``, the two mesh edges' end points of the contour segment
+        carrying the point, so ``X`` lies on the section exactly), for `anchored_maps`
+        on deformed copies.
     notes : tuple of str
     """
     chosen = np.asarray(chosen, dtype=np.int64)
@@ -154,20 +147,58 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
         s = int(np.flatnonzero(chosen < 0)[0])
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
     rect = rectangle(float(extents[0]), float(extents[1]))
-    pts, edge, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology)
-    sl = np.repeat(np.arange(n_s), m)
-    j = np.arange(offs[-1]) - offs[sl]
-    # start vertex: closest to Q0 (the first one on ties)
-    dx, dy = pts[:, 0] - rect[0, 0], pts[:, 1] - rect[0, 1]
-    d2 = dx * dx + dy * dy
-    closest = np.flatnonzero(d2 == np.minimum.reduceat(d2, offs[:-1])[sl])
-    start = j[closest[np.searchsorted(sl[closest], np.arange(n_s))]]
-    split = None
-    P, Q, roll, split = _roll_and_subdivide(pts, m, offs, start, split, rect)
-    pick = roll[offs[:-1, None] + np.concatenate([np.zeros((n_s, 1), np.int64), split], axis=1)]
-    cut = offs[1:-1]
-    return (tuple(np.split(P, cut)), tuple(np.split(Q, cut)), edge[pick], (av[pick], aw[pick]),
-            tuple(notes))
+    pts, edge, _, _, m, offs, idx = _clockwise_all(sections, chosen, topology, anchors=False)
+    # start (soft closest point to Q0) and the split points at the perimeter ratios (S, 4)
+    seg, tk, point = soft_start(pts, m, offs, rect[0], fractions=split_fractions(rect))
+    P, Q, offs2, ok = _insert_and_subdivide(pts, m, offs, seg, tk, point, rect)
+    P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
+    for s in np.flatnonzero(~ok):            # cannot happen: the points are in arc order
+        P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
+    # material anchors: the point (1 - tau) X_j + tau X_{j+1} on the face between the two
+    # contour vertices' mesh edges, each X = (1 - t) V_a + t V_b
+    g = offs[:-1, None] + seg
+    nx = offs[:-1, None] + (seg + 1) % m[:, None]
+    av0, aw0 = _vertex_anchors(sections, topology, idx[g])
+    av1, aw1 = _vertex_anchors(sections, topology, idx[nx])
+    v = np.concatenate([av0[..., :2], av1[..., :2]], axis=-1)
+    w = np.concatenate([(1.0 - tk)[..., None] * aw0[..., :2], tk[..., None] * aw1[..., :2]],
+                       axis=-1)
+    return tuple(P_all), tuple(Q_all), edge[np.where(tk < 0.5, g, nx)], (v, w), ()
+
+
+def _insert_and_subdivide(pts, m, offs, seg, tk, point, rect):
+    """Insert the start and split points into the contours, roll each contour to its start
+    and subdivide the rectangle like it.
+
+    Parameters
+    ----------
+    pts : (K, 2) float
+        Clockwise contours back to back (``offs`` (S+1,), lengths ``m`` (S,)).
+    seg, tk : (S, 4) int, float
+        Segment and position along it of the start (column 0) and the split points.
+    point : (S, 4, 2) float
+    rect : (4, 2) float
+
+    Returns
+    -------
+    P, Q : (K + 4 S, 2) float
+        Back to back, ``P[offs2[s]]`` the start of plane ``s``.
+    offs2 : (S + 1,) int64
+    ok : (S,) bool
+        False where the inserted points are not in start, split order (a contour of zero
+        length); those planes' P, Q are placeholders.
+    """
+    kernels = _kernels()
+    new, index = insert_points(pts, m, offs, seg, tk, point,
+                               shift_kernel=None if kernels is None else kernels[3])
+    m2 = m + 4
+    offs2 = np.concatenate([[0], np.cumsum(m2)])
+    start = index[:, 0]
+    split = (index[:, 1:] - start[:, None]) % m2[:, None]
+    ok = (0 < split[:, 0]) & (split[:, 0] < split[:, 1]) & (split[:, 1] < split[:, 2])
+    P, Q, _, _ = _roll_and_subdivide(new, m2, offs2, start, np.where(ok[:, None], split, 1),
+                                     rect)
+    return P, Q, offs2, ok
 
 
 def _roll_and_subdivide(pts, m, offs, start, split, rect):
@@ -377,8 +408,8 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
             sections, chosen, ax, points=(1.0 - tt) * rest[e[:, 0]] + tt * rest[e[:, 1]],
             carriers=True)
     rect = rectangle(float(extents[0]), float(extents[1]))
-    pts, _, av, aw, m, offs, notes = _clockwise_all(sections, chosen, topology,
-                                                    anchors=material)
+    pts, _, av, aw, m, offs, _ = _clockwise_all(sections, chosen, topology, anchors=material)
+    notes = []
     none = np.zeros(0, dtype=np.int64)
     extra = [none] * chosen.size
     for s in np.flatnonzero((carrier != chosen[:, None]).any(axis=1)):
@@ -402,49 +433,19 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
         NX = np.einsum("kn,knd->kd", aw, rest_n[av])
     notes = [f"slice {s}: used the loop carrying the plan's anchors" for s in
              np.flatnonzero(changed)] + notes
-    n_s = m.size
-    sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
-    nominal = np.cumsum(sides)[:3] / sides.sum()          # rest-like arc fractions of Q1..Q3
-    kernels = _kernels()
-    anchor_fn = anchor_kernel()
-    seg, tk, point, moved = anchor_fn(np.ascontiguousarray(pts), np.ascontiguousarray(X),
-                                      np.ascontiguousarray(NX), m.astype(np.int64),
-                                      offs.astype(np.int64), np.ascontiguousarray(ax),
-                                      np.ascontiguousarray(nax), nominal, ARC_GAP,
-                                      ARC_WINDOW, SOFT_SPREAD, SOFT_FLOOR)
-    # insert them (after vertex seg, in the order (seg, tau, k)) into each contour
-    kk = np.arange(4)
-    before = ((seg[:, None, :] < seg[:, :, None])
-              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] < tk[:, :, None]))
-              | ((seg[:, None, :] == seg[:, :, None]) & (tk[:, None, :] == tk[:, :, None])
-                 & (kk[None, None, :] < kk[None, :, None])))
-    new_idx = seg + 1 + before.sum(axis=2)                            # (S, 4) local
-    m2 = m + 4
-    offs2 = np.concatenate([[0], np.cumsum(m2)])
-    if kernels is None:                                     # pragma: no cover - optional
-        sl = np.repeat(np.arange(n_s), m)
-        j = np.arange(offs[-1]) - offs[sl]
-        ss = seg[sl]
-        shift = ((ss[:, 0] < j).astype(np.int64) + (ss[:, 1] < j) + (ss[:, 2] < j)
-                 + (ss[:, 3] < j))                                   # anchors before j
-        new = np.empty((offs2[-1], 2))
-        new[offs2[sl] + j + shift] = pts
-    else:
-        new = kernels[3](pts, m.astype(np.int64), offs.astype(np.int64), seg,
-                         offs2.astype(np.int64))
-    new[(offs2[:-1, None] + new_idx).ravel()] = point.reshape(-1, 2)
-    start = new_idx[:, 0]
-    split = (new_idx[:, 1:] - start[:, None]) % m2[:, None]
-    ok = (0 < split[:, 0]) & (split[:, 0] < split[:, 1]) & (split[:, 1] < split[:, 2])
-    P, Q, _, _ = _roll_and_subdivide(new, m2, offs2, start, np.where(ok[:, None], split, 1),
-                                     rect)
+    nominal = split_fractions(rect)                # rest-like arc fractions of Q1..Q3
+    seg, tk, point, moved = anchor_kernel()(
+        np.ascontiguousarray(pts), np.ascontiguousarray(X), np.ascontiguousarray(NX),
+        m.astype(np.int64), offs.astype(np.int64), np.ascontiguousarray(ax),
+        np.ascontiguousarray(nax), nominal, ARC_GAP, ARC_WINDOW, SOFT_SPREAD, SOFT_FLOOR)
+    P, Q, offs2, ok = _insert_and_subdivide(pts, m, offs, seg, tk, point, rect)
     P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
     for s in np.flatnonzero(moved & ok):
         notes.append(f"slice {s}: planned split points out of order; moved to the nearest "
                      "ordered positions")
     for s in np.flatnonzero(~ok):       # a contour of zero length: nothing to order
         notes.append(f"slice {s}: degenerate contour; start/split points chosen afresh")
-        P_all[s], Q_all[s], _, _ = correspond(pts[offs[s]:offs[s + 1]], rect)
+        P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
     return tuple(P_all), tuple(Q_all), tuple(notes)
 
 
@@ -476,13 +477,13 @@ def _bridged(sections, chosen, extra, topology, pts, av, aw, m, offs, anchors):
 
 
 def _insert_loop(pts, m, offs, seg, offs2):  # pragma: no cover - compiled by numba
-    """The contours with 4 free slots per plane: vertex j moves up by the number of
-    anchors inserted before it (segments < j)."""
+    """The contours with A free slots per plane: vertex j moves up by the number of
+    points inserted before it (segments < j)."""
     new = np.empty((offs2[-1], 2))
     for s in range(m.size):
         for j in range(m[s]):
             shift = 0
-            for k in range(4):
+            for k in range(seg.shape[1]):
                 if seg[s, k] < j:
                     shift += 1
             new[offs2[s] + j + shift, 0] = pts[offs[s] + j, 0]
@@ -491,22 +492,18 @@ def _insert_loop(pts, m, offs, seg, offs2):  # pragma: no cover - compiled by nu
 
 
 def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopology):
-    """`slice_maps` one plane at a time with `fibres.correspondence.correspond`
-    (reference implementation for the tests)."""
+    """`slice_maps` one plane at a time with
+    `fibres.correspondence.correspond_continuous` (reference implementation for the tests)."""
     rect = rectangle(float(extents[0]), float(extents[1]))
-    P_all, Q_all, notes = [], [], []
-    choice = np.full((len(chosen), 4), -1, dtype=np.int64)
-    for s in range(len(chosen)):
+    n_s = len(chosen)
+    P_all, Q_all, notes = [None] * n_s, [None] * n_s, []
+    choice = np.full((n_s, 4), -1, dtype=np.int64)
+    for s in range(n_s):
         pts, edge = clockwise_contour(sections, int(chosen[s]))
-        if pts.shape[0] < 4:
-            notes.append(f"slice {s}: contour of {pts.shape[0]} vertices refined with midpoints")
-            z = np.zeros((len(edge), 4))
-            pts, edge, _, _ = _refine(pts, edge, z.astype(np.int64), z)
-        P, Q, start, splits = correspond(pts, rect)
+        P, Q, seg, tau = correspond_continuous(pts, rect)
         m = pts.shape[0]
-        choice[s] = edge[(start + np.concatenate([[0], splits])) % m]
-        P_all.append(P)
-        Q_all.append(Q)
+        choice[s] = edge[np.where(tau < 0.5, seg, (seg + 1) % m)]
+        P_all[s], Q_all[s] = P, Q
     return tuple(P_all), tuple(Q_all), choice, tuple(notes)
 
 

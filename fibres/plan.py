@@ -3,7 +3,7 @@
 Kohout et al. (GRAPP 2012) make several discrete choices per decomposition: the 5-degree
 rotation of the box about the principal axis (§3.2), the planes of the sweep, the contour
 vertex closest to the rectangle's first vertex and the split of the contour into four
-parts (§3.3). Made afresh on every frame of a motion (or on the poses q - h and q + h of a
+parts (§3.3; here made continuous, see `fibres.correspondence`). Made afresh on every frame of a motion (or on the poses q - h and q + h of a
 finite difference), any of them can flip and fibre ``k`` would jump. A
 `DecompositionPlan` records them on the rest-pose surface, in the muscle's own terms:
 
@@ -14,9 +14,13 @@ finite difference), any of them can flip and fibre ``k`` would jump. A
   under deformation), the principal frame is re-derived
   and the same rotation applied, and the box is the vertices' bounding box in that frame;
 - the slicing planes as fractions of the box height;
-- per plane, the start vertex and the three split vertices, each identified by the mesh
-  edge it lies on and as a material point of the surface (its edge's two vertices and
-  weights; the topology is the same in every frame);
+- per plane, the start point and the three split points of the contour (continuous
+  quantities, not vertex indices: `fibres.correspondence` puts them on the contour curve,
+  at the soft closest point to the rectangle corner and at the perimeter ratios), each
+  frozen as a material point of the surface: the point lies on a contour segment between
+  two mesh-edge crossings, so it is ``sum_k w_k V_k`` over those two edges' four end
+  vertices (``anchor_vertices``, ``anchor_weights``); on a deformed copy of the same
+  mesh it moves smoothly with the vertices (the topology is the same in every frame);
 - the mesh topology itself (edges, face table), computed once.
 
 What a deformed copy does per frame, and why the result is continuous
@@ -97,13 +101,17 @@ class DecompositionPlan:
     fractions : (S,) float
         Slicing heights as fractions of the box height.
     choice : (S, 4) int64
-        Per plane, the mesh edge of the start vertex P0 and of the first vertices of the
-        2nd, 3rd and 4th parts of the contour (-1: a refined midpoint).
+        Per plane, the mesh edge crossed by the contour vertex nearest to the start point
+        P0 and to the first points of the 2nd, 3rd and 4th parts of the contour (for
+        information; the points themselves are the anchors).
     anchor_vertices : (S, 4, 4) int64
     anchor_weights : (S, 4, 4) float
         The same four points per plane as material points of the mesh,
-        ``X = sum_k w_k V[v_k]``; on a deformed copy they are carried along with the
-        vertices and re-inserted into the contours (`fibres.morph.anchored_maps`).
+        ``X = sum_k w_k V[v_k]`` (the end vertices of the two mesh edges whose crossings
+        bound the contour segment carrying the point, weights ``(1 - tau)(1 - t_j)``,
+        ``(1 - tau) t_j``, ``tau (1 - t_j+1)``, ``tau t_j+1``); on a deformed copy they are
+        carried along with the vertices and re-inserted into the contours
+        (`fibres.morph.anchored_maps`).
     template : fibres.templates.Template, optional
         The template whose attachment areas oriented the box (oblique templates such as
         pennate tilt the principal axis, `fibres.fitting.principal_frame`).
