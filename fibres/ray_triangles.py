@@ -125,7 +125,8 @@ def _pair_loop(k, s, d, tv, te1, te2, tnrm, tnn, tthr, tedge, tcc, bb3):  # prag
     return d2, t
 
 
-def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled by numba
+def _triangles_loop(tv, start, dn, eps2, slack,
+                    within2):  # pragma: no cover - compiled by numba
     """`closest_on_triangles` for triangles (T, 3, 3), starts (N, 3), unit directions
     (N, 3): `_pair_loop` for the pairs that can matter, and the selection of the array
     version (the first touching pair along the ray, else the nearest).
@@ -142,7 +143,8 @@ def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled 
     triangle, both projected along the ray (`_across_distance_loop`) -- the last two less
     ``slack`` for the rounding of the frame coordinates. The remaining triangles are
     evaluated in increasing order of the box bound, until the next bound exceeds the best
-    distance."""
+    distance. ``within2`` (squared; inf for none) caps the best distance of the pruning: a
+    ray farther than that from every triangle is returned as index -1."""
     n_rays, n_tri = start.shape[0], tv.shape[0]
     index = np.zeros(n_rays, np.int64)
     bary = np.zeros((n_rays, 3))
@@ -218,7 +220,7 @@ def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled 
             best_touch, k_touch, r_touch = t, k0, -1
             b_touch[:] = bb3
         # candidates: the triangles neither bound rules out (rank = index)
-        thr = max(best_d2, eps2) * (1.0 + 1e-9)
+        thr = max(min(best_d2, within2), eps2) * (1.0 + 1e-9)
         n_c = 0
         for k in range(n_tri):
             lb = lower[k]
@@ -248,7 +250,7 @@ def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled 
                 if cand_lb[c] < cand_lb[m]:
                     m = c
             k = cand_k[m]
-            if cand_lb[m] > max(best_d2, eps2) * (1.0 + 1e-9):
+            if cand_lb[m] > max(min(best_d2, within2), eps2) * (1.0 + 1e-9):
                 break
             n_c -= 1
             cand_k[m], cand_lb[m] = cand_k[n_c], cand_lb[n_c]
@@ -258,7 +260,7 @@ def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled 
                 uv[i, 0] = qx * p1[0] + qy * p1[1] + qz * p1[2]
                 uv[i, 1] = qx * p2[0] + qy * p2[1] + qz * p2[2]
             lb = _across_distance(uv) - slack[n]
-            if lb > 0 and lb * lb > max(best_d2, eps2) * (1.0 + 1e-9):
+            if lb > 0 and lb * lb > max(min(best_d2, within2), eps2) * (1.0 + 1e-9):
                 continue
             d2, t = _pair(k, s, d, tv, te1, te2, tnrm, tnn, tthr, tedge, tcc, bb3)
             if d2 <= eps2 and (t < best_touch or (t == best_touch and k < r_touch)):
@@ -270,9 +272,11 @@ def _triangles_loop(tv, start, dn, eps2, slack):  # pragma: no cover - compiled 
         if k_touch >= 0:
             index[n] = k_touch
             bary[n] = b_touch
-        else:
+        elif best_d2 <= within2:
             index[n] = k_near
             bary[n] = b_near
+        else:
+            index[n] = -1
     return index, bary
 
 
@@ -441,7 +445,8 @@ def _ray_triangle_pairs(tv, s, d):
     return d2, t, bary
 
 
-def closest_on_triangles(tv, start, direction, *, chunk: int = 1 << 16):
+def closest_on_triangles(tv, start, direction, *, within: float | None = None,
+                         chunk: int = 1 << 16):
     """For each ray the point of the triangles closest to it (module docstring).
 
     The first hit where the ray hits them, else the closest point (their edges, vertices or
@@ -454,13 +459,20 @@ def closest_on_triangles(tv, start, direction, *, chunk: int = 1 << 16):
         Triangle corners (degenerate triangles -- segments, points -- are allowed).
     start, direction : (N, 3) float
         Rays ``start + t direction``, t >= 0 (direction need not be unit).
+    within : float, optional, keyword-only
+        Only the rays that come at least this close to the triangles are wanted: a ray whose
+        closest pair (and no touching pair) is farther gets index -1 and zero barycentric
+        coordinates -- its search stops as soon as that is certain -- and every other ray
+        gets exactly its result without ``within``. To decide "hit within a tolerance" on
+        the returned points, pass a slightly larger value (e.g. ``2 * tol``) so that the
+        rounding of the caller's own distance cannot matter.
     chunk : int, keyword-only
         numpy path: rays are processed in blocks of about ``chunk`` ray-triangle pairs.
 
     Returns
     -------
     index : (N,) int
-        The triangle holding the closest point.
+        The triangle holding the closest point (-1: farther than ``within``).
     bary : (N, 3) float
         Its barycentric coordinates in that triangle (corner order of ``tv``).
     """
@@ -479,7 +491,8 @@ def closest_on_triangles(tv, start, direction, *, chunk: int = 1 << 16):
         start = np.ascontiguousarray(start, dtype=float)
         # rounding bound of the ray-frame coordinates: 1e-14 of the coordinates' size
         slack = 1e-14 * (np.abs(start).max(axis=1) + max(np.abs(lo).max(), np.abs(hi).max()))
-        return kernels[0](tv, start, np.ascontiguousarray(dn, dtype=float), eps2, slack)
+        return kernels[0](tv, start, np.ascontiguousarray(dn, dtype=float), eps2, slack,
+                          np.inf if within is None else float(within) ** 2)
     eps2 = (1e-12 * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))) ** 2
     step = max(1, chunk // len(tv))
     for lo in range(0, n, step):  # blocks of fibres, not single fibres
@@ -489,6 +502,11 @@ def closest_on_triangles(tv, start, direction, *, chunk: int = 1 << 16):
         first = np.argmin(np.where(touch, t, np.inf), axis=1)
         near = np.argmin(d2, axis=1)
         k = np.where(touch.any(axis=1), first, near)
+        rows = np.arange(len(k))
         index[sl] = k
-        bary[sl] = b[np.arange(len(k)), k]
+        bary[sl] = b[rows, k]
+        if within is not None:
+            far = ~touch.any(axis=1) & (d2[rows, near] > float(within) ** 2)
+            index[sl][far] = -1
+            bary[sl][far] = 0.0
     return index, bary

@@ -316,3 +316,34 @@ def test_attachment_area_closest_points_compiled_equal_numpy(monkeypatch):
     inside = (got_b > 1e-9).all(axis=1)
     assert 20 < inside.sum() < n and (got_b.max(axis=1) > 1 - 1e-12).sum() > 20
     np.testing.assert_array_equal(got_k[inside], ref_k[inside])
+
+
+@pytest.mark.parametrize("kernels", ["compiled", "numpy"])
+def test_closest_points_within_a_distance(kernels, monkeypatch):
+    # closest_on_triangles(..., within=w): rays that come within w of the cap (or touch it)
+    # get exactly the unrestricted answer, the others index -1 -- checked against the
+    # unrestricted distances (1e-9 relative: far above the rounding of the check itself)
+    import fibres.ray_triangles as rt
+
+    if kernels == "numpy":
+        monkeypatch.setattr(rt, "_KERNELS", [None])
+    m = trimesh.creation.icosphere(subdivisions=3)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    tv = v[f[(v[f][:, :, 2] > 0.5).all(axis=1)]]
+    rng = np.random.default_rng(21)
+    n = 400
+    start = np.c_[rng.uniform(-1.5, 1.5, (n, 2)), rng.uniform(0.6, 1.6, n)]
+    direction = np.c_[rng.standard_normal((n, 2)), rng.standard_normal(n) - 0.5]
+    k_all, b_all = rt.closest_on_triangles(tv, start, direction)
+    p = np.einsum("nk,nkc->nc", b_all, tv[k_all]) - start
+    d = direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    dist = np.linalg.norm(p - np.maximum(np.einsum("nc,nc->n", p, d), 0)[:, None] * d, axis=1)
+    for w in (0.0, 0.05, 0.3):
+        k, b = rt.closest_on_triangles(tv, start, direction, within=w)
+        kept = k >= 0
+        np.testing.assert_array_equal(k[kept], k_all[kept])
+        np.testing.assert_array_equal(b[kept], b_all[kept])
+        assert (b[~kept] == 0).all()
+        assert (dist[~kept] > w * (1 - 1e-9)).all()
+        assert (dist[kept] <= w * (1 + 1e-9) + 1e-12).all()      # 1e-12: touching pairs
+        assert 0 < kept.sum() < n or w == 0.0
