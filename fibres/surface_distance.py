@@ -18,9 +18,11 @@ so only triangles within ``d_min + KAPPA tau`` count.
 
 Search. Triangles are binned in a uniform grid by their bounding boxes (cells ~1.5 mean
 edges, at least reach / 8, one empty layer all round); empty cells are labelled inside or
-outside by a flood fill from the border (sound for a closed surface: the segment between the
-centres of two face-adjacent empty cells would cross the surface inside one of them, so no
-empty path joins inside and outside). A point in an enclosed empty cell is inside; if no
+outside: those face-connected to the border through empty cells are outside, and every other
+face-connected component of empty cells takes the sign of its first cell's centre (the
+segment between the centres of two face-adjacent empty cells would cross the surface inside
+one of them, so a component is all inside or all outside; outside pockets enclosed by
+surface cells exist in narrow folds). A point in an empty inside cell is inside; if no
 surface cell touches its cell it is deeper than one cell (``s = -inf``), otherwise it looks
 for triangles within ``watch`` only. Other points visit rings of cells around their own until
 the ring's distance exceeds the current bound ``min(d_min + KAPPA tau, reach)``, skipping
@@ -55,10 +57,14 @@ def _kernels():
 
             jit = numba.njit(cache=True, nogil=True)
             # the query calls the compiled helpers: numba resolves globals at compile time
-            glb = dict(globals(), _closest_point=jit(_closest_point), _blend=jit(_blend))
-            query = types.FunctionType(_query_loop.__code__, glb, "_query_loop")
+            glb = dict(globals(), _closest_point=jit(_closest_point), _blend=jit(_blend),
+                       _flood=jit(_flood))
+
+            def bound(fn):
+                return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
+
             _KERNELS.append({"edges": jit(_edge_loop), "grid": jit(_grid_loop),
-                             "label": jit(_label_loop), "query": jit(query),
+                             "label": bound(_label_loop), "query": bound(_query_loop),
                              "bounds": jit(_bounds_loop)})
     return _KERNELS[0]
 
@@ -168,28 +174,10 @@ def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numb
     return nrm, centre, radius, count, items
 
 
-def _label_loop(start, dims):  # pragma: no cover - compiled by numba
-    """Label the grid cells: 1 holds a triangle, 2 empty and connected to the grid's border
-    through empty cells (outside), 3 empty and enclosed (inside). Sound for a closed surface:
-    the segment between the centres of two face-adjacent empty cells would cross the surface
-    in one of them, so no empty path leads from inside to outside."""
+def _flood(label, comp, dims, stack, top, value, cid):  # pragma: no cover - numba
+    """Flood the empty unlabelled cells (label 0) face-connected to the cells on the stack
+    with ``value`` (and component ``cid`` when >= 0)."""
     nx, ny, nz = dims[0], dims[1], dims[2]
-    n = nx * ny * nz
-    label = np.full(n, 3, np.int8)
-    stack = np.empty(n, np.int64)
-    top = 0
-    for q in range(n):
-        if start[q + 1] > start[q]:
-            label[q] = 1
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if i == 0 or j == 0 or k == 0 or i == nx - 1 or j == ny - 1 or k == nz - 1:
-                    q = (i * ny + j) * nz + k
-                    if label[q] == 3:
-                        label[q] = 2
-                        stack[top] = q
-                        top += 1
     while top > 0:
         top -= 1
         q = stack[top]
@@ -212,11 +200,46 @@ def _label_loop(start, dims):  # pragma: no cover - compiled by numba
                 kk += 1
             if 0 <= ii < nx and 0 <= jj < ny and 0 <= kk < nz:
                 w = (ii * ny + jj) * nz + kk
-                if label[w] == 3:
-                    label[w] = 2
+                if label[w] == 0:
+                    label[w] = value
+                    comp[w] = cid
                     stack[top] = w
                     top += 1
-    return label
+
+
+def _label_loop(start, dims):  # pragma: no cover - compiled by numba
+    """Label the grid cells: 1 holds a triangle, 2 empty and face-connected to the grid's
+    border through empty cells (outside), 3 the other empty cells, grouped in face-connected
+    components ``comp`` (-1 elsewhere) with one representative cell each."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    n = nx * ny * nz
+    label = np.zeros(n, np.int8)
+    comp = np.full(n, -1, np.int32)
+    stack = np.empty(n, np.int64)
+    top = 0
+    for q in range(n):
+        if start[q + 1] > start[q]:
+            label[q] = 1
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if i == 0 or j == 0 or k == 0 or i == nx - 1 or j == ny - 1 or k == nz - 1:
+                    q = (i * ny + j) * nz + k
+                    if label[q] == 0:
+                        label[q] = 2
+                        stack[top] = q
+                        top += 1
+    _flood(label, comp, dims, stack, top, 2, -1)
+    reps = []
+    for q in range(n):
+        if label[q] == 0:
+            cid = len(reps)
+            reps.append(q)
+            label[q] = 3
+            comp[q] = cid
+            stack[0] = q
+            _flood(label, comp, dims, stack, 1, 3, cid)
+    return label, comp, np.array(reps, dtype=np.int64)
 
 
 def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, items, label,
@@ -464,9 +487,14 @@ class SurfaceGrid:
         self.dims = np.floor((hi - lo) / cell).astype(np.int64) + 3
         self.nrm, self.centre, self.radius, self.start, self.items = self.kernels["grid"](
             v, f, self.lo, cell, self.dims)
-        self.labelled = bool(labelled)
-        self.label = (self.kernels["label"](self.start, self.dims) if labelled
-                      else np.zeros(1, np.int8))
+        self.labelled, self.label = False, np.zeros(1, np.int8)
+        if labelled:
+            label, comp, reps = self.kernels["label"](self.start, self.dims)
+            if len(reps):  # each enclosed component: inside or out by its first cell's centre
+                ijk = np.stack(np.unravel_index(reps, tuple(self.dims)), axis=1)
+                s, _ = self.signed_distance(self.lo + (ijk + 0.5) * cell, tau=1e-12 * cell)
+                label[comp >= 0] = np.where(s[comp[comp >= 0]] > 0, 2, 3)
+            self.labelled, self.label = True, label
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None):
         """(s (n,), outward direction (n, 3)) of points (n, 3); ``watch``: how far a point
