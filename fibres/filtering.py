@@ -440,11 +440,13 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
             if reference is not None:  # the template's direction where its ray hits the area
                 ref = np.asarray(reference, dtype=np.float64)
                 d2 = ref[rows[sel], b[sel]] - ref[rows[sel], a[sel]]
-                k2, w2 = closest_on_triangles(verts[corners], c[sel], d2)
-                q = np.einsum("nkc,nk->nc", verts[corners[k2]], w2) - c[sel]
+                # only hits matter: rays farther than 2 tol stop early (index -1)
+                k2, w2 = closest_on_triangles(verts[corners], c[sel], d2, within=2 * tol)
+                q = np.einsum("nkc,nk->nc", verts[corners[np.maximum(k2, 0)]], w2) - c[sel]
                 d2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
                 along = np.maximum(np.einsum("nc,nc->n", q, d2), 0.0)
-                hit = np.linalg.norm(q - along[:, None] * d2, axis=1) <= tol
+                hit = (k2 >= 0) & (np.linalg.norm(q - along[:, None] * d2, axis=1) <= tol)
+                k2 = np.maximum(k2, 0)
                 k, w = np.where(hit, k2, k), np.where(hit[:, None], w2, w)
             face = owner[k]
             # barycentric coordinates on the owning face's corners (a point: all on its slot)
