@@ -26,9 +26,10 @@ over 20 degrees, and points 3.5 mm deep at rest end up outside). Points with no 
 `reach` (8 mm) are taken as inside (the chain's excursions are a few mm); points in grid cells
 enclosed by the surface are inside without a search (`fibres.surface_distance`).
 
-Cost (one core): building the grid is O(T) per call (1.2-2 ms for 30K triangles), the search
-~1 us per point near the surface; +4 to +5.5 ms per `fibres.decompose` call at 15K vertices x
-100 fibres x 20 points, +22 ms at 60K vertices (bench/decompose.py). Tried and dropped:
+Cost (one core, CPU): the grid is built per call, O(T) (1.1 ms for the 30K triangles of the
+15K-vertex bench mesh, 0.4 ms for the cell labels), the search ~2.5 us per point in a surface
+cell (494 of the 1800 inner points there: 1.3 ms); +3.8 ms per `fibres.decompose` call at 15K
+vertices x 100 fibres x 20 points (per frame with a plan 4.5 -> 8.3 ms). Tried and dropped:
 candidate triangles or watched points chosen on the rest pose and frozen in the plan (cheap per
 frame, but wrong on deformed frames: fibres slide along the surface, see above).
 """
