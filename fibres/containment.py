@@ -23,8 +23,10 @@ Every inner point is measured on every call (each frame of a motion): no points 
 the rest pose and skipped later, because fibres slide along the surface as it deforms (on the
 LHDL bend sweeps of tests/fibres/test_decompose_lhdl.py a point's depth changes by up to 8 mm
 over 20 degrees, and points 3.5 mm deep at rest end up outside). Points with no triangle within
-`reach` (8 mm) are taken as inside (the chain's excursions are a few mm); points in grid cells
-enclosed by the surface are inside without a search (`fibres.surface_distance`).
+`reach` (8 mm) are taken as inside (the chain's excursions are a few mm). Only the points
+OUTSIDE are measured: a point in an empty grid cell takes the cell's inside/outside label, a
+point in a cell holding triangles is classified by ray parity along the grid
+(`fibres.surface_distance`, ``watch = 0``).
 
 Cost (one core, CPU): the grid is built per call, O(T) (1.1 ms for the 30K triangles of the
 15K-vertex bench mesh, 0.4 ms for the cell labels), the search ~2.5 us per point in a surface

@@ -22,7 +22,9 @@ outside: those face-connected to the border through empty cells are outside, and
 face-connected component of empty cells takes the sign of its first cell's centre (the
 segment between the centres of two face-adjacent empty cells would cross the surface inside
 one of them, so a component is all inside or all outside; outside pockets enclosed by
-surface cells exist in narrow folds). A point in an empty inside cell is inside; if no
+surface cells exist in narrow folds). With ``watch = 0`` (`fibres.containment`: only outside points matter) a point in a surface
+cell is classified by ray parity first (`_column_inside`) and only outside points are
+measured. A point in an empty inside cell is inside; if no
 surface cell touches its cell it is deeper than one cell (``s = -inf``), otherwise it looks
 for triangles within ``watch`` only. Other points visit rings of cells around their own until
 the ring's distance exceeds the current bound ``min(d_min + KAPPA tau, reach)``, skipping
@@ -59,6 +61,9 @@ def _kernels():
             # the query calls the compiled helpers: numba resolves globals at compile time
             glb = dict(globals(), _closest_point=jit(_closest_point), _blend=jit(_blend),
                        _flood=jit(_flood))
+            glb["_owns"] = jit(_owns)
+            glb["_column_inside"] = jit(types.FunctionType(_column_inside.__code__, glb,
+                                                           "_column_inside"))
 
             def bound(fn):
                 return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
@@ -242,12 +247,79 @@ def _label_loop(start, dims):  # pragma: no cover - compiled by numba
     return label, comp, np.array(reps, dtype=np.int64)
 
 
+def _owns(w, ex, ey):  # pragma: no cover - compiled by numba
+    """Whether a point with edge function w counts as inside that (counter-clockwise) edge:
+    w > 0, or on it and the edge is a "top-left" one (each shared edge counted once)."""
+    return w > 0.0 or (w == 0.0 and (ey > 0.0 or (ey == 0.0 and ex < 0.0)))
+
+
+def _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label, dims, lo, cell,
+                   stamp, p):  # pragma: no cover - compiled by numba
+    """Inside test of a point in a surface cell by ray parity: along the axis direction
+    (+-x, +-y, +-z) whose first labelled empty cell is nearest, the segment from the point to
+    that cell's centre plane crosses the surface an even number of times iff both ends are on
+    the same side (the triangles it can cross are binned in the cells it passes; a crossing
+    in the empty cell would have put a triangle there). Ties on shared edges are counted once
+    (a top-left rule in the projection)."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    pos = (px, py, pz)
+    cc = (ci, cj, ck)
+    best, axis, sgn = 1 << 30, 2, 1
+    for ax in range(3):
+        for sg in (-1, 1):
+            n_steps = 1
+            while n_steps < best:
+                i = ci + sg * n_steps if ax == 0 else ci
+                j = cj + sg * n_steps if ax == 1 else cj
+                k = ck + sg * n_steps if ax == 2 else ck
+                if label[(i * ny + j) * nz + k] != 1:   # the border layer is empty
+                    break
+                n_steps += 1
+            if n_steps < best:
+                best, axis, sgn = n_steps, ax, sg
+    u, w = (axis + 1) % 3, (axis + 2) % 3
+    end = lo[axis] + (cc[axis] + sgn * best + 0.5) * cell
+    pu, pw, pa = pos[u], pos[w], pos[axis]
+    odd = False
+    for m in range(best):
+        i = ci + sgn * m if axis == 0 else ci
+        j = cj + sgn * m if axis == 1 else cj
+        k = ck + sgn * m if axis == 2 else ck
+        q = (i * ny + j) * nz + k
+        for e in range(start[q], start[q + 1]):
+            t = items[e]
+            if stamp[t] == p:
+                continue
+            stamp[t] = p
+            a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+            au, aw, bu, bw, cu, cw = v[a, u], v[a, w], v[b, u], v[b, w], v[c, u], v[c, w]
+            d = (bu - au) * (cw - aw) - (bw - aw) * (cu - au)
+            if d == 0.0:
+                continue                             # parallel to the ray: it grazes it
+            w0 = (bu - pu) * (cw - pw) - (bw - pw) * (cu - pu)
+            w1 = (cu - pu) * (aw - pw) - (cw - pw) * (au - pu)
+            w2 = (au - pu) * (bw - pw) - (aw - pw) * (bu - pu)
+            sg = 1.0 if d > 0.0 else -1.0
+            if not (_owns(sg * w0, sg * (cu - bu), sg * (cw - bw))
+                    and _owns(sg * w1, sg * (au - cu), sg * (aw - cw))
+                    and _owns(sg * w2, sg * (bu - au), sg * (bw - aw))):
+                continue
+            h = (w0 * v[a, axis] + w1 * v[b, axis] + w2 * v[c, axis]) / d
+            if (sgn > 0 and pa < h <= end) or (sgn < 0 and end <= h < pa):
+                odd = not odd
+    i = ci + sgn * best if axis == 0 else ci
+    j = cj + sgn * best if axis == 1 else cj
+    k = ck + sgn * best if axis == 2 else ck
+    return odd == (label[(i * ny + j) * nz + k] == 2)   # inside: outside end and odd
+
+
 def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, items, label,
                 labelled, reach, watch, tau, kappa, out_s, out_n):  # pragma: no cover - numba
     """The grid search of the module docstring, then `_blend`, for every point."""
     n_tri = faces.shape[0]
     nx, ny, nz = dims[0], dims[1], dims[2]
     stamp = np.full(n_tri, -1, np.int64)
+    parity = np.full(n_tri, -1, np.int64)
     cap = 4096
     bd, bx, by, bz = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
     bt = np.empty(cap, np.int64)
@@ -276,6 +348,12 @@ def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, it
                     out_s[p] = -np.inf
                     out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
                     continue
+            elif (labelled and watch <= 0.0 and label[q] == 1
+                  and _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label,
+                                     dims, lo, cell, parity, p)):
+                out_s[p] = -np.inf          # inside (ray parity): no distance wanted
+                out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
+                continue
             seed, near = -1, np.inf   # seed the bound: the own cell's nearest centroid's
             for e in range(start[q], start[q + 1]):   # triangle, measured exactly
                 t = items[e]
@@ -498,8 +576,9 @@ class SurfaceGrid:
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None):
         """(s (n,), outward direction (n, 3)) of points (n, 3); ``watch``: how far a point
-        in an enclosed cell looks (default `reach`; 0: not at all, it is inside, ``-inf``;
-        the numpy fallback ignores it)."""
+        in an enclosed cell looks (default `reach`). ``watch = 0``: only points OUTSIDE get a
+        distance, every inside point ``-inf`` (those in surface cells found inside by ray
+        parity up their grid column, `_column_inside`); the numpy fallback ignores it."""
         x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         watch = self.reach if watch is None else float(watch)
         if self.kernels is not None:
