@@ -28,10 +28,10 @@ OUTSIDE are measured: a point in an empty grid cell takes the cell's inside/outs
 point in a cell holding triangles is classified by ray parity along the grid
 (`fibres.surface_distance`, ``watch = 0``).
 
-Cost (one core, CPU): the grid is built per call, O(T) (1.1 ms for the 30K triangles of the
-15K-vertex bench mesh, 0.4 ms for the cell labels), the search ~2.5 us per point in a surface
-cell (494 of the 1800 inner points there: 1.3 ms); +3.8 ms per `fibres.decompose` call at 15K
-vertices x 100 fibres x 20 points (per frame with a plan 4.5 -> 8.3 ms). Tried and dropped:
+Cost (one core, CPU): the grid and its cell labels are built per call, O(T); the inside test
+of a point is a label look-up or a short parity walk, the distance search runs for outside
+points only. Measured per call on the bench meshes (100 fibres x 20 points): 0.8 ms (1K
+vertices), 2.1 ms (15K), 8 ms (60K); LHDL muscles 1.4-2.7 ms. Tried and dropped:
 candidate triangles or watched points chosen on the rest pose and frozen in the plan (cheap per
 frame, but wrong on deformed frames: fibres slide along the surface, see above).
 """

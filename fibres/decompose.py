@@ -328,9 +328,9 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         straight reconstructed end segments, resampling chords and mean value coordinates
         on non-convex contours leave points up to ~4 mm outside curved muscles). Points
         inside are not moved; pulled points end less than 0.2 mm outside. Every inner
-        point is measured on every call (no choice is kept in the plan). Cost (one core,
-        CPU medians): +3.8 ms per call at 15K vertices x 100 fibres x 20 points (plan path
-        4.5 -> 8.3 ms, rest pose 11.2 -> 15.0 ms); False skips it.
+        point is classified on every call (no choice is kept in the plan). Cost (one
+        core, CPU): ~2 ms per call at 15K vertices x 100 fibres x 20 points, ~8 ms at 60K
+        vertices (`fibres.containment`); False skips it.
 
     Returns
     -------

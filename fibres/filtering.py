@@ -51,8 +51,8 @@ their rays meet the area on one side: gluteus medius' fibres left one end of the
 iliac crest empty (largest landmark-to-fibre-start gap 22.5 mm). When `reference` (the same
 fibres mapped affinely into the fitted box, i.e. the template's own directions) is given, a
 fibre whose reference ray HITS the area ends there; the others keep the paper's ray. The gap
-falls to 15.8 mm (gluteus maximus 58 -> 45 mm; iliacus and psoas unchanged, 19 and 11 mm). The choice is
-made once on the rest pose (a material point), so motions stay smooth.
+falls to 15.8 mm (gluteus maximus 58 -> 45 mm; iliacus and psoas unchanged, 19 and 11 mm).
+The choice is made once on the rest pose (a material point), so motions stay smooth.
 
 Inside the surface (measured on the LHDL hip muscles, 100 fibres x 16 points): the morph
 keeps points within 1.5 mm of the surface; after this filter (no smoothing) up to 4.2 mm lie
