@@ -71,7 +71,7 @@ def _inner(n, p):
 
 def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
             softness: float = CONTAIN_SOFTNESS, reach: float = CONTAIN_REACH,
-            iterations: int = 2):
+            iterations: int = 2, mean_edge: float | None = None):
     """Pull the inner fibre points that lie outside a closed surface back in (module
     docstring).
 
@@ -91,6 +91,8 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     iterations : int, keyword-only
         Pull steps (>= 1): the first moves by ``s - s'`` along the shortest path, the
         others correct towards the same ``s'`` from the new closest point.
+    mean_edge : float, optional
+        The faces' mean edge length when known (sizes the search grid; measured otherwise).
 
     Returns
     -------
@@ -107,7 +109,7 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     n, p = out.shape[:2]
     if n == 0 or p < 3:
         return out, np.zeros(n, bool)
-    grid = SurfaceGrid(vertices, faces, reach=reach)
+    grid = SurfaceGrid(vertices, faces, reach=reach, mean_edge=mean_edge)
     index = _inner(n, p)
     # points in enclosed grid cells are inside: not measured (watch = 0)
     s, d = grid.signed_distance(out.reshape(-1, 3)[index], tau=softness, watch=0.0)

@@ -377,7 +377,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations),
                      max_shift=DECOMPOSE_MAX_SHIFT)
     if contain:
-        pts, flags["contained"] = contain_points(pts, v, faces)
+        pts, flags["contained"] = contain_points(pts, v, faces, mean_edge=mean_edge)
     if fresh and fc is not None:
         plan = dataclasses.replace(plan, filter_choice=fc)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

@@ -59,7 +59,7 @@ def _kernels():
             jit = numba.njit(cache=True, nogil=True)
             # the query calls the compiled helpers: numba resolves globals at compile time
             glb = dict(globals(), _closest_point=jit(_closest_point), _blend=jit(_blend),
-                       _flood=jit(_flood))
+                       _flood=jit(_flood), _shape=jit(_shape))
             glb["_owns"] = jit(_owns)
             glb["_column_inside"] = jit(types.FunctionType(_column_inside.__code__, glb,
                                                            "_column_inside"))
@@ -132,50 +132,71 @@ def _bounds_loop(v):  # pragma: no cover - compiled by numba
 
 
 def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numba
-    """Unit normals (T, 3), bounding spheres (centre (T, 3), radius (T,)) and the grid of
-    the triangles' bounding boxes as CSR (start (cells + 1,), items)."""
-    n_tri = faces.shape[0]
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    nrm = np.zeros((n_tri, 3))
-    centre = np.empty((n_tri, 3))
-    radius = np.empty(n_tri)
-    rng = np.empty((n_tri, 6), np.int64)
-    count = np.zeros(nx * ny * nz + 1, np.int64)
-    for t in range(n_tri):
-        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+    """The grid of the triangles' bounding boxes as CSR (start (cells + 1,), items), int32.
+
+    Each vertex's cell is computed once: ``floor((x - lo) / cell)`` is monotone in x, so a
+    triangle's range is the min/max of its vertices' cells (the cells of its coordinate-wise
+    minimum and maximum). The counting pass keeps each triangle's first cell and its spans
+    (21 bits each) for the filling pass."""
+    n_tri, n_v = faces.shape[0], v.shape[0]
+    ny, nz = dims[1], dims[2]
+    vc = np.empty(n_v * 3, np.int32)
+    for i in range(n_v):
         for k in range(3):
-            centre[t, k] = (v[a, k] + v[b, k] + v[c, k]) / 3.0
-            mn = min(v[a, k], v[b, k], v[c, k])
-            mx = max(v[a, k], v[b, k], v[c, k])
-            rng[t, 2 * k] = min(max(int(np.floor((mn - lo[k]) / cell)), 0), dims[k] - 1)
-            rng[t, 2 * k + 1] = min(max(int(np.floor((mx - lo[k]) / cell)), 0), dims[k] - 1)
-        r2 = 0.0
-        for q in (a, b, c):
-            dx, dy, dz = v[q, 0] - centre[t, 0], v[q, 1] - centre[t, 1], v[q, 2] - centre[t, 2]
-            r2 = max(r2, dx * dx + dy * dy + dz * dz)
-        radius[t] = np.sqrt(r2)
-        ux, uy, uz = v[b, 0] - v[a, 0], v[b, 1] - v[a, 1], v[b, 2] - v[a, 2]
-        wx, wy, wz = v[c, 0] - v[a, 0], v[c, 1] - v[a, 1], v[c, 2] - v[a, 2]
-        gx, gy, gz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-        length = np.sqrt(gx * gx + gy * gy + gz * gz)
-        if length > 0.0:
-            nrm[t, 0], nrm[t, 1], nrm[t, 2] = gx / length, gy / length, gz / length
-        for i in range(rng[t, 0], rng[t, 1] + 1):
-            for j in range(rng[t, 2], rng[t, 3] + 1):
-                for k in range(rng[t, 4], rng[t, 5] + 1):
-                    count[(i * ny + j) * nz + k + 1] += 1
+            vc[3 * i + k] = min(max(int(np.floor((v[i, k] - lo[k]) / cell)), 0), dims[k] - 1)
+    count = np.zeros(dims[0] * ny * nz + 1, np.int32)
+    base = np.empty(n_tri, np.int32)
+    span = np.empty(n_tri, np.int64)
+    for t in range(n_tri):
+        a, b, c = 3 * faces[t, 0], 3 * faces[t, 1], 3 * faces[t, 2]
+        i0, i1 = min(vc[a], vc[b], vc[c]), max(vc[a], vc[b], vc[c])
+        j0, j1 = min(vc[a + 1], vc[b + 1], vc[c + 1]), max(vc[a + 1], vc[b + 1], vc[c + 1])
+        k0, k1 = min(vc[a + 2], vc[b + 2], vc[c + 2]), max(vc[a + 2], vc[b + 2], vc[c + 2])
+        q0 = (i0 * ny + j0) * nz + k0
+        base[t] = q0
+        span[t] = (np.int64(i1 - i0) << 42) | (np.int64(j1 - j0) << 21) | (k1 - k0)
+        for i in range(i1 - i0 + 1):
+            for j in range(j1 - j0 + 1):
+                qq = q0 + (i * ny + j) * nz + 1
+                for k in range(k1 - k0 + 1):
+                    count[qq + k] += 1
     for q in range(1, count.shape[0]):
         count[q] += count[q - 1]
-    items = np.empty(count[-1], np.int64)
+    items = np.empty(count[-1], np.int32)
     fill = count[:-1].copy()
     for t in range(n_tri):
-        for i in range(rng[t, 0], rng[t, 1] + 1):
-            for j in range(rng[t, 2], rng[t, 3] + 1):
-                for k in range(rng[t, 4], rng[t, 5] + 1):
-                    q = (i * ny + j) * nz + k
-                    items[fill[q]] = t
-                    fill[q] += 1
-    return nrm, centre, radius, count, items
+        q0, sp = base[t], span[t]
+        for i in range((sp >> 42) + 1):
+            for j in range(((sp >> 21) & 2097151) + 1):
+                qq = q0 + (i * ny + j) * nz
+                for k in range((sp & 2097151) + 1):
+                    items[fill[qq + k]] = t
+                    fill[qq + k] += 1
+    return count, items
+
+
+def _shape(t, v, faces, nrm, centre, radius, ready):  # pragma: no cover - compiled by numba
+    """Unit normal, centroid and bounding-sphere radius of triangle t, computed on its first
+    use by a distance search (``ready[t]``): the inside tests never need them."""
+    if ready[t]:
+        return
+    ready[t] = 1
+    a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+    for k in range(3):
+        centre[t, k] = (v[a, k] + v[b, k] + v[c, k]) / 3.0
+    r2 = 0.0
+    for q in (a, b, c):
+        dx, dy, dz = v[q, 0] - centre[t, 0], v[q, 1] - centre[t, 1], v[q, 2] - centre[t, 2]
+        r2 = max(r2, dx * dx + dy * dy + dz * dz)
+    radius[t] = np.sqrt(r2)
+    ux, uy, uz = v[b, 0] - v[a, 0], v[b, 1] - v[a, 1], v[b, 2] - v[a, 2]
+    wx, wy, wz = v[c, 0] - v[a, 0], v[c, 1] - v[a, 1], v[c, 2] - v[a, 2]
+    gx, gy, gz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    length = np.sqrt(gx * gx + gy * gy + gz * gz)
+    if length > 0.0:
+        nrm[t, 0], nrm[t, 1], nrm[t, 2] = gx / length, gy / length, gz / length
+    else:
+        nrm[t, 0] = nrm[t, 1] = nrm[t, 2] = 0.0
 
 
 def _flood(label, comp, dims, stack, top, value, cid):  # pragma: no cover - numba
@@ -312,8 +333,8 @@ def _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label, dims, 
     return odd == (label[(i * ny + j) * nz + k] == 2)   # inside: outside end and odd
 
 
-def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, items, label,
-                labelled, reach, watch, tau, kappa, out_s, out_n):  # pragma: no cover - numba
+def _query_loop(points, v, faces, nrm, centre, radius, ready, lo, cell, dims, start, items,
+                label, labelled, reach, watch, tau, kappa, out_s, out_n):  # pragma: no cover - numba
     """The grid search of the module docstring, then `_blend`, for every point."""
     n_tri = faces.shape[0]
     nx, ny, nz = dims[0], dims[1], dims[2]
@@ -356,6 +377,7 @@ def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, it
             seed, near = -1, np.inf   # seed the bound: the own cell's nearest centroid's
             for e in range(start[q], start[q + 1]):   # triangle, measured exactly
                 t = items[e]
+                _shape(t, v, faces, nrm, centre, radius, ready)
                 ex, ey, ez = px - centre[t, 0], py - centre[t, 1], pz - centre[t, 2]
                 e2 = ex * ex + ey * ey + ez * ez
                 if e2 < near:
@@ -395,6 +417,7 @@ def _query_loop(points, v, faces, nrm, centre, radius, lo, cell, dims, start, it
                             if stamp[t] == p:
                                 continue
                             stamp[t] = p
+                            _shape(t, v, faces, nrm, centre, radius, ready)
                             # lower bound: the plane distance h and the in-plane distance
                             # beyond the bounding circle (centre in the plane, radius r)
                             ex, ey, ez = px - centre[t, 0], py - centre[t, 1], pz - centre[t, 2]
@@ -539,13 +562,15 @@ class SurfaceGrid:
     cell : float, optional
         Grid cell size (default ``max(CELL_EDGES x mean edge, reach / 8)``); the result does
         not depend on it, only the speed.
+    mean_edge : float, optional
+        The faces' mean edge length when already known (else measured here).
     labelled : bool
         Label the empty cells inside/outside (module docstring); without the labels every
         point is searched up to `reach` (cheaper to build when few points are queried).
     """
 
     def __init__(self, vertices, faces, *, reach: float, cell: float | None = None,
-                 labelled: bool = True):
+                 labelled: bool = True, mean_edge: float | None = None):
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self.reach = float(reach)
@@ -555,7 +580,9 @@ class SurfaceGrid:
             self.cell = cell
             return
         if cell is None:
-            cell = max(CELL_EDGES * self.kernels["edges"](v, f), reach / 8.0)
+            if mean_edge is None:
+                mean_edge = self.kernels["edges"](v, f)
+            cell = max(CELL_EDGES * mean_edge, reach / 8.0)
         lo, hi = self.kernels["bounds"](v)
         # at most ~2 cells per 4 triangles: coarser cells for fine meshes (building the grid
         # costs ~T + cells; with ray parity the searches stay short; measured 60K-vertex
@@ -564,8 +591,10 @@ class SurfaceGrid:
                    ** (1 / 3), 1e-12)
         self.cell, self.lo = cell, lo - cell          # one empty (outside) layer all round
         self.dims = np.floor((hi - lo) / cell).astype(np.int64) + 3
-        self.nrm, self.centre, self.radius, self.start, self.items = self.kernels["grid"](
-            v, f, self.lo, cell, self.dims)
+        self.start, self.items = self.kernels["grid"](v, f, self.lo, cell, self.dims)
+        n_tri = len(f)  # per-triangle shapes, filled on first use (`_shape`)
+        self.nrm, self.centre = np.empty((n_tri, 3)), np.empty((n_tri, 3))
+        self.radius, self.ready = np.empty(n_tri), np.zeros(n_tri, np.int8)
         self.labelled, self.label = False, np.zeros(1, np.int8)
         if labelled:
             label, comp, reps = self.kernels["label"](self.start, self.dims)
@@ -585,7 +614,7 @@ class SurfaceGrid:
         if self.kernels is not None:
             s, n = np.empty(len(x)), np.empty((len(x), 3))
             self.kernels["query"](x, self.vertices, self.faces, self.nrm, self.centre,
-                                  self.radius, self.lo, self.cell, self.dims, self.start,
+                                  self.radius, self.ready, self.lo, self.cell, self.dims, self.start,
                                   self.items, self.label, self.labelled, self.reach, watch,
                                   float(tau),
                                   KAPPA, s, n)
