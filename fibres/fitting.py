@@ -333,8 +333,15 @@ def _closest_sum(area, landmarks):
 def _scores(template, axes, corner, ext, origin, insertion):
     """Matching error (J,) of the template areas mapped into each box (Kohout 2012 §3.2)."""
     scale = axes * ext[:, None, :]                                    # (J, 3, 3)
-    t_ori = corner[:, None] + np.einsum("kl,jml->jkm", template.origin_area, scale)
-    t_ins = corner[:, None] + np.einsum("kl,jml->jkm", template.insertion_area, scale)
+
+    def mapped(area):  # corner + sum_l area[k, l] scale[j, :, l], in the order of numpy's
+        a = np.asarray(area, dtype=np.float64)[None, :, None, :]  # einsum (0 + 2) + 1
+        s = scale[:, None]
+        return corner[:, None] + ((a[..., 0] * s[..., 0] + a[..., 2] * s[..., 2])
+                                  + a[..., 1] * s[..., 1])
+
+    t_ori = mapped(template.origin_area)
+    t_ins = mapped(template.insertion_area)
     return _closest_sum(t_ori, origin) + _closest_sum(t_ins, insertion)
 
 

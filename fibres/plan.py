@@ -78,6 +78,10 @@ __all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_loc
 
 
 def _readonly(a):
+    """A read-only copy of ``a``; an array that is already read-only and owns its data (one
+    made here, passed on by `dataclasses.replace`) is kept as is."""
+    if isinstance(a, np.ndarray) and not a.flags.writeable and a.flags.owndata:
+        return a
     a = np.array(a, copy=True)
     a.flags.writeable = False
     return a

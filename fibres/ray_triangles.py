@@ -197,7 +197,23 @@ def _triangles_loop(tv, start, dn, eps2, slack,
             ta = max(rx * d0 + ry * d1 + rz * d2_, 0.0)
             rx, ry, rz = rx - ta * d0, ry - ta * d1, rz - ta * d2_
             lower[k] = np.sqrt(rx * rx + ry * ry + rz * rz) - radius[k]
-        k0 = np.argmin(lower)
+        # k0 = np.argmin(lower) (finite: the first minimum), its value from four
+        # independent running minima (a single chain of compares is latency-bound)
+        m0 = m1 = m2 = m3 = np.inf
+        k = 0
+        while k + 4 <= n_tri:
+            m0, m1 = min(m0, lower[k]), min(m1, lower[k + 1])
+            m2, m3 = min(m2, lower[k + 2]), min(m3, lower[k + 3])
+            k += 4
+        while k < n_tri:
+            m0 = min(m0, lower[k])
+            k += 1
+        m0 = min(min(m0, m1), min(m2, m3))
+        k0 = 0
+        while k0 < n_tri and lower[k0] != m0:
+            k0 += 1
+        if k0 == n_tri:                               # not finite: argmin's NaN rule
+            k0 = np.argmin(lower)
         # (p1, p2, d): an orthonormal frame along the ray
         ax = 0 if abs(d0) <= abs(d1) and abs(d0) <= abs(d2_) else (
             1 if abs(d1) <= abs(d2_) else 2)
