@@ -253,14 +253,16 @@ def _nearest_loop(vt, points):  # pragma: no cover - compiled by numba
 
 
 def _within_loop(vt, points, r2):  # pragma: no cover - compiled by numba
-    """Whether each vertex (3, V) lies within squared distance r2 of some point (K, 3)."""
-    out = np.zeros(vt.shape[1], np.bool_)
-    for i in range(vt.shape[1]):
-        for k in range(points.shape[0]):
-            dx, dy, dz = points[k, 0] - vt[0, i], points[k, 1] - vt[1, i], points[k, 2] - vt[2, i]
-            if dx * dx + dy * dy + dz * dz <= r2:
-                out[i] = True
-                break
+    """Whether each vertex (3, V) lies within squared distance r2 of some point (K, 3)
+    (point-major: the vertex loop has no exit and vectorises)."""
+    n_v = vt.shape[1]
+    out = np.zeros(n_v, np.bool_)
+    x, y, z = vt[0], vt[1], vt[2]
+    for k in range(points.shape[0]):
+        px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+        for i in range(n_v):
+            dx, dy, dz = px - x[i], py - y[i], pz - z[i]
+            out[i] |= dx * dx + dy * dy + dz * dz <= r2
     return out
 
 

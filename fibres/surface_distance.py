@@ -374,14 +374,19 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lo, cell, dims, st
                 out_s[p] = -np.inf          # inside (ray parity): no distance wanted
                 out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
                 continue
-            seed, near = -1, np.inf   # seed the bound: the own cell's nearest centroid's
-            for e in range(start[q], start[q + 1]):   # triangle, measured exactly
-                t = items[e]
-                _shape(t, v, faces, nrm, centre, radius, ready)
-                ex, ey, ez = px - centre[t, 0], py - centre[t, 1], pz - centre[t, 2]
-                e2 = ex * ex + ey * ey + ez * ez
-                if e2 < near:
-                    seed, near = t, e2
+            seed, near = -1, np.inf   # seed the bound: the own cell's (if empty, the 26
+            span = 0 if start[q + 1] > start[q] else 1  # neighbours') nearest centroid's
+            for ii in range(max(ci - span, 0), min(ci + span + 1, nx)):  # triangle, measured
+                for jj in range(max(cj - span, 0), min(cj + span + 1, ny)):  # exactly
+                    for kk in range(max(ck - span, 0), min(ck + span + 1, nz)):
+                        qq = (ii * ny + jj) * nz + kk
+                        for e in range(start[qq], start[qq + 1]):
+                            t = items[e]
+                            _shape(t, v, faces, nrm, centre, radius, ready)
+                            ex, ey, ez = px - centre[t, 0], py - centre[t, 1], pz - centre[t, 2]
+                            e2 = ex * ex + ey * ey + ez * ez
+                            if e2 < near:
+                                seed, near = t, e2
             if seed >= 0:
                 a, b, c = faces[seed, 0], faces[seed, 1], faces[seed, 2]
                 qx, qy, qz = _closest_point(v[a, 0], v[a, 1], v[a, 2], v[b, 0], v[b, 1],
