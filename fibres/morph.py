@@ -79,14 +79,21 @@ def _clockwise_all(sections: Sections, chosen, topology: MeshTopology, *, anchor
     lo = sections.loop_start[chosen]
     m = sections.loop_start[chosen + 1] - lo
     offs = np.concatenate([[0], np.cumsum(m)])
-    sl = np.repeat(np.arange(n_s), m)
-    j = np.arange(offs[-1]) - offs[sl]
-    raw = sections.points[lo[sl] + j]
-    nx = raw[offs[sl] + (j + 1) % m[sl]]
-    flip = np.add.reduceat(raw[:, 0] * nx[:, 1] - nx[:, 0] * raw[:, 1], offs[:-1]) > 0
-    idx = np.where(flip[sl], lo[sl] + m[sl] - 1 - j, lo[sl] + j)
-    pts = sections.points[idx]
-    edge = sections.edge[idx]
+    kernels = _kernels()
+    if kernels is not None:
+        # the same gathers compiled; the orientation sums stay numpy's (its summation order)
+        cross = kernels[4](sections.points, lo, m, offs)
+        flip = np.add.reduceat(cross, offs[:-1]) > 0
+        idx, pts, edge = kernels[5](sections.points, sections.edge, lo, m, offs, flip)
+    else:
+        sl = np.repeat(np.arange(n_s), m)
+        j = np.arange(offs[-1]) - offs[sl]
+        raw = sections.points[lo[sl] + j]
+        nx = raw[offs[sl] + (j + 1) % m[sl]]
+        flip = np.add.reduceat(raw[:, 0] * nx[:, 1] - nx[:, 0] * raw[:, 1], offs[:-1]) > 0
+        idx = np.where(flip[sl], lo[sl] + m[sl] - 1 - j, lo[sl] + j)
+        pts = sections.points[idx]
+        edge = sections.edge[idx]
     if anchors:
         av, aw = _vertex_anchors(sections, topology, idx)
     else:
@@ -95,6 +102,33 @@ def _clockwise_all(sections: Sections, chosen, topology: MeshTopology, *, anchor
     # (a contour of 3 vertices needs no refinement: the four correspondence points are
     # inserted into it, `_insert_and_subdivide`)
     return pts, edge, av, aw, m, offs, idx
+
+
+def _cross_loop(points, lo, m, offs):  # pragma: no cover - compiled by numba
+    """Per-vertex terms ``x_j y_{j+1} - x_{j+1} y_j`` of the loops' signed areas."""
+    out = np.empty(offs[-1])
+    for s in range(m.size):
+        for j in range(m[s]):
+            a = lo[s] + j
+            b = lo[s] + (j + 1) % m[s]
+            out[offs[s] + j] = points[a, 0] * points[b, 1] - points[b, 0] * points[a, 1]
+    return out
+
+
+def _clockwise_loop(points, edge, lo, m, offs, flip):  # pragma: no cover - numba
+    """Indices, points and edges of the loops in clockwise order (reversed where ``flip``)."""
+    n = offs[-1]
+    idx = np.empty(n, np.int64)
+    pts = np.empty((n, 2))
+    ed = np.empty(n, np.int64)
+    for s in range(m.size):
+        for j in range(m[s]):
+            i = lo[s] + m[s] - 1 - j if flip[s] else lo[s] + j
+            q = offs[s] + j
+            idx[q] = i
+            pts[q, 0], pts[q, 1] = points[i, 0], points[i, 1]
+            ed[q] = edge[i]
+    return idx, pts, ed
 
 
 def _vertex_anchors(sections: Sections, topology: MeshTopology, idx):
@@ -285,7 +319,7 @@ def _kernels():
         else:
             jit = numba.njit(cache=True, nogil=True, error_model="numpy")
             _KERNELS.append((jit(_roll_loop), jit(_subdivide_loop), anchor_kernel(),
-                             jit(_insert_loop)))
+                             jit(_insert_loop), jit(_cross_loop), jit(_clockwise_loop)))
     return _KERNELS[0]
 
 
