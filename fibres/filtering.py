@@ -438,12 +438,14 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
             region = _region_indices(verts, faces, landmarks, vt, mean_edge)
             corners, owner = region_triangles(faces, region, len(verts))
             d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
-            k, w = closest_on_triangles(verts[corners], c[sel], d)
+            tv = verts[corners]
+            k, w = closest_on_triangles(tv, c[sel], d, corner_ids=corners)
             if reference is not None:  # the template's direction where its ray hits the area
                 ref = np.asarray(reference, dtype=np.float64)
                 d2 = ref[rows[sel], b[sel]] - ref[rows[sel], a[sel]]
                 # only hits matter: rays farther than 2 tol stop early (index -1)
-                k2, w2 = closest_on_triangles(verts[corners], c[sel], d2, within=2 * tol)
+                k2, w2 = closest_on_triangles(tv, c[sel], d2, within=2 * tol,
+                                              corner_ids=corners)
                 q = np.einsum("nkc,nk->nc", verts[corners[np.maximum(k2, 0)]], w2) - c[sel]
                 d2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
                 along = np.maximum(np.einsum("nc,nc->n", q, d2), 0.0)

@@ -125,8 +125,8 @@ def _pair_loop(k, s, d, tv, te1, te2, tnrm, tnn, tthr, tedge, tcc, bb3):  # prag
     return d2, t
 
 
-def _triangles_loop(tv, start, dn, eps2, slack,
-                    within2):  # pragma: no cover - compiled by numba
+def _triangles_loop(tv, start, dn, eps2, slack, within2,
+                    vid):  # pragma: no cover - compiled by numba
     """`closest_on_triangles` for triangles (T, 3, 3), starts (N, 3), unit directions
     (N, 3): `_pair_loop` for the pairs that can matter, and the selection of the array
     version (the first touching pair along the ray, else the nearest).
@@ -144,7 +144,9 @@ def _triangles_loop(tv, start, dn, eps2, slack,
     ``slack`` for the rounding of the frame coordinates. The remaining triangles are
     evaluated in increasing order of the box bound, until the next bound exceeds the best
     distance. ``within2`` (squared; inf for none) caps the best distance of the pruning: a
-    ray farther than that from every triangle is returned as index -1."""
+    ray farther than that from every triangle is returned as index -1. ``vid`` (T, 3)
+    numbers the distinct corners (equal ids: equal points): each is projected into a
+    ray's frame once for the box bounds (the triangles of a surface share them)."""
     n_rays, n_tri = start.shape[0], tv.shape[0]
     index = np.zeros(n_rays, np.int64)
     bary = np.zeros((n_rays, 3))
@@ -159,6 +161,12 @@ def _triangles_loop(tv, start, dn, eps2, slack,
         for i in range(3):
             for c in range(3):
                 cs[i, c, k] = tv[k, i, c]
+    n_id = 0
+    for k in range(n_tri):
+        for i in range(3):
+            n_id = max(n_id, vid[k, i] + 1)
+    seen = np.full(n_id, -1, np.int64)          # ray whose frame holds the projection
+    proj = np.empty((n_id, 3))                  # corner id -> (u, v, t) in that frame
     # per-triangle constants of the tests, computed once (the same operations as per pair)
     te1, te2, tnrm = np.empty((n_tri, 3)), np.empty((n_tri, 3)), np.empty((n_tri, 3))
     tnn, tthr = np.empty(n_tri), np.empty(n_tri)
@@ -244,12 +252,17 @@ def _triangles_loop(tv, start, dn, eps2, slack,
                 continue
             u_lo, u_hi, v_lo, v_hi, t_hi = np.inf, -np.inf, np.inf, -np.inf, -np.inf
             for i in range(3):
-                qx, qy, qz = cs[i, 0, k] - s0, cs[i, 1, k] - s1, cs[i, 2, k] - s2
-                pu = qx * p1[0] + qy * p1[1] + qz * p1[2]
-                pv = qx * p2[0] + qy * p2[1] + qz * p2[2]
+                q = vid[k, i]
+                if seen[q] != n:
+                    seen[q] = n
+                    qx, qy, qz = cs[i, 0, k] - s0, cs[i, 1, k] - s1, cs[i, 2, k] - s2
+                    proj[q, 0] = qx * p1[0] + qy * p1[1] + qz * p1[2]
+                    proj[q, 1] = qx * p2[0] + qy * p2[1] + qz * p2[2]
+                    proj[q, 2] = qx * d0 + qy * d1 + qz * d2_
+                pu, pv = proj[q, 0], proj[q, 1]
                 u_lo, u_hi = min(u_lo, pu), max(u_hi, pu)
                 v_lo, v_hi = min(v_lo, pv), max(v_hi, pv)
-                t_hi = max(t_hi, qx * d0 + qy * d1 + qz * d2_)
+                t_hi = max(t_hi, proj[q, 2])
             gu = max(max(u_lo, -u_hi), 0.0)
             gv = max(max(v_lo, -v_hi), 0.0)
             gt = max(-t_hi, 0.0)
@@ -462,7 +475,7 @@ def _ray_triangle_pairs(tv, s, d):
 
 
 def closest_on_triangles(tv, start, direction, *, within: float | None = None,
-                         chunk: int = 1 << 16):
+                         chunk: int = 1 << 16, corner_ids=None):
     """For each ray the point of the triangles closest to it (module docstring).
 
     The first hit where the ray hits them, else the closest point (their edges, vertices or
@@ -484,6 +497,9 @@ def closest_on_triangles(tv, start, direction, *, within: float | None = None,
         rounding of the caller's own distance cannot matter.
     chunk : int, keyword-only
         numpy path: rays are processed in blocks of about ``chunk`` ray-triangle pairs.
+    corner_ids : (T, 3) int >= 0, optional, keyword-only
+        Equal ids for equal corners (e.g. the mesh's vertex indices of ``tv``): shared
+        corners are then projected once per ray (speed only; the answers are the same).
 
     Returns
     -------
@@ -507,8 +523,10 @@ def closest_on_triangles(tv, start, direction, *, within: float | None = None,
         start = np.ascontiguousarray(start, dtype=float)
         # rounding bound of the ray-frame coordinates: 1e-14 of the coordinates' size
         slack = 1e-14 * (np.abs(start).max(axis=1) + max(np.abs(lo).max(), np.abs(hi).max()))
+        vid = (np.arange(3 * len(tv), dtype=np.int64).reshape(-1, 3) if corner_ids is None
+               else np.ascontiguousarray(corner_ids, dtype=np.int64))
         return kernels[0](tv, start, np.ascontiguousarray(dn, dtype=float), eps2, slack,
-                          np.inf if within is None else float(within) ** 2)
+                          np.inf if within is None else float(within) ** 2, vid)
     eps2 = (1e-12 * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))) ** 2
     step = max(1, chunk // len(tv))
     for lo in range(0, n, step):  # blocks of fibres, not single fibres

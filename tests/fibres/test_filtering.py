@@ -336,6 +336,24 @@ def test_closest_point_on_triangles_is_first_hit_or_nearest(kernels, monkeypatch
     assert 20 < n_hit < 180                              # both branches are exercised
 
 
+def test_closest_on_triangles_with_shared_corner_ids_is_the_same_answer():
+    # corner_ids (the mesh's vertex indices) only let the compiled loop project each shared
+    # corner once per ray: indices and barycentric coordinates are bit for bit those
+    # without them, with and without `within` (rays towards and past a tube's wall)
+    import fibres.ray_triangles as rt
+
+    v, f = tube()
+    rng = np.random.default_rng(3)
+    start = rng.uniform(-1.5, 1.5, (300, 3)) + [0.0, 0.0, 2.0]
+    direction = rng.standard_normal((300, 3))
+    for within in (None, 0.05):
+        a = rt.closest_on_triangles(v[f], start, direction, within=within)
+        b = rt.closest_on_triangles(v[f], start, direction, within=within, corner_ids=f)
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_array_equal(a[1], b[1])
+        assert (a[0] >= 0).sum() > 50 and (within is None or (a[0] < 0).sum() > 10)
+
+
 def tube(length=4.0, radius=1.0, n_around=24, n_along=20):
     """Closed cylinder along z from 0 to ``length`` with flat caps whose only vertices are
     the centre and the rim (as in tests/analysis/test_run_cylinders.py)."""
