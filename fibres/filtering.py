@@ -80,6 +80,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .ray_triangles import closest_on_triangles, region_triangles
+from .resample import resampling_kernel
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
            "apply_filter", "TIE"]
@@ -471,6 +472,11 @@ def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param
     tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut[sel], segment[sel],
                                                      cut_param[sel],
                                                      (target[0][sel], target[1][sel]))
+    kernel = resampling_kernel()
+    if kernel is not None:  # the same arithmetic, fibre by fibre (`fibres.resample`)
+        piece[sel], param[sel] = kernel(np.ascontiguousarray(fib), tau_o, tau_i, c_o, c_i,
+                                        end_o, end_i, np.linspace(0.0, 1.0, p))
+        return
     body_tau = np.clip(np.arange(p, dtype=float)[None, :], tau_o[:, None], tau_i[:, None])
     body = np.where((body_tau == np.arange(p))[..., None], fib, _at_index(fib, body_tau))
     poly = np.concatenate([end_o[:, None], c_o[:, None], body, c_i[:, None], end_i[:, None]], 1)

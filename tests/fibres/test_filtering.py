@@ -459,3 +459,24 @@ def test_plan_reuse_keeps_the_end_on_its_material_point():
     # the deformation really moves the ends (not a trivial check): by 1e-3 .. 0.03, far
     # above the 1e-12 tolerance
     assert np.linalg.norm(out[:, 0] - rest[:, 0], axis=1).min() > 1e-3
+
+
+def test_compiled_resampling_record_equals_the_array_version(monkeypatch):
+    # fibres.resample does the array version's arithmetic point by point: pieces and
+    # parameters bit for bit (tube case: both ends cut; wobbly fibres so that the kept
+    # points are not evenly spaced and pieces 0, 1 and 2 all occur)
+    import fibres.resample as rs
+    from fibres.filtering import filter_choices
+
+    if rs.resampling_kernel() is None:
+        pytest.skip("numba not installed")
+    v, f, fib, origin, insertion, _, _ = _tube_case()
+    rng = np.random.default_rng(5)
+    fib = fib + rng.normal(0.0, 0.05, fib.shape) * [1, 1, 0.3]
+    compiled = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
+    monkeypatch.setattr(rs, "_KERNEL", [None])
+    plain = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
+    assert compiled.cut.all()
+    np.testing.assert_array_equal(compiled.piece, plain.piece)
+    np.testing.assert_array_equal(compiled.param, plain.param)
+    assert set(np.unique(plain.piece)) == {0, 1, 2}
