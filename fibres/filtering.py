@@ -80,7 +80,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .ray_triangles import closest_on_triangles, region_triangles
-from .resample import resampling_kernel
+from .resample import evaluate_kernel, resampling_kernel
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
            "apply_filter", "TIE"]
@@ -201,7 +201,9 @@ def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None) -> np.n
     if len(landmarks) > 1:
         dl = np.sqrt(_sq_distances(np.ascontiguousarray(landmarks.T), landmarks))
         np.fill_diagonal(dl, np.inf)
-        radius = max(radius, float(np.median(dl.min(axis=1))))
+        near = np.sort(dl.min(axis=1))  # their median (np.median's arithmetic, ~10x faster)
+        h = len(near) // 2
+        radius = max(radius, float(near[h] if len(near) % 2 else (near[h - 1] + near[h]) / 2))
     kernels = _kernels()
     if kernels is not None:
         nearest = kernels[0](vt, landmarks)
@@ -571,6 +573,10 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
 def _evaluate(fib, verts, cut, segment, s, target, piece, param):
     """Output points from the recorded pieces and parameters."""
     tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut, segment, s, target)
+    kernel = evaluate_kernel()
+    if kernel is not None:  # the same arithmetic, point by point (`fibres.resample`)
+        return kernel(np.ascontiguousarray(fib), tau_o, tau_i, c_o, c_i, end_o, end_i,
+                      np.ascontiguousarray(piece), np.ascontiguousarray(param))
     lam = param[..., None]
     on_o = end_o[:, None] + lam * (c_o - end_o)[:, None]
     on_i = c_i[:, None] + lam * (end_i - c_i)[:, None]

@@ -5,27 +5,40 @@ resampling of each cut fibre's poly-line [new end, cut, kept points, cut, new en
 et al., GRAPP 2012, §3.4), the piece it falls on and its parameter there. `resampling_loop`
 does the same element-wise arithmetic in the same order as the array version, one fibre at a
 time (no (M, P, Q) comparison table), so the two agree bit for bit (tests/fibres/test_filtering.py).
+`evaluate_loop` is `fibres.filtering._evaluate`'s point placement from those records.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["resampling_kernel"]
+__all__ = ["resampling_kernel", "evaluate_kernel"]
 
 _KERNEL = []
 
 
-def resampling_kernel():
-    """`resampling_loop` compiled with numba, or None (then the array version)."""
+def _compiled():
+    """(resampling_loop, evaluate_loop) compiled with numba, or None."""
     if not _KERNEL:
         try:
             import numba
         except ImportError:                                     # pragma: no cover - optional
             _KERNEL.append(None)
         else:
-            _KERNEL.append(numba.njit(cache=True, nogil=True,
-                                      error_model="numpy")(resampling_loop))
+            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+            _KERNEL.append((jit(resampling_loop), jit(evaluate_loop)))
     return _KERNEL[0]
+
+
+def resampling_kernel():
+    """`resampling_loop` compiled with numba, or None (then the array version)."""
+    kernels = _compiled()
+    return None if kernels is None else kernels[0]
+
+
+def evaluate_kernel():
+    """`evaluate_loop` compiled with numba, or None (then the array version)."""
+    kernels = _compiled()
+    return None if kernels is None else kernels[1]
 
 
 def resampling_loop(fib, tau_o, tau_i, c_o, c_i, end_o, end_i, lin):  # pragma: no cover
@@ -83,3 +96,28 @@ def resampling_loop(fib, tau_o, tau_i, c_o, c_i, end_o, end_i, lin):  # pragma: 
         piece[r, 0], param[r, 0] = 0, 0.0
         piece[r, p - 1], param[r, p - 1] = 2, 1.0
     return piece, param
+
+
+def evaluate_loop(fib, tau_o, tau_i, c_o, c_i, end_o, end_i, piece, param):  # pragma: no cover
+    """Output points (M, P, 3) from recorded pieces and parameters (M, P):
+    `fibres.filtering._evaluate` after its `_geometry`, point by point."""
+    m, p = fib.shape[0], fib.shape[1]
+    out = np.empty((m, p, 3))
+    for r in range(m):
+        for j in range(p):
+            lam = param[r, j]
+            pc = piece[r, j]
+            if pc == 0:
+                for c in range(3):
+                    out[r, j, c] = end_o[r, c] + lam * (c_o[r, c] - end_o[r, c])
+            elif pc == 2:
+                for c in range(3):
+                    out[r, j, c] = c_i[r, c] + lam * (end_i[r, c] - c_i[r, c])
+            else:  # `_at_index` at tau_o + lam (tau_i - tau_o)
+                tau = tau_o[r] + lam * (tau_i[r] - tau_o[r])
+                i0 = min(max(int(np.floor(tau)), 0), p - 2)
+                f = tau - i0
+                for c in range(3):
+                    a = fib[r, i0, c]
+                    out[r, j, c] = a + f * (fib[r, i0 + 1, c] - a)
+    return out

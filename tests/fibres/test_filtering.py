@@ -462,11 +462,11 @@ def test_plan_reuse_keeps_the_end_on_its_material_point():
 
 
 def test_compiled_resampling_record_equals_the_array_version(monkeypatch):
-    # fibres.resample does the array version's arithmetic point by point: pieces and
-    # parameters bit for bit (tube case: both ends cut; wobbly fibres so that the kept
-    # points are not evenly spaced and pieces 0, 1 and 2 all occur)
+    # fibres.resample does the array version's arithmetic point by point: pieces,
+    # parameters and the placed points bit for bit (tube case: both ends cut; wobbly fibres
+    # so that the kept points are not evenly spaced and pieces 0, 1 and 2 all occur)
     import fibres.resample as rs
-    from fibres.filtering import filter_choices
+    from fibres.filtering import apply_filter, filter_choices
 
     if rs.resampling_kernel() is None:
         pytest.skip("numba not installed")
@@ -474,8 +474,12 @@ def test_compiled_resampling_record_equals_the_array_version(monkeypatch):
     rng = np.random.default_rng(5)
     fib = fib + rng.normal(0.0, 0.05, fib.shape) * [1, 1, 0.3]
     compiled = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
+    moved = fib + 0.01 * np.sin(fib[..., [2, 0, 1]])             # another frame
+    out = apply_filter(moved, v, origin, insertion, [0, 0, 1], compiled)[0]
     monkeypatch.setattr(rs, "_KERNEL", [None])
     plain = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
+    np.testing.assert_array_equal(out, apply_filter(moved, v, origin, insertion, [0, 0, 1],
+                                                    plain)[0])
     assert compiled.cut.all()
     np.testing.assert_array_equal(compiled.piece, plain.piece)
     np.testing.assert_array_equal(compiled.param, plain.param)
