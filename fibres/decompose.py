@@ -35,7 +35,7 @@ from .fitting import fit_box, principal_frame, reference_frame
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
-from .slicing import mesh_topology, slice_mesh
+from .slicing import _topology_kernel, mesh_topology, slice_mesh
 from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .templates import Template, get_template
@@ -92,12 +92,12 @@ def _clean_tuple(mesh, units):
     if (v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) < 4
             or not np.issubdtype(f.dtype, np.integer) or not np.isfinite(v).all()):
         return None
-    f = f.astype(np.int64)
-    if f.min() < 0 or f.max() >= len(v):
-        return None
+    # int64 faces go in as given when compiled (the check range-checks them and keeps a
+    # contiguous copy, the topology's faces, so the caller's array is never kept)
+    f = f.astype(np.int64, copy=_topology_kernel() is None)
     v = v * 1e-3 if units == "mm" else v
     topology, mean_edge = clean_mesh_geometry(v, f)
-    return None if topology is None else (v, f, topology, mean_edge)
+    return None if topology is None else (v, topology.faces, topology, mean_edge)
 
 
 def _template(template, template_params) -> Template:

@@ -137,7 +137,7 @@ def _closed_topology(f, n_vertices):
     out = kernel(f, np.int64(n_vertices), True)
     if not out[0]:
         return None
-    return (MeshTopology(f, out[1], out[2], out[3], int(n_vertices), bool(out[4])),
+    return (MeshTopology(out[7], out[1], out[2], out[3], int(n_vertices), bool(out[4])),
             int(out[5]), bool(out[6]))
 
 
@@ -183,24 +183,27 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
     order. With ``pieces``, the faces of each pair are also joined in a union-find (path
     halving; Tarjan & van Leeuwen, J. ACM 31(2), 1984) and the used vertices marked.
 
-    Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used); ``ok`` is
-    False (and nothing else meaningful) when a vertex index is out of range, an edge is
+    Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces); ``ok``
+    is False (and nothing else meaningful) when a vertex index is out of range, an edge is
     not used exactly twice or the mesh is too large for the int32 tables; ``n_pieces``
-    is 0 and ``all_used`` False without ``pieces``."""
+    is 0 and ``all_used`` False without ``pieces``; ``faces`` is a C-contiguous copy of
+    ``f`` (which may be strided) made by the first pass."""
     n_t = f.shape[0]
     n = 3 * n_t
     n_e = n // 2
     edges = np.empty((n_e, 2), dtype=np.int64)
     face_edges = np.empty((n_t, 3), dtype=np.int64)
     neighbours = np.empty((n_t, 3), dtype=np.int64)
+    fc = np.empty((n_t, 3), dtype=np.int64)
     if n % 2 or n_t >= 2 ** 29 or n_vertices >= 2 ** 31:
-        return False, edges, face_edges, neighbours, False, 0, False
+        return False, edges, face_edges, neighbours, False, 0, False, fc
     start = np.zeros(n_vertices + 1, dtype=np.int32)
     used = np.zeros(n_vertices if pieces else 0, dtype=np.bool_)
     for t in range(n_t):
         a0, a1, a2 = f[t, 0], f[t, 1], f[t, 2]
+        fc[t, 0], fc[t, 1], fc[t, 2] = a0, a1, a2
         if min(a0, min(a1, a2)) < 0 or max(a0, max(a1, a2)) >= n_vertices:
-            return False, edges, face_edges, neighbours, False, 0, False
+            return False, edges, face_edges, neighbours, False, 0, False, fc
         start[min(a0, a1) + 1] += 1
         start[min(a1, a2) + 1] += 1
         start[min(a2, a0) + 1] += 1
@@ -245,7 +248,7 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
             v += 1
         if start[v + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
                 p > start[v] and s_hi[p - 1] == s_hi[p]):
-            return False, edges, face_edges, neighbours, False, 0, False
+            return False, edges, face_edges, neighbours, False, 0, False, fc
         h0 = s_h[p] >> 1
         h1 = s_h[p + 1] >> 1
         t0 = h0 // 3
@@ -274,7 +277,7 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
     if pieces:
         for v in range(n_vertices):
             all_used &= used[v]
-    return True, edges, face_edges, neighbours, oriented, n_pieces if pieces else 0, all_used
+    return True, edges, face_edges, neighbours, oriented, n_pieces if pieces else 0, all_used, fc
 
 
 @dataclass(frozen=True)

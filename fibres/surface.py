@@ -300,10 +300,12 @@ def clean_mesh_geometry(v, f):
     if len(f) < 4:
         return None, None
     closed = _closed_topology(f, n_v)          # topology, pieces, all vertices used
-    if closed is None and np.bincount(f.ravel(), minlength=n_v).min() == 0:
+    if closed is None and (f.min() < 0 or f.max() >= n_v
+                           or np.bincount(f.ravel(), minlength=n_v).min() == 0):
         return None, None
     if closed is not None and not closed[2]:
         return None, None
+    f = closed[0].faces if closed is not None else f   # the kernel's C-contiguous copy
     if _has_duplicate_rows((v * 10 ** util.decimal_to_digits(tol.merge)).round()
                            .astype(np.int64)):
         return None, None

@@ -308,3 +308,22 @@ def test_rigid_motion_moves_fibres_rigidly(name):
     # and with the plan carried over (the per-frame path)
     again = decompose((move(v), f), move(o), move(i), filter_attachments=filt, plan=b.plan)
     assert np.abs(again.points - move(b.points)).max() <= 1e-9 * L
+
+
+def test_faces_given_as_a_strided_int64_view_are_copied_not_kept():
+    # a clean (vertices, faces) tuple skips the repair; its int64 faces go to the compiled
+    # check as given (here a reversed-column view, outward wound after a second reversal):
+    # the result equals that of a contiguous copy bit for bit, the plan holds a contiguous
+    # copy and the caller's array stays writeable and unchanged
+    v, f, o, i = _elliptic()
+    base = np.ascontiguousarray(f[:, ::-1]).astype(np.int64)
+    view = base[:, ::-1]                                    # == f, strided
+    before = base.copy()
+    a = decompose((v, view), o, i, n_fibres=20)
+    b = decompose((v, np.ascontiguousarray(f, dtype=np.int64)), o, i, n_fibres=20)
+    np.testing.assert_array_equal(a.points, b.points)
+    faces = a.plan.topology.faces
+    assert faces.flags.c_contiguous and not np.shares_memory(faces, base)
+    np.testing.assert_array_equal(faces, f)
+    assert base.flags.writeable and view.flags.writeable
+    np.testing.assert_array_equal(base, before)
