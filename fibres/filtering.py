@@ -442,7 +442,8 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
             corners, owner = region_triangles(faces, region, len(verts))
             d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
             tv = verts[corners]
-            k, w = closest_on_triangles(tv, c[sel], d, corner_ids=corners)
+            k, w = np.zeros(len(d), np.int64), np.zeros((len(d), 3))
+            hit = np.zeros(len(d), bool)
             if reference is not None:  # the template's direction where its ray hits the area
                 ref = np.asarray(reference, dtype=np.float64)
                 d2 = ref[rows[sel], b[sel]] - ref[rows[sel], a[sel]]
@@ -453,8 +454,10 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
                 d2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
                 along = np.maximum(np.einsum("nc,nc->n", q, d2), 0.0)
                 hit = (k2 >= 0) & (np.linalg.norm(q - along[:, None] * d2, axis=1) <= tol)
-                k2 = np.maximum(k2, 0)
-                k, w = np.where(hit, k2, k), np.where(hit[:, None], w2, w)
+                k[hit], w[hit] = k2[hit], w2[hit]
+            if not hit.all():  # the paper's ray for the others (each ray on its own)
+                k[~hit], w[~hit] = closest_on_triangles(tv, c[sel][~hit], d[~hit],
+                                                        corner_ids=corners)
             face = owner[k]
             # barycentric coordinates on the owning face's corners (a point: all on its slot)
             match = faces[face][:, :, None] == corners[k][:, None, :]       # (n, 3, 3)
