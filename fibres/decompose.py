@@ -178,7 +178,9 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool)
     ``fresh``: the paper's choices (and the plan's record of them); otherwise the plan's
     anchors are carried along (`fibres.morph.anchored_maps`) -- except on the plan's own
     vertices, where the fresh choices are the plan's and are reproduced exactly."""
-    box, local_t = box_and_local(plan, vertices, origin, insertion)
+    # fresh: the plan was made on these vertices (its rest copy is equal; no comparison)
+    box, local_t = box_and_local(plan, plan.rest_vertices if fresh else vertices, origin,
+                                 insertion)
     tf = np.eye(4)
     tf[:3, :3] = box.axes
     tf[:3, 3] = box.corner

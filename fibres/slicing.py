@@ -552,13 +552,12 @@ def _crossings_loop(d, faces, neighbours, h):  # pragma: no cover - compiled by 
     n_f = np.empty(n_t, dtype=np.int64)
     pair_start = np.zeros(n_t, dtype=np.int64)
     total = 0
-    for f in range(n_t):
-        d0 = d[faces[f, 0]]
-        d1 = d[faces[f, 1]]
-        d2 = d[faces[f, 2]]
-        # first plane at or above the face's lowest / highest vertex (binary searches:
-        # ``searchsorted(h, x, side="left")``)
-        x = min(min(d0, d1), d2)
+    # first plane at or above each vertex (binary search: ``searchsorted(h, x, side="left")``);
+    # that is monotone in x, so a face's first plane at or above its lowest / highest vertex
+    # is the min / max over its corners
+    first = np.empty(d.size, dtype=np.int64)
+    for i in range(d.size):
+        x = d[i]
         lo, hi = 0, n_s
         while lo < hi:
             mid = (lo + hi) // 2
@@ -566,17 +565,11 @@ def _crossings_loop(d, faces, neighbours, h):  # pragma: no cover - compiled by 
                 lo = mid + 1
             else:
                 hi = mid
-        s0 = lo
-        x = max(max(d0, d1), d2)
-        hi = n_s
-        if lo < n_s and h[lo] >= x:         # crosses no plane (the common case)
-            hi = lo
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if h[mid] < x:
-                lo = mid + 1
-            else:
-                hi = mid
+        first[i] = lo
+    for f in range(n_t):
+        a0, a1, a2 = first[faces[f, 0]], first[faces[f, 1]], first[faces[f, 2]]
+        s0 = min(min(a0, a1), a2)
+        lo = max(max(a0, a1), a2)
         fs0[f] = s0
         n = lo - s0
         n_f[f] = n
