@@ -78,6 +78,19 @@ def _as_set(points, name):
     return pts
 
 
+def cross3(a, b):
+    """Cross product of (..., 3) arrays: numpy's formula component by component (bit for bit
+    ``np.cross``, without its overhead for single vectors)."""
+    a, b = np.asarray(a), np.asarray(b)
+    if a.ndim == 1 and b.ndim == 1:  # two vectors: Python floats, the same operations
+        a0, a1, a2 = a.tolist()
+        b0, b1, b2 = b.tolist()
+        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
 def _covariance_axis(vertices, centroid, d=None):
     """Eigenvector of the largest eigenvalue of the vertex covariance (Kohout 2012 eq. 1-2);
     ``d`` is ``vertices - centroid`` when at hand."""
@@ -97,7 +110,7 @@ def _frame_for(u, v_ref):
             ref = np.eye(3)[int(np.argmin(np.abs(u)))]
     v0 = ref - (ref @ u) * u
     v0 /= np.linalg.norm(v0)
-    return v0, np.cross(u, v0)
+    return v0, cross3(u, v0)
 
 
 def _boxes(vertices, c, u, v0, w0, theta):
@@ -115,7 +128,7 @@ def _boxes(vertices, c, u, v0, w0, theta):
 
     Returns axes (J, 3, 3) (columns x, y, z), corner (J, 3), extents (J, 3)."""
     xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
-    ys = np.cross(u, xs)                                              # (J, 3)
+    ys = cross3(u, xs)                                                # (J, 3)
     d = _centred(vertices, c)
     a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
     keep = _support_candidates(a, b)

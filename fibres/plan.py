@@ -70,7 +70,7 @@ from math import erf, erfc, exp, pi, sqrt
 import numpy as np
 
 from .errors import InputError
-from .fitting import Box, principal_frame
+from .fitting import Box, cross3, principal_frame
 from .slicing import MeshTopology
 
 __all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_local",
@@ -294,7 +294,7 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion):
         centroid, u, v0, w0 = frame.centroid, frame.axis, frame.v0, frame.w0
     theta = np.deg2rad(plan.angle_step_deg * plan.angle_index)
     x = np.cos(theta) * v0 + np.sin(theta) * w0
-    y = np.cross(u, x)
+    y = cross3(u, x)
     axes = np.stack([x, y, u], axis=1)
     local_t = axes.T @ (vt - centroid[:, None])                       # (3, V)
     lo, hi = local_t.min(axis=1), local_t.max(axis=1)
@@ -320,7 +320,7 @@ def _complete_frame(u, v_ref):
         ref = np.eye(3)[int(np.argmin(np.abs(u)))]
     v0 = ref - (ref @ u) * u
     v0 /= np.linalg.norm(v0)
-    return v0, np.cross(u, v0)
+    return v0, cross3(u, v0)
 
 
 def rest_geometry(plan: DecompositionPlan):
