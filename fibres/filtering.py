@@ -241,17 +241,50 @@ def _kernels():
 
 
 def _nearest_loop(vt, points):  # pragma: no cover - compiled by numba
-    """Index of the nearest of the vertices (3, V) to each point (K, 3) (first on ties)."""
+    """Index of the nearest of the vertices (3, V) to each point (K, 3) (first on ties).
+
+    The vertices are taken in blocks of 64 with their bounding boxes: a block whose box is
+    farther than the best distance so far cannot hold a nearer vertex (the rounded box
+    distance is at most the rounded vertex distance: rounding is monotone) and is skipped.
+    The search starts in the block with the nearest box, then scans the blocks in order,
+    keeping the first index among equal distances -- the plain scan's answer."""
+    n_v = vt.shape[1]
+    bs = 64
+    n_b = (n_v + bs - 1) // bs
+    box = np.empty((n_b, 6))
+    for b in range(n_b):
+        i0 = b * bs
+        for c in range(3):
+            lo = hi = vt[c, i0]
+            for i in range(i0 + 1, min(i0 + bs, n_v)):
+                lo = min(lo, vt[c, i])
+                hi = max(hi, vt[c, i])
+            box[b, 2 * c], box[b, 2 * c + 1] = lo, hi
     out = np.zeros(points.shape[0], np.int64)
+    lb = np.empty(n_b)
     for k in range(points.shape[0]):
         px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+        first = 0
+        for b in range(n_b):
+            gx = max(box[b, 0] - px, px - box[b, 1], 0.0)
+            gy = max(box[b, 2] - py, py - box[b, 3], 0.0)
+            gz = max(box[b, 4] - pz, pz - box[b, 5], 0.0)
+            lb[b] = gx * gx + gy * gy + gz * gz
+            if lb[b] < lb[first]:
+                first = b
         best = np.inf
-        for i in range(vt.shape[1]):
-            dx, dy, dz = vt[0, i] - px, vt[1, i] - py, vt[2, i] - pz
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 < best:
-                best = d2
-                out[k] = i
+        bi = 0
+        for r in range(n_b + 1):
+            b = first if r == 0 else r - 1
+            if (r > 0 and b == first) or lb[b] > best:
+                continue
+            for i in range(b * bs, min(b * bs + bs, n_v)):
+                dx, dy, dz = vt[0, i] - px, vt[1, i] - py, vt[2, i] - pz
+                d2 = dx * dx + dy * dy + dz * dz
+                if d2 < best or (d2 == best and i < bi):
+                    best = d2
+                    bi = i
+        out[k] = bi
     return out
 
 

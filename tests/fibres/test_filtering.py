@@ -484,3 +484,24 @@ def test_compiled_resampling_record_equals_the_array_version(monkeypatch):
     np.testing.assert_array_equal(compiled.piece, plain.piece)
     np.testing.assert_array_equal(compiled.param, plain.param)
     assert set(np.unique(plain.piece)) == {0, 1, 2}
+
+
+def test_compiled_nearest_vertex_is_the_first_nearest():
+    # the block-pruned nearest-vertex search returns np.argmin's answer (first index among
+    # equal distances): random clouds in mesh order and shuffled (no spatial coherence),
+    # landmarks inside and far outside the cloud, and exact ties (repeated vertices)
+    import fibres.filtering as fl
+
+    kernels = fl._kernels()
+    if kernels is None:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(11)
+    for n_v in (1, 63, 64, 65, 1000, 5000):
+        v = np.cumsum(rng.normal(size=(n_v, 3)), axis=0)           # a coherent walk
+        v = np.concatenate([v, v[rng.integers(0, n_v, n_v // 3 + 1)]])   # duplicates: ties
+        for order in (np.arange(len(v)), rng.permutation(len(v))):
+            vt = np.ascontiguousarray(v[order].T)
+            pts = np.concatenate([v[rng.integers(0, n_v, 5)],           # on a vertex (tie)
+                                  rng.normal(0, 30, (5, 3)), [[1e3, -1e3, 5e2]]])
+            d2 = ((vt.T[None] - pts[:, None]) ** 2).sum(-1)
+            np.testing.assert_array_equal(kernels[0](vt, pts), np.argmin(d2, axis=1))
