@@ -62,10 +62,45 @@ def smooth(points, *, k: float = 4.0, iterations: int = DEFAULT_ITERATIONS,
         raise ValueError(f"max_shift must be a positive number, got {max_shift!r}")
     start = out.copy() if max_shift is not None else None
     inv = 1.0 / (k + 2.0)
-    for _ in range(int(iterations)):  # loop over smoothing steps only, not over points
-        out[..., 1:-1, :] = (out[..., :-2, :] + k * out[..., 1:-1, :] + out[..., 2:, :]) * inv
+    kernel = _kernel()
+    if kernel is not None and out.ndim == 3 and int(iterations) > 0:
+        kernel(out, k, inv, int(iterations))         # the same arithmetic, compiled
+    else:
+        for _ in range(int(iterations)):  # loop over smoothing steps only, not over points
+            out[..., 1:-1, :] = (out[..., :-2, :] + k * out[..., 1:-1, :]
+                                 + out[..., 2:, :]) * inv
     if start is not None:
         d = out - start
         d2 = np.einsum("...k,...k->...", d, d)[..., None]
         out = start + d / np.sqrt(1.0 + d2 / float(max_shift) ** 2)
     return out
+
+
+_KERNEL = []
+
+
+def _kernel():
+    """`_smooth_loop` compiled with numba, or None (then arrays)."""
+    if not _KERNEL:
+        try:
+            import numba
+        except ImportError:                                     # pragma: no cover - optional
+            _KERNEL.append(None)
+        else:
+            _KERNEL.append(numba.njit(cache=True, nogil=True)(_smooth_loop))
+    return _KERNEL[0]
+
+
+def _smooth_loop(out, k, inv, iterations):  # pragma: no cover - compiled by numba
+    """The steps of `smooth` in place on (N, P, 3) fibres, point by point: each step reads
+    the previous step's points (``(P_{i-1} + k P_i + P_{i+1}) * inv``, as the arrays do)."""
+    n, p = out.shape[0], out.shape[1]
+    prev = np.empty((p, 3))
+    for f in range(n):
+        for _ in range(iterations):
+            for j in range(p):
+                for c in range(3):
+                    prev[j, c] = out[f, j, c]
+            for j in range(1, p - 1):
+                for c in range(3):
+                    out[f, j, c] = (prev[j - 1, c] + k * prev[j, c] + prev[j + 1, c]) * inv
