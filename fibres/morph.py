@@ -575,5 +575,7 @@ def morph_local(xy, w, heights, P, Q) -> np.ndarray:
     wt = np.concatenate([1.0 - a[use_lo], a[use_hi]])
     mapped = mvc_map(xy[idx], pl, Q, P, weights=wt)
     out = np.zeros_like(xy)
-    np.add.at(out, idx, mapped)
+    n_lo = int(use_lo.sum())        # np.add.at(out, idx, mapped): each half has unique rows
+    out[idx[:n_lo]] += mapped[:n_lo]
+    out[idx[n_lo:]] += mapped[n_lo:]
     return out
