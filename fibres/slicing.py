@@ -180,8 +180,8 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
     keys ``min * V + max`` and edge ``e`` is the pair of sorted positions ``2e, 2e+1``,
     exactly as in the array version. The sorted half-edges carry their larger vertex and
     ``2 h + (runs min -> max)`` (int32 while T < 2**29), so that the pairing reads them in
-    order. With ``pieces``, the faces of each pair are also joined in a union-find (path
-    halving; Tarjan & van Leeuwen, J. ACM 31(2), 1984) and the used vertices marked.
+    order. With ``pieces``, the edge-connected pieces are counted by a flood fill over the
+    face neighbours (depth-first, an explicit stack) and the used vertices marked.
 
     Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces); ``ok``
     is False (and nothing else meaningful) when a vertex index is out of range, an edge is
@@ -238,8 +238,6 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
             s_h[m + 1] = x
     fe = face_edges.ravel()
     nb = neighbours.ravel()
-    parent = np.arange(n_t if pieces else 0).astype(np.int32)
-    n_pieces = n_t
     oriented = True
     v = 0
     for e in range(n_e):
@@ -261,23 +259,31 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
         nb[h1] = t0
         if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != v:   # not one each way
             oriented = False
-        if pieces:
-            x = t0
-            while parent[x] != x:
-                parent[x] = parent[parent[x]]
-                x = parent[x]
-            y = t1
-            while parent[y] != y:
-                parent[y] = parent[parent[y]]
-                y = parent[y]
-            if x != y:
-                parent[max(x, y)] = min(x, y)
-                n_pieces -= 1
+    n_pieces = 0
+    if pieces:  # edge-connected pieces: a flood fill over the face neighbours
+        seen = np.zeros(n_t, dtype=np.bool_)
+        stack = np.empty(n_t, dtype=np.int32)
+        for t in range(n_t):
+            if seen[t]:
+                continue
+            n_pieces += 1
+            seen[t] = True
+            stack[0] = t
+            top = 1
+            while top > 0:
+                top -= 1
+                x = stack[top]
+                for j in range(3):
+                    y = nb[3 * x + j]
+                    if not seen[y]:
+                        seen[y] = True
+                        stack[top] = y
+                        top += 1
     all_used = pieces
     if pieces:
         for v in range(n_vertices):
             all_used &= used[v]
-    return True, edges, face_edges, neighbours, oriented, n_pieces if pieces else 0, all_used, fc
+    return True, edges, face_edges, neighbours, oriented, n_pieces, all_used, fc
 
 
 @dataclass(frozen=True)
