@@ -311,11 +311,12 @@ def clean_mesh_geometry(v, f):
         return None, None
     kernel = _geometry_kernel()
     if kernel is not None:
-        ok, volume, edge_sum = kernel(np.ascontiguousarray(v), np.ascontiguousarray(f),
-                                      2 * tol.merge)
+        ok, volume, edge_sum, lo, hi = kernel(np.ascontiguousarray(v),
+                                              np.ascontiguousarray(f), 2 * tol.merge)
         if not ok:
             return None, None
-        return _clean_topology_rest(v, f, volume, edge_sum / (3 * len(f)), closed)
+        return _clean_topology_rest(v, f, volume, edge_sum / (3 * len(f)), closed,
+                                    extent=hi - lo)
     vt = np.ascontiguousarray(v.T)                                 # (3, V)
     a, b, c = np.take(vt, np.ascontiguousarray(f.T), axis=1).transpose(1, 0, 2)  # (3, T) each
     ab, ac, bc = b - a, c - a, c - b
@@ -331,9 +332,10 @@ def clean_mesh_geometry(v, f):
                                 closed)
 
 
-def _clean_topology_rest(v, f, volume, mean_edge, closed=None):
+def _clean_topology_rest(v, f, volume, mean_edge, closed=None, extent=None):
     """The topological steps of `clean_mesh_geometry` and the volume check; ``closed``:
-    `fibres.slicing._closed_topology` of the faces when at hand."""
+    `fibres.slicing._closed_topology` of the faces when at hand, ``extent`` the vertices'
+    bounding-box sides when known."""
     from .slicing import mesh_topology
 
     if closed is not None:
@@ -346,8 +348,10 @@ def _clean_topology_rest(v, f, volume, mean_edge, closed=None):
         n_pieces = _n_pieces(topology.neighbours) if topology.oriented else 0
     if not topology.oriented or n_pieces != 1:
         return None, None
-    vt = np.ascontiguousarray(v.T)
-    size = float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
+    if extent is None:
+        vt = np.ascontiguousarray(v.T)
+        extent = vt.max(axis=1) - vt.min(axis=1)
+    size = float(np.linalg.norm(extent))
     if not volume > 1e-9 * size ** 3:
         return None, None
     return topology, float(mean_edge)
@@ -370,10 +374,17 @@ def _geometry_kernel():
 
 def _geometry_loop(v, f, tol2):  # pragma: no cover - compiled by numba
     """One pass over the faces: (every edge and the height over the first corner's edges
-    above ``tol2``, signed volume x 6, sum of the edge lengths)."""
+    above ``tol2``, signed volume x 6, sum of the edge lengths, min and max (3,) of the
+    vertices' coordinates)."""
     volume = 0.0
     edge_sum = 0.0
     ok = True
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for i in range(v.shape[0]):
+        for c in range(3):
+            lo[c] = min(lo[c], v[i, c])
+            hi[c] = max(hi[c], v[i, c])
     for t in range(f.shape[0]):
         i, j, k = f[t, 0], f[t, 1], f[t, 2]
         ax, ay, az = v[i, 0], v[i, 1], v[i, 2]
@@ -393,7 +404,7 @@ def _geometry_loop(v, f, tol2):  # pragma: no cover - compiled by numba
             ok = False
         volume += ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
         edge_sum += lab + lbc + lac
-    return ok, volume, edge_sum
+    return ok, volume, edge_sum, lo, hi
 
 
 def _dot3(p, q):
