@@ -216,10 +216,10 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
     fill = start[:n_vertices].copy()
     s_hi = np.empty(n, dtype=np.int32)
     s_h = np.empty(n, dtype=np.int32)
-    for t in range(n_t):
+    for t in range(n_t):  # (from the contiguous copy)
         for j in range(3):
-            a = f[t, j]
-            b = f[t, j + 1] if j < 2 else f[t, 0]
+            a = fc[t, j]
+            b = fc[t, j + 1] if j < 2 else fc[t, 0]
             lo = min(a, b)
             p = fill[lo]
             fill[lo] = p + 1
