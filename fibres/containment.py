@@ -30,8 +30,9 @@ point in a cell holding triangles is classified by ray parity along the grid
 
 Cost (one core, CPU): the grid and its cell labels are built per call, O(T); the inside test
 of a point is a label look-up or a short parity walk, the distance search runs for outside
-points only. Measured per call on the bench meshes (100 fibres x 20 points): 0.8 ms (1K
-vertices), 2.1 ms (15K), 8 ms (60K); LHDL muscles 1.4-2.7 ms. Tried and dropped:
+points only (the triangles' normals and bounding spheres are made only then). Measured per
+call on the bench meshes (100 fibres x 20 points): 0.8 ms (1K vertices), 1.4 ms (15K),
+4.6 ms (60K); LHDL muscles 1.3-2.8 ms. Tried and dropped:
 candidate triangles or watched points chosen on the rest pose and frozen in the plan (cheap per
 frame, but wrong on deformed frames: fibres slide along the surface, see above).
 """
