@@ -367,8 +367,8 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
     only those the searches visit."""
     n_tri = faces.shape[0]
     nx, ny, nz = dims[0], dims[1], dims[2]
-    stamp = np.full(n_tri, -1, np.int64)
-    parity = np.full(n_tri, -1, np.int64)
+    stamp = np.full(0, -1, np.int32)      # made on first need (point index per triangle)
+    parity = np.full(0, -1, np.int32)
     cap = 4096
     bd, bx, by, bz = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
     bt = np.empty(cap, np.int64)
@@ -397,12 +397,14 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
                     out_s[p] = -np.inf
                     out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
                     continue
-            elif (labelled and watch <= 0.0 and label[q] == 1
-                  and _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label,
-                                     dims, lo, cell, parity, p)):
-                out_s[p] = -np.inf          # inside (ray parity): no distance wanted
-                out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
-                continue
+            elif labelled and watch <= 0.0 and label[q] == 1:
+                if parity.shape[0] == 0:
+                    parity = np.full(n_tri, -1, np.int32)
+                if _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label,
+                                  dims, lo, cell, parity, p):
+                    out_s[p] = -np.inf          # inside (ray parity): no distance wanted
+                    out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
+                    continue
             if not lazy and ready[n_tri] == 0:   # a distance search: every shape, once
                 _shapes(v, faces, nrm, centre, radius)
                 ready[:] = 1
@@ -421,6 +423,11 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
                                             v[b, 2], v[c, 0], v[c, 1], v[c, 2], px, py, pz)
                 dx, dy, dz = px - qx, py - qy, pz - qz
                 lim = min(lim, np.sqrt(dx * dx + dy * dy + dz * dz) + keep)
+        if not lazy and ready[n_tri] == 0:   # (a point beyond the grid's box)
+            _shapes(v, faces, nrm, centre, radius)
+            ready[:] = 1
+        if stamp.shape[0] == 0:
+            stamp = np.full(n_tri, -1, np.int32)
         best = np.inf
         nb = 0
         r = 0

@@ -209,6 +209,33 @@ def test_compiled_and_numpy_paths_agree(torus, monkeypatch):
     np.testing.assert_array_equal(m1, m2)
 
 
+def test_points_beyond_the_grid_box_are_measured_like_the_others(torus, monkeypatch):
+    # points above the torus beyond the grid (its empty border layer included) but within
+    # reach: their search starts outside the grid; the triangle shapes it needs are made
+    # first (alone, and after inside points that need none)
+    v, f = torus
+    reach = 0.03
+    grid = SurfaceGrid(v, f, reach=reach)
+    top = grid.lo[2] + grid.dims[2] * grid.cell + 1e-4          # just beyond the grid
+    assert top - RHO < reach
+    th = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    far = np.c_[R * np.cos(th), R * np.sin(th), np.full(24, top)]
+    deep = np.c_[R * np.cos(th), R * np.sin(th), np.zeros(24)]    # the tube's centre line
+    for x in (far, np.r_[deep, far]):
+        g = SurfaceGrid(v, f, reach=reach)
+        # as if the labelling had needed no distance (the torus has several enclosed
+        # components, whose signs made every shape): shapes unmade, their arrays zero
+        g.ready[:] = 0
+        g.nrm[:], g.centre[:], g.radius[:] = 0.0, 0.0, 0.0
+        s1, _ = g.signed_distance(x, tau=CONTAIN_SOFTNESS, watch=0.0)
+        with monkeypatch.context() as m:
+            m.setattr(sdist, "_KERNELS", [None])
+            s2, _ = surface_distance(x, v, f, reach=reach, softness=CONTAIN_SOFTNESS)
+        np.testing.assert_allclose(s1[-24:], s2[-24:], rtol=0, atol=1e-15)
+        # above the tube's top (z = RHO on the mesh's top ring) by top - RHO
+        np.testing.assert_allclose(s1[-24:], top - RHO, rtol=0, atol=SAG)
+
+
 def test_grid_cell_size_does_not_change_the_distances(torus):
     v, f = torus
     x = chords().reshape(-1, 3)
