@@ -225,7 +225,10 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
             fill[lo] = p + 1
             s_hi[p] = max(a, b)
             s_h[p] = 2 * (3 * t + j) + (a < b)
-    for v in range(n_vertices):
+    fe = face_edges.ravel()
+    nb = neighbours.ravel()
+    oriented = True
+    for v in range(n_vertices):  # each bucket sorted, then paired while in cache
         for i in range(start[v] + 1, start[v + 1]):
             k = s_hi[i]
             x = s_h[i]
@@ -236,29 +239,23 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
                 m -= 1
             s_hi[m + 1] = k
             s_h[m + 1] = x
-    fe = face_edges.ravel()
-    nb = neighbours.ravel()
-    oriented = True
-    v = 0
-    for e in range(n_e):
-        p = 2 * e
-        while start[v + 1] <= p:
-            v += 1
-        if start[v + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
-                p > start[v] and s_hi[p - 1] == s_hi[p]):
-            return False, edges, face_edges, neighbours, False, 0, False, fc
-        h0 = s_h[p] >> 1
-        h1 = s_h[p + 1] >> 1
-        t0 = h0 // 3
-        t1 = h1 // 3
-        edges[e, 0] = v
-        edges[e, 1] = s_hi[p]
-        fe[h0] = e
-        fe[h1] = e
-        nb[h0] = t1
-        nb[h1] = t0
-        if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != v:   # not one each way
-            oriented = False
+        for p in range(start[v], start[v + 1], 2):  # edge p // 2: sorted positions p, p+1
+            if start[v + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
+                    p > start[v] and s_hi[p - 1] == s_hi[p]):
+                return False, edges, face_edges, neighbours, False, 0, False, fc
+            e = p // 2
+            h0 = s_h[p] >> 1
+            h1 = s_h[p + 1] >> 1
+            t0 = h0 // 3
+            t1 = h1 // 3
+            edges[e, 0] = v
+            edges[e, 1] = s_hi[p]
+            fe[h0] = e
+            fe[h1] = e
+            nb[h0] = t1
+            nb[h1] = t0
+            if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != v:   # not one each way
+                oriented = False
     n_pieces = 0
     if pieces:  # edge-connected pieces: a flood fill over the face neighbours
         seen = np.zeros(n_t, dtype=np.bool_)
