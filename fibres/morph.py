@@ -38,7 +38,7 @@ from .contours import anchored_loops, bridge_loops, clockwise_contour
 from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD, anchor_kernel,
                              correspond_continuous, insert_points, rectangle, soft_start,
                              split_chain, split_fractions)
-from .mvc import mvc_map
+from .mvc import mvc_map, planes
 from .plan import rest_geometry, rest_loop_counts
 from .slicing import MeshTopology, Sections
 
@@ -185,9 +185,11 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     # start (soft closest point to Q0) and the split points at the perimeter ratios (S, 4)
     seg, tk, point = soft_start(pts, m, offs, rect[0], fractions=split_fractions(rect))
     P, Q, offs2, ok = _insert_and_subdivide(pts, m, offs, seg, tk, point, rect)
-    P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
-    for s in np.flatnonzero(~ok):            # cannot happen: the points are in arc order
-        P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
+    P_all, Q_all = planes(P, offs2), planes(Q, offs2)    # views of P, Q (`fibres.mvc`)
+    if not ok.all():                          # cannot happen: the points are in arc order
+        P_all, Q_all = list(P_all), list(Q_all)
+        for s in np.flatnonzero(~ok):
+            P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
     # material anchors: the point (1 - tau) X_j + tau X_{j+1} on the face between the two
     # contour vertices' mesh edges, each X = (1 - t) V_a + t V_b
     g = offs[:-1, None] + seg
@@ -197,7 +199,9 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     v = np.concatenate([av0[..., :2], av1[..., :2]], axis=-1)
     w = np.concatenate([(1.0 - tk)[..., None] * aw0[..., :2], tk[..., None] * aw1[..., :2]],
                        axis=-1)
-    return tuple(P_all), tuple(Q_all), edge[np.where(tk < 0.5, g, nx)], (v, w), ()
+    return (P_all if isinstance(P_all, tuple) else tuple(P_all),
+            Q_all if isinstance(Q_all, tuple) else tuple(Q_all),
+            edge[np.where(tk < 0.5, g, nx)], (v, w), ())
 
 
 def _insert_and_subdivide(pts, m, offs, seg, tk, point, rect):
@@ -473,14 +477,17 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
         m.astype(np.int64), offs.astype(np.int64), np.ascontiguousarray(ax),
         np.ascontiguousarray(nax), nominal, ARC_GAP, ARC_WINDOW, SOFT_SPREAD, SOFT_FLOOR)
     P, Q, offs2, ok = _insert_and_subdivide(pts, m, offs, seg, tk, point, rect)
-    P_all, Q_all = list(np.split(P, offs2[1:-1])), list(np.split(Q, offs2[1:-1]))
+    P_all, Q_all = planes(P, offs2), planes(Q, offs2)    # views of P, Q (`fibres.mvc`)
     for s in np.flatnonzero(moved & ok):
         notes.append(f"slice {s}: planned split points out of order; moved to the nearest "
                      "ordered positions")
-    for s in np.flatnonzero(~ok):       # a contour of zero length: nothing to order
-        notes.append(f"slice {s}: degenerate contour; start/split points chosen afresh")
-        P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
-    return tuple(P_all), tuple(Q_all), tuple(notes)
+    if not ok.all():
+        P_all, Q_all = list(P_all), list(Q_all)
+        for s in np.flatnonzero(~ok):   # a contour of zero length: nothing to order
+            notes.append(f"slice {s}: degenerate contour; start/split points chosen afresh")
+            P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
+        P_all, Q_all = tuple(P_all), tuple(Q_all)
+    return P_all, Q_all, tuple(notes)
 
 
 def _bridged(sections, chosen, extra, topology, pts, av, aw, m, offs, anchors):

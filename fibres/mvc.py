@@ -132,6 +132,23 @@ def _boundary_coordinates(on_vertex, on_edge, r, rn) -> np.ndarray:
     return lam
 
 
+class Planes(tuple):
+    """A tuple of per-plane (K_g, 2) arrays that are consecutive views of one (K, 2) array
+    ``flat`` (``offsets`` (G + 1,)): `mvc_map` then uses ``flat`` instead of concatenating
+    the views again. Built by `planes`; any other tuple or list works as well."""
+
+    flat: np.ndarray
+    offsets: np.ndarray
+
+
+def planes(flat, offsets) -> Planes:
+    """`Planes` of the rows ``flat[offsets[g]:offsets[g + 1]]`` (views, as np.split)."""
+    off = [int(o) for o in offsets]
+    out = Planes(flat[a:b] for a, b in zip(off[:-1], off[1:]))
+    out.flat, out.offsets = flat, np.asarray(offsets, dtype=np.int64)
+    return out
+
+
 def mvc_map(points, groups, sources, targets, *, weights=None) -> np.ndarray:
     """Map points through mean value coordinates: ``sum_i lambda_i(x; source) target_i``.
 
@@ -162,12 +179,19 @@ def mvc_map(points, groups, sources, targets, *, weights=None) -> np.ndarray:
     pts = np.ascontiguousarray(points, dtype=float)
     groups = np.ascontiguousarray(groups, dtype=np.int64)
     w = np.ones(len(pts)) if weights is None else np.ascontiguousarray(weights, dtype=float)
-    offsets = np.zeros(len(sources) + 1, dtype=np.int64)
-    offsets[1:] = np.cumsum([len(s) for s in sources])
+    packed = (isinstance(sources, Planes) and isinstance(targets, Planes)
+              and np.array_equal(sources.offsets, targets.offsets))
+    if packed:
+        offsets = sources.offsets
+    else:
+        offsets = np.zeros(len(sources) + 1, dtype=np.int64)
+        offsets[1:] = np.cumsum([len(s) for s in sources])
     kernel = _kernel()
     if kernel is not None:
-        src = np.ascontiguousarray(np.concatenate(sources), dtype=float)
-        dst = np.ascontiguousarray(np.concatenate(targets), dtype=float)
+        src = np.ascontiguousarray(sources.flat if packed else np.concatenate(sources),
+                                   dtype=float)
+        dst = np.ascontiguousarray(targets.flat if packed else np.concatenate(targets),
+                                   dtype=float)
         res = np.empty_like(pts)
         kernel(pts, groups, w, np.ascontiguousarray(src[:, 0]), np.ascontiguousarray(src[:, 1]),
                src, dst, offsets, _ON_EDGE, res)
