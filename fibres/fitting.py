@@ -37,6 +37,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
+from .fit_kernels import (_centred_loop, _extents_loop, _nearest_loop, _row_sum_loop,
+                          _screen_loop)
 from .templates import Template, get_template
 
 __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
@@ -221,107 +223,6 @@ def _fit_kernels():
     return _FIT[0]
 
 
-def _screen_loop(a, b, dirs, cos_all, sin_all, margin_scale,
-                 stride):  # pragma: no cover - compiled by numba
-    """`_support_candidates` in one call: the array version's polygons, margins and tests
-    (hence its indices), directions ``cos_all``, ``sin_all`` of all passes back to back;
-    each pass gathers its points contiguously and tests them edge by edge (vectorised)."""
-    idx = np.arange(a.size)
-    off = 0
-    for n_dir in dirs:
-        c = cos_all[off:off + n_dir]
-        s = sin_all[off:off + n_dir]
-        step = stride if off == 0 else 1
-        off += n_dir
-        m = idx.size
-        if m <= 4 * n_dir:
-            break
-        if off == n_dir:
-            pa, pb = a, b                   # the first pass: every point, in order
-        else:
-            pa = np.empty(m)
-            pb = np.empty(m)
-            for i in range(m):
-                pa[i] = a[idx[i]]
-                pb[i] = b[idx[i]]
-        best = np.full(n_dir, -np.inf)
-        arg = np.zeros(n_dir, dtype=np.int64)
-        for i in range(0, m, step):
-            for k in range(n_dir):
-                p = c[k] * pa[i] + s[k] * pb[i]
-                if p > best[k]:         # first maximum, as argmax (values are finite)
-                    best[k] = p
-                    arg[k] = i
-        q = np.empty(n_dir, dtype=np.int64)
-        nq = 0
-        for k in range(n_dir):
-            if arg[k] != arg[k + 1 if k + 1 < n_dir else 0]:
-                q[nq] = arg[k]
-                nq += 1
-        if nq == 0 or np.unique(q[:nq]).size < 3:
-            break
-        inside = np.ones(m, dtype=np.bool_)
-        for k in range(nq):
-            kn = k + 1 if k + 1 < nq else 0
-            qa, qb = pa[q[k]], pb[q[k]]
-            ea, eb = pa[q[kn]] - qa, pb[q[kn]] - qb
-            margin = margin_scale * np.hypot(ea, eb)
-            for i in range(m):
-                inside[i] &= ea * (pb[i] - qb) - eb * (pa[i] - qa) > margin
-        keep = np.empty(m, dtype=np.int64)
-        n_keep = 0
-        for i in range(m):
-            keep[n_keep] = idx[i]
-            n_keep += not inside[i]
-        idx = keep[:n_keep]
-    return idx
-
-
-def _extents_loop(a, b, ct, st, out):  # pragma: no cover - compiled by numba
-    """Per rotation j: min and max of ``px = ct a + st b`` and ``py = (-st) a + ct b`` into
-    ``out`` (J, 4), with the array version's products and sums (the same bits)."""
-    for j in range(ct.size):
-        c, s = ct[j], st[j]
-        ns = -s
-        x_lo = x_hi = c * a[0] + s * b[0]
-        y_lo = y_hi = ns * a[0] + c * b[0]
-        for i in range(1, a.size):
-            px = c * a[i] + s * b[i]
-            py = ns * a[i] + c * b[i]
-            x_lo = min(x_lo, px)
-            x_hi = max(x_hi, px)
-            y_lo = min(y_lo, py)
-            y_hi = max(y_hi, py)
-        out[j, 0] = x_lo
-        out[j, 1] = x_hi
-        out[j, 2] = y_lo
-        out[j, 3] = y_hi
-
-
-def _nearest_loop(area, landmarks, out):  # pragma: no cover - compiled by numba
-    """``out[j, k]``: distance from area point (j, k) (J, Ka, 3) to its closest landmark
-    (K, 3), with the operations of the array version (``(dx dx + dy dy) + dz dz``)."""
-    for j in range(area.shape[0]):
-        for k in range(area.shape[1]):
-            best = np.inf
-            for m in range(landmarks.shape[0]):
-                dx = area[j, k, 0] - landmarks[m, 0]
-                dy = area[j, k, 1] - landmarks[m, 1]
-                dz = area[j, k, 2] - landmarks[m, 2]
-                best = min(best, np.sqrt(dx * dx + dy * dy + dz * dz))
-            out[j, k] = best
-
-
-def _centred_loop(v, c):  # pragma: no cover - compiled by numba
-    """``v - c`` for (V, 3) vertices (numpy broadcasts a 3-element inner loop, ~5x slower)."""
-    out = np.empty(v.shape)
-    for i in range(v.shape[0]):
-        out[i, 0] = v[i, 0] - c[0]
-        out[i, 1] = v[i, 1] - c[1]
-        out[i, 2] = v[i, 2] - c[2]
-    return out
-
-
 def _centred(vertices, c):
     """(V, 3) ``vertices - c``, bit for bit."""
     kernels = _fit_kernels()
@@ -455,21 +356,6 @@ def _mean_rows(vertices):
     if kernels is None or vertices.shape[0] == 0 or not vertices.flags.c_contiguous:
         return vertices.mean(axis=0)        # (other layouts: numpy's own summation order)
     return kernels[4](vertices) / vertices.shape[0]
-
-
-def _row_sum_loop(v):  # pragma: no cover - compiled by numba
-    s0 = v[0, 0]
-    s1 = v[0, 1]
-    s2 = v[0, 2]
-    for k in range(1, v.shape[0]):
-        s0 += v[k, 0]
-        s1 += v[k, 1]
-        s2 += v[k, 2]
-    out = np.empty(3)
-    out[0] = s0
-    out[1] = s1
-    out[2] = s2
-    return out
 
 
 def _size(vt):
