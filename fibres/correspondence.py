@@ -298,8 +298,8 @@ def ratio_points(pts, m, offs, seg0, tau0, fractions):
     seg0 : (S,) int
     tau0 : (S,) float
         The start point of each contour: segment and position along it.
-    fractions : (F,) float
-        In [0, 1), e.g. `split_fractions`.
+    fractions : (F,) or (S, F) float
+        In [0, 1), e.g. `split_fractions` (the same for every plane) or per plane.
 
     Returns
     -------
@@ -318,7 +318,8 @@ def ratio_points(pts, m, offs, seg0, tau0, fractions):
     length = cum[hi] - base
     g0 = lo + np.asarray(seg0, dtype=np.int64)
     a0 = cum[g0] - base + np.asarray(tau0, dtype=float) * seg_len[g0]
-    a = a0[:, None] + np.asarray(fractions, dtype=float)[None, :] * length[:, None]
+    f = np.asarray(fractions, dtype=float)
+    a = a0[:, None] + (f if f.ndim == 2 else f[None, :]) * length[:, None]
     a = np.where(a >= length[:, None], a - length[:, None], a)        # once round at most
     target = base[:, None] + a
     g = np.clip(np.searchsorted(cum, target, side="right") - 1, lo[:, None], hi[:, None] - 1)

@@ -460,3 +460,34 @@ def test_soft_start_compiled_equals_python():
     rs, rt, rp = ratio_points(pts, m, offs, seg[:, 0], tau[:, 0], f)
     np.testing.assert_allclose(point[:, 1:], rp, rtol=0, atol=1e-13)
     np.testing.assert_allclose(point[:, 0], soft_start(pts, m, offs, q0)[2], rtol=0, atol=0)
+
+
+def test_ratio_points_with_fractions_per_plane():
+    # (S, F) fractions: each plane's points are those of a one-plane call with its own row;
+    # and each point lies at arc a0 + f L from the start (checked against the cumulated
+    # segment lengths, to rounding: 1e-12 of the lengths, which are O(1))
+    from fibres.correspondence import ratio_points
+
+    rng = np.random.default_rng(3)
+    loops = []
+    for _ in range(5):
+        n = int(rng.integers(4, 25))
+        th = -np.sort(rng.uniform(0, 2 * np.pi, n))
+        loops.append(np.c_[np.cos(th), 0.7 * np.sin(th)] * rng.uniform(0.5, 2.0))
+    m = np.array([len(c) for c in loops])
+    offs = np.concatenate([[0], np.cumsum(m)])
+    pts = np.concatenate(loops)
+    seg0 = np.array([int(rng.integers(0, k)) for k in m])
+    tau0 = rng.uniform(0, 1, m.size)
+    fr = np.sort(rng.uniform(0, 1, (m.size, 3)), axis=1)
+    seg, tau, point = ratio_points(pts, m, offs, seg0, tau0, fr)
+    for s, c in enumerate(loops):
+        one = ratio_points(c, m[s:s + 1], np.array([0, m[s]]), seg0[s:s + 1], tau0[s:s + 1],
+                           fr[s])
+        np.testing.assert_array_equal(seg[s], one[0][0])
+        np.testing.assert_allclose(point[s], one[2][0], rtol=0, atol=1e-14)
+        seg_len = np.hypot(*(np.roll(c, -1, axis=0) - c).T)
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        arc = lambda j, t: cum[j] + t * seg_len[j]                      # noqa: E731
+        want = (arc(seg0[s], tau0[s]) + fr[s] * cum[-1]) % cum[-1]
+        np.testing.assert_allclose(arc(seg[s], tau[s]), want, rtol=0, atol=1e-12)
