@@ -72,7 +72,7 @@ def _inner(n, p):
 
 def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
             softness: float = CONTAIN_SOFTNESS, reach: float = CONTAIN_REACH,
-            iterations: int = 2, mean_edge: float | None = None):
+            iterations: int = 2, mean_edge: float | None = None, bounds=None):
     """Pull the inner fibre points that lie outside a closed surface back in (module
     docstring).
 
@@ -94,6 +94,8 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
         others correct towards the same ``s'`` from the new closest point.
     mean_edge : float, optional
         The faces' mean edge length when known (sizes the search grid; measured otherwise).
+    bounds : ((3,) float, (3,) float), optional
+        The vertices' coordinate-wise minimum and maximum when known (else measured).
 
     Returns
     -------
@@ -110,7 +112,7 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     n, p = out.shape[:2]
     if n == 0 or p < 3:
         return out, np.zeros(n, bool)
-    grid = SurfaceGrid(vertices, faces, reach=reach, mean_edge=mean_edge)
+    grid = SurfaceGrid(vertices, faces, reach=reach, mean_edge=mean_edge, bounds=bounds)
     index = _inner(n, p)
     # points in enclosed grid cells are inside: not measured (watch = 0)
     s, d = grid.signed_distance(out.reshape(-1, 3)[index], tau=softness, watch=0.0)

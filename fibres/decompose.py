@@ -31,7 +31,7 @@ from .containment import contain as contain_points
 from .contours import choose_loops
 from .errors import InputError
 from .filtering import apply_filter, filter_choices
-from .fitting import fit_box, principal_frame, reference_frame
+from .fitting import fit_box, prepare, principal_frame, reference_frame
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
@@ -108,7 +108,7 @@ def _template(template, template_params) -> Template:
     return get_template(template, **dict(template_params or {}))
 
 
-def _cross_section_ref(vertices, frame):
+def _cross_section_ref(vertices, frame, vt=None):
     """A reference direction for v0 derived from the muscle itself, so that the rotations
     searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
     the major axis of the vertices' spread perpendicular to the principal axis, its sign
@@ -120,9 +120,11 @@ def _cross_section_ref(vertices, frame):
     direction is defined by the shape and a world axis keeps axis-aligned shapes exact.
 
     Component-wise over the (3, V) coordinates: (3, 3) @ (3, V) products would start BLAS
-    threads for a few microseconds of work."""
+    threads for a few microseconds of work. ``vt``: the (3, V) transposed vertices when at
+    hand."""
     u = frame.axis
-    dt = np.ascontiguousarray(vertices.T) - frame.centroid[:, None]     # (3, V)
+    vt = np.ascontiguousarray(vertices.T) if vt is None else vt
+    dt = vt - frame.centroid[:, None]                                   # (3, V)
     along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
     for c in range(3):  # coordinates
         dt[c] -= u[c] * along
@@ -150,14 +152,17 @@ SCORE_TIE = 1e-9
 
 
 def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_step_deg,
-              topology=None):
-    """Fit the box (§3.2) and record the choices known before slicing."""
+              topology=None, prepared=None):
+    """Fit the box (§3.2) and record the choices known before slicing; ``prepared``:
+    `fibres.fitting.prepare` of the vertices when at hand."""
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
-    frame = principal_frame(vertices, origin, insertion, axis=axis, template=tmpl)
-    ref = _cross_section_ref(vertices, frame)
+    prepared = prepare(vertices) if prepared is None else prepared
+    frame = principal_frame(vertices, origin, insertion, axis=axis, template=tmpl,
+                            prepared=prepared)
+    ref = _cross_section_ref(vertices, frame, prepared.vt)
     box = fit_box(vertices, origin, insertion, tmpl, angle_step_deg=angle_step_deg, axis=axis,
-                  v_ref=ref, frame=reference_frame(frame, ref, tmpl))
+                  v_ref=ref, frame=reference_frame(frame, ref, tmpl), prepared=prepared)
     scores = box.scores
     best = int(np.flatnonzero(scores <= scores.min() * (1 + SCORE_TIE) + 1e-300)[0])
     theta = np.deg2rad(box.angle_step_deg * box.angle_index)
@@ -347,8 +352,12 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
     v, faces, o, i, notes, topology, mean_edge = _inputs(mesh, origin, insertion, units, plan)
     tmpl = _template(template, template_params)
+    prepared = None
     if plan is None:
-        plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, 5.0, topology)
+        # the transposed vertices, bounds, centroid: made once for the fit, filter, grid
+        prepared = prepare(v)
+        plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, 5.0, topology,
+                         prepared)
         fresh = True
     else:
         plan.check_mesh(v, faces)
@@ -366,7 +375,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         if fresh:
             fc = filter_choices(pts, (v, faces), o, i, box.axes[:, 2], seed=seed,
                                 template=template_spec(tmpl), mean_edge=mean_edge,
-                                reference=boxed)
+                                reference=boxed, prepared=prepared)
         else:
             fc = _plan_filter_choice(plan, tmpl, int(n_fibres), int(resolution), seed, notes)
             if fc is None:  # a plan without rest landmarks: choices made on this frame
@@ -379,7 +388,9 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations),
                      max_shift=DECOMPOSE_MAX_SHIFT)
     if contain:
-        pts, flags["contained"] = contain_points(pts, v, faces, mean_edge=mean_edge)
+        pts, flags["contained"] = contain_points(
+            pts, v, faces, mean_edge=mean_edge,
+            bounds=None if prepared is None else (prepared.lo, prepared.hi))
     if fresh and fc is not None:
         plan = dataclasses.replace(plan, filter_choice=fc)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

@@ -387,7 +387,7 @@ def _cuts(pts, h, segment, level, fallback, slack):
 
 def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
                    template=None, mean_edge: float | None = None,
-                   reference=None) -> FilterChoice:
+                   reference=None, prepared=None) -> FilterChoice:
     """Make the attachment filter's choices on one (rest-pose) decomposition.
 
     Kohout et al. (GRAPP 2012) §3.4: cutting planes through the extreme landmarks, the
@@ -413,6 +413,9 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
         The same fibres before the morph (the template mapped affinely into the fitted
         box): the rays then follow the reference fibre's segment at the cut instead of the
         morphed one (module docstring, "Rays"); None: the paper's morphed segment.
+    prepared : fibres.fitting.Prepared, optional, keyword-only
+        `fibres.fitting.prepare` of exactly these vertices when at hand (its transposed
+        vertices and bounds; speed only: the same choices).
 
     Returns
     -------
@@ -444,8 +447,12 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
 
     if n == 0 or p < 2 or h_o >= h_i:  # overlapping attachment bands: nothing sensible to cut
         return done()
-    vt = np.ascontiguousarray(verts.T)                                 # (3, V)
-    tol = TIE * float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
+    if prepared is None:
+        vt = np.ascontiguousarray(verts.T)                             # (3, V)
+        tol = TIE * float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
+    else:
+        vt = prepared.vt
+        tol = TIE * float(np.linalg.norm(prepared.hi - prepared.lo))
     h = pts @ u                                                       # (N, P)
     idx = np.arange(p)[None, :]
     below = h < h_o - tol    # beyond the origin plane (not on it)

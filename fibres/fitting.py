@@ -115,7 +115,7 @@ def _frame_for(u, v_ref):
     return v0, cross3(u, v0)
 
 
-def _boxes(vertices, c, u, v0, w0, theta):
+def _boxes(vertices, c, u, v0, w0, theta, d=None):
     """Minimal boxes of the vertices in the frames rotated by ``theta`` (J,) about u.
 
     Only vertices that can be extreme in some direction of the cross-section enter the
@@ -127,11 +127,13 @@ def _boxes(vertices, c, u, v0, w0, theta):
     vertices : (V, 3) float
     c, u, v0, w0 : (3,) float
     theta : (J,) float
+    d : (V, 3) float, optional
+        ``vertices - c`` (`_centred`) when at hand.
 
     Returns axes (J, 3, 3) (columns x, y, z), corner (J, 3), extents (J, 3)."""
     xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
     ys = cross3(u, xs)                                                # (J, 3)
-    d = _centred(vertices, c)
+    d = _centred(vertices, c) if d is None else d
     a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
     keep = _support_candidates(a, b)
     a, b = a[keep], b[keep]
@@ -273,7 +275,8 @@ def template_offset(template) -> np.ndarray:
 
 def principal_frame(vertices, origin, insertion, *, axis: str = "auto", v_ref=None,
                     template=None, angle_step_deg: float = 5.0,
-                    angle_index: int | None = None) -> PrincipalFrame:
+                    angle_index: int | None = None,
+                    prepared: Prepared | None = None) -> PrincipalFrame:
     """The muscle's principal axis and reference frame (Kohout 2012 §3.2).
 
     Parameters
@@ -300,6 +303,8 @@ def principal_frame(vertices, origin, insertion, *, axis: str = "auto", v_ref=No
         Rotation step of the box search used by the iteration.
     angle_index : int, optional
         Use this rotation instead of searching (re-deriving a planned box).
+    prepared : Prepared, optional
+        `prepare` of exactly these vertices when at hand (speed only: the same frame).
 
     Returns
     -------
@@ -308,10 +313,11 @@ def principal_frame(vertices, origin, insertion, *, axis: str = "auto", v_ref=No
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
     vertices = np.asarray(vertices, dtype=np.float64)
-    return _principal_frame(vertices, _transposed(vertices), _as_set(origin, "origin"),
+    vt = _transposed(vertices) if prepared is None else prepared.vt
+    return _principal_frame(vertices, vt, _as_set(origin, "origin"),
                             _as_set(insertion, "insertion"), axis=axis, v_ref=v_ref,
                             template=template, angle_step_deg=angle_step_deg,
-                            angle_index=angle_index)
+                            angle_index=angle_index, prepared=prepared)
 
 
 def reference_frame(frame: PrincipalFrame, v_ref, template=None) -> PrincipalFrame | None:
@@ -358,17 +364,42 @@ def _mean_rows(vertices):
     return kernels[4](vertices) / vertices.shape[0]
 
 
+class Prepared(NamedTuple):
+    """Arrays of one vertex set that several stages of a decomposition use (`prepare`)."""
+
+    vt: np.ndarray        # (3, V) C-contiguous transposed vertices (`_transposed`)
+    lo: np.ndarray        # (3,) coordinate-wise minimum
+    hi: np.ndarray        # (3,) coordinate-wise maximum
+    centroid: np.ndarray  # (3,) `_mean_rows`
+    centred: np.ndarray   # (V, 3) vertices - centroid (`_centred`)
+
+
+def prepare(vertices) -> Prepared:
+    """The transposed vertices, their bounds, centroid and centred copy, made once for the
+    stages of a decomposition that would each make them (`principal_frame`, `fit_box`, the
+    attachment filter, the containment grid): the same arrays, bit for bit."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    vt = _transposed(vertices)
+    centroid = _mean_rows(vertices)
+    return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid,
+                    _centred(vertices, centroid))
+
+
 def _size(vt):
     """Diagonal of the axis-aligned bounding box of (3, V) vertices."""
     return float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
 
 
 def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
-                     angle_step_deg, angle_index):
+                     angle_step_deg, angle_index, prepared=None):
     """`principal_frame` on vertices (V, 3), the same transposed ``vt`` (3, V) and checked
-    landmark sets."""
-    centroid = _mean_rows(vertices)
-    size = _size(vt)
+    landmark sets; ``prepared``: `prepare` of these vertices when at hand."""
+    if prepared is None:
+        centroid, size, d = _mean_rows(vertices), _size(vt), None
+    else:
+        centroid, d = prepared.centroid, prepared.centred
+        size = float(np.linalg.norm(prepared.hi - prepared.lo))       # `_size`
+
     direction = insertion.mean(axis=0) - origin.mean(axis=0)
     dist = float(np.linalg.norm(direction))
     if dist <= 1e-9 * max(size, 1e-300):
@@ -378,7 +409,7 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
                              "insertion on the other).")
     method = axis
     if axis in ("covariance", "auto"):
-        d = _centred(vertices, centroid)
+        d = _centred(vertices, centroid) if d is None else d
         cov_axis = _covariance_axis(vertices, centroid, d)
         if axis == "auto":
             length = float(np.ptp(d @ cov_axis))
@@ -541,7 +572,7 @@ class Box:
 
 def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg: float = 5.0,
             axis: str = "auto", v_ref=None, check_units: bool = True,
-            frame: PrincipalFrame | None = None) -> Box:
+            frame: PrincipalFrame | None = None, prepared: Prepared | None = None) -> Box:
     """Fit the template cube to the muscle as the best-matching principal-axis OBB.
 
     Kohout et al. (GRAPP 2012) §3.2, vectorised over all rotations.
@@ -566,6 +597,8 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
         The principal frame of exactly these inputs (vertices, landmarks, ``axis``,
         ``template``, ``v_ref``, ``angle_step_deg``) when already at hand (e.g. from
         `reference_frame`); computed when None.
+    prepared : Prepared, optional
+        `prepare` of exactly these vertices when at hand (speed only: the same box).
 
     Returns
     -------
@@ -584,16 +617,23 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
     insertion = _as_set(insertion, "insertion")
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
-    vt = _transposed(vertices)
-    lo, hi = vt.min(axis=1), vt.max(axis=1)
+    if prepared is None:
+        vt = _transposed(vertices)
+        lo, hi = vt.min(axis=1), vt.max(axis=1)
+    else:
+        vt, lo, hi = prepared.vt, prepared.lo, prepared.hi
     if check_units:
         _check_in_box(lo, hi, origin, name="origin")
         _check_in_box(lo, hi, insertion, name="insertion")
     if frame is None:
         frame = _principal_frame(vertices, vt, origin, insertion, axis=axis, v_ref=v_ref,
-                                 template=template, angle_step_deg=step, angle_index=None)
+                                 template=template, angle_step_deg=step, angle_index=None,
+                                 prepared=prepared)
+    d = None
+    if prepared is not None and np.array_equal(frame.centroid, prepared.centroid):
+        d = prepared.centred
     axes, corner, ext = _boxes(vertices, frame.centroid, frame.axis, frame.v0, frame.w0,
-                               _thetas(step))
+                               _thetas(step), d)
     size = float(np.linalg.norm(hi - lo))
     if (ext <= 1e-12 * max(size, 1e-300)).any():
         raise InputError("the surface is flat (zero thickness)", where="mesh",

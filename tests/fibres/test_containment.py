@@ -325,3 +325,16 @@ def test_inside_by_ray_parity_agrees_with_the_distance_sign(torus, shape):
     assert (np.isinf(quick) != (full <= 0))[defined].mean() < 1e-3
     out = np.isfinite(quick)
     np.testing.assert_array_equal(quick[out], full[out])
+
+
+def test_given_bounds_give_the_same_pull_bit_for_bit(torus):
+    # contain(bounds=...) takes the vertices' min/max from the caller (a decomposition
+    # already has them) instead of measuring them: the same grid, so the same pulled points
+    # and flags, bit for bit; the chords do leave the torus (something is pulled)
+    v, f = torus
+    fib = chords()
+    a, moved_a = contain(fib, v, f)
+    b, moved_b = contain(fib, v, f, bounds=(v.min(axis=0), v.max(axis=0)))
+    assert moved_a.any()
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(moved_a, moved_b)

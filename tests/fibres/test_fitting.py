@@ -299,3 +299,35 @@ def test_compiled_fit_equals_numpy_bit_for_bit(template, axis, monkeypatch):
     for name in ("corner", "axes", "extents", "scores"):
         np.testing.assert_array_equal(getattr(b1, name), getattr(b2, name))
     assert b1.angle_index == b2.angle_index and b1.method == b2.method
+
+
+@pytest.mark.parametrize("template", ["parallel", "pennate"])
+@pytest.mark.parametrize("axis", ["auto", "covariance", "attachments"])
+def test_prepared_vertices_give_the_same_frame_and_box_bit_for_bit(template, axis):
+    # fitting.prepare makes the transposed vertices, bounds, centroid and centred copy once
+    # for the stages of a decomposition: the frame and box must be exactly those made
+    # without it (the same functions on the same vertices; prepared arrays read-only
+    # inputs), and its arrays exactly numpy's (transpose, min/max, mean, difference)
+    from fibres import fitting
+
+    v, o, i = _bent_spindle(n_z=30, n_t=40)
+    rot = Rotation.from_euler("xyz", [0.2, -0.7, 0.4]).as_matrix()
+    v, o, i = v @ rot.T - 0.3, o @ rot.T - 0.3, i @ rot.T - 0.3
+    prep = fitting.prepare(v)
+    np.testing.assert_array_equal(prep.vt, v.T)
+    np.testing.assert_array_equal(prep.lo, v.min(axis=0))
+    np.testing.assert_array_equal(prep.hi, v.max(axis=0))
+    np.testing.assert_array_equal(prep.centroid, v.mean(axis=0))
+    np.testing.assert_array_equal(prep.centred, v - v.mean(axis=0))
+    ref_dir = np.array([1.0, 0.3, 0.1])
+    f1 = principal_frame(v, o, i, axis=axis, template=template, v_ref=ref_dir)
+    f2 = principal_frame(v, o, i, axis=axis, template=template, v_ref=ref_dir, prepared=prep)
+    for x, y in zip(f1[:4], f2[:4]):
+        np.testing.assert_array_equal(x, y)
+    b1 = fit_box(v, o, i, template, axis=axis, v_ref=ref_dir)
+    b2 = fit_box(v, o, i, template, axis=axis, v_ref=ref_dir, prepared=prep)
+    b3 = fit_box(v, o, i, template, axis=axis, v_ref=ref_dir, prepared=prep, frame=f2)
+    for b in (b2, b3):
+        for name in ("corner", "axes", "extents", "scores"):
+            np.testing.assert_array_equal(getattr(b1, name), getattr(b, name))
+        assert b.angle_index == b1.angle_index
