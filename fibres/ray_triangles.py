@@ -30,8 +30,11 @@ def _kernels():
         else:
             global _pair, _across_distance
             jit = numba.njit(cache=True, nogil=True)
-            _pair = jit(_pair_loop)
-            _across_distance = jit(_across_distance_loop)
+            # inlined into `_triangles_loop` (numba IR: the same operations; a call passes
+            # each of the twelve arrays as a struct)
+            inline = numba.njit(cache=True, nogil=True, inline="always")
+            _pair = inline(_pair_loop)
+            _across_distance = inline(_across_distance_loop)
             _KERNELS.append((jit(_triangles_loop), jit(_region_loop), jit(_bounds_loop)))
     return _KERNELS[0]
 
@@ -144,7 +147,8 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2,
     ``slack`` for the rounding of the frame coordinates. The remaining triangles are
     evaluated in increasing order of the box bound, until the next bound exceeds the best
     distance. ``within2`` (squared; inf for none) caps the best distance of the pruning: a
-    ray farther than that from every triangle is returned as index -1. ``vid`` (T, 3)
+    ray farther than that from every triangle is returned as index -1 (at once when the
+    nearest sphere bound already shows it). ``vid`` (T, 3)
     numbers the distinct corners (equal ids: equal points): each is projected into a
     ray's frame once for the box bounds (the triangles of a surface share them)."""
     n_rays, n_tri = start.shape[0], tv.shape[0]
@@ -222,6 +226,13 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2,
             k0 += 1
         if k0 == n_tri:                               # not finite: argmin's NaN rule
             k0 = np.argmin(lower)
+        # every triangle farther than ``within`` (and the touching tolerance) by its sphere
+        # bound, less 1e-12 of the coordinates' size for rounding: index -1, as the
+        # evaluation of k0 and the pruning of the others would find
+        far = m0 - 100.0 * slack[n]
+        if far > 0 and far * far > max(within2, eps2) * (1.0 + 1e-9):
+            index[n] = -1
+            continue
         # (p1, p2, d): an orthonormal frame along the ray
         ax = 0 if abs(d0) <= abs(d1) and abs(d0) <= abs(d2_) else (
             1 if abs(d1) <= abs(d2_) else 2)
