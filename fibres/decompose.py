@@ -177,15 +177,16 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
                              rest_origin=origin, rest_insertion=insertion)
 
 
-def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool):
+def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool, vt=None):
     """Box, slicing and correspondence of every plane (§3.3); returns what morphing needs.
 
     ``fresh``: the paper's choices (and the plan's record of them); otherwise the plan's
     anchors are carried along (`fibres.morph.anchored_maps`) -- except on the plan's own
-    vertices, where the fresh choices are the plan's and are reproduced exactly."""
+    vertices, where the fresh choices are the plan's and are reproduced exactly. ``vt``:
+    the (3, V) transposed vertices when at hand."""
     # fresh: the plan was made on these vertices (its rest copy is equal; no comparison)
     box, local_t = box_and_local(plan, plan.rest_vertices if fresh else vertices, origin,
-                                 insertion)
+                                 insertion, vt=vt)
     tf = np.eye(4)
     tf[:3, :3] = box.axes
     tf[:3, 3] = box.corner
@@ -362,7 +363,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     else:
         plan.check_mesh(v, faces)
         fresh = False
-    box, heights, P, Q, choice, sweep_notes = _sweep(plan, v, o, i, fresh=fresh)
+    box, heights, P, Q, choice, sweep_notes = _sweep(
+        plan, v, o, i, fresh=fresh, vt=None if prepared is None else prepared.vt)
     if fresh:
         plan = _with_choice(plan, choice)
     notes.extend(sweep_notes)

@@ -260,8 +260,9 @@ def box_from_plan(plan: DecompositionPlan, vertices, origin, insertion) -> Box:
     return box_and_local(plan, vertices, origin, insertion)[0]
 
 
-def box_and_local(plan: DecompositionPlan, vertices, origin, insertion):
-    """`box_from_plan` and the vertices in the box frame, transposed.
+def box_and_local(plan: DecompositionPlan, vertices, origin, insertion, *, vt=None):
+    """`box_from_plan` and the vertices in the box frame, transposed; ``vt``: the (3, V)
+    transposed vertices when at hand.
 
     Returns
     -------
@@ -271,7 +272,7 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion):
         `fibres.slicing.slice_mesh` (rows keep the reductions over V contiguous).
     """
     v = np.asarray(vertices, dtype=np.float64)
-    vt = np.ascontiguousarray(v.T)                                    # (3, V)
+    vt = np.ascontiguousarray(v.T) if vt is None else vt              # (3, V)
     if v is plan.rest_vertices or np.array_equal(v, plan.rest_vertices):
         rot = np.eye(3)
     else:
