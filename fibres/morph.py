@@ -36,8 +36,8 @@ import numpy as np
 
 from .contours import anchored_loops, bridge_loops, clockwise_contour
 from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD, anchor_kernel,
-                             correspond_continuous, insert_points, rectangle, soft_start,
-                             split_chain, split_fractions)
+                             correspond_continuous, insert_points, rectangle, smooth_split_points,
+                             soft_start, split_chain, split_fractions)
 from .mvc import mvc_map, planes
 from .plan import rest_geometry, rest_loop_counts
 from .slicing import MeshTopology, Sections
@@ -184,6 +184,8 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     pts, edge, _, _, m, offs, idx = _clockwise_all(sections, chosen, topology, anchors=False)
     # start (soft closest point to Q0) and the split points at the perimeter ratios (S, 4)
     seg, tk, point = soft_start(pts, m, offs, rect[0], fractions=split_fractions(rect))
+    # ... optionally smoothed along the axis (off by default, `SPLIT_SMOOTHING`; see there)
+    seg, tk, point = smooth_split_points(pts, m, offs, seg, tk, point)
     P, Q, offs2, ok = _insert_and_subdivide(pts, m, offs, seg, tk, point, rect)
     P_all, Q_all = planes(P, offs2), planes(Q, offs2)    # views of P, Q (`fibres.mvc`)
     if not ok.all():                          # cannot happen: the points are in arc order
