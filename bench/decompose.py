@@ -92,13 +92,14 @@ _STAGES = (("fibres.decompose", "_clean_tuple", ()),
            ("fibres.mvc", "mvc_map", ("fibres.morph",)),
            ("fibres.filtering", "filter_choices", ("fibres.decompose",)),
            ("fibres.ray_triangles", "region_triangles", ("fibres.filtering",)),
+           ("fibres.ray_triangles", "regions_triangles", ("fibres.filtering",)),
            ("fibres.ray_triangles", "closest_on_triangles", ("fibres.filtering",)),
            ("fibres.filtering", "apply_filter", ("fibres.decompose",)),
            ("fibres.decompose", "contain_points", ()),
            ("fibres.smoothing", "smooth", ("fibres.decompose",)))
 _INNER = {"clean_mesh_geometry", "principal_frame", "_cross_section_ref", "fit_box",
           "box_and_local", "slice_mesh", "choose_loops", "slice_maps", "mvc_map",
-          "region_triangles", "closest_on_triangles"}
+          "region_triangles", "regions_triangles", "closest_on_triangles"}
 
 
 def breakdown(n_runs: int = 40):

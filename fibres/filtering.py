@@ -79,7 +79,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ray_triangles import closest_on_triangles, region_triangles
+from .ray_triangles import closest_on_triangles, regions_triangles
 from .resample import evaluate_kernel, resampling_kernel
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
@@ -473,13 +473,17 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     cut_param[:] = np.stack([s_o, s_i], axis=1)
     mean_edge = _mean_edge(vt, faces) if mean_edge is None else float(mean_edge)
     rows = np.arange(n)
+    ends = [end for end in range(2) if cut[:, end].any()]
+    # the areas' triangles of both ends with one pass over the faces
+    areas = dict(zip(ends, regions_triangles(
+        faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge)
+                for end in ends], len(verts))))
     for end, (landmarks, c, a, b) in enumerate((
             (origin, c_o, segment[:, 0] + 1, segment[:, 0]),     # ray towards the origin
             (insertion, c_i, segment[:, 1], segment[:, 1] + 1))):  # ray towards the insertion
         sel = cut[:, end]
         if sel.any():  # two ends, not a loop over fibres
-            region = _region_indices(verts, faces, landmarks, vt, mean_edge)
-            corners, owner = region_triangles(faces, region, len(verts))
+            corners, owner = areas[end]
             d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
             tv = verts[corners]
             k, w = np.zeros(len(d), np.int64), np.zeros((len(d), 3))

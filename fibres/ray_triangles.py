@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["region_triangles", "closest_on_triangles"]
+__all__ = ["region_triangles", "regions_triangles", "closest_on_triangles"]
 
 _KERNELS = []
 
@@ -35,7 +35,8 @@ def _kernels():
             inline = numba.njit(cache=True, nogil=True, inline="always")
             _pair = inline(_pair_loop)
             _across_distance = inline(_across_distance_loop)
-            _KERNELS.append((jit(_triangles_loop), jit(_region_loop), jit(_bounds_loop)))
+            _KERNELS.append((jit(_triangles_loop), jit(_region_loop), jit(_bounds_loop),
+                             jit(_regions_loop)))
     return _KERNELS[0]
 
 
@@ -372,6 +373,92 @@ def _region_loop(faces, region, n_vertices):  # pragma: no cover - compiled by n
                 face[q] = owner[r]
                 q += 1
     return corners, face
+
+
+def _regions_loop(faces, flat, starts, n_vertices):  # pragma: no cover - compiled by numba
+    """`_region_loop` for up to 8 areas (``flat[starts[r]:starts[r + 1]]``) with one pass over
+    the faces for their full faces (a bit per area marks its vertices); then each area's
+    lone vertices and owners as `_region_loop`. Returns the areas' corners and faces back to
+    back and their offsets (n_r + 1,)."""
+    n_t = faces.shape[0]
+    n_r = starts.shape[0] - 1
+    mark = np.zeros(n_vertices, np.uint8)
+    for r in range(n_r):
+        for q in range(starts[r], starts[r + 1]):
+            mark[flat[q]] |= np.uint8(1 << r)
+    full = np.empty((n_r, n_t), np.int64)
+    n_full = np.zeros(n_r, np.int64)
+    for t in range(n_t):
+        m = mark[faces[t, 0]] & mark[faces[t, 1]] & mark[faces[t, 2]]
+        if m:
+            for r in range(n_r):
+                if m & (1 << r):
+                    full[r, n_full[r]] = t
+                    n_full[r] += 1
+    covered = np.zeros((n_r, n_vertices), np.bool_)
+    out = np.zeros(n_r + 1, np.int64)
+    n_lone = np.zeros(n_r, np.int64)
+    for r in range(n_r):
+        for q in range(n_full[r]):
+            t = full[r, q]
+            covered[r, faces[t, 0]] = True
+            covered[r, faces[t, 1]] = True
+            covered[r, faces[t, 2]] = True
+        for q in range(starts[r], starts[r + 1]):
+            n_lone[r] += not covered[r, flat[q]]
+        out[r + 1] = out[r] + n_full[r] + n_lone[r]
+    corners = np.empty((out[n_r], 3), np.int64)
+    face = np.empty(out[n_r], np.int64)
+    owner = np.full(n_vertices, -1, np.int64)
+    for r in range(n_r):
+        o = out[r]
+        for q in range(n_full[r]):
+            t = full[r, q]
+            corners[o + q, 0], corners[o + q, 1], corners[o + q, 2] = (
+                faces[t, 0], faces[t, 1], faces[t, 2])
+            face[o + q] = t
+        if n_lone[r]:
+            bit = np.uint8(1 << r)
+            for j in range(3):  # corner by corner, the last face wins (as the array version)
+                for t in range(n_t):
+                    x = faces[t, j]
+                    if (mark[x] & bit) and not covered[r, x]:
+                        owner[x] = t
+            q = o + n_full[r]
+            for i in range(starts[r], starts[r + 1]):
+                x = flat[i]
+                if not covered[r, x]:
+                    corners[q, 0], corners[q, 1], corners[q, 2] = x, x, x
+                    face[q] = owner[x]
+                    q += 1
+    return corners, face, out
+
+
+def regions_triangles(faces, regions, n_vertices):
+    """`region_triangles` of several areas (at most 8) with one pass over the faces.
+
+    Parameters
+    ----------
+    faces : (T, 3) int
+    regions : sequence of (C_r,) int
+        The areas' vertex indices (each without repeats; areas may overlap).
+    n_vertices : int
+        V.
+
+    Returns
+    -------
+    list of (corners (T'_r, 3) int, face (T'_r,) int)
+        Exactly `region_triangles` of each area.
+    """
+    kernels = _kernels()
+    if kernels is None or len(regions) > 8 or len(regions) == 0:
+        return [region_triangles(faces, r, n_vertices) for r in regions]
+    flat = np.concatenate([np.asarray(r, dtype=np.int64).ravel() for r in regions])
+    starts = np.cumsum([0] + [np.size(r) for r in regions]).astype(np.int64)
+    corners, face, out = kernels[3](np.ascontiguousarray(faces, dtype=np.int64), flat,
+                                    starts, int(n_vertices))
+    return [(corners[out[r]:out[r + 1]], face[out[r]:out[r + 1]])
+            for r in range(len(regions))]
 
 
 def region_triangles(faces, region, n_vertices):
