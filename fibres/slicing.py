@@ -86,7 +86,7 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
         raise ValueError(f"faces must have shape (T, 3), got {f.shape}")
     kernel = _topology_kernel()
     if kernel is not None and f.size:
-        out = kernel(f, np.int64(n_vertices), False)
+        out = kernel(f, np.int64(n_vertices), False, _NO_VERTICES, 0.0)
         if out[0]:                                          # every edge exactly twice
             return MeshTopology(f, out[1], out[2], out[3], int(n_vertices), bool(out[4]))
     a = f.reshape(-1)
@@ -121,24 +121,35 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
                         oriented)
 
 
-def _closed_topology(f, n_vertices):
+def _closed_topology(f, n_vertices, vertices=None, tol2=0.0):
     """`mesh_topology` of (T, 3) int64 faces with its indices in range, with the number of
     edge-connected pieces and whether every vertex is used -- in one compiled pass (for
     `fibres.surface.clean_mesh_geometry`), or None without numba or when some edge is not
-    shared by exactly two faces.
+    shared by exactly two faces. With ``vertices`` (V, 3) float64 C-contiguous, the same
+    pass measures the faces as `fibres.surface._geometry_loop` (threshold ``tol2``).
 
     Returns
     -------
-    (MeshTopology, n_pieces, all_used) or None
+    (MeshTopology, n_pieces, all_used, geometry) or None
+        ``geometry``: (every edge and height above tol2, 6 x signed volume, sum of the edge
+        lengths, vertex minimum (3,), maximum (3,)) -- `fibres.surface._geometry_loop`'s
+        results -- or None without ``vertices``.
     """
     kernel = _topology_kernel()
     if kernel is None or not f.size:
         return None
-    out = kernel(f, np.int64(n_vertices), True)
+    measure = vertices is not None
+    out = kernel(f, np.int64(n_vertices), True, vertices if measure else _NO_VERTICES,
+                 float(tol2))
     if not out[0]:
         return None
     return (MeshTopology(out[7], out[1], out[2], out[3], int(n_vertices), bool(out[4])),
-            int(out[5]), bool(out[6]))
+            int(out[5]), bool(out[6]),
+            (bool(out[8]), out[9], out[10], out[11], out[12]) if measure else None)
+
+
+#: no vertices: the topology pass measures no geometry
+_NO_VERTICES = np.zeros((0, 3))
 
 
 def _paired_topology(f, a, b, lo, hi, order, n_vertices):
@@ -172,7 +183,7 @@ def _topology_kernel():
     return _TOPOLOGY[0]
 
 
-def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by numba
+def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compiled by numba
     """`mesh_topology` of a mesh whose edges are each shared by exactly two faces, in
     O(T + V): the half-edges are bucketed by their smaller vertex (a counting sort in
     half-edge order; Cormen et al., Introduction to Algorithms, §8.2) and each bucket (a
@@ -181,13 +192,19 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
     exactly as in the array version. The sorted half-edges carry their larger vertex and
     ``2 h + (runs min -> max)`` (int32 while T < 2**29), so that the pairing reads them in
     order. With ``pieces``, the edge-connected pieces are counted by a flood fill over the
-    face neighbours (depth-first, an explicit stack) and the used vertices marked.
+    face neighbours (depth-first, an explicit stack) and the used vertices marked. With
+    vertices ``v`` (V, 3) (else (0, 3)), the first pass also measures each face as
+    `fibres.surface._geometry_loop` (the same operations in the same order; its integer work
+    and this floating-point work overlap).
 
-    Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces); ``ok``
+    Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces,
+    geometry_ok, volume, edge_sum, lo, hi); ``ok``
     is False (and nothing else meaningful) when a vertex index is out of range, an edge is
     not used exactly twice or the mesh is too large for the int32 tables; ``n_pieces``
     is 0 and ``all_used`` False without ``pieces``; ``faces`` is a C-contiguous copy of
-    ``f`` (which may be strided) made by the first pass."""
+    ``f`` (which may be strided) made by the first pass; ``geometry_ok``, ``volume`` and
+    ``edge_sum``, ``lo``, ``hi`` are `_geometry_loop`'s (True, 0, 0, inf, -inf without
+    vertices)."""
     n_t = f.shape[0]
     n = 3 * n_t
     n_e = n // 2
@@ -195,15 +212,28 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
     face_edges = np.empty((n_t, 3), dtype=np.int64)
     neighbours = np.empty((n_t, 3), dtype=np.int64)
     fc = np.empty((n_t, 3), dtype=np.int64)
+    v_lo = np.full(3, np.inf)
+    v_hi = np.full(3, -np.inf)
     if n % 2 or n_t >= 2 ** 29 or n_vertices >= 2 ** 31:
-        return False, edges, face_edges, neighbours, False, 0, False, fc
+        return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0, 0.0,
+                v_lo, v_hi)
     start = np.zeros(n_vertices + 1, dtype=np.int32)
+    measure = v.shape[0] > 0
+    volume = 0.0
+    edge_sum = 0.0
+    geometry_ok = True
+    if measure:  # the vertices' bounds (`fibres.surface._geometry_loop`)
+        for i in range(v.shape[0]):
+            for c in range(3):
+                v_lo[c] = min(v_lo[c], v[i, c])
+                v_hi[c] = max(v_hi[c], v[i, c])
     used = np.zeros(n_vertices if pieces else 0, dtype=np.bool_)
     for t in range(n_t):
         a0, a1, a2 = f[t, 0], f[t, 1], f[t, 2]
         fc[t, 0], fc[t, 1], fc[t, 2] = a0, a1, a2
         if min(a0, min(a1, a2)) < 0 or max(a0, max(a1, a2)) >= n_vertices:
-            return False, edges, face_edges, neighbours, False, 0, False, fc
+            return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0,
+                    0.0, v_lo, v_hi)
         start[min(a0, a1) + 1] += 1
         start[min(a1, a2) + 1] += 1
         start[min(a2, a0) + 1] += 1
@@ -211,8 +241,27 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
             used[a0] = True
             used[a1] = True
             used[a2] = True
-    for v in range(n_vertices):
-        start[v + 1] += start[v]
+        if measure:  # `fibres.surface._geometry_loop`, face t
+            ax, ay, az = v[a0, 0], v[a0, 1], v[a0, 2]
+            bx, by, bz = v[a1, 0], v[a1, 1], v[a1, 2]
+            cx, cy, cz = v[a2, 0], v[a2, 1], v[a2, 2]
+            abx, aby, abz = bx - ax, by - ay, bz - az
+            acx, acy, acz = cx - ax, cy - ay, cz - az
+            bcx, bcy, bcz = cx - bx, cy - by, cz - bz
+            lab = np.sqrt(abx * abx + aby * aby + abz * abz)
+            lbc = np.sqrt(bcx * bcx + bcy * bcy + bcz * bcz)
+            lac = np.sqrt(acx * acx + acy * acy + acz * acz)
+            nx = aby * acz - abz * acy
+            ny = abz * acx - abx * acz
+            nz = abx * acy - aby * acx
+            area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
+            if not (min(lab, lbc, lac) > tol2 and area2 > tol2 * max(lab, lbc, lac)):
+                geometry_ok = False
+            volume += (ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz)
+                       + az * (bx * cy - by * cx))
+            edge_sum += lab + lbc + lac
+    for q in range(n_vertices):
+        start[q + 1] += start[q]
     fill = start[:n_vertices].copy()
     s_hi = np.empty(n, dtype=np.int32)
     s_h = np.empty(n, dtype=np.int32)
@@ -228,33 +277,34 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
     fe = face_edges.ravel()
     nb = neighbours.ravel()
     oriented = True
-    for v in range(n_vertices):  # each bucket sorted, then paired while in cache
-        for i in range(start[v] + 1, start[v + 1]):
+    for vb in range(n_vertices):  # each bucket sorted, then paired while in cache
+        for i in range(start[vb] + 1, start[vb + 1]):
             k = s_hi[i]
             x = s_h[i]
             m = i - 1
-            while m >= start[v] and s_hi[m] > k:
+            while m >= start[vb] and s_hi[m] > k:
                 s_hi[m + 1] = s_hi[m]
                 s_h[m + 1] = s_h[m]
                 m -= 1
             s_hi[m + 1] = k
             s_h[m + 1] = x
-        for p in range(start[v], start[v + 1], 2):  # edge p // 2: sorted positions p, p+1
-            if start[v + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
-                    p > start[v] and s_hi[p - 1] == s_hi[p]):
-                return False, edges, face_edges, neighbours, False, 0, False, fc
+        for p in range(start[vb], start[vb + 1], 2):  # edge p // 2: sorted positions p, p+1
+            if start[vb + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
+                    p > start[vb] and s_hi[p - 1] == s_hi[p]):
+                return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0,
+                    0.0, v_lo, v_hi)
             e = p // 2
             h0 = s_h[p] >> 1
             h1 = s_h[p + 1] >> 1
             t0 = h0 // 3
             t1 = h1 // 3
-            edges[e, 0] = v
+            edges[e, 0] = vb
             edges[e, 1] = s_hi[p]
             fe[h0] = e
             fe[h1] = e
             nb[h0] = t1
             nb[h1] = t0
-            if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != v:   # not one each way
+            if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != vb:   # not one each way
                 oriented = False
     n_pieces = 0
     if pieces:  # edge-connected pieces: a flood fill over the face neighbours
@@ -278,9 +328,10 @@ def _topology_loop(f, n_vertices, pieces):  # pragma: no cover - compiled by num
                         top += 1
     all_used = pieces
     if pieces:
-        for v in range(n_vertices):
-            all_used &= used[v]
-    return True, edges, face_edges, neighbours, oriented, n_pieces, all_used, fc
+        for vb in range(n_vertices):
+            all_used &= used[vb]
+    return (True, edges, face_edges, neighbours, oriented, n_pieces, all_used, fc,
+            geometry_ok, volume, edge_sum, v_lo, v_hi)
 
 
 @dataclass(frozen=True)

@@ -299,7 +299,10 @@ def clean_mesh_geometry(v, f):
     n_v = len(v)
     if len(f) < 4:
         return None, None
-    closed = _closed_topology(f, n_v)          # topology, pieces, all vertices used
+    kernel = _geometry_kernel()
+    # topology, pieces, all vertices used; and the faces measured in the same pass
+    closed = _closed_topology(f, n_v, np.ascontiguousarray(v) if kernel is not None else None,
+                              2 * tol.merge)
     if closed is None and (f.min() < 0 or f.max() >= n_v
                            or np.bincount(f.ravel(), minlength=n_v).min() == 0):
         return None, None
@@ -309,10 +312,9 @@ def clean_mesh_geometry(v, f):
     if _has_duplicate_rows((v * 10 ** util.decimal_to_digits(tol.merge)).round()
                            .astype(np.int64)):
         return None, None
-    kernel = _geometry_kernel()
     if kernel is not None:
-        ok, volume, edge_sum, lo, hi = kernel(np.ascontiguousarray(v),
-                                              np.ascontiguousarray(f), 2 * tol.merge)
+        ok, volume, edge_sum, lo, hi = closed[3] if closed is not None else kernel(
+            np.ascontiguousarray(v), np.ascontiguousarray(f), 2 * tol.merge)
         if not ok:
             return None, None
         return _clean_topology_rest(v, f, volume, edge_sum / (3 * len(f)), closed,
