@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid_kernels import _bounds_loop, _edge_loop, _grid_loop, _shapes_loop
+from .grid_kernels import _bounds_loop, _edge_loop, _grid_loop, _shapes_loop, _triangle_shape
 
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
 
@@ -63,9 +63,11 @@ def _kernels():
 
             jit = numba.njit(cache=True, nogil=True)
             # the query calls the compiled helpers: numba resolves globals at compile time
+            inline = numba.njit(inline="always", nogil=True)
             glb = dict(globals(), _closest_point=jit(_closest_point), _blend=jit(_blend),
-                       _flood=jit(_flood), _shape=numba.njit(inline="always", nogil=True)(_shape),
-                       _shapes=jit(_shapes_loop))
+                       _flood=jit(_flood), _triangle_shape=inline(_triangle_shape))
+            glb["_shape"] = inline(types.FunctionType(_shape.__code__, glb, "_shape"))
+            glb["_shapes"] = jit(types.FunctionType(_shapes_loop.__code__, glb, "_shapes_loop"))
             glb["_owns"] = jit(_owns)
             glb["_column_inside"] = jit(types.FunctionType(_column_inside.__code__, glb,
                                                            "_column_inside"))
@@ -116,27 +118,12 @@ def _closest_point(ax, ay, az, bx, by, bz, cx, cy, cz, px, py, pz):
 
 
 def _shape(t, v, faces, nrm, centre, radius, ready):  # pragma: no cover - compiled by numba
-    """Unit normal, centroid and bounding-sphere radius of triangle t, computed on its first
-    use by a distance search (``ready[t]``): the inside tests never need them."""
+    """`_triangle_shape` of triangle t on its first use by a distance search (``ready[t]``):
+    the inside tests never need the shapes."""
     if ready[t]:
         return
     ready[t] = 1
-    a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-    for k in range(3):
-        centre[t, k] = (v[a, k] + v[b, k] + v[c, k]) / 3.0
-    r2 = 0.0
-    for q in (a, b, c):
-        dx, dy, dz = v[q, 0] - centre[t, 0], v[q, 1] - centre[t, 1], v[q, 2] - centre[t, 2]
-        r2 = max(r2, dx * dx + dy * dy + dz * dz)
-    radius[t] = np.sqrt(r2)
-    ux, uy, uz = v[b, 0] - v[a, 0], v[b, 1] - v[a, 1], v[b, 2] - v[a, 2]
-    wx, wy, wz = v[c, 0] - v[a, 0], v[c, 1] - v[a, 1], v[c, 2] - v[a, 2]
-    gx, gy, gz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-    length = np.sqrt(gx * gx + gy * gy + gz * gz)
-    if length > 0.0:
-        nrm[t, 0], nrm[t, 1], nrm[t, 2] = gx / length, gy / length, gz / length
-    else:
-        nrm[t, 0] = nrm[t, 1] = nrm[t, 2] = 0.0
+    _triangle_shape(t, v, faces, nrm, centre, radius)
 
 
 def _flood(label, comp, dims, stack, top, value, cid):  # pragma: no cover - numba
