@@ -168,6 +168,46 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
                         (twin // 3).reshape(-1, 3), n_vertices, oriented)
 
 
+def _vertex_bounds(v, lo, hi):  # pragma: no cover - compiled by numba
+    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place."""
+    for i in range(v.shape[0]):
+        for c in range(3):
+            lo[c] = min(lo[c], v[i, c])
+            hi[c] = max(hi[c], v[i, c])
+
+
+def _face_measure(v, i, j, k, tol2):  # pragma: no cover - compiled by numba
+    """Face (i, j, k) of vertices v: (every edge and the height over the first corner's
+    edges above ``tol2``, the signed volume term x 6, the sum of its edge lengths)."""
+    ax, ay, az = v[i, 0], v[i, 1], v[i, 2]
+    bx, by, bz = v[j, 0], v[j, 1], v[j, 2]
+    cx, cy, cz = v[k, 0], v[k, 1], v[k, 2]
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    bcx, bcy, bcz = cx - bx, cy - by, cz - bz
+    lab = np.sqrt(abx * abx + aby * aby + abz * abz)
+    lbc = np.sqrt(bcx * bcx + bcy * bcy + bcz * bcz)
+    lac = np.sqrt(acx * acx + acy * acy + acz * acz)
+    nx = aby * acz - abz * acy
+    ny = abz * acx - abx * acz
+    nz = abx * acy - aby * acx
+    area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
+    ok = min(lab, lbc, lac) > tol2 and area2 > tol2 * max(lab, lbc, lac)
+    return ok, ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx), lab + lbc + lac
+
+
+def compile_with_measures(fn):
+    """``fn`` compiled by numba with `_vertex_bounds` and `_face_measure` inlined into it
+    (numba resolves the globals a compiled function calls when it compiles it)."""
+    import types
+
+    import numba
+
+    inline = numba.njit(inline="always", nogil=True)
+    glb = dict(fn.__globals__, _vertex_bounds=inline(_vertex_bounds), _face_measure=inline(_face_measure))
+    return numba.njit(cache=True, nogil=True)(types.FunctionType(fn.__code__, glb, fn.__name__))
+
+
 _TOPOLOGY = []
 
 
@@ -175,11 +215,11 @@ def _topology_kernel():
     """`_topology_loop` compiled with numba, or None (then the array version)."""
     if not _TOPOLOGY:
         try:
-            import numba
+            import numba  # noqa: F401
         except ImportError:                                 # pragma: no cover - optional
             _TOPOLOGY.append(None)
         else:
-            _TOPOLOGY.append(numba.njit(cache=True, nogil=True)(_topology_loop))
+            _TOPOLOGY.append(compile_with_measures(_topology_loop))
     return _TOPOLOGY[0]
 
 
@@ -223,10 +263,7 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     edge_sum = 0.0
     geometry_ok = True
     if measure:  # the vertices' bounds (`fibres.surface._geometry_loop`)
-        for i in range(v.shape[0]):
-            for c in range(3):
-                v_lo[c] = min(v_lo[c], v[i, c])
-                v_hi[c] = max(v_hi[c], v[i, c])
+        _vertex_bounds(v, v_lo, v_hi)
     used = np.zeros(n_vertices if pieces else 0, dtype=np.bool_)
     for t in range(n_t):
         a0, a1, a2 = f[t, 0], f[t, 1], f[t, 2]
@@ -242,24 +279,11 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
             used[a1] = True
             used[a2] = True
         if measure:  # `fibres.surface._geometry_loop`, face t
-            ax, ay, az = v[a0, 0], v[a0, 1], v[a0, 2]
-            bx, by, bz = v[a1, 0], v[a1, 1], v[a1, 2]
-            cx, cy, cz = v[a2, 0], v[a2, 1], v[a2, 2]
-            abx, aby, abz = bx - ax, by - ay, bz - az
-            acx, acy, acz = cx - ax, cy - ay, cz - az
-            bcx, bcy, bcz = cx - bx, cy - by, cz - bz
-            lab = np.sqrt(abx * abx + aby * aby + abz * abz)
-            lbc = np.sqrt(bcx * bcx + bcy * bcy + bcz * bcz)
-            lac = np.sqrt(acx * acx + acy * acy + acz * acz)
-            nx = aby * acz - abz * acy
-            ny = abz * acx - abx * acz
-            nz = abx * acy - aby * acx
-            area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
-            if not (min(lab, lbc, lac) > tol2 and area2 > tol2 * max(lab, lbc, lac)):
+            face_ok, vol, edges_t = _face_measure(v, a0, a1, a2, tol2)
+            if not face_ok:
                 geometry_ok = False
-            volume += (ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz)
-                       + az * (bx * cy - by * cx))
-            edge_sum += lab + lbc + lac
+            volume += vol
+            edge_sum += edges_t
     for q in range(n_vertices):
         start[q + 1] += start[q]
     fill = start[:n_vertices].copy()

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .slicing import _face_measure, _vertex_bounds  # noqa: F401 - called by the compiled _geometry_loop
 
 __all__ = ["Surface", "as_surface", "as_points", "SurfaceRepairWarning", "UNITS",
            "check_muscle_scale"]
@@ -366,11 +367,13 @@ def _geometry_kernel():
     """`_geometry_loop` compiled with numba, or None (then numpy, component-wise)."""
     if not _GEOMETRY:
         try:
-            import numba
+            import numba  # noqa: F401
         except ImportError:                                     # pragma: no cover - optional
             _GEOMETRY.append(None)
         else:
-            _GEOMETRY.append(numba.njit(cache=True, nogil=True)(_geometry_loop))
+            from .slicing import compile_with_measures
+
+            _GEOMETRY.append(compile_with_measures(_geometry_loop))
     return _GEOMETRY[0]
 
 
@@ -383,29 +386,13 @@ def _geometry_loop(v, f, tol2):  # pragma: no cover - compiled by numba
     ok = True
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
-    for i in range(v.shape[0]):
-        for c in range(3):
-            lo[c] = min(lo[c], v[i, c])
-            hi[c] = max(hi[c], v[i, c])
+    _vertex_bounds(v, lo, hi)
     for t in range(f.shape[0]):
-        i, j, k = f[t, 0], f[t, 1], f[t, 2]
-        ax, ay, az = v[i, 0], v[i, 1], v[i, 2]
-        bx, by, bz = v[j, 0], v[j, 1], v[j, 2]
-        cx, cy, cz = v[k, 0], v[k, 1], v[k, 2]
-        abx, aby, abz = bx - ax, by - ay, bz - az
-        acx, acy, acz = cx - ax, cy - ay, cz - az
-        bcx, bcy, bcz = cx - bx, cy - by, cz - bz
-        lab = np.sqrt(abx * abx + aby * aby + abz * abz)
-        lbc = np.sqrt(bcx * bcx + bcy * bcy + bcz * bcz)
-        lac = np.sqrt(acx * acx + acy * acy + acz * acz)
-        nx = aby * acz - abz * acy
-        ny = abz * acx - abx * acz
-        nz = abx * acy - aby * acx
-        area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
-        if not (min(lab, lbc, lac) > tol2 and area2 > tol2 * max(lab, lbc, lac)):
+        face_ok, vol, edges_t = _face_measure(v, f[t, 0], f[t, 1], f[t, 2], tol2)
+        if not face_ok:
             ok = False
-        volume += ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
-        edge_sum += lab + lbc + lac
+        volume += vol
+        edge_sum += edges_t
     return ok, volume, edge_sum, lo, hi
 
 
