@@ -30,7 +30,19 @@ The chain (DESIGN.md), per muscle:
      are fixed on their bodies (most paths) the residuals vanish and fibres follow the surface.
    - ``"decompose"``: the paper's procedure per frame, ``fibres.decompose(..., plan=plan)`` on
      every wrapped surface (slower; fibre identity then rests on the plan's consistency).
-4. Per-fibre length = polyline arc length (sum of segment lengths).
+4. Per-fibre length = polyline arc length (sum of segment lengths). In ``"bind"`` mode it is
+   measured on a finer sampling of the same material fibre: every rest segment is cut into
+   ``LENGTH_SUBDIVISION`` (2) pieces whose points are carried as riders too, and the reported
+   polylines are every second point (exactly the points a plain binding would give). Why: a
+   material polyline stretched over a wrap surface keeps its vertex count on the arc while its
+   chords grow, so its length grows at the chords' distance from the axis, rho cos(dphi / 2),
+   not at rho (dphi: the angle one chord subtends). On the pulley test of
+   ``tests/analysis/test_run_cylinders.py`` (40 segments, dphi ~ 0.35 rad) that made fibre
+   moment arms up to 3.2 % of R short; with 2 pieces per segment 1.1 % (4: 1.2 %, the rest is
+   the radius drift with the volume scale and the vertex sampling of the radius). The length in
+   ``fibre_lengths.csv`` is therefore the finer curve's, which can exceed the reported
+   polyline's own length by the difference of their chord deficits (where fibres bend; on the
+   pulley test up to 0.76 mm, 0.23 %, at 120 degrees of wrap; zero on straight pieces).
 5. Per-fibre moment arms r = -dL/dq about every coordinate the muscle's action lines span, by
    central differences of the WHOLE chain (wrap + decompose with the frozen plan + length):
    ``r = -(L(q + h e_c) - L(q - h e_c)) / (2 h)``. All perturbed poses are extra frames of ONE
@@ -69,6 +81,9 @@ __all__ = ["run", "FD_STEP", "fibre_lengths", "select_frames"]
 FD_STEP = {"rotational": 1e-4, "translational": 1e-5, "coupled": 1e-4}
 #: how rest fibres reach every frame (module docstring)
 TRANSPORTS = ("bind", "decompose")
+#: ``"bind"`` transport: material points carried per rest fibre segment to measure its length
+#: (module docstring, step 4); the reported polylines are every LENGTH_SUBDIVISION-th of them
+LENGTH_SUBDIVISION = 2
 
 
 def fibre_lengths(points) -> np.ndarray:
@@ -335,6 +350,20 @@ def _with_points(att, p_ground, pose0, model, tf_data_ground):
     return dataclasses.replace(att, points=np.vstack([att.points, extra]))
 
 
+def _subdivided(points, m: int) -> np.ndarray:
+    """Fibre polylines (N, P, 3) with every segment cut into ``m`` equal pieces: (N, m (P - 1) + 1, 3).
+
+    The new points lie on the rest segments, so the rest length and every original point (each
+    ``m``-th) are unchanged; carried by the deformation they sample the deformed material curve
+    between the original points."""
+    p = np.asarray(points, dtype=float)
+    if m <= 1:
+        return p
+    t = np.arange(m) / m                                                         # (m,)
+    inner = p[:, :-1, None] + t[None, None, :, None] * (p[:, 1:, None] - p[:, :-1, None])
+    return np.concatenate([inner.reshape(p.shape[0], -1, 3), p[:, -1:]], axis=1)
+
+
 def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends):
     """Fibres carried by the belly deformation (F, N, P, 3), corrected so that their ends are
     ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the residuals
@@ -429,7 +458,8 @@ def _run_muscle(ctx, mspec):
         # rest surface + fibre points back to the mesh's own frame, wrapped together
         pose0 = rest_pose(ctx.model, sspec)
         tf_data_ground = np.linalg.inv(pose0.tf_ground_data)
-        both = np.vstack([rest.rest_vertices, bundle0.points.reshape(-1, 3)])
+        fine = _subdivided(bundle0.points, LENGTH_SUBDIVISION)          # (N, m (P - 1) + 1, 3)
+        both = np.vstack([rest.rest_vertices, fine.reshape(-1, 3)])
         both = both @ tf_data_ground[:3, :3].T + tf_data_ground[:3, 3]
         # the fibre end points lie in the attachment areas by construction (Kohout 2012 §3.4):
         # bind them as attachment points too, so they ride their bones exactly
@@ -441,8 +471,9 @@ def _run_muscle(ctx, mspec):
             (wrapped,) = wrap_surfaces(ctx.model, stacked, [bound])
         n_all = wrapped.vertices.shape[0]
         surfaces = wrapped.vertices[:, :n_v]
-        points = _ends_ride_their_bodies(wrapped.vertices[:, n_v:].reshape((n_all,) + shape), bundle0.points,
-                                         wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:])
+        fine = _ends_ride_their_bodies(wrapped.vertices[:, n_v:].reshape((n_all,) + fine.shape), fine,
+                                       wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:])
+        points = fine[:, :, ::LENGTH_SUBDIVISION]
     else:
         with _timed(timings, "wrap"):
             (wrapped,) = wrap_surfaces(ctx.model, stacked, [sspec])
@@ -460,7 +491,7 @@ def _run_muscle(ctx, mspec):
             finally:
                 bar.close()
     with _timed(timings, "lengths"):
-        lengths = fibre_lengths(points)                       # (F * (1 + 2K), N)
+        lengths = fibre_lengths(fine if ctx.transport == "bind" else points)   # (F * (1 + 2K), N)
     with _timed(timings, "moment_arms"):
         blocks = lengths.reshape(1 + 2 * len(coord_idx), n_f, -1)
         base = blocks[0]
