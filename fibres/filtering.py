@@ -190,11 +190,13 @@ def _vertices_faces(surface):
     return np.asarray(v, float), np.asarray(f, np.int64)
 
 
-def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None) -> np.ndarray:
+def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None,
+                   blocks=None) -> np.ndarray:
     """Vertex indices of an attachment area (module docstring), by brute force over the
     vertices, component-wise (no KD-tree of the surface: K landmarks need K distances per
-    vertex, cheaper than building a tree). ``vt`` (3, V) and ``mean_edge`` may be passed
-    when already computed."""
+    vertex, cheaper than building a tree; compiled: pruned by the vertex blocks' boxes,
+    `_blocks_loop`). ``vt`` (3, V), ``mean_edge`` and (compiled) ``blocks``
+    (`_blocks_loop` of ``vt``) may be passed when already computed."""
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
     landmarks = np.asarray(landmarks, float).reshape(-1, 3)
     radius = _mean_edge(vt, faces) if mean_edge is None else mean_edge
@@ -206,9 +208,10 @@ def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None) -> np.n
         radius = max(radius, float(near[h] if len(near) % 2 else (near[h - 1] + near[h]) / 2))
     kernels = _kernels()
     if kernels is not None:
-        nearest = kernels[0](vt, landmarks)
+        blocks = kernels[3](vt) if blocks is None else blocks
+        nearest = kernels[0](vt, landmarks, blocks)
         within = kernels[1](vt, np.ascontiguousarray(vertices[np.unique(nearest)]),
-                            radius * radius)
+                            radius * radius, blocks)
         within[nearest] = True          # the sorted union, without np.unique's sort
         return np.flatnonzero(within)
     d2 = _sq_distances(vt, landmarks)                                  # (K, V)
@@ -236,20 +239,26 @@ def _kernels():
             _KERNELS.append(None)
         else:
             jit = numba.njit(cache=True, nogil=True)
-            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_edge_sum_loop)))
+            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_edge_sum_loop),
+                             jit(_blocks_loop)))
     return _KERNELS[0]
 
 
-def _nearest_loop(vt, points):  # pragma: no cover - compiled by numba
-    """Index of the nearest of the vertices (3, V) to each point (K, 3) (first on ties).
+#: vertices per block of `_blocks_loop`
+_BLOCK = 64
 
-    The vertices are taken in blocks of 64 with their bounding boxes: a block whose box is
-    farther than the best distance so far cannot hold a nearer vertex (the rounded box
-    distance is at most the rounded vertex distance: rounding is monotone) and is skipped.
-    The search starts in the block with the nearest box, then scans the blocks in order,
-    keeping the first index among equal distances -- the plain scan's answer."""
+
+def _blocks_loop(vt):  # pragma: no cover - compiled by numba
+    """Bounding boxes (B, 6) (x lo, x hi, y lo, y hi, z lo, z hi) of the vertices (3, V) in
+    blocks of `_BLOCK` consecutive indices, for the pruned searches of `_nearest_loop` and
+    `_within_loop` (made once per `filter_choices` call, shared by both areas).
+
+    Pruning with them is exact: a vertex x in a block with box [lo, hi] has
+    ``|p - x| >= max(lo - p, p - hi, 0)`` per coordinate, and rounding (subtraction, square,
+    sum in the same order) is monotone, so the rounded box distance is at most the rounded
+    vertex distance."""
     n_v = vt.shape[1]
-    bs = 64
+    bs = _BLOCK
     n_b = (n_v + bs - 1) // bs
     box = np.empty((n_b, 6))
     for b in range(n_b):
@@ -260,6 +269,20 @@ def _nearest_loop(vt, points):  # pragma: no cover - compiled by numba
                 lo = min(lo, vt[c, i])
                 hi = max(hi, vt[c, i])
             box[b, 2 * c], box[b, 2 * c + 1] = lo, hi
+    return box
+
+
+def _nearest_loop(vt, points, box):  # pragma: no cover - compiled by numba
+    """Index of the nearest of the vertices (3, V) to each point (K, 3) (first on ties).
+
+    The vertices are taken in blocks of `_BLOCK` with their bounding boxes ``box``
+    (`_blocks_loop`): a block whose box is farther than the best distance so far cannot
+    hold a nearer vertex (exact, see there) and is skipped. The search starts in the block
+    with the nearest box, then scans the blocks in order, keeping the first index among
+    equal distances -- the plain scan's answer."""
+    n_v = vt.shape[1]
+    bs = _BLOCK
+    n_b = box.shape[0]
     out = np.zeros(points.shape[0], np.int64)
     lb = np.empty(n_b)
     for k in range(points.shape[0]):
@@ -288,17 +311,35 @@ def _nearest_loop(vt, points):  # pragma: no cover - compiled by numba
     return out
 
 
-def _within_loop(vt, points, r2):  # pragma: no cover - compiled by numba
-    """Whether each vertex (3, V) lies within squared distance r2 of some point (K, 3)
-    (point-major: the vertex loop has no exit and vectorises)."""
+def _within_loop(vt, points, r2, box):  # pragma: no cover - compiled by numba
+    """Whether each vertex (3, V) lies within squared distance r2 of some point (K, 3).
+
+    Block by block (``box``: `_blocks_loop`): only the points whose box distance is within
+    r2 are measured against the block's vertices (the others cannot be: exact, see
+    `_blocks_loop`), point-major (the vertex loop has no exit and vectorises); a block no
+    point reaches is skipped. The same answers as measuring every pair."""
     n_v = vt.shape[1]
+    bs = _BLOCK
     out = np.zeros(n_v, np.bool_)
     x, y, z = vt[0], vt[1], vt[2]
-    for k in range(points.shape[0]):
-        px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-        for i in range(n_v):
-            dx, dy, dz = px - x[i], py - y[i], pz - z[i]
-            out[i] |= dx * dx + dy * dy + dz * dz <= r2
+    near = np.empty(points.shape[0], np.int64)
+    for b in range(box.shape[0]):
+        n_near = 0
+        for k in range(points.shape[0]):
+            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+            gx = max(box[b, 0] - px, px - box[b, 1], 0.0)
+            gy = max(box[b, 2] - py, py - box[b, 3], 0.0)
+            gz = max(box[b, 4] - pz, pz - box[b, 5], 0.0)
+            if gx * gx + gy * gy + gz * gz <= r2:
+                near[n_near] = k
+                n_near += 1
+        i1 = min(b * bs + bs, n_v)
+        for q in range(n_near):
+            k = near[q]
+            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+            for i in range(b * bs, i1):
+                dx, dy, dz = px - x[i], py - y[i], pz - z[i]
+                out[i] |= dx * dx + dy * dy + dz * dz <= r2
     return out
 
 
@@ -475,9 +516,11 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     rows = np.arange(n)
     ends = [end for end in range(2) if cut[:, end].any()]
     # the areas' triangles of both ends with one pass over the faces
+    kernels = _kernels()
+    blocks = None if kernels is None else kernels[3](vt)    # the vertex blocks, once
     areas = dict(zip(ends, regions_triangles(
-        faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge)
-                for end in ends], len(verts))))
+        faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge,
+                                blocks) for end in ends], len(verts))))
     for end, (landmarks, c, a, b) in enumerate((
             (origin, c_o, segment[:, 0] + 1, segment[:, 0]),     # ray towards the origin
             (insertion, c_i, segment[:, 1], segment[:, 1] + 1))):  # ray towards the insertion

@@ -504,7 +504,34 @@ def test_compiled_nearest_vertex_is_the_first_nearest():
             pts = np.concatenate([v[rng.integers(0, n_v, 5)],           # on a vertex (tie)
                                   rng.normal(0, 30, (5, 3)), [[1e3, -1e3, 5e2]]])
             d2 = ((vt.T[None] - pts[:, None]) ** 2).sum(-1)
-            np.testing.assert_array_equal(kernels[0](vt, pts), np.argmin(d2, axis=1))
+            np.testing.assert_array_equal(kernels[0](vt, pts, kernels[3](vt)),
+                                          np.argmin(d2, axis=1))
+
+
+def test_compiled_within_is_every_pair_measured():
+    # the block-pruned radius test marks exactly the vertices that measuring every
+    # (point, vertex) pair with the same arithmetic marks: coherent and shuffled clouds,
+    # radii from none to all, and vertices placed exactly on the radius (boundary ties)
+    import fibres.filtering as fl
+
+    kernels = fl._kernels()
+    if kernels is None:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(12)
+    for n_v in (1, 63, 64, 65, 1000, 5000):
+        v = np.cumsum(rng.normal(size=(n_v, 3)), axis=0)
+        for order in (np.arange(n_v), rng.permutation(n_v)):
+            vt = np.ascontiguousarray(v[order].T)
+            pts = np.concatenate([v[rng.integers(0, n_v, 4)], rng.normal(0, 30, (3, 3))])
+            d2 = ((pts[:, 0, None] - vt[0]) ** 2 + (pts[:, 1, None] - vt[1]) ** 2) \
+                + (pts[:, 2, None] - vt[2]) ** 2                          # (K, V), the order
+            on = d2[0, rng.integers(0, n_v)]                # a radius met exactly by a vertex
+            for r2 in (0.0, 1.0, 25.0, on, 1e6):
+                ref = (d2 <= r2).any(axis=0)
+                got = kernels[1](vt, pts, r2, kernels[3](vt))
+                np.testing.assert_array_equal(got, ref)
+                if r2 == on:
+                    assert ref.any()
 
 
 def test_regions_triangles_is_region_triangles_of_each_area(monkeypatch):
