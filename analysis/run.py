@@ -373,7 +373,9 @@ def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends):
     u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, P)
     e0 = origin_ends - carried[:, :, 0]
     e1 = insertion_ends - carried[:, :, -1]
-    return carried + (1.0 - u)[None, :, :, None] * e0[:, :, None] + u[None, :, :, None] * e1[:, :, None]
+    out = carried + e0[:, :, None]                       # = ... + (1 - u) e0 + u e1, two temporaries
+    out += u[None, :, :, None] * (e1 - e0)[:, :, None]
+    return out
 
 
 def _api(package: str, name: str, module: str):

@@ -31,7 +31,9 @@ line are the rotation-minimising frames of Wang et al., ACM TOG 2008):
    ``k (x N + y B)`` through the thickness where they point into the object
    (`motion.surface_collision.WrapObstacle.squeezer`), obstacles (wrap objects, bones)
    push what still penetrates out (`motion.surface_collision`), and ``k`` is re-solved by a
-   fixed number of secant steps.
+   fixed number of secant steps (on the vertices the faces use; trailing face-less riders,
+   e.g. fibre points, are squeezed and pushed once at the final ``k``: every step acts on each
+   vertex alone, so that gives the same numbers).
    All steps are smooth functions of the body poses and the line points, so finite
    differences of anything measured on the surface are meaningful.
 
@@ -259,8 +261,8 @@ class SurfaceBinding:
             k = solve_radial_scale(coeffs, target)
         else:
             k = np.ones(p.shape[1])
-        vertices = combine_vf(p, q, k)
         if not obstacles:
+            vertices = combine_vf(p, q, k)
             if preserve_volume:
                 volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
             else:
@@ -271,22 +273,33 @@ class SurfaceBinding:
 
         rounds = 1 if len(obstacles) < 2 else 2
 
-        squeezers = [o.squeezer(p) for o in obstacles if hasattr(o, "squeezer")]
+        def pusher(pp, qq, obs):
+            squeezers = [o.squeezer(pp) for o in obs if hasattr(o, "squeezer")]
 
-        def pushed(kk):
-            w = kk[:, None, None] * q
-            # wrap objects first squeeze the cross-section through its thickness (smooth in s and
-            # in the poses, layers keep their order); the push-outs then remove what is left
-            for squeeze in squeezers:
-                w = squeeze(w)
-            v = p + w
-            # several obstacles: alternate projections, so a vertex squeezed between two bones
-            # is not pushed out of one into the other
-            for _ in range(rounds):
-                for obstacle in obstacles:
-                    v = obstacle.push_out(v)
-            return v, mesh_volume(v, self.faces)
+            def pushed(kk):
+                w = kk[:, None, None] * qq
+                # wrap objects first squeeze the cross-section through its thickness (smooth in s
+                # and in the poses, layers keep their order); the push-outs then remove what is left
+                for squeeze in squeezers:
+                    w = squeeze(w)
+                v = pp + w
+                # several obstacles: alternate projections, so a vertex squeezed between two
+                # bones is not pushed out of one into the other
+                for _ in range(rounds):
+                    for obstacle in obs:
+                        v = obstacle.push_out(v)
+                return v, mesh_volume(v, self.faces)
 
+            return pushed
+
+        # every step acts on each vertex alone and the volume needs only the faces' vertices: the
+        # secant steps move the leading vertices the faces use, the trailing face-less ones
+        # (riders, e.g. fibre points) are placed once at the final k -- the same numbers
+        n_used = int(self.faces.max()) + 1
+        leading = [o.leading(n_used) if hasattr(o, "leading") else None for o in obstacles]
+        split = n_used < p.shape[1] and preserve_volume and push_iterations > 0 and all(
+            o is not None for o in leading)
+        pushed = pusher(p[:, :n_used], q[:, :n_used], leading) if split else pusher(p, q, obstacles)
         vertices, volume = pushed(k)
         if preserve_volume and push_iterations > 0:
             # secant on vol(k) - target, starting with the cross-section estimate vol ~ k**2
@@ -301,7 +314,7 @@ class SurfaceBinding:
                 k_next = np.where(ok, k - g * dk / np.where(ok, dg, 1.0), k)
                 k_prev, g_prev = k, g
                 k = np.clip(k_next, 0.25, 4.0)
-            vertices, volume = pushed(k)
+            vertices, volume = (pusher(p, q, obstacles) if split else pushed)(k)
         return SurfaceFrames(vertices, k, volume, target)
 
 

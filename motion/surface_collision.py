@@ -39,7 +39,7 @@ smoothly onto a pulley instead of at the corner a pure projection leaves where t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -171,6 +171,10 @@ class WrapObstacle:
         grad = scaled / self.radii
         n = grad / np.maximum(np.linalg.norm(grad, axis=-1), 1e-12)[..., None]
         return d, n, np.ones_like(rad)
+
+    def leading(self, n: int) -> "WrapObstacle":
+        """The obstacle for the first ``n`` vertices of its surface (itself: nothing per vertex)."""
+        return self
 
     def squeezer(self, centres):
         """The through-thickness squeeze of offsets from ``centres`` (F, V, 3): a function of offsets.
@@ -592,6 +596,10 @@ class BoneObstacle:
         # the floor keeps CLEARANCE (the grid's distance error) where the rest position allows
         return cls(distance, np.asarray(tf_ground_body, dtype=float), np.minimum(d, CLEARANCE), side,
                    strength, margin)
+
+    def leading(self, n: int) -> "BoneObstacle":
+        """The obstacle for the first ``n`` vertices of its surface (per-vertex arrays cut)."""
+        return replace(self, allowed=self.allowed[:n], side=self.side[:n], strength=self.strength[:n])
 
     def push_out(self, vertices) -> np.ndarray:
         """Vertices (F, V, 3) in ground pushed out to ``allowed`` (module docstring)."""

@@ -208,3 +208,18 @@ def test_fd_moment_arms_agree_with_a_2_degree_difference_quotient(tmp_path, pull
     r_fd = m.fibre_moment_arms[1:-1, :, 0]
     ok = np.abs(r_fd - r_quot) <= 0.05 * np.abs(r_quot)
     assert ok.mean() >= 0.95, f"only {ok.mean():.1%} agree"
+
+
+def test_length_points_cut_each_rest_segment_into_equal_pieces():
+    """The extra carried points lie on the rest segments: the original points are every m-th,
+    each segment is cut into m equal pieces and the rest length is unchanged (round-off)."""
+    from analysis.run import _subdivided, fibre_lengths
+
+    pts = np.random.default_rng(5).normal(size=(4, 6, 3))
+    fine = _subdivided(pts, 3)
+    assert fine.shape == (4, 16, 3)
+    np.testing.assert_array_equal(fine[:, ::3], pts)
+    np.testing.assert_allclose(fine[:, 1::3], pts[:, :-1] + (pts[:, 1:] - pts[:, :-1]) / 3, atol=1e-15)
+    np.testing.assert_allclose(fine[:, 2::3], pts[:, :-1] + 2 * (pts[:, 1:] - pts[:, :-1]) / 3, atol=1e-15)
+    np.testing.assert_allclose(fibre_lengths(fine), fibre_lengths(pts), rtol=1e-14)
+    assert _subdivided(pts, 1) is pts or np.array_equal(_subdivided(pts, 1), pts)

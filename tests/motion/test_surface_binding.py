@@ -319,3 +319,61 @@ def test_riders_must_be_trailing_face_less_vertices():
     for bad in (4, -1, len(both) + 1):        # 4: the last surface vertex is used by a face
         with pytest.raises(ValueError, match="riders"):
             MuscleSurfaceSpec("m", ("line",), vertices=both, faces=faces, riders=bad)
+
+
+def test_riders_placed_once_at_the_final_scale_are_the_same_numbers():
+    """With obstacles, the secant steps on k move only the vertices the faces use; face-less
+    riders are placed once at the final k. Every step acts on each vertex alone, so a rider that
+    copies a mid-belly surface vertex lands exactly on it, the surface is exactly the surface
+    deformed without riders, and an obstacle without ``leading`` (full passes) gives the same."""
+    radius_p = 0.015
+    verts, faces = capped_cylinder(n_around=32, n_rings=41)
+    verts = verts + [0.0, radius_p + 0.5 * RADIUS, 0.0]        # half the thickness inside the pulley
+    origin = np.array([0.0, radius_p + 0.5 * RADIUS, 0])
+    insertion = origin + [LENGTH, 0, 0]
+    theta = np.deg2rad([20.0, 60.0, 100.0])
+    centre = np.array([0.1, 0.0, 0.0])
+    tf_ins = pin_about(centre, theta)
+    line = np.stack([origin + 0 * theta[:, None], tf_ins[:, :3, :3] @ insertion + tf_ins[:, :3, 3]], axis=1)
+    tf_pulley = np.eye(4)
+    tf_pulley[:3, 3] = centre
+    pulley = WrapObstacle("cylinder", tf_pulley, np.array([radius_p, radius_p, np.inf]), margin=5e-4)
+    ends = (np.eye(4), np.eye(4), origin[None], insertion[None])
+    plain = bind_surface(verts, faces, [np.array([origin, insertion])], *ends)
+    mid = np.flatnonzero((plain.weight_belly == 1.0) & (np.abs(verts[:, 0] - 0.1) < 0.03))
+    assert len(mid) > 10
+    riding = bind_surface(np.vstack([verts, verts[mid]]), faces, [np.array([origin, insertion])], *ends,
+                          free_vertices=np.arange(len(verts), len(verts) + len(mid)))
+    tf_org = np.tile(np.eye(4), (3, 1, 1))
+    ref = plain.deform([line], tf_org, tf_ins, obstacles=[pulley])
+    got = riding.deform([line], tf_org, tf_ins, obstacles=[pulley])
+
+    class Full:   # the same obstacle without `leading`: every pass over all vertices
+        squeezer, push_out = pulley.squeezer, pulley.push_out
+
+    full = riding.deform([line], tf_org, tf_ins, obstacles=[Full()])
+    squeezed = np.linalg.norm((ref.vertices[:, mid] - centre)[..., :2], axis=-1) < radius_p + 0.5 * RADIUS
+    assert squeezed.any()                                     # the squeeze and push did act on them
+    np.testing.assert_array_equal(got.vertices[:, :len(verts)], ref.vertices)
+    np.testing.assert_array_equal(got.radial_scale, ref.radial_scale)
+    np.testing.assert_array_equal(got.vertices[:, len(verts):], ref.vertices[:, mid])
+    np.testing.assert_array_equal(full.vertices, got.vertices)
+
+
+def test_bone_obstacle_leading_is_the_first_vertices():
+    """`BoneObstacle.leading(n)` pushes the first n vertices exactly as the whole obstacle does."""
+    import trimesh
+
+    from motion.surface_collision import BoneDistance, BoneObstacle
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.02)
+    dist = BoneDistance.from_mesh(ball.vertices, ball.faces, spacing=2e-3)
+    rng = np.random.default_rng(3)
+    rest = rng.normal(size=(60, 3))
+    rest *= (0.021 + 0.01 * rng.random(60))[:, None] / np.linalg.norm(rest, axis=1, keepdims=True)
+    tf = np.tile(np.eye(4), (2, 1, 1))
+    obstacle = BoneObstacle.bind(dist, tf, rest, np.eye(4))
+    now = np.stack([rest * 0.9, rest * 0.8])                  # pressed into the ball
+    whole = obstacle.push_out(now)
+    assert np.abs(whole - now).max() > 1e-3
+    np.testing.assert_array_equal(obstacle.leading(40).push_out(now[:, :40]), whole[:, :40])
