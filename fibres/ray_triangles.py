@@ -170,8 +170,23 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2,
     for k in range(n_tri):
         for i in range(3):
             n_id = max(n_id, vid[k, i] + 1)
-    seen = np.full(n_id, -1, np.int64)          # ray whose frame holds the projection
-    proj = np.empty((n_id, 3))                  # corner id -> (u, v, t) in that frame
+    # the distinct corners (equal ids: equal points), numbered compactly: each ray
+    # projects all of them into its frame in one vectorised pass for the box bounds
+    cmap = np.full(n_id, -1, np.int64)
+    cidx = np.empty((n_tri, 3), np.int64)
+    n_u = 0
+    for k in range(n_tri):
+        for i in range(3):
+            q = vid[k, i]
+            if cmap[q] < 0:
+                cmap[q] = n_u
+                n_u += 1
+            cidx[k, i] = cmap[q]
+    ux, uy, uz = np.empty(n_u), np.empty(n_u), np.empty(n_u)
+    for k in range(n_tri):
+        for i in range(3):
+            ux[cidx[k, i]], uy[cidx[k, i]], uz[cidx[k, i]] = tv[k, i, 0], tv[k, i, 1], tv[k, i, 2]
+    pu_all, pv_all, pt_all = np.empty(n_u), np.empty(n_u), np.empty(n_u)
     # per-triangle constants of the tests, computed once (the same operations as per pair)
     te1, te2, tnrm = np.empty((n_tri, 3)), np.empty((n_tri, 3)), np.empty((n_tri, 3))
     tnn, tthr = np.empty(n_tri), np.empty(n_tri)
@@ -257,6 +272,13 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2,
             b_touch[:] = bb3
         # candidates: the triangles neither bound rules out (rank = index)
         thr = max(min(best_d2, within2), eps2) * (1.0 + 1e-9)
+        e0, e1, e2 = p1[0], p1[1], p1[2]
+        f0, f1, f2 = p2[0], p2[1], p2[2]
+        for q in range(n_u):  # every corner in the ray's frame (u, v, t)
+            qx, qy, qz = ux[q] - s0, uy[q] - s1, uz[q] - s2
+            pu_all[q] = qx * e0 + qy * e1 + qz * e2
+            pv_all[q] = qx * f0 + qy * f1 + qz * f2
+            pt_all[q] = qx * d0 + qy * d1 + qz * d2_
         n_c = 0
         for k in range(n_tri):
             lb = lower[k]
@@ -264,17 +286,11 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2,
                 continue
             u_lo, u_hi, v_lo, v_hi, t_hi = np.inf, -np.inf, np.inf, -np.inf, -np.inf
             for i in range(3):
-                q = vid[k, i]
-                if seen[q] != n:
-                    seen[q] = n
-                    qx, qy, qz = cs[i, 0, k] - s0, cs[i, 1, k] - s1, cs[i, 2, k] - s2
-                    proj[q, 0] = qx * p1[0] + qy * p1[1] + qz * p1[2]
-                    proj[q, 1] = qx * p2[0] + qy * p2[1] + qz * p2[2]
-                    proj[q, 2] = qx * d0 + qy * d1 + qz * d2_
-                pu, pv = proj[q, 0], proj[q, 1]
+                q = cidx[k, i]
+                pu, pv = pu_all[q], pv_all[q]
                 u_lo, u_hi = min(u_lo, pu), max(u_hi, pu)
                 v_lo, v_hi = min(v_lo, pv), max(v_hi, pv)
-                t_hi = max(t_hi, proj[q, 2])
+                t_hi = max(t_hi, pt_all[q])
             gu = max(max(u_lo, -u_hi), 0.0)
             gv = max(max(v_lo, -v_hi), 0.0)
             gt = max(-t_hi, 0.0)
