@@ -89,7 +89,9 @@ def _extents_loop(a, b, ct, st, out):  # pragma: no cover - compiled by numba
 
 def _nearest_loop(area, landmarks, out):  # pragma: no cover - compiled by numba
     """``out[j, k]``: distance from area point (j, k) (J, Ka, 3) to its closest landmark
-    (K, 3), with the operations of the array version (``(dx dx + dy dy) + dz dz``)."""
+    (K, 3), with the operations of the array version (``(dx dx + dy dy) + dz dz``). One
+    root per area point: the square root is correctly rounded and non-decreasing, so the
+    root of the smallest square is the smallest root, bit for bit."""
     for j in range(area.shape[0]):
         for k in range(area.shape[1]):
             best = np.inf
@@ -97,8 +99,8 @@ def _nearest_loop(area, landmarks, out):  # pragma: no cover - compiled by numba
                 dx = area[j, k, 0] - landmarks[m, 0]
                 dy = area[j, k, 1] - landmarks[m, 1]
                 dz = area[j, k, 2] - landmarks[m, 2]
-                best = min(best, np.sqrt(dx * dx + dy * dy + dz * dz))
-            out[j, k] = best
+                best = min(best, dx * dx + dy * dy + dz * dz)
+            out[j, k] = np.sqrt(best)
 
 
 def _centred_loop(v, c):  # pragma: no cover - compiled by numba

@@ -331,3 +331,18 @@ def test_prepared_vertices_give_the_same_frame_and_box_bit_for_bit(template, axi
         for name in ("corner", "axes", "extents", "scores"):
             np.testing.assert_array_equal(getattr(b1, name), getattr(b, name))
         assert b.angle_index == b1.angle_index
+
+
+def test_compiled_closest_sum_equals_numpy_bit_for_bit(monkeypatch):
+    # one root per area point (the root of the smallest square) gives numpy's smallest
+    # root bit for bit: random areas, landmarks repeated (exact ties) and on area points
+    pytest.importorskip("numba")
+    from fibres import fitting
+
+    rng = np.random.default_rng(4)
+    area = rng.normal(size=(72, 25, 3))
+    lms = np.concatenate([rng.normal(size=(6, 3)), area[3, :2]])
+    lms = np.concatenate([lms, lms[:2]])
+    got = fitting._closest_sum(area, lms)
+    monkeypatch.setattr(fitting, "_FIT", [None])
+    np.testing.assert_array_equal(got, fitting._closest_sum(area, lms))
