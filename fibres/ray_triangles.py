@@ -404,13 +404,30 @@ def _regions_loop(faces, flat, starts, n_vertices):  # pragma: no cover - compil
             mark[flat[q]] |= np.uint8(1 << r)
     full = np.empty((n_r, n_t), np.int64)
     n_full = np.zeros(n_r, np.int64)
+    # the owner of every marked vertex in the same pass: the array version scans the faces
+    # corner by corner (column 0, 1, 2, each in face order) and the last face wins, i.e.
+    # the last face in the highest column holding the vertex (the test on a lone vertex
+    # depends on the vertex only)
+    owner = np.full(n_vertices, -1, np.int64)
+    o_col = np.zeros(n_vertices, np.int8)
     for t in range(n_t):
-        m = mark[faces[t, 0]] & mark[faces[t, 1]] & mark[faces[t, 2]]
-        if m:
-            for r in range(n_r):
-                if m & (1 << r):
-                    full[r, n_full[r]] = t
-                    n_full[r] += 1
+        x0, x1, x2 = faces[t, 0], faces[t, 1], faces[t, 2]
+        m0, m1, m2 = mark[x0], mark[x1], mark[x2]
+        if m0 | m1 | m2:
+            if m0 and o_col[x0] <= 0:
+                owner[x0] = t
+            if m1 and o_col[x1] <= 1:
+                owner[x1] = t
+                o_col[x1] = 1
+            if m2:
+                owner[x2] = t
+                o_col[x2] = 2
+            m = m0 & m1 & m2
+            if m:
+                for r in range(n_r):
+                    if m & (1 << r):
+                        full[r, n_full[r]] = t
+                        n_full[r] += 1
     covered = np.zeros((n_r, n_vertices), np.bool_)
     out = np.zeros(n_r + 1, np.int64)
     n_lone = np.zeros(n_r, np.int64)
@@ -425,7 +442,6 @@ def _regions_loop(faces, flat, starts, n_vertices):  # pragma: no cover - compil
         out[r + 1] = out[r] + n_full[r] + n_lone[r]
     corners = np.empty((out[n_r], 3), np.int64)
     face = np.empty(out[n_r], np.int64)
-    owner = np.full(n_vertices, -1, np.int64)
     for r in range(n_r):
         o = out[r]
         for q in range(n_full[r]):
@@ -434,12 +450,6 @@ def _regions_loop(faces, flat, starts, n_vertices):  # pragma: no cover - compil
                 faces[t, 0], faces[t, 1], faces[t, 2])
             face[o + q] = t
         if n_lone[r]:
-            bit = np.uint8(1 << r)
-            for j in range(3):  # corner by corner, the last face wins (as the array version)
-                for t in range(n_t):
-                    x = faces[t, j]
-                    if (mark[x] & bit) and not covered[r, x]:
-                        owner[x] = t
             q = o + n_full[r]
             for i in range(starts[r], starts[r + 1]):
                 x = flat[i]
