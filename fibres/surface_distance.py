@@ -22,11 +22,17 @@ are labelled inside or outside: those face-connected to the border through empty
 outside, and every other face-connected component of empty cells takes the sign of its first
 cell's centre (the segment between the centres of two face-adjacent empty cells would cross the
 surface inside one of them, so a component is all inside or all outside; outside pockets
-enclosed by surface cells exist in narrow folds). With ``watch = 0`` (`fibres.containment`:
-only outside points matter) a point in a surface cell is classified by ray parity first
-(`_column_inside`) and only outside points are measured. A point in an empty inside cell is
-inside; if no surface cell touches its cell it is deeper than one cell (``s = -inf``),
-otherwise it looks for triangles within ``watch`` only. Other points visit rings of cells
+enclosed by surface cells exist in narrow folds). With ``watch`` below `reach`
+(`fibres.containment`: only points outside or within a thin band inside matter) a point in a
+surface cell is classified by ray parity first (`_column_inside`); an inside one looks for
+triangles within ``watch`` only (``watch = 0``: not at all, ``s = -inf``). A point in an empty
+inside cell is inside; if no surface cell touches its cell it is deeper than one cell
+(``s = -inf``; so ``watch`` must not exceed the cell size), otherwise it looks for triangles
+within ``watch`` only. An inside point with no triangle within ``watch`` gets ``s = -inf``;
+one with a triangle within ``watch`` (< `reach`) looks again within ``d_min + KAPPA tau``
+(every triangle of its blend);
+one with a distance gets the negative sign whatever the blend's vote (not with ``offset``:
+`SurfaceGrid.signed_distance`, whose signed normal offset is signed by itself). Other points visit rings of cells
 around their own until the ring's distance exceeds the current bound ``min(d_min + KAPPA tau,
 reach)``, skipping empty cells, far cells and triangles too far by a lower bound (the distance
 to the triangle's plane and, within it, to its bounding circle). Compiled with numba; the numpy
@@ -42,6 +48,10 @@ __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
 
 #: triangles farther than d_min + KAPPA tau get no weight in the blend
 KAPPA = 8.0
+#: ``offset`` mode: the normal offset within OFFSET_NEAR tau of the surface, the signed
+#: distance beyond OFFSET_FAR tau, smoothstep between (the blend's vote, which signs the
+#: distance, and the exact inside test disagree only within ~0.9 tau: tests)
+OFFSET_NEAR, OFFSET_FAR = 2.0, 4.0
 #: grid cell size in mean edge lengths
 CELL_EDGES = 1.5
 
@@ -261,7 +271,7 @@ def _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label, dims, 
 
 
 def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, dims, start,
-                items, label, labelled, reach, watch, tau, kappa, out_s,
+                items, label, labelled, reach, watch, tau, kappa, offset, out_s,
                 out_n):  # pragma: no cover - numba
     """The grid search of the module docstring, then `_blend`, for every point. The
     triangles' shapes (`_shape`; ``ready`` (T + 1,): per triangle, then all) are made when
@@ -299,14 +309,22 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
                     out_s[p] = -np.inf
                     out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
                     continue
-            elif labelled and watch <= 0.0 and label[q] == 1:
+            elif labelled and watch < reach and label[q] == 1:
                 if parity.shape[0] == 0:
                     parity = np.full(n_tri, -1, np.int32)
                 if _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label,
                                   dims, lo, cell, parity, p):
-                    out_s[p] = -np.inf          # inside (ray parity): no distance wanted
-                    out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
-                    continue
+                    if watch <= 0.0:
+                        out_s[p] = -np.inf      # inside (ray parity): no distance wanted
+                        out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
+                        continue
+                    enclosed = True             # inside: look within `watch` only
+                    lim = watch
+        # an inside point that looks within a short `watch` only: triangles rejected by
+        # their vertex box, shapes made only for those found within it (few points of a
+        # band need them, and making every shape costs more than the whole search)
+        narrow = enclosed and watch < reach
+        if 0 <= ci < nx and 0 <= cj < ny and 0 <= ck < nz and not narrow:
             if not lazy and ready[n_tri] == 0:   # a distance search: every shape, once
                 _shapes(v, faces, nrm, centre, radius)
                 ready[:] = 1
@@ -325,82 +343,107 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
                                             v[b, 2], v[c, 0], v[c, 1], v[c, 2], px, py, pz)
                 dx, dy, dz = px - qx, py - qy, pz - qz
                 lim = min(lim, np.sqrt(dx * dx + dy * dy + dz * dz) + keep)
-        if not lazy and ready[n_tri] == 0:   # (a point beyond the grid's box)
+        if not lazy and not narrow and ready[n_tri] == 0:   # (a point beyond the grid's box)
             _shapes(v, faces, nrm, centre, radius)
             ready[:] = 1
         if stamp.shape[0] == 0:
             stamp = np.full(n_tri, -1, np.int32)
-        best = np.inf
-        nb = 0
-        r = 0
-        while (r - 1) * cell <= lim:
-            for di in range(-r, r + 1):
-                i = ci + di
-                if i < 0 or i >= nx:
-                    continue
-                gx = max(lo[0] + i * cell - px, px - lo[0] - (i + 1) * cell, 0.0)
-                for dj in range(-r, r + 1):
-                    j = cj + dj
-                    if j < 0 or j >= ny:
+        lim0 = lim
+        for attempt in range(2):  # inside points: a second pass when one within watch
+            mark = p if attempt == 0 else -2 - p  # (a fresh stamp for the pass)
+            best = np.inf
+            nb = 0
+            r = 0
+            while (r - 1) * cell <= lim:
+                for di in range(-r, r + 1):
+                    i = ci + di
+                    if i < 0 or i >= nx:
                         continue
-                    gy = max(lo[1] + j * cell - py, py - lo[1] - (j + 1) * cell, 0.0)
-                    step = 1 if (abs(di) == r or abs(dj) == r or r == 0) else 2 * r
-                    for k in range(ck - r, ck + r + 1, step):
-                        if k < 0 or k >= nz:
+                    gx = max(lo[0] + i * cell - px, px - lo[0] - (i + 1) * cell, 0.0)
+                    for dj in range(-r, r + 1):
+                        j = cj + dj
+                        if j < 0 or j >= ny:
                             continue
-                        q = (i * ny + j) * nz + k
-                        if start[q] == start[q + 1]:
-                            continue
-                        gz = max(lo[2] + k * cell - pz, pz - lo[2] - (k + 1) * cell, 0.0)
-                        if gx * gx + gy * gy + gz * gz > lim * lim:
-                            continue
-                        for e in range(start[q], start[q + 1]):
-                            t = items[e]
-                            if stamp[t] == p:
+                        gy = max(lo[1] + j * cell - py, py - lo[1] - (j + 1) * cell, 0.0)
+                        step = 1 if (abs(di) == r or abs(dj) == r or r == 0) else 2 * r
+                        for k in range(ck - r, ck + r + 1, step):
+                            if k < 0 or k >= nz:
                                 continue
-                            stamp[t] = p
-                            if lazy and ready[t] == 0:
-                                _shape(t, v, faces, nrm, centre, radius, ready)
-                            # lower bound: the plane distance h and the in-plane distance
-                            # beyond the bounding circle (centre in the plane, radius r)
-                            ex, ey, ez = px - centre[t, 0], py - centre[t, 1], pz - centre[t, 2]
-                            e2 = ex * ex + ey * ey + ez * ez
-                            h = ex * nrm[t, 0] + ey * nrm[t, 1] + ez * nrm[t, 2]
-                            w = max(np.sqrt(max(e2 - h * h, 0.0)) - radius[t], 0.0)
-                            if h * h + w * w > lim * lim:
+                            q = (i * ny + j) * nz + k
+                            if start[q] == start[q + 1]:
                                 continue
-                            a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-                            qx, qy, qz = _closest_point(v[a, 0], v[a, 1], v[a, 2], v[b, 0],
-                                                        v[b, 1], v[b, 2], v[c, 0], v[c, 1],
-                                                        v[c, 2], px, py, pz)
-                            dx, dy, dz = px - qx, py - qy, pz - qz
-                            d = np.sqrt(dx * dx + dy * dy + dz * dz)
-                            if d > lim:
+                            gz = max(lo[2] + k * cell - pz, pz - lo[2] - (k + 1) * cell, 0.0)
+                            if gx * gx + gy * gy + gz * gz > lim * lim:
                                 continue
-                            if nb == cap:  # drop what can no longer count
-                                m = 0
-                                for u in range(nb):
-                                    if bd[u] <= best + keep:
-                                        bd[m], bx[m], by[m], bz[m], bt[m] = \
-                                            bd[u], bx[u], by[u], bz[u], bt[u]
-                                        m += 1
-                                nb = m
-                                if nb == cap:
-                                    raise ValueError("more than 4096 triangles tie")
-                            bd[nb], bx[nb], by[nb], bz[nb], bt[nb] = d, dx, dy, dz, t
-                            nb += 1
-                            if d < best:
-                                best = d
-                                lim = min(best + keep, lim)
-            r += 1
-        _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p)
-        if enclosed and np.isfinite(out_s[p]):
+                            for e in range(start[q], start[q + 1]):
+                                t = items[e]
+                                if stamp[t] == mark:
+                                    continue
+                                stamp[t] = mark
+                                a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+                                if narrow:   # lower bound: the vertex box
+                                    if (min(v[a, 0], v[b, 0], v[c, 0]) > px + lim
+                                            or max(v[a, 0], v[b, 0], v[c, 0]) < px - lim
+                                            or min(v[a, 1], v[b, 1], v[c, 1]) > py + lim
+                                            or max(v[a, 1], v[b, 1], v[c, 1]) < py - lim
+                                            or min(v[a, 2], v[b, 2], v[c, 2]) > pz + lim
+                                            or max(v[a, 2], v[b, 2], v[c, 2]) < pz - lim):
+                                        continue
+                                else:
+                                    if lazy and ready[t] == 0:
+                                        _shape(t, v, faces, nrm, centre, radius, ready)
+                                    # lower bound: the plane distance h and the in-plane
+                                    # distance beyond the bounding circle (centre in the
+                                    # plane, radius r)
+                                    ex = px - centre[t, 0]
+                                    ey = py - centre[t, 1]
+                                    ez = pz - centre[t, 2]
+                                    e2 = ex * ex + ey * ey + ez * ez
+                                    h = ex * nrm[t, 0] + ey * nrm[t, 1] + ez * nrm[t, 2]
+                                    w = max(np.sqrt(max(e2 - h * h, 0.0)) - radius[t], 0.0)
+                                    if h * h + w * w > lim * lim:
+                                        continue
+                                qx, qy, qz = _closest_point(v[a, 0], v[a, 1], v[a, 2], v[b, 0],
+                                                            v[b, 1], v[b, 2], v[c, 0], v[c, 1],
+                                                            v[c, 2], px, py, pz)
+                                dx, dy, dz = px - qx, py - qy, pz - qz
+                                d = np.sqrt(dx * dx + dy * dy + dz * dz)
+                                if d > lim:
+                                    continue
+                                if narrow and ready[t] == 0:     # its normal, for the blend
+                                    _shape(t, v, faces, nrm, centre, radius, ready)
+                                if nb == cap:  # drop what can no longer count
+                                    m = 0
+                                    for u in range(nb):
+                                        if bd[u] <= best + keep:
+                                            bd[m], bx[m], by[m], bz[m], bt[m] = \
+                                                bd[u], bx[u], by[u], bz[u], bt[u]
+                                            m += 1
+                                    nb = m
+                                    if nb == cap:
+                                        raise ValueError("more than 4096 triangles tie")
+                                bd[nb], bx[nb], by[nb], bz[nb], bt[nb] = d, dx, dy, dz, t
+                                nb += 1
+                                if d < best:
+                                    best = d
+                                    lim = min(best + keep, lim)
+                r += 1
+            # the first pass of an inside point looked within `watch` only; a point
+            # found nearer needs every triangle within best + KAPPA tau of the blend
+            if not (enclosed and watch < reach and best < lim0 < best + keep):
+                break
+            lim = best + keep
+        _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p, offset)
+        if enclosed and not offset and np.isfinite(out_s[p]):
             out_s[p] = -abs(out_s[p])
 
 
-def _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p):  # pragma: no cover
+def _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p,
+           offset):  # pragma: no cover
     """Soft-min blend (module docstring) of buffered triangles into out_s[p], out_n[p]:
-    distances bd, point minus closest point (bx, by, bz), normal rows bt of nrm."""
+    distances bd, point minus closest point (bx, by, bz), normal rows bt of nrm; with
+    ``offset`` the blended normal offset and face normal near the surface instead
+    (`SurfaceGrid.signed_distance`)."""
     sw = sd = vx = vy = vz = nx = ny = nz = sg = 0.0
     for u in range(nb):
         delta = bd[u] - best
@@ -425,13 +468,28 @@ def _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p):  # p
         out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
         return
     sign = 1.0 if sg > 0.0 else (-1.0 if sg < 0.0 else 0.0)
-    out_s[p] = sign * sd / sw
+    dist = sd / sw
     gx = (sign * vx + tau * nx) / sw
     gy = (sign * vy + tau * ny) / sw
     gz = (sign * vz + tau * nz) / sw
     g = np.sqrt(gx * gx + gy * gy + gz * gz)
     if g > 0.0:
         gx, gy, gz = gx / g, gy / g, gz / g
+    if offset:  # near the surface the normal offset and normal, far out the distance
+        lam = min(max((dist - OFFSET_NEAR * tau) / ((OFFSET_FAR - OFFSET_NEAR) * tau), 0.0),
+                  1.0)
+        lam = lam * lam * (3.0 - 2.0 * lam)
+        h = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if h > 0.0:
+            nx, ny, nz = nx / h, ny / h, nz / h
+        out_s[p] = (1.0 - lam) * sg / sw + lam * sign * dist
+        gx, gy, gz = (1.0 - lam) * nx + lam * gx, (1.0 - lam) * ny + lam * gy, \
+            (1.0 - lam) * nz + lam * gz
+        g = np.sqrt(gx * gx + gy * gy + gz * gz)
+        if g > 0.0:
+            gx, gy, gz = gx / g, gy / g, gz / g
+    else:
+        out_s[p] = sign * dist
     out_n[p, 0], out_n[p, 1], out_n[p, 2] = gx, gy, gz
 
 
@@ -469,7 +527,7 @@ def _unit_normals(tri):
     return np.where(length > 0, n / np.where(length > 0, length, 1.0), 0.0)
 
 
-def _blend_numpy(d, diff, nrm, tau, kappa):
+def _blend_numpy(d, diff, nrm, tau, kappa, offset=False):
     """`_blend` for n points at once: d (n, T) distances (inf: not a candidate), diff
     (n, T, 3) point minus closest point, nrm (n, T, 3) unit normals."""
     best = d.min(axis=1)
@@ -485,11 +543,21 @@ def _blend_numpy(d, diff, nrm, tau, kappa):
     dist = (w * np.where(use, d, 0.0)).sum(axis=1) / safe
     v = np.einsum("nt,ntk->nk", w, diff) / safe[:, None]
     nn = np.einsum("nt,ntk->nk", w, nrm) / safe[:, None]
-    sign = np.sign(np.einsum("nt,ntk,ntk->n", w, diff, nrm))
-    g = sign[:, None] * v + tau * nn
-    norm = np.linalg.norm(g, axis=1, keepdims=True)
-    g = np.where(norm > 0, g / np.where(norm > 0, norm, 1.0), g)
-    return np.where(ok, sign * dist, -np.inf), np.where(ok[:, None], g, 0.0)
+    vote = np.einsum("nt,ntk,ntk->n", w, diff, nrm)
+    sign = np.sign(vote)
+
+    def unit(x):
+        norm = np.linalg.norm(x, axis=1, keepdims=True)
+        return np.where(norm > 0, x / np.where(norm > 0, norm, 1.0), x)
+
+    g = unit(sign[:, None] * v + tau * nn)
+    s = sign * dist
+    if offset:
+        lam = np.clip((dist - OFFSET_NEAR * tau) / ((OFFSET_FAR - OFFSET_NEAR) * tau), 0, 1)
+        lam = lam * lam * (3.0 - 2.0 * lam)
+        s = (1.0 - lam) * vote / safe + lam * s
+        g = unit((1.0 - lam)[:, None] * unit(nn) + lam[:, None] * g)
+    return np.where(ok, s, -np.inf), np.where(ok[:, None], g, 0.0)
 
 
 class SurfaceGrid:
@@ -550,24 +618,41 @@ class SurfaceGrid:
                 label[comp >= 0] = np.where(s[comp[comp >= 0]] > 0, 2, 3)
             self.labelled, self.label = True, label
 
-    def signed_distance(self, points, *, tau: float, watch: float | None = None):
+    def signed_distance(self, points, *, tau: float, watch: float | None = None,
+                        offset: bool = False, lazy: bool | None = None):
         """(s (n,), outward direction (n, 3)) of points (n, 3); ``watch``: how far a point
-        in an enclosed cell looks (default `reach`). ``watch = 0``: only points OUTSIDE get a
-        distance, every inside point ``-inf`` (those in surface cells found inside by ray
-        parity up their grid column, `_column_inside`); the numpy fallback ignores it."""
+        inside looks (default `reach`; a point in an empty inside cell with no surface cell
+        around is deeper than a cell and gets ``-inf`` whatever ``watch``). ``watch < reach``:
+        points in surface cells are classified by ray parity up their grid column
+        (`_column_inside`) first; ``watch = 0``: only points OUTSIDE get a distance, every
+        inside point ``-inf``. The numpy fallback ignores ``watch`` (every point is measured).
+
+        ``offset``: instead of the signed blended distance and the shortest path's
+        direction, the blended signed normal offset ``sum w (x - c_t) . n_t / sum w`` and the
+        blended face normal ``sum w n_t`` (normalised). Both are continuous everywhere,
+        through the surface too, where the signed distance's magnitude stays about tau / 7
+        above 0 (the mean over near ties) while its sign flips, and where the signed share of
+        ``sum w (x - c_t)`` flips too; on a flat piece of surface the offset is the exact
+        signed distance (every coplanar triangle has the same normal offset).
+
+        ``lazy``: make the triangles' shapes (normals, bounding circles) only for the
+        triangles the searches visit (default: for at most `_LAZY_POINTS` points), instead
+        of all at the first search; cheaper when the searches stay near few triangles."""
         x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         watch = self.reach if watch is None else float(watch)
         if self.kernels is not None:
             s, n = np.empty(len(x)), np.empty((len(x), 3))
             self.kernels["query"](x, self.vertices, self.faces, self.nrm, self.centre,
-                                  self.radius, self.ready, len(x) <= _LAZY_POINTS, self.lo,
+                                  self.radius, self.ready,
+                                  len(x) <= _LAZY_POINTS if lazy is None else bool(lazy), self.lo,
                                   self.cell, self.dims, self.start, self.items, self.label,
-                                  self.labelled, self.reach, watch, float(tau), KAPPA, s, n)
+                                  self.labelled, self.reach, watch, float(tau), KAPPA,
+                                  bool(offset), s, n)
             return s, n
-        return _brute(x, self.vertices, self.faces, self.reach, float(tau))
+        return _brute(x, self.vertices, self.faces, self.reach, float(tau), offset=bool(offset))
 
 
-def _brute(x, vertices, faces, reach, tau, chunk=32):
+def _brute(x, vertices, faces, reach, tau, chunk=32, offset=False):
     """The blend over every triangle within ``reach`` (numpy, chunks of points)."""
     tri = vertices[faces]                                                    # (T, 3, 3)
     nrm = _unit_normals(tri)[None]
@@ -576,7 +661,7 @@ def _brute(x, vertices, faces, reach, tau, chunk=32):
         diff = x[a:a + chunk, None] - _closest_points(tri[None], x[a:a + chunk, None])
         d = np.sqrt(np.einsum("ntk,ntk->nt", diff, diff))
         d = np.where(d <= reach, d, np.inf)
-        s[a:a + chunk], n[a:a + chunk] = _blend_numpy(d, diff, nrm, tau, KAPPA)
+        s[a:a + chunk], n[a:a + chunk] = _blend_numpy(d, diff, nrm, tau, KAPPA, offset)
     return s, n
 
 
