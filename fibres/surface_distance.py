@@ -74,8 +74,9 @@ def _kernels():
             jit = numba.njit(cache=True, nogil=True)
             # the query calls the compiled helpers: numba resolves globals at compile time
             inline = numba.njit(inline="always", nogil=True)
-            glb = dict(globals(), _closest_point=jit(_closest_point), _blend=jit(_blend),
+            glb = dict(globals(), _closest_point=jit(_closest_point), _unit=inline(_unit),
                        _flood=jit(_flood), _triangle_shape=inline(_triangle_shape))
+            glb["_blend"] = jit(types.FunctionType(_blend.__code__, glb, "_blend"))
             glb["_shape"] = inline(types.FunctionType(_shape.__code__, glb, "_shape"))
             glb["_shapes"] = jit(types.FunctionType(_shapes_loop.__code__, glb, "_shapes_loop"))
             glb["_owns"] = jit(_owns)
@@ -470,6 +471,14 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
             out_s[p] = -abs(out_s[p])
 
 
+def _unit(x, y, z):  # pragma: no cover - compiled by numba (inlined)
+    """(x, y, z) scaled to unit length (unchanged if zero)."""
+    g = np.sqrt(x * x + y * y + z * z)
+    if g > 0.0:
+        return x / g, y / g, z / g
+    return x, y, z
+
+
 def _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p,
            offset):  # pragma: no cover
     """Soft-min blend (module docstring) of buffered triangles into out_s[p], out_n[p]:
@@ -504,22 +513,15 @@ def _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p,
     gx = (sign * vx + tau * nx) / sw
     gy = (sign * vy + tau * ny) / sw
     gz = (sign * vz + tau * nz) / sw
-    g = np.sqrt(gx * gx + gy * gy + gz * gz)
-    if g > 0.0:
-        gx, gy, gz = gx / g, gy / g, gz / g
+    gx, gy, gz = _unit(gx, gy, gz)
     if offset:  # near the surface the normal offset and normal, far out the distance
         lam = min(max((dist - OFFSET_NEAR * tau) / ((OFFSET_FAR - OFFSET_NEAR) * tau), 0.0),
                   1.0)
         lam = lam * lam * (3.0 - 2.0 * lam)
-        h = np.sqrt(nx * nx + ny * ny + nz * nz)
-        if h > 0.0:
-            nx, ny, nz = nx / h, ny / h, nz / h
+        nx, ny, nz = _unit(nx, ny, nz)
         out_s[p] = (1.0 - lam) * sg / sw + lam * sign * dist
-        gx, gy, gz = (1.0 - lam) * nx + lam * gx, (1.0 - lam) * ny + lam * gy, \
-            (1.0 - lam) * nz + lam * gz
-        g = np.sqrt(gx * gx + gy * gy + gz * gz)
-        if g > 0.0:
-            gx, gy, gz = gx / g, gy / g, gz / g
+        gx, gy, gz = _unit((1.0 - lam) * nx + lam * gx, (1.0 - lam) * ny + lam * gy,
+                           (1.0 - lam) * nz + lam * gz)
     else:
         out_s[p] = sign * dist
     out_n[p, 0], out_n[p, 1], out_n[p, 2] = gx, gy, gz
