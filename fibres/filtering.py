@@ -514,6 +514,7 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     cut_param[:] = np.stack([s_o, s_i], axis=1)
     mean_edge = _mean_edge(vt, faces) if mean_edge is None else float(mean_edge)
     rows = np.arange(n)
+    ref = None if reference is None else np.asarray(reference, dtype=np.float64)
     ends = [end for end in range(2) if cut[:, end].any()]
     # the areas' triangles of both ends with one pass over the faces
     kernels = _kernels()
@@ -527,29 +528,34 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
         sel = cut[:, end]
         if sel.any():  # two ends, not a loop over fibres
             corners, owner = areas[end]
-            d = pts[rows[sel], b[sel]] - pts[rows[sel], a[sel]]
+            rs, bs, as_, cs = rows[sel], b[sel], a[sel], c[sel]      # indexed once per end
             tv = verts[corners]
-            k, w = np.zeros(len(d), np.int64), np.zeros((len(d), 3))
-            hit = np.zeros(len(d), bool)
             if reference is not None:  # the template's direction where its ray hits the area
-                ref = np.asarray(reference, dtype=np.float64)
-                d2 = ref[rows[sel], b[sel]] - ref[rows[sel], a[sel]]
+                d2 = ref[rs, bs] - ref[rs, as_]
                 # only hits matter: rays farther than 2 tol stop early (index -1)
-                k2, w2 = closest_on_triangles(tv, c[sel], d2, within=2 * tol,
+                k2, w2 = closest_on_triangles(tv, cs, d2, within=2 * tol,
                                               corner_ids=corners)
-                q = np.einsum("nkc,nk->nc", verts[corners[np.maximum(k2, 0)]], w2) - c[sel]
+                q = np.einsum("nkc,nk->nc", tv[np.maximum(k2, 0)], w2) - cs
                 d2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
                 along = np.maximum(np.einsum("nc,nc->n", q, d2), 0.0)
                 hit = (k2 >= 0) & (np.linalg.norm(q - along[:, None] * d2, axis=1) <= tol)
-                k[hit], w[hit] = k2[hit], w2[hit]
-            if not hit.all():  # the paper's ray for the others (each ray on its own)
-                k[~hit], w[~hit] = closest_on_triangles(tv, c[sel][~hit], d[~hit],
-                                                        corner_ids=corners)
+            if reference is None or not hit.any():  # the paper's ray for every fibre
+                k, w = closest_on_triangles(tv, cs, pts[rs, bs] - pts[rs, as_],
+                                            corner_ids=corners)
+            elif hit.all():
+                k, w = k2, w2
+            else:  # the paper's ray for the others (each ray on its own)
+                k, w = k2, w2
+                miss = ~hit
+                rm = rs[miss]
+                k[miss], w[miss] = closest_on_triangles(
+                    tv, cs[miss], pts[rm, bs[miss]] - pts[rm, as_[miss]], corner_ids=corners)
             face = owner[k]
+            fv = faces[face]
             # barycentric coordinates on the owning face's corners (a point: all on its slot)
-            match = faces[face][:, :, None] == corners[k][:, None, :]       # (n, 3, 3)
+            match = fv[:, :, None] == corners[k][:, None, :]                # (n, 3, 3)
             t_face[sel, end] = face
-            t_vert[sel, end] = faces[face]
+            t_vert[sel, end] = fv
             t_bary[sel, end] = (match * w[:, None, :]).sum(axis=2)
     _record_resampling(pts, verts, cut, segment, cut_param, (t_vert, t_bary), piece, param)
     return done()
