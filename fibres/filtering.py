@@ -603,17 +603,14 @@ def _geometry(pts, verts, cut, segment, s, target):
     corner, bary = target
     ends = np.einsum("nekc,nek->nec", verts[corner], bary)             # (N, 2, 3)
     p = pts.shape[1]
-    rows = np.arange(len(pts))
-    cuts = []
-    for end in (0, 1):  # the two ends
-        a = pts[rows, segment[:, end]]
-        c = a + s[:, end, None] * (pts[rows, segment[:, end] + 1] - a)
-        own = pts[:, 0] if end == 0 else pts[:, -1]
-        cuts.append((np.where(cut[:, end], segment[:, end] + s[:, end], 0.0 if end == 0 else p - 1),
-                     np.where(cut[:, end, None], c, own),
-                     np.where(cut[:, end, None], ends[:, end], own)))
-    (tau_o, c_o, end_o), (tau_i, c_i, end_i) = cuts
-    return tau_o, tau_i, c_o, c_i, end_o, end_i
+    seg, st, ct = segment.T, np.ascontiguousarray(s.T), cut.T[..., None]    # both ends at once
+    a = pts[np.arange(len(pts)), seg]                                         # (2, N, 3)
+    c = a + st[..., None] * (pts[np.arange(len(pts)), seg + 1] - a)
+    own = np.stack([pts[:, 0], pts[:, -1]])                                   # (2, N, 3)
+    tau = np.where(cut.T, seg + st, np.array([[0.0], [p - 1.0]]))
+    c = np.ascontiguousarray(np.where(ct, c, own))
+    e = np.ascontiguousarray(np.where(ct, ends.transpose(1, 0, 2), own))
+    return tau[0], tau[1], c[0], c[1], e[0], e[1]
 
 
 def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice):
