@@ -72,6 +72,12 @@ Fig. 9. Tried and not kept: the other extreme (planes through the landmarks fart
 the other attachment) keeps the morph's convergence, every gluteus medius fibre then starts
 at the crest's top (landmark gap 108 mm); per-fibre planes through the innermost landmark
 above each fibre kept fibres converging to the top as well (gap 36 mm).
+
+Code. The attachment area is `fibres.attachment_area`, the area's closest point to a ray
+`fibres.ray_triangles`, the resampling record `fibres.resample`. Below, `filter_choices` and
+`apply_filter` are written step by step in numpy; with numba they run as the compiled passes
+of `fibres.filter_passes` (the same arithmetic in the same order: the same arrays bit for
+bit).
 """
 from __future__ import annotations
 
@@ -79,6 +85,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .attachment_area import _kernels as _area_kernels
+from .attachment_area import _mean_edge, _region_indices, attachment_region
+from .filter_passes import passes
 from .ray_triangles import closest_on_triangles, regions_triangles
 from .resample import evaluate_kernel, resampling_kernel
 
@@ -165,6 +174,20 @@ class FilterChoice:
         if self.piece.ndim != 2 or self.piece.shape[0] != n or self.param.shape != self.piece.shape:
             raise ValueError("piece and param must be (N, P)")
 
+    @classmethod
+    def _owned(cls, landmarks, cut, segment, cut_param, target_face, target_vertices,
+               target_bary, piece, param, seed=0, template=None) -> "FilterChoice":
+        """The choices from arrays made for them (`filter_choices`: the fields' dtypes and
+        shapes, referenced nowhere else): made read-only in place instead of copied."""
+        self = object.__new__(cls)
+        for name, a in zip(_ARRAYS, (landmarks, cut, segment, cut_param, target_face,
+                                     target_vertices, target_bary, piece, param)):
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "seed", int(seed))
+        object.__setattr__(self, "template", template)
+        return self
+
     @property
     def n_fibres(self) -> int:
         """N."""
@@ -183,215 +206,16 @@ class FilterChoice:
                             self.template)
 
 
+#: the array fields of FilterChoice, in order
+_ARRAYS = ("landmarks", "cut", "segment", "cut_param", "target_face", "target_vertices",
+           "target_bary", "piece", "param")
+
+
 def _vertices_faces(surface):
     if hasattr(surface, "vertices") and hasattr(surface, "faces"):
         return np.asarray(surface.vertices, float), np.asarray(surface.faces, np.int64)
     v, f = surface
     return np.asarray(v, float), np.asarray(f, np.int64)
-
-
-def _region_indices(vertices, faces, landmarks, vt=None, mean_edge=None,
-                   blocks=None) -> np.ndarray:
-    """Vertex indices of an attachment area (module docstring), by brute force over the
-    vertices, component-wise (no KD-tree of the surface: K landmarks need K distances per
-    vertex, cheaper than building a tree; compiled: pruned by the vertex blocks' boxes,
-    `_blocks_loop`). ``vt`` (3, V), ``mean_edge`` and (compiled) ``blocks``
-    (`_blocks_loop` of ``vt``) may be passed when already computed."""
-    vt = np.ascontiguousarray(vertices.T) if vt is None else vt
-    landmarks = np.asarray(landmarks, float).reshape(-1, 3)
-    radius = _mean_edge(vt, faces) if mean_edge is None else mean_edge
-    if len(landmarks) > 1:
-        dl = np.sqrt(_sq_distances(np.ascontiguousarray(landmarks.T), landmarks))
-        np.fill_diagonal(dl, np.inf)
-        near = np.sort(dl.min(axis=1))  # their median (np.median's arithmetic, ~10x faster)
-        h = len(near) // 2
-        radius = max(radius, float(near[h] if len(near) % 2 else (near[h - 1] + near[h]) / 2))
-    kernels = _kernels()
-    if kernels is not None:
-        blocks = kernels[3](vt) if blocks is None else blocks
-        nearest = kernels[0](vt, landmarks, blocks)
-        within = kernels[1](vt, np.ascontiguousarray(vertices[np.unique(nearest)]),
-                            radius * radius, blocks)
-        within[nearest] = True          # the sorted union, without np.unique's sort
-        return np.flatnonzero(within)
-    d2 = _sq_distances(vt, landmarks)                                  # (K, V)
-    nearest = np.argmin(d2, axis=1)
-    proj = np.unique(nearest)
-    # |x - proj| <= r needs |x - landmark| <= r + |landmark - proj| (triangle inequality):
-    # only those candidates are measured exactly
-    reach = radius + np.sqrt(d2[np.arange(len(landmarks)), nearest])
-    cand = np.flatnonzero((d2 <= (reach[:, None] * (1 + 1e-9)) ** 2).any(axis=0))
-    near = (_sq_distances(vt[:, cand], vertices[proj]) <= radius * radius).any(axis=0)
-    return np.unique(np.concatenate([cand[near], nearest.astype(np.int64)]))
-
-
-_KERNELS = []
-
-
-def _kernels():
-    """(nearest vertex per point, vertices within a radius of some point, sum of edge
-    lengths) compiled with numba, or None (then numpy, component-wise: the same arithmetic
-    in the same order)."""
-    if not _KERNELS:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNELS.append(None)
-        else:
-            jit = numba.njit(cache=True, nogil=True)
-            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_edge_sum_loop),
-                             jit(_blocks_loop)))
-    return _KERNELS[0]
-
-
-#: vertices per block of `_blocks_loop`
-_BLOCK = 64
-
-
-def _blocks_loop(vt):  # pragma: no cover - compiled by numba
-    """Bounding boxes (B, 6) (x lo, x hi, y lo, y hi, z lo, z hi) of the vertices (3, V) in
-    blocks of `_BLOCK` consecutive indices, for the pruned searches of `_nearest_loop` and
-    `_within_loop` (made once per `filter_choices` call, shared by both areas).
-
-    Pruning with them is exact: a vertex x in a block with box [lo, hi] has
-    ``|p - x| >= max(lo - p, p - hi, 0)`` per coordinate, and rounding (subtraction, square,
-    sum in the same order) is monotone, so the rounded box distance is at most the rounded
-    vertex distance."""
-    n_v = vt.shape[1]
-    bs = _BLOCK
-    n_b = (n_v + bs - 1) // bs
-    box = np.empty((n_b, 6))
-    for b in range(n_b):
-        i0 = b * bs
-        for c in range(3):
-            lo = hi = vt[c, i0]
-            for i in range(i0 + 1, min(i0 + bs, n_v)):
-                lo = min(lo, vt[c, i])
-                hi = max(hi, vt[c, i])
-            box[b, 2 * c], box[b, 2 * c + 1] = lo, hi
-    return box
-
-
-def _nearest_loop(vt, points, box):  # pragma: no cover - compiled by numba
-    """Index of the nearest of the vertices (3, V) to each point (K, 3) (first on ties).
-
-    The vertices are taken in blocks of `_BLOCK` with their bounding boxes ``box``
-    (`_blocks_loop`): a block whose box is farther than the best distance so far cannot
-    hold a nearer vertex (exact, see there) and is skipped. The search starts in the block
-    with the nearest box, then scans the blocks in order, keeping the first index among
-    equal distances -- the plain scan's answer."""
-    n_v = vt.shape[1]
-    bs = _BLOCK
-    n_b = box.shape[0]
-    out = np.zeros(points.shape[0], np.int64)
-    lb = np.empty(n_b)
-    for k in range(points.shape[0]):
-        px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-        first = 0
-        for b in range(n_b):
-            gx = max(box[b, 0] - px, px - box[b, 1], 0.0)
-            gy = max(box[b, 2] - py, py - box[b, 3], 0.0)
-            gz = max(box[b, 4] - pz, pz - box[b, 5], 0.0)
-            lb[b] = gx * gx + gy * gy + gz * gz
-            if lb[b] < lb[first]:
-                first = b
-        best = np.inf
-        bi = 0
-        for r in range(n_b + 1):
-            b = first if r == 0 else r - 1
-            if (r > 0 and b == first) or lb[b] > best:
-                continue
-            for i in range(b * bs, min(b * bs + bs, n_v)):
-                dx, dy, dz = vt[0, i] - px, vt[1, i] - py, vt[2, i] - pz
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 < best or (d2 == best and i < bi):
-                    best = d2
-                    bi = i
-        out[k] = bi
-    return out
-
-
-def _within_loop(vt, points, r2, box):  # pragma: no cover - compiled by numba
-    """Whether each vertex (3, V) lies within squared distance r2 of some point (K, 3).
-
-    Block by block (``box``: `_blocks_loop`): only the points whose box distance is within
-    r2 are measured against the block's vertices (the others cannot be: exact, see
-    `_blocks_loop`), point-major (the vertex loop has no exit and vectorises); a block no
-    point reaches is skipped. The same answers as measuring every pair."""
-    n_v = vt.shape[1]
-    bs = _BLOCK
-    out = np.zeros(n_v, np.bool_)
-    x, y, z = vt[0], vt[1], vt[2]
-    near = np.empty(points.shape[0], np.int64)
-    for b in range(box.shape[0]):
-        n_near = 0
-        for k in range(points.shape[0]):
-            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-            gx = max(box[b, 0] - px, px - box[b, 1], 0.0)
-            gy = max(box[b, 2] - py, py - box[b, 3], 0.0)
-            gz = max(box[b, 4] - pz, pz - box[b, 5], 0.0)
-            if gx * gx + gy * gy + gz * gz <= r2:
-                near[n_near] = k
-                n_near += 1
-        i1 = min(b * bs + bs, n_v)
-        for q in range(n_near):
-            k = near[q]
-            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-            for i in range(b * bs, i1):
-                dx, dy, dz = px - x[i], py - y[i], pz - z[i]
-                out[i] |= dx * dx + dy * dy + dz * dz <= r2
-    return out
-
-
-def _edge_sum_loop(vt, faces):  # pragma: no cover - compiled by numba
-    """Sum of the lengths of the faces' (T, 3) directed edges, vertices (3, V)."""
-    total = 0.0
-    for t in range(faces.shape[0]):
-        for j in range(3):
-            a, b = faces[t, j], faces[t, (j + 1) % 3]
-            dx, dy, dz = vt[0, b] - vt[0, a], vt[1, b] - vt[1, a], vt[2, b] - vt[2, a]
-            total += np.sqrt(dx * dx + dy * dy + dz * dz)
-    return total
-
-
-def _sq_distances(vt, points):
-    """(K, V) squared distances of points (K, 3) to vertices given as (3, V)."""
-    d2 = (vt[0] - points[:, 0, None]) ** 2
-    d2 += (vt[1] - points[:, 1, None]) ** 2
-    d2 += (vt[2] - points[:, 2, None]) ** 2
-    return d2
-
-
-def _mean_edge(vt, faces) -> float:
-    """Mean length of the faces' (directed) edges, from (3, V) vertices."""
-    if len(faces) == 0:
-        return 0.0
-    kernels = _kernels()
-    if kernels is not None:
-        f = np.ascontiguousarray(faces, dtype=np.int64)
-        return float(kernels[2](vt, f) / (3 * len(f)))
-    c = np.take(vt, np.ascontiguousarray(faces.T), axis=1)              # (3, 3, T)
-    e = c[:, [1, 2, 0]] - c
-    return float(np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).mean())
-
-
-def attachment_region(vertices, faces, landmarks) -> np.ndarray:
-    """Surface points of an attachment area (module docstring).
-
-    Parameters
-    ----------
-    vertices : (V, 3) float
-    faces : (T, 3) int
-    landmarks : (K, 3) float
-
-    Returns
-    -------
-    (C, 3) float
-        Surface vertices belonging to the area.
-    """
-    vertices = np.asarray(vertices, float)
-    return vertices[_region_indices(vertices, np.asarray(faces, np.int64),
-                                    np.asarray(landmarks, float).reshape(-1, 3))]
 
 
 def _at_index(pts, tau):
@@ -470,31 +294,27 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     insertion = np.asarray(insertion, float).reshape(-1, 3)
     verts, faces = _vertices_faces(surface)
     h_o, h_i, lms = _planes(origin, insertion, u)
-    cut = np.zeros((n, 2), bool)
-    segment = np.zeros((n, 2), np.int64)
-    cut_param = np.zeros((n, 2))
-    t_face = np.full((n, 2), -1, np.int64)
-    t_vert = np.zeros((n, 2, 3), np.int64)
-    t_bary = np.zeros((n, 2, 3))
-    piece = np.ones((n, p), np.int8)
-    param = np.broadcast_to(np.linspace(0.0, 1.0, p), (n, p)).copy()
-    piece[:, 0], param[:, 0] = 0, 0.0
-    if p > 1:
-        piece[:, -1], param[:, -1] = 2, 1.0
-
-    def done():
-        return FilterChoice(lms, cut, segment, cut_param, t_face, t_vert, t_bary, piece, param,
-                            int(seed), template)
-
     if n == 0 or p < 2 or h_o >= h_i:  # overlapping attachment bands: nothing sensible to cut
-        return done()
+        return FilterChoice._owned(lms, *_untouched(n, p), seed, template)
     if prepared is None:
         vt = np.ascontiguousarray(verts.T)                             # (3, V)
         tol = TIE * float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
     else:
         vt = prepared.vt
         tol = TIE * float(np.linalg.norm(prepared.hi - prepared.lo))
+    pts = np.ascontiguousarray(pts)
     h = pts @ u                                                       # (N, P)
+    fused = passes()
+    if fused is not None:  # the steps below in three compiled passes (fibres.filter_passes)
+        return FilterChoice._owned(lms, *_fused_choices(
+            fused, pts, h, h_o, h_i, tol, vt, verts, faces, origin, insertion, mean_edge,
+            reference), seed, template)
+    cut, segment, cut_param, t_face, t_vert, t_bary, piece, param = _untouched(n, p)
+
+    def done():
+        return FilterChoice._owned(lms, cut, segment, cut_param, t_face, t_vert, t_bary, piece,
+                                   param, seed, template)
+
     idx = np.arange(p)[None, :]
     below = h < h_o - tol    # beyond the origin plane (not on it)
     above = h > h_i + tol    # beyond the insertion plane
@@ -517,7 +337,7 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     ref = None if reference is None else np.asarray(reference, dtype=np.float64)
     ends = [end for end in range(2) if cut[:, end].any()]
     # the areas' triangles of both ends with one pass over the faces
-    kernels = _kernels()
+    kernels = _area_kernels()
     blocks = None if kernels is None else kernels[3](vt)    # the vertex blocks, once
     areas = dict(zip(ends, regions_triangles(
         faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge,
@@ -559,6 +379,40 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
             t_bary[sel, end] = (match * w[:, None, :]).sum(axis=2)
     _record_resampling(pts, verts, cut, segment, cut_param, (t_vert, t_bary), piece, param)
     return done()
+
+
+def _untouched(n, p):
+    """The choices' arrays of N fibres of P points that no plane cuts (cut, segment,
+    cut_param, target_face, target_vertices, target_bary, piece, param)."""
+    piece = np.ones((n, p), np.int8)
+    param = np.broadcast_to(np.linspace(0.0, 1.0, p), (n, p)).copy()
+    piece[:, 0], param[:, 0] = 0, 0.0
+    if p > 1:
+        piece[:, -1], param[:, -1] = 2, 1.0
+    return (np.zeros((n, 2), bool), np.zeros((n, 2), np.int64), np.zeros((n, 2)),
+            np.full((n, 2), -1, np.int64), np.zeros((n, 2, 3), np.int64), np.zeros((n, 2, 3)),
+            piece, param)
+
+
+def _fused_choices(fused, pts, h, h_o, h_i, tol, vt, verts, faces, origin, insertion,
+                   mean_edge, reference):
+    """`filter_choices`' steps in the compiled passes of `fibres.filter_passes` (the same
+    arithmetic: bit for bit the same arrays); the choices' arrays as `_untouched`."""
+    areas_loop, ends_loop, _ = fused
+    verts = np.ascontiguousarray(verts)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    cut, segment, cut_param, area_o, area_i, bounds = areas_loop(
+        pts, h, h_o, h_i, tol, np.ascontiguousarray(vt), verts, faces,
+        np.ascontiguousarray(origin), np.ascontiguousarray(insertion),
+        -1.0 if mean_edge is None else float(mean_edge))
+    if len(area_o[0]) == 0 and len(area_i[0]) == 0:  # no fibre is cut
+        return (cut, segment, cut_param) + _untouched(len(pts), pts.shape[1])[3:]
+    # the searches' touching tolerance (closest_on_triangles: 1e-12 of the area's extent)
+    eps2 = np.array([(1e-12 * float(np.linalg.norm(b[1] - b[0]))) ** 2 for b in bounds])
+    ref = pts if reference is None else np.ascontiguousarray(reference, dtype=np.float64)
+    return (cut, segment, cut_param) + ends_loop(
+        pts, ref, reference is not None, cut, segment, cut_param, area_o, area_i, bounds,
+        eps2, float(2 * tol) ** 2, tol, verts, faces)
 
 
 def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param):
@@ -641,6 +495,19 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
     if n > choice.n_fibres or p != choice.n_points:
         raise ValueError(f"the choices are for {choice.n_fibres} fibres x {choice.n_points} "
                          f"points, got {n} x {p}")
+    fused = passes()
+    if fused is not None:  # the steps below in one compiled pass (fibres.filter_passes)
+        u = np.asarray(axis, dtype=np.float64)
+        u = u / np.linalg.norm(u)
+        h_o, h_i, _ = _planes(np.asarray(origin, float).reshape(-1, 3),
+                              np.asarray(insertion, float).reshape(-1, 3), u,
+                              choice.landmarks)
+        pts = np.ascontiguousarray(pts)
+        out, sel = fused[2](pts, pts @ u, h_o, h_i, choice.cut, choice.segment,
+                            choice.cut_param, choice.target_vertices, choice.target_bary,
+                            choice.piece, choice.param,
+                            np.ascontiguousarray(vertices, dtype=np.float64), CUT_SLACK)
+        return out, sel, sel.copy()
     ch = choice.head(n) if n < choice.n_fibres else choice
     sel = ch.cut.any(axis=1)
     out = np.array(pts, copy=True)

@@ -250,7 +250,7 @@ def test_compiled_region_equals_numpy_and_the_definition(cube, monkeypatch):
     # cube)
     from scipy.spatial import cKDTree
 
-    import fibres.filtering as fl
+    import fibres.attachment_area as fl
     import fibres.ray_triangles as rt
 
     rng = np.random.default_rng(2)
@@ -490,7 +490,7 @@ def test_compiled_nearest_vertex_is_the_first_nearest():
     # the block-pruned nearest-vertex search returns np.argmin's answer (first index among
     # equal distances): random clouds in mesh order and shuffled (no spatial coherence),
     # landmarks inside and far outside the cloud, and exact ties (repeated vertices)
-    import fibres.filtering as fl
+    import fibres.attachment_area as fl
 
     kernels = fl._kernels()
     if kernels is None:
@@ -512,7 +512,7 @@ def test_compiled_within_is_every_pair_measured():
     # the block-pruned radius test marks exactly the vertices that measuring every
     # (point, vertex) pair with the same arithmetic marks: coherent and shuffled clouds,
     # radii from none to all, and vertices placed exactly on the radius (boundary ties)
-    import fibres.filtering as fl
+    import fibres.attachment_area as fl
 
     kernels = fl._kernels()
     if kernels is None:
