@@ -216,11 +216,12 @@ def choices_areas_loop(pts, h, h_o, h_i, tol, vt, verts, faces, origin, insertio
     return cut, segment, cut_param, areas[0], areas[1], bounds
 
 
-def _search_loop(tv, corners, start, direction, eps2, reach,
-                 within2):  # pragma: no cover - compiled by numba
+def _search_loop(tv, corners, start, direction, eps2, reach, within2,
+                 hit_blocks):  # pragma: no cover - compiled by numba
     """`fibres.ray_triangles.closest_on_triangles(tv, start, direction, within=...,
     corner_ids=corners)`: unit directions and rounding slack as its wrapper, then its
-    compiled loop (``reach``: the largest corner coordinate size of ``tv``)."""
+    compiled loop (``reach``: the largest corner coordinate size of ``tv``;
+    ``hit_blocks``: its pre-test's block sizes)."""
     m = start.shape[0]
     dn = np.empty((m, 3))
     slack = np.empty(m)
@@ -230,17 +231,20 @@ def _search_loop(tv, corners, start, direction, eps2, reach,
         dn[i, 0], dn[i, 1], dn[i, 2] = d0 / nrm, d1 / nrm, d2 / nrm
         size = max(max(abs(start[i, 0]), abs(start[i, 1])), abs(start[i, 2]))
         slack[i] = 1e-14 * (size + reach)
-    index, bary = _triangles(tv, start, dn, eps2, slack, within2, corners)
+    index, bary = _triangles(tv, start, dn, eps2, slack, within2, corners, hit_blocks[0],
+                             hit_blocks[1])
     return index, bary, dn
 
 
 def choices_ends_loop(pts, ref, use_ref, cut, segment, cut_param, area_o, area_i, bounds,
-                      eps2, within2, tol, verts, faces):  # pragma: no cover - compiled by numba
+                      eps2, within2, tol, verts, faces,
+                      hit_blocks):  # pragma: no cover - compiled by numba
     """The new ends and the resampling record of `fibres.filtering.filter_choices`.
 
     Parameters: fibres (N, P, 3), reference fibres (N, P, 3) used when ``use_ref``, the
     outputs of `choices_areas_loop`, each area's touching tolerance squared (2,) and
-    ``within`` squared of the reference rays, the tie tolerance, vertices (V, 3), faces.
+    ``within`` squared of the reference rays, the tie tolerance, vertices (V, 3), faces and
+    the block sizes of the restricted search's pre-test (`ray_triangles._HIT_BLOCKS`).
 
     Returns target_face (N, 2), target_vertices (N, 2, 3), target_bary (N, 2, 3), piece
     (N, P) int8, param (N, P)."""
@@ -274,7 +278,8 @@ def choices_ends_loop(pts, ref, use_ref, cut, segment, cut_param, area_o, area_i
         w = np.zeros((m, 3))
         miss = np.ones(m, np.bool_)
         if use_ref:  # the template's direction where its ray hits the area
-            k2, w2, dn = _search(tv, corners, start, d_ref, eps2[end], reach, within2)
+            k2, w2, dn = _search(tv, corners, start, d_ref, eps2[end], reach, within2,
+                                 hit_blocks)
             for i in range(m):
                 if k2[i] < 0:
                     continue
@@ -296,7 +301,8 @@ def choices_ends_loop(pts, ref, use_ref, cut, segment, cut_param, area_o, area_i
                     w[i] = w2[i]
         sub = np.flatnonzero(miss)
         if sub.shape[0]:  # the paper's ray for the others (each ray on its own)
-            k3, w3, _ = _search(tv, corners, start[sub], d_fib[sub], eps2[end], reach, np.inf)
+            k3, w3, _ = _search(tv, corners, start[sub], d_fib[sub], eps2[end], reach,
+                                np.inf, hit_blocks)
             for j in range(sub.shape[0]):
                 k[sub[j]] = k3[j]
                 w[sub[j]] = w3[j]

@@ -381,6 +381,12 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     return done()
 
 
+def _hit_blocks():
+    """`fibres.ray_triangles._HIT_BLOCKS` as the compiled loop takes them ((0, 1): off)."""
+    from . import ray_triangles
+    return ray_triangles._HIT_BLOCKS if ray_triangles._HIT_BLOCKS[0] > 0 else (0, 1)
+
+
 def _untouched(n, p):
     """The choices' arrays of N fibres of P points that no plane cuts (cut, segment,
     cut_param, target_face, target_vertices, target_bary, piece, param)."""
@@ -412,7 +418,7 @@ def _fused_choices(fused, pts, h, h_o, h_i, tol, vt, verts, faces, origin, inser
     ref = pts if reference is None else np.ascontiguousarray(reference, dtype=np.float64)
     return (cut, segment, cut_param) + ends_loop(
         pts, ref, reference is not None, cut, segment, cut_param, area_o, area_i, bounds,
-        eps2, float(2 * tol) ** 2, tol, verts, faces)
+        eps2, float(2 * tol) ** 2, tol, verts, faces, _hit_blocks())
 
 
 def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param):

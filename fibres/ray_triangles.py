@@ -9,6 +9,11 @@ upper bound removed. Vectorised over rays x triangles in numpy; a numba-compiled
 same formulas is used when numba is installed, which skips the pairs that exact lower bounds
 (bounding sphere, bounding box and line distance seen along the ray) show cannot win and
 evaluates the rest nearest bound first -- the same answers, ~2x faster on the bench areas.
+A search restricted to rays that come within a distance (``within``) first looks for a
+separating axis between the ray and the grown bounding boxes of blocks of triangles and of
+the triangles in them (the separating axis theorem for a box and a line, e.g. Ericson 2005,
+§5.3.3): a ray apart from all of them is -1 without its bounds and pairs (the filter's
+template-direction rays that miss the area: ~2x faster on the bench areas).
 """
 from __future__ import annotations
 
@@ -28,13 +33,14 @@ def _kernels():
         except ImportError:                                     # pragma: no cover - optional
             _KERNELS.append(None)
         else:
-            global _pair, _across_distance
+            global _pair, _across_distance, _apart
             jit = numba.njit(cache=True, nogil=True)
             # inlined into `_triangles_loop` (numba IR: the same operations; a call passes
             # each of the twelve arrays as a struct)
             inline = numba.njit(cache=True, nogil=True, inline="always")
             _pair = inline(_pair_loop)
             _across_distance = inline(_across_distance_loop)
+            _apart = inline(_apart_loop)
             _KERNELS.append((jit(_triangles_loop), jit(_region_loop), jit(_bounds_loop),
                              jit(_regions_loop)))
     return _KERNELS[0]
@@ -44,6 +50,33 @@ def _kernels():
 #: `_triangles_loop`
 _pair = None
 _across_distance = None
+_apart = None
+
+#: restricted searches (``within``): triangles per box of the separating-axis pre-test,
+#: coarse and fine level (`_triangles_loop`); 0 turns the pre-test off
+_HIT_BLOCKS = (32, 8)
+
+
+def _apart_loop(w0, w1, w2, h0, h1, h2, d0, d1, d2, mrg):  # pragma: no cover - compiled
+    """Whether the ray ``s + t d`` (t >= 0) and the box of centre ``c`` and half extents
+    ``h`` are separated by more than ``mrg`` along an axis (``w = s - c``): one of the box's
+    axes (the ray projects to [s, inf), (-inf, s] or s), the three axes ``d x e`` across the
+    ray's line, or the ray's direction (the box behind the start). A separating axis proves
+    the two apart (the converse is not needed: the caller then measures)."""
+    if (d0 >= 0 and w0 > h0 + mrg) or (d0 <= 0 and w0 < -h0 - mrg):
+        return True
+    if (d1 >= 0 and w1 > h1 + mrg) or (d1 <= 0 and w1 < -h1 - mrg):
+        return True
+    if (d2 >= 0 and w2 > h2 + mrg) or (d2 <= 0 and w2 < -h2 - mrg):
+        return True
+    a0, a1, a2 = abs(d0), abs(d1), abs(d2)
+    if abs(w1 * d2 - w2 * d1) > h1 * a2 + h2 * a1 + mrg:
+        return True
+    if abs(w2 * d0 - w0 * d2) > h0 * a2 + h2 * a0 + mrg:
+        return True
+    if abs(w0 * d1 - w1 * d0) > h0 * a1 + h1 * a0 + mrg:
+        return True
+    return (h0 * a0 + h1 * a1 + h2 * a2) - (w0 * d0 + w1 * d1 + w2 * d2) < -mrg
 
 
 def _across_distance_loop(uv):  # pragma: no cover - compiled by numba
@@ -129,8 +162,8 @@ def _pair_loop(k, s, d, tv, te1, te2, tnrm, tnn, tthr, tedge, tcc, bb3):  # prag
     return d2, t
 
 
-def _triangles_loop(tv, start, dn, eps2, slack, within2,
-                    vid):  # pragma: no cover - compiled by numba
+def _triangles_loop(tv, start, dn, eps2, slack, within2, vid, coarse,
+                    fine):  # pragma: no cover - compiled by numba
     """`closest_on_triangles` for triangles (T, 3, 3), starts (N, 3), unit directions
     (N, 3): `_pair_loop` for the pairs that can matter, and the selection of the array
     version (the first touching pair along the ray, else the nearest).
@@ -151,7 +184,16 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2,
     ray farther than that from every triangle is returned as index -1 (at once when the
     nearest sphere bound already shows it). ``vid`` (T, 3)
     numbers the distinct corners (equal ids: equal points): each is projected into a
-    ray's frame once for the box bounds (the triangles of a surface share them)."""
+    ray's frame once for the box bounds (the triangles of a surface share them).
+
+    A restricted search (``within2`` finite) first tries to show the ray apart from every
+    triangle: the bounding boxes of blocks of ``coarse`` consecutive triangles, of
+    ``fine`` ones within them and of each triangle within those, grown by the search
+    radius ``max(within, touching tolerance)`` (1e-6 relative margin), are tested for a
+    separating axis (`_apart_loop`, by more than the sphere test's rounding margin
+    ``100 slack``); when every triangle's box is apart, every triangle is farther than the
+    radius, so the ray is -1 -- the answer of the bounds and pairs below, without them
+    (``coarse`` 0: no pre-test)."""
     n_rays, n_tri = start.shape[0], tv.shape[0]
     index = np.zeros(n_rays, np.int64)
     bary = np.zeros((n_rays, 3))
@@ -216,10 +258,51 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2,
             qx, qy, qz = tv[k, i, 0] - ox[k], tv[k, i, 1] - oy[k], tv[k, i, 2] - oz[k]
             far = max(far, np.sqrt(qx * qx + qy * qy + qz * qz))
         radius[k] = far * (1 + 1e-12)
+    # restricted search: the boxes (centre, half extents grown by the search radius) of
+    # the coarse blocks, the fine blocks and the triangles
+    n_box = n_tri if within2 < np.inf and coarse > 0 else 0
+    grow = np.sqrt(max(within2, eps2)) * (1.0 + 1e-6)
+    box_c, box_h = np.empty((3, n_box, 3)), np.empty((3, n_box, 3))
+    for level in range(3 if n_box else 0):
+        size = coarse if level == 0 else (fine if level == 1 else 1)
+        for b in range((n_tri + size - 1) // size):
+            for c in range(3):
+                lo, hi = np.inf, -np.inf
+                for k in range(b * size, min(b * size + size, n_tri)):
+                    for i in range(3):
+                        lo, hi = min(lo, tv[k, i, c]), max(hi, tv[k, i, c])
+                box_c[level, b, c] = (lo + hi) * 0.5
+                box_h[level, b, c] = (hi - lo) * 0.5 + grow
     for n in range(n_rays):
         for c in range(3):
             s[c], d[c] = start[n, c], dn[n, c]
         s0, s1, s2, d0, d1, d2_ = s[0], s[1], s[2], d[0], d[1], d[2]
+        if n_box:  # every triangle's box apart from the ray: -1 (docstring)
+            mrg = 100.0 * slack[n]
+            near = False
+            for b0 in range((n_tri + coarse - 1) // coarse):
+                if _apart(s0 - box_c[0, b0, 0], s1 - box_c[0, b0, 1], s2 - box_c[0, b0, 2],
+                          box_h[0, b0, 0], box_h[0, b0, 1], box_h[0, b0, 2], d0, d1, d2_, mrg):
+                    continue
+                k_end = min(b0 * coarse + coarse, n_tri)
+                for b1 in range(b0 * coarse // fine, (k_end + fine - 1) // fine):
+                    if _apart(s0 - box_c[1, b1, 0], s1 - box_c[1, b1, 1],
+                              s2 - box_c[1, b1, 2], box_h[1, b1, 0], box_h[1, b1, 1],
+                              box_h[1, b1, 2], d0, d1, d2_, mrg):
+                        continue
+                    for k in range(b1 * fine, min(b1 * fine + fine, k_end)):
+                        if not _apart(s0 - box_c[2, k, 0], s1 - box_c[2, k, 1],
+                                      s2 - box_c[2, k, 2], box_h[2, k, 0], box_h[2, k, 1],
+                                      box_h[2, k, 2], d0, d1, d2_, mrg):
+                            near = True
+                            break
+                    if near:
+                        break
+                if near:
+                    break
+            if not near:
+                index[n] = -1
+                continue
         for k in range(n_tri):  # lower bounds: the sphere's distance from the ray
             rx, ry, rz = ox[k] - s0, oy[k] - s1, oz[k] - s2
             ta = max(rx * d0 + ry * d1 + rz * d2_, 0.0)
@@ -649,8 +732,9 @@ def closest_on_triangles(tv, start, direction, *, within: float | None = None,
         slack = 1e-14 * (np.abs(start).max(axis=1) + max(np.abs(lo).max(), np.abs(hi).max()))
         vid = (np.arange(3 * len(tv), dtype=np.int64).reshape(-1, 3) if corner_ids is None
                else np.ascontiguousarray(corner_ids, dtype=np.int64))
+        coarse, fine = _HIT_BLOCKS if _HIT_BLOCKS[0] > 0 else (0, 1)
         return kernels[0](tv, start, np.ascontiguousarray(dn, dtype=float), eps2, slack,
-                          np.inf if within is None else float(within) ** 2, vid)
+                          np.inf if within is None else float(within) ** 2, vid, coarse, fine)
     eps2 = (1e-12 * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))) ** 2
     step = max(1, chunk // len(tv))
     for lo in range(0, n, step):  # blocks of fibres, not single fibres

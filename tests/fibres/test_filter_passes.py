@@ -129,3 +129,57 @@ def test_owned_choices_are_read_only_and_equal_to_the_constructor():
         7, ("parallel", ()), n, p)
     with pytest.raises(Exception):
         owned.seed = 3
+
+
+@pytest.mark.parametrize("surface", ["cap", "tube", "random"])
+def test_restricted_search_pre_test_changes_nothing(surface, monkeypatch):
+    # closest_on_triangles(..., within=w): the separating-axis pre-test on the blocks' and
+    # triangles' boxes only returns -1 early; indices and barycentric coordinates are bit
+    # for bit those without it, for rays that hit, graze (just inside / outside w) or miss
+    import fibres.ray_triangles as rt
+
+    if rt._kernels() is None:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(4)
+    if surface == "cap":
+        m = trimesh.creation.icosphere(subdivisions=4)
+        v, f = np.asarray(m.vertices), np.asarray(m.faces)
+        f = f[(v[f][:, :, 2] > 0.6).all(axis=1)]
+    elif surface == "tube":
+        from test_filtering import tube
+        v, f = tube()
+    else:
+        v = rng.uniform(-1, 1, (300, 3))
+        f = rng.integers(0, 300, (200, 3))
+        f[:10] = f[:10, :1]                                # points (lone vertices)
+    tv = v[f]
+    n = 400
+    start = rng.uniform(-1.5, 1.5, (n, 3)) + [0.0, 0.0, 0.8 if surface != "random" else 0.0]
+    direction = rng.standard_normal((n, 3))
+    k_all, b_all = rt.closest_on_triangles(tv, start, direction, corner_ids=f)
+    p = np.einsum("nk,nkc->nc", b_all, tv[k_all]) - start
+    d = direction / np.linalg.norm(direction, axis=1, keepdims=True)
+    dist = np.linalg.norm(p - np.maximum(np.einsum("nc,nc->n", p, d), 0)[:, None] * d, axis=1)
+    for w in (0.0, 1e-9, 0.02, 0.2, float(np.median(dist))):
+        got = rt.closest_on_triangles(tv, start, direction, within=w, corner_ids=f)
+        with monkeypatch.context() as mp:
+            mp.setattr(rt, "_HIT_BLOCKS", (0, 1))
+            ref = rt.closest_on_triangles(tv, start, direction, within=w, corner_ids=f)
+        np.testing.assert_array_equal(got[0], ref[0])
+        np.testing.assert_array_equal(got[1], ref[1])
+        assert ((got[0] >= 0) == (dist <= w * (1 + 1e-9) + 1e-12)).all()
+    # rays grazing a triangle's corner at just under / over the radius
+    w = 0.05
+    corner = tv[len(tv) // 2, 0]
+    side = np.cross(d[:20], rng.standard_normal((20, 3)))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    for scale in (0.999, 1.001):
+        s0 = corner + scale * w * side - d[:20]              # passes the corner at scale * w
+        got = rt.closest_on_triangles(tv, s0, d[:20], within=w, corner_ids=f)
+        with monkeypatch.context() as mp:
+            mp.setattr(rt, "_HIT_BLOCKS", (0, 1))
+            ref = rt.closest_on_triangles(tv, s0, d[:20], within=w, corner_ids=f)
+        np.testing.assert_array_equal(got[0], ref[0])
+        np.testing.assert_array_equal(got[1], ref[1])
+        if scale < 1:
+            assert (got[0] >= 0).all()
