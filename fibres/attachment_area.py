@@ -91,13 +91,22 @@ def _blocks_loop(vt):  # pragma: no cover - compiled by numba
     n_b = (n_v + bs - 1) // bs
     box = np.empty((n_b, 6))
     for b in range(n_b):
-        i0 = b * bs
+        i0, i1 = b * bs, min(b * bs + bs, n_v)
         for c in range(3):
-            lo = hi = vt[c, i0]
-            for i in range(i0 + 1, min(i0 + bs, n_v)):
-                lo = min(lo, vt[c, i])
-                hi = max(hi, vt[c, i])
-            box[b, 2 * c], box[b, 2 * c + 1] = lo, hi
+            # four independent running minima / maxima (one chain is latency-bound; the
+            # minimum and maximum do not depend on the order)
+            l0 = l1 = l2 = l3 = h0 = h1 = h2 = h3 = vt[c, i0]
+            i = i0 + 1
+            while i + 4 <= i1:
+                x0, x1, x2, x3 = vt[c, i], vt[c, i + 1], vt[c, i + 2], vt[c, i + 3]
+                l0, l1, l2, l3 = min(l0, x0), min(l1, x1), min(l2, x2), min(l3, x3)
+                h0, h1, h2, h3 = max(h0, x0), max(h1, x1), max(h2, x2), max(h3, x3)
+                i += 4
+            while i < i1:
+                l0, h0 = min(l0, vt[c, i]), max(h0, vt[c, i])
+                i += 1
+            box[b, 2 * c] = min(min(l0, l1), min(l2, l3))
+            box[b, 2 * c + 1] = max(max(h0, h1), max(h2, h3))
     return box
 
 

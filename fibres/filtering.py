@@ -88,6 +88,7 @@ import numpy as np
 from .attachment_area import _kernels as _area_kernels
 from .attachment_area import _mean_edge, _region_indices, attachment_region
 from .filter_passes import passes
+from . import ray_triangles as _rt
 from .ray_triangles import closest_on_triangles, regions_triangles
 from .resample import evaluate_kernel, resampling_kernel
 
@@ -383,8 +384,7 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
 
 def _hit_blocks():
     """`fibres.ray_triangles._HIT_BLOCKS` as the compiled loop takes them ((0, 1): off)."""
-    from . import ray_triangles
-    return ray_triangles._HIT_BLOCKS if ray_triangles._HIT_BLOCKS[0] > 0 else (0, 1)
+    return _rt._HIT_BLOCKS if _rt._HIT_BLOCKS[0] > 0 else (0, 1)
 
 
 def _untouched(n, p):
