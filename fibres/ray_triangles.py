@@ -193,7 +193,8 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2, vid, coarse,
     separating axis (`_apart_loop`, by more than the sphere test's rounding margin
     ``100 slack``); when every triangle's box is apart, every triangle is farther than the
     radius, so the ray is -1 -- the answer of the bounds and pairs below, without them
-    (``coarse`` 0: no pre-test)."""
+    (and without the triangles' constants when that holds for every ray; ``coarse`` 0: no
+    pre-test)."""
     n_rays, n_tri = start.shape[0], tv.shape[0]
     index = np.zeros(n_rays, np.int64)
     bary = np.zeros((n_rays, 3))
@@ -203,6 +204,54 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2, vid, coarse,
     cand_k = np.empty(n_tri, np.int64)
     cand_lb = np.empty(n_tri)
     uv = np.empty((3, 2))                                   # corners across the ray
+    # restricted search: the boxes (centre, half extents grown by the search radius) of
+    # the coarse blocks, the fine blocks and the triangles
+    n_box = n_tri if within2 < np.inf and coarse > 0 else 0
+    grow = np.sqrt(max(within2, eps2)) * (1.0 + 1e-6)
+    box_c, box_h = np.empty((3, n_box, 3)), np.empty((3, n_box, 3))
+    for level in range(3 if n_box else 0):
+        size = coarse if level == 0 else (fine if level == 1 else 1)
+        for b in range((n_tri + size - 1) // size):
+            for c in range(3):
+                lo, hi = np.inf, -np.inf
+                for k in range(b * size, min(b * size + size, n_tri)):
+                    for i in range(3):
+                        lo, hi = min(lo, tv[k, i, c]), max(hi, tv[k, i, c])
+                box_c[level, b, c] = (lo + hi) * 0.5
+                box_h[level, b, c] = (hi - lo) * 0.5 + grow
+    apart = np.zeros(n_rays, np.bool_)
+    n_apart = 0
+    for n in range(n_rays if n_box else 0):  # every triangle's box apart: -1 (docstring)
+        s0, s1, s2 = start[n, 0], start[n, 1], start[n, 2]
+        d0, d1, d2_ = dn[n, 0], dn[n, 1], dn[n, 2]
+        mrg = 100.0 * slack[n]
+        near = False
+        for b0 in range((n_tri + coarse - 1) // coarse):
+            if _apart(s0 - box_c[0, b0, 0], s1 - box_c[0, b0, 1], s2 - box_c[0, b0, 2],
+                      box_h[0, b0, 0], box_h[0, b0, 1], box_h[0, b0, 2], d0, d1, d2_, mrg):
+                continue
+            k_end = min(b0 * coarse + coarse, n_tri)
+            for b1 in range(b0 * coarse // fine, (k_end + fine - 1) // fine):
+                if _apart(s0 - box_c[1, b1, 0], s1 - box_c[1, b1, 1],
+                          s2 - box_c[1, b1, 2], box_h[1, b1, 0], box_h[1, b1, 1],
+                          box_h[1, b1, 2], d0, d1, d2_, mrg):
+                    continue
+                for k in range(b1 * fine, min(b1 * fine + fine, k_end)):
+                    if not _apart(s0 - box_c[2, k, 0], s1 - box_c[2, k, 1],
+                                  s2 - box_c[2, k, 2], box_h[2, k, 0], box_h[2, k, 1],
+                                  box_h[2, k, 2], d0, d1, d2_, mrg):
+                        near = True
+                        break
+                if near:
+                    break
+            if near:
+                break
+        if not near:
+            index[n] = -1
+            apart[n] = True
+            n_apart += 1
+    if n_apart == n_rays:  # every ray: no triangle constants needed
+        return index, bary
     cs = np.empty((3, 3, n_tri))                 # corner, coordinate, triangle
     for k in range(n_tri):
         for i in range(3):
@@ -258,51 +307,12 @@ def _triangles_loop(tv, start, dn, eps2, slack, within2, vid, coarse,
             qx, qy, qz = tv[k, i, 0] - ox[k], tv[k, i, 1] - oy[k], tv[k, i, 2] - oz[k]
             far = max(far, np.sqrt(qx * qx + qy * qy + qz * qz))
         radius[k] = far * (1 + 1e-12)
-    # restricted search: the boxes (centre, half extents grown by the search radius) of
-    # the coarse blocks, the fine blocks and the triangles
-    n_box = n_tri if within2 < np.inf and coarse > 0 else 0
-    grow = np.sqrt(max(within2, eps2)) * (1.0 + 1e-6)
-    box_c, box_h = np.empty((3, n_box, 3)), np.empty((3, n_box, 3))
-    for level in range(3 if n_box else 0):
-        size = coarse if level == 0 else (fine if level == 1 else 1)
-        for b in range((n_tri + size - 1) // size):
-            for c in range(3):
-                lo, hi = np.inf, -np.inf
-                for k in range(b * size, min(b * size + size, n_tri)):
-                    for i in range(3):
-                        lo, hi = min(lo, tv[k, i, c]), max(hi, tv[k, i, c])
-                box_c[level, b, c] = (lo + hi) * 0.5
-                box_h[level, b, c] = (hi - lo) * 0.5 + grow
     for n in range(n_rays):
+        if apart[n]:
+            continue
         for c in range(3):
             s[c], d[c] = start[n, c], dn[n, c]
         s0, s1, s2, d0, d1, d2_ = s[0], s[1], s[2], d[0], d[1], d[2]
-        if n_box:  # every triangle's box apart from the ray: -1 (docstring)
-            mrg = 100.0 * slack[n]
-            near = False
-            for b0 in range((n_tri + coarse - 1) // coarse):
-                if _apart(s0 - box_c[0, b0, 0], s1 - box_c[0, b0, 1], s2 - box_c[0, b0, 2],
-                          box_h[0, b0, 0], box_h[0, b0, 1], box_h[0, b0, 2], d0, d1, d2_, mrg):
-                    continue
-                k_end = min(b0 * coarse + coarse, n_tri)
-                for b1 in range(b0 * coarse // fine, (k_end + fine - 1) // fine):
-                    if _apart(s0 - box_c[1, b1, 0], s1 - box_c[1, b1, 1],
-                              s2 - box_c[1, b1, 2], box_h[1, b1, 0], box_h[1, b1, 1],
-                              box_h[1, b1, 2], d0, d1, d2_, mrg):
-                        continue
-                    for k in range(b1 * fine, min(b1 * fine + fine, k_end)):
-                        if not _apart(s0 - box_c[2, k, 0], s1 - box_c[2, k, 1],
-                                      s2 - box_c[2, k, 2], box_h[2, k, 0], box_h[2, k, 1],
-                                      box_h[2, k, 2], d0, d1, d2_, mrg):
-                            near = True
-                            break
-                    if near:
-                        break
-                if near:
-                    break
-            if not near:
-                index[n] = -1
-                continue
         for k in range(n_tri):  # lower bounds: the sphere's distance from the ray
             rx, ry, rz = ox[k] - s0, oy[k] - s1, oz[k] - s2
             ta = max(rx * d0 + ry * d1 + rz * d2_, 0.0)
