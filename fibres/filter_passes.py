@@ -15,7 +15,7 @@ einsum dot product adds ``(x0 y0 + x2 y2) + x1 y1``, row norms ``(x0^2 + x1^2) +
 
 - `choices_areas_loop`: which fibre ends are cut, in which segment and where; for the ends
   that some fibre cuts, the attachment area (`fibres.attachment_area`), its triangles and
-  their owning faces (`fibres.ray_triangles.regions_triangles`) and their bounds;
+  their owning faces (`fibres.attachment_area.regions_triangles`) and their bounds;
 - `choices_ends_loop`: each cut end's ray searches (`fibres.ray_triangles.closest_on_triangles`:
   the template's ray within the tolerance, then the paper's ray for the fibres whose template
   ray does not hit the area), the target's face and barycentric coordinates on it, and the
@@ -53,8 +53,8 @@ def passes():
             global _nearest, _within, _edge_sum, _blocks, _triangles, _bounds, _regions
             global _resampling, _evaluate, _cut_s, _geometry, _area, _search
             area, tri = attachment_area._kernels(), ray_triangles._kernels()
-            _nearest, _within, _edge_sum, _blocks = area
-            _triangles, _bounds, _regions = tri[0], tri[2], tri[3]
+            _nearest, _within, _edge_sum, _blocks, _, _regions = area
+            _triangles, _bounds = tri
             _resampling, _evaluate = resample._compiled()
             jit = numba.njit(cache=True, nogil=True, error_model="numpy")
             _cut_s, _geometry, _area = jit(_cut_s_loop), jit(_geometry_loop), jit(_area_loop)

@@ -73,11 +73,11 @@ the other attachment) keeps the morph's convergence, every gluteus medius fibre 
 at the crest's top (landmark gap 108 mm); per-fibre planes through the innermost landmark
 above each fibre kept fibres converging to the top as well (gap 36 mm).
 
-Code. The attachment area is `fibres.attachment_area`, the area's closest point to a ray
-`fibres.ray_triangles`, the resampling record `fibres.resample`. Below, `filter_choices` and
-`apply_filter` are written step by step in numpy; with numba they run as the compiled passes
-of `fibres.filter_passes` (the same arithmetic in the same order: the same arrays bit for
-bit).
+Code. The attachment area and its triangles are `fibres.attachment_area`, the area's
+closest point to a ray `fibres.ray_triangles`, the resampling record `fibres.resample`.
+Below, `filter_choices` and `apply_filter` are written step by step in numpy; with numba
+they run as the compiled passes of `fibres.filter_passes` (the same arithmetic in the same
+order: the same arrays bit for bit).
 """
 from __future__ import annotations
 
@@ -86,10 +86,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .attachment_area import _kernels as _area_kernels
-from .attachment_area import _mean_edge, _region_indices, attachment_region
+from .attachment_area import _mean_edge, _region_indices, attachment_region, regions_triangles
 from .filter_passes import passes
 from . import ray_triangles as _rt
-from .ray_triangles import closest_on_triangles, regions_triangles
+from .ray_triangles import closest_on_triangles
 from .resample import evaluate_kernel, resampling_kernel
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",

@@ -19,14 +19,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from .attachment_area import region_triangles, regions_triangles   # the area's triangles
+
 __all__ = ["region_triangles", "regions_triangles", "closest_on_triangles"]
 
 _KERNELS = []
 
 
 def _kernels():
-    """(closest triangle point to each ray, area triangles, corner bounds) compiled with
-    numba, or None (then numpy)."""
+    """(closest triangle point to each ray, corner bounds) compiled with numba, or None
+    (then numpy)."""
     if not _KERNELS:
         try:
             import numba
@@ -41,8 +43,7 @@ def _kernels():
             _pair = inline(_pair_loop)
             _across_distance = inline(_across_distance_loop)
             _apart = inline(_apart_loop)
-            _KERNELS.append((jit(_triangles_loop), jit(_region_loop), jit(_bounds_loop),
-                             jit(_regions_loop)))
+            _KERNELS.append((jit(_triangles_loop), jit(_bounds_loop)))
     return _KERNELS[0]
 
 
@@ -442,187 +443,6 @@ def _bounds_loop(tv):  # pragma: no cover - compiled by numba
     return lo, hi
 
 
-def _region_loop(faces, region, n_vertices):  # pragma: no cover - compiled by numba
-    """`region_triangles` in one pass over the faces (the array version's outputs: full
-    faces in index order, then the lone area vertices in area order, each owned by the
-    last face holding it in the corner-by-corner scan)."""
-    n_t = faces.shape[0]
-    inside = np.zeros(n_vertices, np.bool_)
-    for r in region:
-        inside[r] = True
-    full = np.empty(n_t, np.int64)
-    n_full = 0
-    covered = np.zeros(n_vertices, np.bool_)
-    for t in range(n_t):
-        if inside[faces[t, 0]] and inside[faces[t, 1]] and inside[faces[t, 2]]:
-            full[n_full] = t
-            n_full += 1
-            covered[faces[t, 0]] = True
-            covered[faces[t, 1]] = True
-            covered[faces[t, 2]] = True
-    n_lone = 0
-    for r in region:
-        n_lone += not covered[r]
-    corners = np.empty((n_full + n_lone, 3), np.int64)
-    face = np.empty(n_full + n_lone, np.int64)
-    for q in range(n_full):
-        t = full[q]
-        corners[q, 0], corners[q, 1], corners[q, 2] = faces[t, 0], faces[t, 1], faces[t, 2]
-        face[q] = t
-    if n_lone:
-        owner = np.full(n_vertices, -1, np.int64)
-        for j in range(3):  # corner by corner, the last face wins (as the array version)
-            for t in range(n_t):
-                if inside[faces[t, j]] and not covered[faces[t, j]]:
-                    owner[faces[t, j]] = t
-        q = n_full
-        for r in region:
-            if not covered[r]:
-                corners[q, 0], corners[q, 1], corners[q, 2] = r, r, r
-                face[q] = owner[r]
-                q += 1
-    return corners, face
-
-
-def _regions_loop(faces, flat, starts, n_vertices):  # pragma: no cover - compiled by numba
-    """`_region_loop` for up to 8 areas (``flat[starts[r]:starts[r + 1]]``) with one pass over
-    the faces for their full faces (a bit per area marks its vertices); then each area's
-    lone vertices and owners as `_region_loop`. Returns the areas' corners and faces back to
-    back and their offsets (n_r + 1,)."""
-    n_t = faces.shape[0]
-    n_r = starts.shape[0] - 1
-    mark = np.zeros(n_vertices, np.uint8)
-    for r in range(n_r):
-        for q in range(starts[r], starts[r + 1]):
-            mark[flat[q]] |= np.uint8(1 << r)
-    full = np.empty((n_r, n_t), np.int64)
-    n_full = np.zeros(n_r, np.int64)
-    # the owner of every marked vertex in the same pass: the array version scans the faces
-    # corner by corner (column 0, 1, 2, each in face order) and the last face wins, i.e.
-    # the last face in the highest column holding the vertex (the test on a lone vertex
-    # depends on the vertex only)
-    owner = np.full(n_vertices, -1, np.int64)
-    o_col = np.zeros(n_vertices, np.int8)
-    for t in range(n_t):
-        x0, x1, x2 = faces[t, 0], faces[t, 1], faces[t, 2]
-        m0, m1, m2 = mark[x0], mark[x1], mark[x2]
-        if m0 | m1 | m2:
-            if m0 and o_col[x0] <= 0:
-                owner[x0] = t
-            if m1 and o_col[x1] <= 1:
-                owner[x1] = t
-                o_col[x1] = 1
-            if m2:
-                owner[x2] = t
-                o_col[x2] = 2
-            m = m0 & m1 & m2
-            if m:
-                for r in range(n_r):
-                    if m & (1 << r):
-                        full[r, n_full[r]] = t
-                        n_full[r] += 1
-    covered = np.zeros((n_r, n_vertices), np.bool_)
-    out = np.zeros(n_r + 1, np.int64)
-    n_lone = np.zeros(n_r, np.int64)
-    for r in range(n_r):
-        for q in range(n_full[r]):
-            t = full[r, q]
-            covered[r, faces[t, 0]] = True
-            covered[r, faces[t, 1]] = True
-            covered[r, faces[t, 2]] = True
-        for q in range(starts[r], starts[r + 1]):
-            n_lone[r] += not covered[r, flat[q]]
-        out[r + 1] = out[r] + n_full[r] + n_lone[r]
-    corners = np.empty((out[n_r], 3), np.int64)
-    face = np.empty(out[n_r], np.int64)
-    for r in range(n_r):
-        o = out[r]
-        for q in range(n_full[r]):
-            t = full[r, q]
-            corners[o + q, 0], corners[o + q, 1], corners[o + q, 2] = (
-                faces[t, 0], faces[t, 1], faces[t, 2])
-            face[o + q] = t
-        if n_lone[r]:
-            q = o + n_full[r]
-            for i in range(starts[r], starts[r + 1]):
-                x = flat[i]
-                if not covered[r, x]:
-                    corners[q, 0], corners[q, 1], corners[q, 2] = x, x, x
-                    face[q] = owner[x]
-                    q += 1
-    return corners, face, out
-
-
-def regions_triangles(faces, regions, n_vertices):
-    """`region_triangles` of several areas (at most 8) with one pass over the faces.
-
-    Parameters
-    ----------
-    faces : (T, 3) int
-    regions : sequence of (C_r,) int
-        The areas' vertex indices (each without repeats; areas may overlap).
-    n_vertices : int
-        V.
-
-    Returns
-    -------
-    list of (corners (T'_r, 3) int, face (T'_r,) int)
-        Exactly `region_triangles` of each area.
-    """
-    kernels = _kernels()
-    if kernels is None or len(regions) > 8 or len(regions) == 0:
-        return [region_triangles(faces, r, n_vertices) for r in regions]
-    flat = np.concatenate([np.asarray(r, dtype=np.int64).ravel() for r in regions])
-    starts = np.cumsum([0] + [np.size(r) for r in regions]).astype(np.int64)
-    corners, face, out = kernels[3](np.ascontiguousarray(faces, dtype=np.int64), flat,
-                                    starts, int(n_vertices))
-    return [(corners[out[r]:out[r + 1]], face[out[r]:out[r + 1]])
-            for r in range(len(regions))]
-
-
-def region_triangles(faces, region, n_vertices):
-    """The attachment area's surface: the faces with all three corners in the area, plus
-    each area vertex on no such face as a point (a degenerate triangle (v, v, v)).
-
-    Parameters
-    ----------
-    faces : (T, 3) int
-    region : (C,) int
-        The area's vertex indices.
-    n_vertices : int
-        V.
-
-    Returns
-    -------
-    corners : (T', 3) int
-        The area triangles' vertex indices (a point: its vertex three times).
-    face : (T',) int
-        For each, a face of the mesh holding it (for a point: a face with that corner).
-    """
-    kernels = _kernels()
-    if kernels is not None:
-        return kernels[1](np.ascontiguousarray(faces, dtype=np.int64),
-                          np.ascontiguousarray(region, dtype=np.int64), int(n_vertices))
-    inside = np.zeros(n_vertices, bool)
-    inside[region] = True
-    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
-    # column by column (faces may be a strided view; a (T, 3) gather is ~6x slower)
-    full = np.flatnonzero(inside[f0] & inside[f1] & inside[f2])
-    covered = np.zeros(n_vertices, bool)
-    covered[faces[full].ravel()] = True
-    lone = region[~covered[region]]
-    if len(lone) == 0:
-        return faces[full], full
-    alone = np.zeros(n_vertices, bool)
-    alone[lone] = True
-    owner = np.full(n_vertices, -1, np.int64)          # a face holding each lone vertex
-    for col in (f0, f1, f2):  # the three corners
-        rows = np.flatnonzero(alone[col])
-        owner[col[rows]] = rows
-    corners = np.concatenate([faces[full], np.repeat(lone[:, None], 3, axis=1)])
-    return corners, np.concatenate([full, owner[lone]])
-
-
 def _dot(a, b):
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
@@ -735,7 +555,7 @@ def closest_on_triangles(tv, start, direction, *, within: float | None = None,
     kernels = _kernels()
     if kernels is not None:
         tv = np.ascontiguousarray(tv)
-        lo, hi = kernels[2](tv)                       # flat.min(axis=0), flat.max(axis=0)
+        lo, hi = kernels[1](tv)                       # flat.min(axis=0), flat.max(axis=0)
         eps2 = (1e-12 * float(np.linalg.norm(hi - lo))) ** 2
         start = np.ascontiguousarray(start, dtype=float)
         # rounding bound of the ray-frame coordinates: 1e-14 of the coordinates' size

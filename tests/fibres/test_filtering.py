@@ -539,6 +539,7 @@ def test_regions_triangles_is_region_triangles_of_each_area(monkeypatch):
     # faces of all areas in one pass over the faces: for overlapping areas with lone
     # vertices (points on no full face) every area's corners and owning faces must be
     # exactly region_triangles' (compiled and numpy fallback)
+    import fibres.attachment_area as aa
     import fibres.ray_triangles as rt
 
     v, f = tube()
@@ -548,7 +549,7 @@ def test_regions_triangles_is_region_triangles_of_each_area(monkeypatch):
              np.sort(rng.choice(len(v), 40, replace=False))]         # scattered: lone points
     for kernels in ("compiled", "numpy"):
         if kernels == "numpy":
-            monkeypatch.setattr(rt, "_KERNELS", [None])
+            monkeypatch.setattr(aa, "_KERNELS", [None])
         got = rt.regions_triangles(f, areas, len(v))
         n_lone = 0
         for area, (corners, face) in zip(areas, got):
