@@ -12,7 +12,9 @@ numpy without numba):
 - `_maps_pass`: all of `fibres.morph.slice_maps` (without split smoothing) in one call over
   all planes -- the loops above, the soft start (`fibres.correspondence.soft_start`'s
   kernel), the insertion order of `fibres.correspondence.insert_points` and the material
-  anchors -- with the outputs allocated once instead of per numpy step;
+  anchors -- with the outputs allocated once instead of per numpy step, and each old
+  segment's length measured once (the soft start's ``hypot`` reused by the roll: the same
+  function of the same difference);
 - `_morph_pass`: all of `fibres.morph.morph_local` in one call: each point's plane pair and
   blending weight, the mean value map of every (point, plane) use (`fibres.mvc`'s
   vectorised kernel) and the two planes' contributions added in the array version's order.
@@ -30,7 +32,7 @@ def _cross_loop(points, lo, m, offs):  # pragma: no cover - compiled by numba
     for s in range(m.size):
         for j in range(m[s]):
             a = lo[s] + j
-            b = lo[s] + (j + 1) % m[s]
+            b = a + 1 if j + 1 < m[s] else lo[s]
             out[offs[s] + j] = points[a, 0] * points[b, 1] - points[b, 0] * points[a, 1]
     return out
 
@@ -66,9 +68,28 @@ def _insert_loop(pts, m, offs, seg, offs2):  # pragma: no cover - compiled by nu
     return new
 
 
+def _segment_lengths(pts, m, offs):  # pragma: no cover - compiled by numba
+    """Length of every segment ``P_j -> P_{j+1}`` of contours back to back (K,): ``hypot``
+    of the difference, as `fibres.correspondence._contour_segments`."""
+    seg = np.empty(pts.shape[0])
+    for s in range(m.size):
+        o = offs[s]
+        for j in range(m[s]):
+            nx = o + j + 1 if j + 1 < m[s] else o
+            seg[o + j] = np.hypot(pts[nx, 0] - pts[o + j, 0], pts[nx, 1] - pts[o + j, 1])
+    return seg
+
+
 def _roll_loop(pts, m, offs, start):  # pragma: no cover - compiled by numba
     """Rolled contours P, segment lengths and arc lengths (cumulated over all contours
     back to back, then measured from each contour's start, as the array version)."""
+    return _roll_lengths(pts, m, offs, start, _segment_lengths(pts, m, offs))
+
+
+def _roll_lengths(pts, m, offs, start, seg_len):  # pragma: no cover - compiled by numba
+    """`_roll_loop` with the unrolled contours' segment lengths given (``seg_len``,
+    `_segment_lengths`): a rolled segment is an unrolled one, the same ``hypot`` of the
+    same difference. Indices stepped without integer division."""
     n = pts.shape[0]
     roll = np.empty(n, dtype=np.int64)
     P = np.empty((n, 2))
@@ -77,17 +98,18 @@ def _roll_loop(pts, m, offs, start):  # pragma: no cover - compiled by numba
     c_excl = np.empty(n)
     for s in range(m.size):
         o = offs[s]
+        i = start[s] % m[s]
         for j in range(m[s]):
-            roll[o + j] = o + (start[s] + j) % m[s]
-            P[o + j, 0] = pts[roll[o + j], 0]
-            P[o + j, 1] = pts[roll[o + j], 1]
+            roll[o + j] = o + i
+            P[o + j, 0] = pts[o + i, 0]
+            P[o + j, 1] = pts[o + i, 1]
+            seg[o + j] = seg_len[o + i]
+            i = i + 1 if i + 1 < m[s] else 0
     cum = 0.0
     for s in range(m.size):
         o = offs[s]
         base = cum
         for j in range(m[s]):
-            nx = o + (j + 1) % m[s]
-            seg[o + j] = np.hypot(P[nx, 0] - P[o + j, 0], P[nx, 1] - P[o + j, 1])
             cum += seg[o + j]
             c_incl[o + j] = cum - base
             c_excl[o + j] = c_incl[o + j] - seg[o + j]
@@ -217,7 +239,8 @@ def _maps_pass(points, edge, t, loop_start, chosen, edges, ex, ey, spread,
     fractions[1] = (sy + sx) / total
     fractions[2] = ((sy + sx) + sy) / total
     q0 = np.zeros(2)
-    seg, tk, point = _soft_start(pts, m, offs, q0, fractions, spread, floor)
+    seg_len = np.empty(offs[-1])
+    seg, tk, point = _soft_start(pts, m, offs, q0, fractions, spread, floor, seg_len)
     # insert_points: index of each point in its new contour (order (seg, tau, a))
     n_a = 4
     index = np.empty((n_s, n_a), np.int64)
@@ -238,6 +261,30 @@ def _maps_pass(points, edge, t, loop_start, chosen, edges, ex, ey, spread,
         for a in range(n_a):
             new[offs2[s] + index[s, a], 0] = point[s, a, 0]
             new[offs2[s] + index[s, a], 1] = point[s, a, 1]
+    # the new contours' segment lengths: an old segment's where both ends are its old
+    # vertices (the same hypot of the same difference), else measured
+    old = np.empty(offs2[-1], np.int64)         # old local index at each new position
+    for s in range(n_s):
+        j = 0
+        for i in range(m2[s]):
+            if (i == index[s, 0] or i == index[s, 1] or i == index[s, 2]
+                    or i == index[s, 3]):
+                old[offs2[s] + i] = -1
+            else:
+                old[offs2[s] + i] = j
+                j += 1
+    new_len = np.empty(offs2[-1])
+    for s in range(n_s):
+        o = offs2[s]
+        for i in range(m2[s]):
+            nx = o + i + 1 if i + 1 < m2[s] else o
+            j = old[o + i]
+            if j >= 0 and old[nx] >= 0 and (old[nx] == j + 1 or (old[nx] == 0
+                                                                and j == m[s] - 1)):
+                new_len[o + i] = seg_len[offs[s] + j]
+            else:
+                new_len[o + i] = np.hypot(new[nx, 0] - new[o + i, 0],
+                                          new[nx, 1] - new[o + i, 1])
     # _insert_and_subdivide: roll to the start, subdivide like the split
     start = np.empty(n_s, np.int64)
     split = np.empty((n_s, 3), np.int64)
@@ -249,7 +296,7 @@ def _maps_pass(points, edge, t, loop_start, chosen, edges, ex, ey, spread,
         ok[s] = 0 < split[s, 0] and split[s, 0] < split[s, 1] and split[s, 1] < split[s, 2]
         if not ok[s]:
             split[s, 0], split[s, 1], split[s, 2] = 1, 1, 1
-    _, P, _, c_incl, c_excl = _roll_loop(new, m2, offs2, start)
+    _, P, _, c_incl, c_excl = _roll_lengths(new, m2, offs2, start, new_len)
     rect = np.zeros((4, 2))
     rect[1, 1] = ey
     rect[2, 0], rect[2, 1] = ex, ey
@@ -354,15 +401,17 @@ def kernels():
         except ImportError:                                 # pragma: no cover - optional
             _KERNELS.append(None)
         else:
-            from .correspondence import _start_kernel
+            from .correspondence_kernels import _start_kernel
             from .mvc import _kernel as _mvc_kernel
             from .plan import anchor_kernel
 
             global _cross_loop, _clockwise_loop, _insert_loop, _roll_loop, _subdivide_loop
-            global _pairwise_sum, _reduceat_sum, _soft_start, _mvc_vec
+            global _segment_lengths, _roll_lengths, _pairwise_sum, _reduceat_sum
+            global _soft_start, _mvc_vec
             jit = numba.njit(cache=True, nogil=True, error_model="numpy")
             _cross_loop, _clockwise_loop = jit(_cross_loop), jit(_clockwise_loop)
             _insert_loop, _roll_loop = jit(_insert_loop), jit(_roll_loop)
+            _segment_lengths, _roll_lengths = jit(_segment_lengths), jit(_roll_lengths)
             _subdivide_loop = jit(_subdivide_loop)
             _pairwise_sum = jit(_pairwise_sum)
             _reduceat_sum = jit(_reduceat_sum)

@@ -674,3 +674,55 @@ def test_compiled_morph_local_equals_the_array_version(monkeypatch):
     monkeypatch.undo()
     np.testing.assert_array_equal(morph_local(xy, w, h, tuple(map(np.array, P)),
                                               tuple(map(np.array, Q))), got)
+
+
+def test_compiled_slice_maps_pass_on_random_contours():
+    # the compiled pass reuses the soft start's segment lengths for the rolled contours
+    # (where both ends are old vertices) and measures the new segments: the same P, Q,
+    # choice and anchors as the array steps, on random star contours of 3 to 40 vertices
+    # (several points on one segment, points on the closing segment, either orientation)
+    pytest.importorskip("numba")
+    from types import SimpleNamespace
+
+    from fibres.morph import _slice_maps_steps, slice_maps
+    from fibres.slicing import Sections
+
+    rng = np.random.default_rng(31)
+    m = np.r_[3, 3, 4, 5, rng.integers(3, 40, 36)]
+    start = np.concatenate([[0], np.cumsum(m)])
+    parts = []
+    for k, n in enumerate(m):
+        t = np.sort(rng.uniform(0, 2 * np.pi, n)) * (1 if k % 2 else -1)
+        r = 1.0 + 0.4 * rng.uniform(size=n)
+        parts.append(np.c_[0.5 + 0.4 * r * np.cos(t), 0.3 + 0.25 * r * np.sin(t)]
+                     + rng.normal(0, 0.2, 2))
+    pts = np.concatenate(parts)
+    sec = Sections(np.arange(m.size, dtype=float), pts, np.arange(pts.shape[0]),
+                   rng.uniform(0, 1, pts.shape[0]), start, np.arange(m.size), np.eye(4))
+    top = SimpleNamespace(edges=rng.integers(0, 1000, (pts.shape[0], 2)))
+    chosen = np.arange(m.size)
+    for ext in ([1.0, 0.6, 2.0], [0.2, 1.4, 1.0]):
+        got = slice_maps(sec, chosen, np.array(ext), topology=top)
+        ref = _slice_maps_steps(sec, chosen, np.array(ext), topology=top)
+        for a, b in zip(got[0] + got[1], ref[0] + ref[1]):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(got[2], ref[2])
+        for a, b in zip(got[3], ref[3]):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_soft_start_float_modulo_is_pythons():
+    # the soft start's `x % length` without fmod where |x| < length: Python's float modulo
+    # bit for bit (signed zeros, the bounds, far outside, both signs)
+    pytest.importorskip("numba")
+    from fibres import correspondence_kernels as ck
+
+    ck._start_kernel()
+    rng = np.random.default_rng(4)
+    for length in (1.0, 0.3, 7.25e-3, 123.456):
+        x = np.r_[rng.uniform(-2.5, 2.5, 3000) * length, 0.0, -0.0, length, -length,
+                  np.nextafter(length, 0), -np.nextafter(length, 0), 5e-324, -5e-324,
+                  1e30, -1e30]
+        for v in x:
+            got, ref = ck._mod(float(v), length), float(v) % length
+            assert got == ref and np.signbit(got) == np.signbit(ref), (v, length)
