@@ -143,9 +143,10 @@ class Planes(tuple):
 
 def planes(flat, offsets) -> Planes:
     """`Planes` of the rows ``flat[offsets[g]:offsets[g + 1]]`` (views, as np.split)."""
-    off = [int(o) for o in offsets]
-    out = Planes(flat[a:b] for a, b in zip(off[:-1], off[1:]))
-    out.flat, out.offsets = flat, np.asarray(offsets, dtype=np.int64)
+    offsets = np.asarray(offsets, dtype=np.int64)
+    off = offsets.tolist()
+    out = Planes([flat[a:b] for a, b in zip(off[:-1], off[1:])])
+    out.flat, out.offsets = flat, offsets
     return out
 
 
