@@ -15,7 +15,8 @@ results are blended linearly in ``w``, and the point keeps its own height ``w``.
 the result continuous in the point's height (a nearest-plane rule would jump between
 planes), exact for points lying on a plane (the parallel template at the default slice
 fractions puts every point on a plane, i.e. exactly the paper's sweep), and it costs one
-MVC evaluation per point and neighbouring plane (`fibres.mvc.mvc_map`, compiled).
+MVC evaluation per point and neighbouring plane (`fibres.mvc`'s compiled map, all uses in
+one call: `fibres.morph_kernels._morph_pass`).
 Plans. `slice_maps` makes the paper's choices, made continuous (start at the soft closest
 contour point to ``Q0``, split points at the perimeter-ratio positions,
 `fibres.correspondence`)
@@ -126,7 +127,8 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     ``sum_j (side_j - k length_j)^2`` vanishes; the four points are inserted into the
     contour as vertices (`fibres.correspondence.correspond_continuous` per plane; why not
     the paper's vertex snapping: see `fibres.correspondence`). All planes at once on the
-    concatenated contours.
+    concatenated contours: one compiled pass (`fibres.morph_kernels._maps_pass`), or step
+    by step on arrays (`_slice_maps_steps`: without numba, or with split smoothing).
 
     Parameters
     ----------
