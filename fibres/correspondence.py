@@ -36,14 +36,14 @@ vertices inside those windows are enumerated exhaustively, so the minimum is exa
 from __future__ import annotations
 
 from bisect import bisect_left, bisect_right
-from math import exp, pi, sqrt
+from math import sqrt
 
 import numpy as np
 
-from . import plan as _plan
 # the plan's soft anchor points (re-exported here, where the correspondence is)
 from .plan import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR, SOFT_SPREAD,  # noqa: F401
                    _gauss_segment, _order_arcs, _soft_anchor_loop, anchor_kernel)
+from .correspondence_kernels import _soft_start_loop, _start_kernel
 
 __all__ = ["rectangle", "start_vertex", "split_chain", "subdivide_rectangle", "correspond",
            "split_fractions", "closest_points", "soft_start", "ratio_points",
@@ -422,130 +422,6 @@ def correspond_continuous(contour, rect):
     return P, Q, seg[0], tau[0]
 
 
-def _soft_start_loop(pts, m, offs, q0, fractions, spread, floor):  # pragma: no cover
-    """`soft_start` as one loop over the planes (see there), followed by the points at the
-    arc ``fractions`` after the start (`ratio_points`); compiled by numba, or run by
-    Python without it. Returns seg (S, 1 + F), tau (S, 1 + F), point (S, 1 + F, 2)."""
-    n_s = m.size
-    n_p = 1 + fractions.size
-    seg = np.zeros((n_s, n_p), dtype=np.int64)
-    tk = np.zeros((n_s, n_p))
-    point = np.zeros((n_s, n_p, 2))
-    px = np.empty(2)
-    dx = np.empty(2)
-    for s in range(n_s):
-        o = offs[s]
-        ms = m[s]
-        cum = np.empty(ms + 1)
-        cum[0] = 0.0
-        gd = np.empty(ms)
-        best = np.inf
-        bj = 0
-        bt = 0.0
-        for j in range(ms):
-            a = o + j
-            b = o + (j + 1) % ms
-            ex = pts[b, 0] - pts[a, 0]
-            ey = pts[b, 1] - pts[a, 1]
-            cum[j + 1] = cum[j] + np.hypot(ex, ey)
-            dd = ex * ex + ey * ey
-            rx = q0[0] - pts[a, 0]
-            ry = q0[1] - pts[a, 1]
-            tau = min(max((rx * ex + ry * ey) / (dd if dd > 0 else 1.0), 0.0), 1.0)
-            g2 = (rx - tau * ex) ** 2 + (ry - tau * ey) ** 2
-            gd[j] = g2
-            if g2 < best:
-                best = g2
-                bj = j
-                bt = tau
-        length = cum[ms]
-        pos = cum[bj] + bt * (cum[bj + 1] - cum[bj])
-        if length > 0:
-            sigma2 = spread * spread * best + (floor * length) ** 2
-            w = np.zeros(ms)
-            mid = np.zeros(ms)
-            cs = 0.0
-            sn = 0.0
-            for j in range(ms):
-                if gd[j] - best > SOFT_CUTOFF * sigma2:
-                    continue                    # weight below exp(-SOFT_CUTOFF) of the best
-                a = o + j
-                b = o + (j + 1) % ms
-                px[0], px[1] = pts[a, 0], pts[a, 1]
-                dx[0], dx[1] = pts[b, 0] - pts[a, 0], pts[b, 1] - pts[a, 1]
-                i0, tm, dc2 = _gauss_segment(q0, px, dx, 2, sigma2)
-                w[j] = (cum[j + 1] - cum[j]) * exp(-(dc2 - best) / sigma2) * i0
-                mid[j] = cum[j] + tm * (cum[j + 1] - cum[j])
-                cs += w[j] * np.cos(2.0 * pi * mid[j] / length)
-                sn += w[j] * np.sin(2.0 * pi * mid[j] / length)
-            if cs != 0.0 or sn != 0.0:
-                # the exact weighted mean arc position, unwrapped around the circular mean
-                # (continuous, unlike an unwrapping around the hard closest point)
-                ref = (np.arctan2(sn, cs) / (2.0 * pi) * length) % length
-                wsum = 0.0
-                msum = 0.0
-                for j in range(ms):
-                    if w[j] > 0:
-                        wsum += w[j]
-                        msum += w[j] * ((mid[j] - ref + 0.5 * length) % length - 0.5 * length)
-                pos = (ref + msum / wsum) % length
-        for k in range(n_p):
-            if k == 0:
-                j, t = bj, bt
-                if length > 0:
-                    j, t = _arc_segment(cum, ms, pos)
-            else:
-                # ratio_points: arc a0 + f L, once round at most; the segment found as
-                # searchsorted(cum, ., "right") - 1 does
-                target = pos + fractions[k - 1] * length
-                if target >= length:
-                    target -= length
-                j = 0
-                while j < ms - 1 and cum[j + 1] <= target:
-                    j += 1
-                span = cum[j + 1] - cum[j]
-                t = min(max((target - cum[j]) / span, 0.0), 1.0) if span > 0 else 0.0
-            seg[s, k] = j
-            tk[s, k] = t
-            a = o + j
-            b = o + (j + 1) % ms
-            point[s, k, 0] = pts[a, 0] + t * (pts[b, 0] - pts[a, 0])
-            point[s, k, 1] = pts[a, 1] + t * (pts[b, 1] - pts[a, 1])
-    return seg, tk, point
-
-
-def _arc_segment(cum, ms, pos):  # pragma: no cover - compiled by numba (and called by it)
-    """(segment, tau) of arc position ``pos`` on a contour with cumulated lengths ``cum``:
-    a zero-length segment is avoided by stepping back."""
-    j = 0
-    while j < ms - 1 and cum[j + 1] <= pos:
-        j += 1
-    while j > 0 and cum[j + 1] - cum[j] <= 0:
-        j -= 1
-    span = cum[j + 1] - cum[j]
-    return j, min(max((pos - cum[j]) / span, 0.0), 1.0) if span > 0 else 0.0
-
-
-_START_KERNEL = []
-
-
-def _start_kernel():
-    """`_soft_start_loop` compiled with numba (with `_gauss_segment`), or the Python one."""
-    if not _START_KERNEL:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _START_KERNEL.append(_soft_start_loop)
-        else:
-            global _arc_segment, _gauss_segment
-            anchor_kernel()                       # compiles the plan's `_gauss_segment`
-            _gauss_segment = _plan._gauss_segment
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _arc_segment = jit(_arc_segment)
-            _START_KERNEL.append(jit(_soft_start_loop))
-    return _START_KERNEL[0]
-
-
 def soft_start(pts, m, offs, q0, *, fractions=(), compiled=True):
     """Start point of every contour: the *soft* closest point to the rectangle corner ``Q0``.
 
@@ -589,10 +465,11 @@ def soft_start(pts, m, offs, q0, *, fractions=(), compiled=True):
     """
     kernel = _start_kernel() if compiled else _soft_start_loop
     f = np.ascontiguousarray(fractions, dtype=float).reshape(-1)
-    seg, tk, point = kernel(np.ascontiguousarray(pts, dtype=float),
-                            np.ascontiguousarray(m, dtype=np.int64),
+    pts = np.ascontiguousarray(pts, dtype=float)
+    seg, tk, point = kernel(pts, np.ascontiguousarray(m, dtype=np.int64),
                             np.ascontiguousarray(offs, dtype=np.int64),
-                            np.ascontiguousarray(q0, dtype=float), f, SOFT_SPREAD, SOFT_FLOOR)
+                            np.ascontiguousarray(q0, dtype=float), f, SOFT_SPREAD, SOFT_FLOOR,
+                            np.empty(pts.shape[0]))
     if np.ndim(fractions) == 0 or len(fractions) == 0:
         return seg[:, 0], tk[:, 0], point[:, 0]
     return seg, tk, point

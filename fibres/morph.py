@@ -15,7 +15,8 @@ results are blended linearly in ``w``, and the point keeps its own height ``w``.
 the result continuous in the point's height (a nearest-plane rule would jump between
 planes), exact for points lying on a plane (the parallel template at the default slice
 fractions puts every point on a plane, i.e. exactly the paper's sweep), and it costs one
-MVC evaluation per point and neighbouring plane (`fibres.mvc.mvc_map`, compiled).
+MVC evaluation per point and neighbouring plane (`fibres.mvc`'s compiled map, all uses in
+one call: `fibres.morph_kernels._morph_pass`).
 Plans. `slice_maps` makes the paper's choices, made continuous (start at the soft closest
 contour point to ``Q0``, split points at the perimeter-ratio positions,
 `fibres.correspondence`)
@@ -35,10 +36,12 @@ from __future__ import annotations
 import numpy as np
 
 from .contours import anchored_loops, bridge_loops, clockwise_contour
+from . import correspondence as _correspondence
 from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD, anchor_kernel,
                              correspond_continuous, insert_points, rectangle, smooth_split_points,
                              soft_start, split_chain, split_fractions)
-from .mvc import mvc_map, planes
+from .morph_kernels import kernels as _kernels
+from .mvc import _ON_EDGE, mvc_map, packed, planes
 from .plan import rest_geometry, rest_loop_counts
 from .slicing import MeshTopology, Sections
 
@@ -104,33 +107,6 @@ def _clockwise_all(sections: Sections, chosen, topology: MeshTopology, *, anchor
     return pts, edge, av, aw, m, offs, idx
 
 
-def _cross_loop(points, lo, m, offs):  # pragma: no cover - compiled by numba
-    """Per-vertex terms ``x_j y_{j+1} - x_{j+1} y_j`` of the loops' signed areas."""
-    out = np.empty(offs[-1])
-    for s in range(m.size):
-        for j in range(m[s]):
-            a = lo[s] + j
-            b = lo[s] + (j + 1) % m[s]
-            out[offs[s] + j] = points[a, 0] * points[b, 1] - points[b, 0] * points[a, 1]
-    return out
-
-
-def _clockwise_loop(points, edge, lo, m, offs, flip):  # pragma: no cover - numba
-    """Indices, points and edges of the loops in clockwise order (reversed where ``flip``)."""
-    n = offs[-1]
-    idx = np.empty(n, np.int64)
-    pts = np.empty((n, 2))
-    ed = np.empty(n, np.int64)
-    for s in range(m.size):
-        for j in range(m[s]):
-            i = lo[s] + m[s] - 1 - j if flip[s] else lo[s] + j
-            q = offs[s] + j
-            idx[q] = i
-            pts[q, 0], pts[q, 1] = points[i, 0], points[i, 1]
-            ed[q] = edge[i]
-    return idx, pts, ed
-
-
 def _vertex_anchors(sections: Sections, topology: MeshTopology, idx):
     """Material anchors of section points ``idx``: their mesh edge's two end vertices and
     weights ``1 - t, t``, padded to 4 (vertices repeated, weights 0)."""
@@ -151,7 +127,8 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     ``sum_j (side_j - k length_j)^2`` vanishes; the four points are inserted into the
     contour as vertices (`fibres.correspondence.correspond_continuous` per plane; why not
     the paper's vertex snapping: see `fibres.correspondence`). All planes at once on the
-    concatenated contours.
+    concatenated contours: one compiled pass (`fibres.morph_kernels._maps_pass`), or step
+    by step on arrays (`_slice_maps_steps`: without numba, or with split smoothing).
 
     Parameters
     ----------
@@ -176,10 +153,34 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     notes : tuple of str
     """
     chosen = np.asarray(chosen, dtype=np.int64)
-    n_s = chosen.size
     if (chosen < 0).any():
         s = int(np.flatnonzero(chosen < 0)[0])
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
+    kernels = _kernels()
+    if kernels is None or _correspondence.SPLIT_SMOOTHING["iterations"] > 0:
+        return _slice_maps_steps(sections, chosen, extents, topology=topology)
+    # compiled: the steps below in one pass over all planes (`fibres.morph_kernels`)
+    P, Q, offs2, ok, choice, av, aw, pts, offs = kernels[6](
+        sections.points, sections.edge, sections.t, sections.loop_start, chosen,
+        topology.edges, float(extents[0]), float(extents[1]), SOFT_SPREAD, SOFT_FLOOR)
+    P_all, Q_all = planes(P, offs2), planes(Q, offs2)    # views of P, Q (`fibres.mvc`)
+    if not ok.all():                          # cannot happen: the points are in arc order
+        P_all, Q_all = _degenerate(P_all, Q_all, ok, pts, offs, extents)
+    return P_all, Q_all, choice, (av, aw), ()
+
+
+def _degenerate(P_all, Q_all, ok, pts, offs, extents):
+    """The planes whose inserted points are out of order (a contour of zero length),
+    corresponded afresh one by one (`correspond_continuous`)."""
+    rect = rectangle(float(extents[0]), float(extents[1]))
+    P_all, Q_all = list(P_all), list(Q_all)
+    for s in np.flatnonzero(~ok):
+        P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
+    return tuple(P_all), tuple(Q_all)
+
+
+def _slice_maps_steps(sections: Sections, chosen, extents, *, topology: MeshTopology):
+    """`slice_maps` step by step on arrays (without numba, or with split smoothing)."""
     rect = rectangle(float(extents[0]), float(extents[1]))
     pts, edge, _, _, m, offs, idx = _clockwise_all(sections, chosen, topology, anchors=False)
     # start (soft closest point to Q0) and the split points at the perimeter ratios (S, 4)
@@ -189,9 +190,7 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     P, Q, offs2, ok = _insert_and_subdivide(pts, m, offs, seg, tk, point, rect)
     P_all, Q_all = planes(P, offs2), planes(Q, offs2)    # views of P, Q (`fibres.mvc`)
     if not ok.all():                          # cannot happen: the points are in arc order
-        P_all, Q_all = list(P_all), list(Q_all)
-        for s in np.flatnonzero(~ok):
-            P_all[s], Q_all[s], _, _ = correspond_continuous(pts[offs[s]:offs[s + 1]], rect)
+        P_all, Q_all = _degenerate(P_all, Q_all, ok, pts, offs, extents)
     # material anchors: the point (1 - tau) X_j + tau X_{j+1} on the face between the two
     # contour vertices' mesh edges, each X = (1 - t) V_a + t V_b
     g = offs[:-1, None] + seg
@@ -201,9 +200,7 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     v = np.concatenate([av0[..., :2], av1[..., :2]], axis=-1)
     w = np.concatenate([(1.0 - tk)[..., None] * aw0[..., :2], tk[..., None] * aw1[..., :2]],
                        axis=-1)
-    return (P_all if isinstance(P_all, tuple) else tuple(P_all),
-            Q_all if isinstance(Q_all, tuple) else tuple(Q_all),
-            edge[np.where(tk < 0.5, g, nx)], (v, w), ())
+    return P_all, Q_all, edge[np.where(tk < 0.5, g, nx)], (v, w), ()
 
 
 def _insert_and_subdivide(pts, m, offs, seg, tk, point, rect):
@@ -309,83 +306,6 @@ def _roll_and_subdivide_numpy(pts, m, offs, start, split, rect):
                     (j - b0) / (b1 - b0))
     Q = rect[part] + frac[:, None] * (rect[(part + 1) % 4] - rect[part])
     return P, Q, roll, split
-
-
-_KERNELS = []
-
-
-def _kernels():
-    """The (roll, subdivide) loops of `_roll_and_subdivide` and the (closest point,
-    insertion) loops of `anchored_maps`, compiled with numba, or None."""
-    if not _KERNELS:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _KERNELS.append(None)
-        else:
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _KERNELS.append((jit(_roll_loop), jit(_subdivide_loop), anchor_kernel(),
-                             jit(_insert_loop), jit(_cross_loop), jit(_clockwise_loop)))
-    return _KERNELS[0]
-
-
-def _roll_loop(pts, m, offs, start):  # pragma: no cover - compiled by numba
-    """Rolled contours P, segment lengths and arc lengths (cumulated over all contours
-    back to back, then measured from each contour's start, as the array version)."""
-    n = pts.shape[0]
-    roll = np.empty(n, dtype=np.int64)
-    P = np.empty((n, 2))
-    seg = np.empty(n)
-    c_incl = np.empty(n)
-    c_excl = np.empty(n)
-    for s in range(m.size):
-        o = offs[s]
-        for j in range(m[s]):
-            roll[o + j] = o + (start[s] + j) % m[s]
-            P[o + j, 0] = pts[roll[o + j], 0]
-            P[o + j, 1] = pts[roll[o + j], 1]
-    cum = 0.0
-    for s in range(m.size):
-        o = offs[s]
-        base = cum
-        for j in range(m[s]):
-            nx = o + (j + 1) % m[s]
-            seg[o + j] = np.hypot(P[nx, 0] - P[o + j, 0], P[nx, 1] - P[o + j, 1])
-            cum += seg[o + j]
-            c_incl[o + j] = cum - base
-            c_excl[o + j] = c_incl[o + j] - seg[o + j]
-    return roll, P, seg, c_incl, c_excl
-
-
-def _subdivide_loop(m, offs, split, c_incl, c_excl, rect):  # pragma: no cover - numba
-    """The subdivided rectangles Q (each side like its part of the contour)."""
-    Q = np.empty((c_incl.size, 2))
-    bounds = np.empty(5, dtype=np.int64)
-    arc = np.empty(5)
-    for s in range(m.size):
-        o = offs[s]
-        bounds[0] = 0
-        arc[0] = 0.0
-        for k in range(3):
-            bounds[k + 1] = split[s, k]
-            arc[k + 1] = c_excl[o + split[s, k]]
-        bounds[4] = m[s]
-        arc[4] = c_incl[o + m[s] - 1]
-        for j in range(m[s]):
-            part = 0
-            for k in range(3):
-                if j >= split[s, k]:
-                    part += 1
-            a0 = arc[part]
-            span = arc[part + 1] - a0
-            if span > 0:
-                frac = (c_excl[o + j] - a0) / span
-            else:
-                frac = (j - bounds[part]) / (bounds[part + 1] - bounds[part])
-            p1 = (part + 1) % 4
-            Q[o + j, 0] = rect[part, 0] + frac * (rect[p1, 0] - rect[part, 0])
-            Q[o + j, 1] = rect[part, 1] + frac * (rect[p1, 1] - rect[part, 1])
-    return Q
 
 
 def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
@@ -519,21 +439,6 @@ def _bridged(sections, chosen, extra, topology, pts, av, aw, m, offs, anchors):
     return pts, av, aw, m, offs, notes
 
 
-def _insert_loop(pts, m, offs, seg, offs2):  # pragma: no cover - compiled by numba
-    """The contours with A free slots per plane: vertex j moves up by the number of
-    points inserted before it (segments < j)."""
-    new = np.empty((offs2[-1], 2))
-    for s in range(m.size):
-        for j in range(m[s]):
-            shift = 0
-            for k in range(seg.shape[1]):
-                if seg[s, k] < j:
-                    shift += 1
-            new[offs2[s] + j + shift, 0] = pts[offs[s] + j, 0]
-            new[offs2[s] + j + shift, 1] = pts[offs[s] + j, 1]
-    return new
-
-
 def _slice_maps_loop(sections: Sections, chosen, extents, *, topology: MeshTopology):
     """`slice_maps` one plane at a time with
     `fibres.correspondence.correspond_continuous` (reference implementation for the tests)."""
@@ -573,6 +478,13 @@ def morph_local(xy, w, heights, P, Q) -> np.ndarray:
     xy = np.asarray(xy, dtype=float)
     w = np.asarray(w, dtype=float)
     h = np.asarray(heights, dtype=float)
+    kernels = _kernels()
+    if kernels is not None and h.size >= 2:
+        # compiled: the steps below in one call (`fibres.morph_kernels._morph_pass`)
+        src, dst, offsets = packed(Q, P)
+        return kernels[7](np.ascontiguousarray(xy), np.ascontiguousarray(w),
+                          np.ascontiguousarray(h), np.ascontiguousarray(src[:, 0]),
+                          np.ascontiguousarray(src[:, 1]), src, dst, offsets, _ON_EDGE)
     n_s = h.size
     s0 = np.clip(np.searchsorted(h, w, side="right") - 1, 0, n_s - 2)
     a = np.clip((w - h[s0]) / (h[s0 + 1] - h[s0]), 0.0, 1.0)

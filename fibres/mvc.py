@@ -143,9 +143,10 @@ class Planes(tuple):
 
 def planes(flat, offsets) -> Planes:
     """`Planes` of the rows ``flat[offsets[g]:offsets[g + 1]]`` (views, as np.split)."""
-    off = [int(o) for o in offsets]
-    out = Planes(flat[a:b] for a, b in zip(off[:-1], off[1:]))
-    out.flat, out.offsets = flat, np.asarray(offsets, dtype=np.int64)
+    offsets = np.asarray(offsets, dtype=np.int64)
+    off = offsets.tolist()
+    out = Planes([flat[a:b] for a, b in zip(off[:-1], off[1:])])
+    out.flat, out.offsets = flat, offsets
     return out
 
 
@@ -179,19 +180,9 @@ def mvc_map(points, groups, sources, targets, *, weights=None) -> np.ndarray:
     pts = np.ascontiguousarray(points, dtype=float)
     groups = np.ascontiguousarray(groups, dtype=np.int64)
     w = np.ones(len(pts)) if weights is None else np.ascontiguousarray(weights, dtype=float)
-    packed = (isinstance(sources, Planes) and isinstance(targets, Planes)
-              and np.array_equal(sources.offsets, targets.offsets))
-    if packed:
-        offsets = sources.offsets
-    else:
-        offsets = np.zeros(len(sources) + 1, dtype=np.int64)
-        offsets[1:] = np.cumsum([len(s) for s in sources])
     kernel = _kernel()
     if kernel is not None:
-        src = np.ascontiguousarray(sources.flat if packed else np.concatenate(sources),
-                                   dtype=float)
-        dst = np.ascontiguousarray(targets.flat if packed else np.concatenate(targets),
-                                   dtype=float)
+        src, dst, offsets = packed(sources, targets)
         res = np.empty_like(pts)
         kernel(pts, groups, w, np.ascontiguousarray(src[:, 0]), np.ascontiguousarray(src[:, 1]),
                src, dst, offsets, _ON_EDGE, res)
@@ -205,6 +196,20 @@ def mvc_map(points, groups, sources, targets, *, weights=None) -> np.ndarray:
             lam = mean_value_coordinates(pts[sel], sources[g])
             res[sel] = w[sel, None] * (lam @ np.asarray(targets[g], dtype=float))
     return res
+
+
+def packed(sources, targets):
+    """The polygons back to back: sources (K, 2), targets (K, 2) float (C order) and the
+    offsets (G + 1,) int64 -- `Planes` with the same offsets as they are, else
+    concatenated."""
+    if (isinstance(sources, Planes) and isinstance(targets, Planes)
+            and np.array_equal(sources.offsets, targets.offsets)):
+        return (np.ascontiguousarray(sources.flat, dtype=float),
+                np.ascontiguousarray(targets.flat, dtype=float), sources.offsets)
+    offsets = np.zeros(len(sources) + 1, dtype=np.int64)
+    offsets[1:] = np.cumsum([len(s) for s in sources])
+    return (np.ascontiguousarray(np.concatenate(sources), dtype=float),
+            np.ascontiguousarray(np.concatenate(targets), dtype=float), offsets)
 
 
 _KERNEL = []

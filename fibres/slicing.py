@@ -456,14 +456,14 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     # (plane, face) crossings: face crosses plane s iff min d <= h_s < max d. Each is one
     # node of the chaining, standing for the crossing of its "down" half-edge (above ->
     # below); the "up" half-edge's twin is the down half-edge of the next node.
+    kernel = _crossings_kernel(3)
+    if kernel is not None and local_t.dtype == np.float64:
+        pts, node_edge, t, loop_start, loop_slice = kernel(
+            np.ascontiguousarray(d), faces, topology.neighbours, face_edges, local_t,
+            np.ascontiguousarray(h))
+        return Sections(h.copy(), pts, node_edge, t, loop_start, loop_slice, tf)
     node_face, node_slice, down, nxt = _crossings(d, faces, topology.neighbours, h)
     order, loop_start = _loop_order(nxt, node_slice, h.size)
-    kernel = _crossings_kernel(2)
-    if kernel is not None and local_t.dtype == np.float64:
-        pts, node_edge, t, node_slice = kernel(order, node_face, node_slice, down, faces,
-                                               face_edges, local_t, h)
-        return Sections(h.copy(), pts, node_edge, t, loop_start,
-                        node_slice[loop_start[:-1]], tf)
     node_face = node_face[order]                            # pragma: no cover - optional
     node_slice = node_slice[order]
     down = down[order]
@@ -496,45 +496,6 @@ def _loop_order(nxt, node_slice, n_s):
     new_loop = np.ones(nxt.size, dtype=bool)
     new_loop[1:] = lab_sorted[1:] != lab_sorted[:-1]
     return order, np.append(np.flatnonzero(new_loop), nxt.size).astype(np.int64)
-
-
-def _loop_order_loop(nxt, node_slice, n_s):  # pragma: no cover - compiled by numba
-    n = nxt.size
-    seen = np.zeros(n, dtype=np.bool_)
-    walk = np.empty(n, dtype=np.int64)
-    cyc_start = np.empty(n + 1, dtype=np.int64)
-    n_cyc = 0
-    k = 0
-    for start in range(n):
-        if seen[start]:
-            continue
-        cyc_start[n_cyc] = k
-        n_cyc += 1
-        node = start
-        while not seen[node]:
-            seen[node] = True
-            walk[k] = node
-            k += 1
-            node = nxt[node]
-    cyc_start[n_cyc] = n
-    # stable bucketing of the loops by plane
-    count = np.zeros(n_s + 1, dtype=np.int64)
-    for c in range(n_cyc):
-        count[node_slice[walk[cyc_start[c]]] + 1] += cyc_start[c + 1] - cyc_start[c]
-    for s in range(n_s):
-        count[s + 1] += count[s]
-    order = np.empty(n, dtype=np.int64)
-    first = np.empty(n_cyc, dtype=np.int64)
-    for c in range(n_cyc):
-        s = node_slice[walk[cyc_start[c]]]
-        first[c] = count[s]
-        for i in range(cyc_start[c], cyc_start[c + 1]):
-            order[count[s]] = walk[i]
-            count[s] += 1
-    loop_start = np.empty(n_cyc + 1, dtype=np.int64)
-    loop_start[:n_cyc] = np.sort(first)
-    loop_start[n_cyc] = n
-    return order, loop_start
 
 
 def _crossings(d, faces, neighbours, h):
@@ -582,105 +543,13 @@ _CROSSINGS = []
 
 
 def _crossings_kernel(which):
-    """Compiled `_crossings_loop` (0), `_loop_order_loop` (1) or `_points_loop` (2), or
-    None without numba."""
+    """Compiled `fibres.slice_kernels._crossings_loop` (0), ``_loop_order_loop`` (1),
+    ``_points_loop`` (2) or ``_slice_pass`` (3, the three in one call), or None without
+    numba."""
     if not _CROSSINGS:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _CROSSINGS.append(None)
-        else:
-            jit = numba.njit(cache=True, nogil=True)
-            _CROSSINGS.append((jit(_crossings_loop), jit(_loop_order_loop),
-                               jit(_points_loop)))
+        from .slice_kernels import kernels
+        _CROSSINGS.append(kernels())
     return None if _CROSSINGS[0] is None else _CROSSINGS[0][which]
-
-
-def _points_loop(order, node_face, node_slice, down, faces, face_edges, local_t,
-                 h):  # pragma: no cover - compiled by numba
-    """The section points of `slice_mesh` in loop order: (points (Q, 2), edge (Q,), t (Q,),
-    plane (Q,)) -- the array version's gathers and formulas, node by node."""
-    n = order.size
-    pts = np.empty((n, 2))
-    edge = np.empty(n, dtype=np.int64)
-    t_out = np.empty(n)
-    plane = np.empty(n, dtype=np.int64)
-    for q in range(n):
-        node = order[q]
-        f = node_face[node]
-        s = node_slice[node]
-        dn = down[node]
-        a = faces[f, dn]                                    # above end of the edge
-        b = faces[f, dn + 1 if dn < 2 else 0]              # below end
-        da = local_t[2, a]
-        t = (h[s] - da) / (local_t[2, b] - da)
-        ua, va = local_t[0, a], local_t[1, a]
-        pts[q, 0] = ua + t * (local_t[0, b] - ua)
-        pts[q, 1] = va + t * (local_t[1, b] - va)
-        t_out[q] = 1.0 - t if a > b else t                  # t measured from edges[:, 0]
-        edge[q] = face_edges[f, dn]
-        plane[q] = s
-    return pts, edge, t_out, plane
-
-
-def _crossings_loop(d, faces, neighbours, h):  # pragma: no cover - compiled by numba
-    n_t = faces.shape[0]
-    n_s = h.size
-    fs0 = np.empty(n_t, dtype=np.int64)
-    n_f = np.empty(n_t, dtype=np.int64)
-    pair_start = np.zeros(n_t, dtype=np.int64)
-    total = 0
-    # first plane at or above each vertex (binary search: ``searchsorted(h, x, side="left")``);
-    # that is monotone in x, so a face's first plane at or above its lowest / highest vertex
-    # is the min / max over its corners
-    first = np.empty(d.size, dtype=np.int64)
-    for i in range(d.size):
-        x = d[i]
-        lo, hi = 0, n_s
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if h[mid] < x:
-                lo = mid + 1
-            else:
-                hi = mid
-        first[i] = lo
-    for f in range(n_t):
-        a0, a1, a2 = first[faces[f, 0]], first[faces[f, 1]], first[faces[f, 2]]
-        s0 = min(min(a0, a1), a2)
-        lo = max(max(a0, a1), a2)
-        fs0[f] = s0
-        n = lo - s0
-        n_f[f] = n
-        if n > 0:
-            pair_start[f] = total
-            total += n
-    node_face = np.empty(total, dtype=np.int64)
-    node_slice = np.empty(total, dtype=np.int64)
-    down = np.empty(total, dtype=np.int64)
-    nxt = np.empty(total, dtype=np.int64)
-    above = np.empty(3, dtype=np.bool_)
-    for f in range(n_t):
-        for q in range(n_f[f]):
-            node = pair_start[f] + q
-            s = fs0[f] + q
-            node_face[node] = f
-            node_slice[node] = s
-            for k in range(3):
-                above[k] = d[faces[f, k]] > h[s]
-            dn = 0                          # first k: k above, k+1 below (argmax rule)
-            for k in range(3):
-                if above[k] and not above[(k + 1) % 3]:
-                    dn = k
-                    break
-            up = 0                          # first k: k below, k+1 above
-            for k in range(3):
-                if not above[k] and above[(k + 1) % 3]:
-                    up = k
-                    break
-            down[node] = dn
-            nbr = neighbours[f, up]
-            nxt[node] = pair_start[nbr] + s - fs0[nbr]
-    return node_face, node_slice, down, nxt
 
 
 def _first_at_or_above(h, x):

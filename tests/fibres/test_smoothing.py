@@ -94,7 +94,10 @@ def test_compiled_steps_equal_the_array_steps(monkeypatch):
         pytest.skip("numba not installed")
     rng = np.random.default_rng(4)
     pts = rng.normal(size=(17, 12, 3))
-    runs = [dict(iterations=1), dict(iterations=7, k=2.5), dict(iterations=5, max_shift=0.3)]
+    pts[3] *= 1e-3                                       # moves well below the bound
+    pts[4, :, 1] = -0.0                                  # signed zeros kept as numpy does
+    runs = [dict(iterations=1), dict(iterations=7, k=2.5), dict(iterations=5, max_shift=0.3),
+            dict(iterations=3, max_shift=1e-3)]
     compiled = [sm.smooth(pts, **kw) for kw in runs]
     monkeypatch.setattr(sm, "_KERNEL", [None])
     for kw, got in zip(runs, compiled):
