@@ -89,17 +89,15 @@ _STAGES = (("fibres.decompose", "_clean_tuple", ()),
            ("fibres.contours", "choose_loops", ("fibres.decompose",)),
            ("fibres.morph", "slice_maps", ("fibres.decompose",)),
            ("fibres.decompose", "_morph_fibres", ()),
-           ("fibres.mvc", "mvc_map", ("fibres.morph",)),
+           ("fibres.morph", "morph_local", ("fibres.decompose",)),
            ("fibres.filtering", "filter_choices", ("fibres.decompose",)),
-           ("fibres.ray_triangles", "region_triangles", ("fibres.filtering",)),
-           ("fibres.ray_triangles", "regions_triangles", ("fibres.filtering",)),
-           ("fibres.ray_triangles", "closest_on_triangles", ("fibres.filtering",)),
+           ("fibres.filtering", "_fused_choices", ()),
            ("fibres.filtering", "apply_filter", ("fibres.decompose",)),
            ("fibres.decompose", "contain_points", ()),
            ("fibres.smoothing", "smooth", ("fibres.decompose",)))
 _INNER = {"clean_mesh_geometry", "principal_frame", "_cross_section_ref", "fit_box",
-          "box_and_local", "slice_mesh", "choose_loops", "slice_maps", "mvc_map",
-          "region_triangles", "regions_triangles", "closest_on_triangles"}
+          "box_and_local", "slice_mesh", "choose_loops", "slice_maps", "morph_local",
+          "_fused_choices"}
 
 
 def breakdown(n_runs: int = 40):
