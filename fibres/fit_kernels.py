@@ -103,6 +103,37 @@ def _nearest_loop(area, landmarks, out):  # pragma: no cover - compiled by numba
             out[j, k] = np.sqrt(best)
 
 
+def _mapped_nearest_loop(area, axes, ext, corner, landmarks, out):  # pragma: no cover
+    """`_nearest_loop` of the template area (Ka, 3) mapped into each box j without the
+    (J, Ka, 3) temporaries: ``p_i = corner[j, i] + ((a0 s_i0 + a2 s_i2) + a1 s_i1)`` with
+    ``s_il = axes[j, i, l] ext[j, l]``, the operations and order of `_scores`' array
+    version, then the closest-landmark distance ``out[j, k]`` (J, Ka) as `_nearest_loop`."""
+    for j in range(axes.shape[0]):
+        s00 = axes[j, 0, 0] * ext[j, 0]
+        s01 = axes[j, 0, 1] * ext[j, 1]
+        s02 = axes[j, 0, 2] * ext[j, 2]
+        s10 = axes[j, 1, 0] * ext[j, 0]
+        s11 = axes[j, 1, 1] * ext[j, 1]
+        s12 = axes[j, 1, 2] * ext[j, 2]
+        s20 = axes[j, 2, 0] * ext[j, 0]
+        s21 = axes[j, 2, 1] * ext[j, 1]
+        s22 = axes[j, 2, 2] * ext[j, 2]
+        for k in range(area.shape[0]):
+            a0 = area[k, 0]
+            a1 = area[k, 1]
+            a2 = area[k, 2]
+            px = corner[j, 0] + ((a0 * s00 + a2 * s02) + a1 * s01)
+            py = corner[j, 1] + ((a0 * s10 + a2 * s12) + a1 * s11)
+            pz = corner[j, 2] + ((a0 * s20 + a2 * s22) + a1 * s21)
+            best = np.inf
+            for m in range(landmarks.shape[0]):
+                dx = px - landmarks[m, 0]
+                dy = py - landmarks[m, 1]
+                dz = pz - landmarks[m, 2]
+                best = min(best, dx * dx + dy * dy + dz * dz)
+            out[j, k] = np.sqrt(best)
+
+
 def _centred_loop(v, c):  # pragma: no cover - compiled by numba
     """``v - c`` for (V, 3) vertices (numpy broadcasts a 3-element inner loop, ~5x slower)."""
     out = np.empty(v.shape)

@@ -346,3 +346,25 @@ def test_compiled_closest_sum_equals_numpy_bit_for_bit(monkeypatch):
     got = fitting._closest_sum(area, lms)
     monkeypatch.setattr(fitting, "_FIT", [None])
     np.testing.assert_array_equal(got, fitting._closest_sum(area, lms))
+
+
+def test_compiled_scores_equal_numpy_bit_for_bit(monkeypatch):
+    # the fused mapping + closest-landmark kernel does the array version's operations in
+    # its order: random boxes, landmarks on mapped area points (exact ties) and repeated
+    pytest.importorskip("numba")
+    from fibres import fitting
+    from fibres.templates import get_template
+
+    rng = np.random.default_rng(7)
+    tmpl = get_template("parallel")
+    axes = rng.normal(size=(72, 3, 3))
+    ext = rng.uniform(0.5, 3.0, size=(72, 3))
+    corner = rng.normal(size=(72, 3))
+    origin = rng.normal(size=(9, 3))
+    insertion = np.concatenate([rng.normal(size=(5, 3)), corner[:2]])
+    insertion = np.concatenate([insertion, insertion[:2]])
+    got = fitting._scores(tmpl, axes, corner, ext, origin, insertion)
+    monkeypatch.setattr(fitting, "_FIT", [None])
+    want = fitting._scores(tmpl, axes, corner, ext, origin, insertion)
+    np.testing.assert_array_equal(got, want)
+    assert np.all(np.isfinite(got))
