@@ -27,7 +27,10 @@ rotation index.
 
 Axis rule (``axis="auto"``): the attachment direction is used unless the two landmark
 centroids are closer than ``AUTO_MIN_SEPARATION`` (1/4) of the surface's extent along its
-covariance axis; then the covariance axis is used, oriented from origin to insertion.
+covariance axis; then the covariance axis is used, oriented from origin to insertion. The extent along any unit
+axis is at most the diagonal of the surface's bounding box, so where the centroids are at
+least 1/4 of that diagonal apart (most muscles) the covariance is not computed at all: the
+rule's answer is the same.
 """
 from __future__ import annotations
 
@@ -45,6 +48,11 @@ __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmar
            "template_offset", "reference_frame", "AUTO_MIN_SEPARATION", "ROTATION_TIE"]
 
 AUTO_MIN_SEPARATION = 0.25
+#: relative margin on the bounding-box diagonal that bounds the covariance extent: the
+#: computed extent ``ptp(d @ axis)`` exceeds the true one by rounding only (~1e-15
+#: relative), so ``dist >= AUTO_MIN_SEPARATION * diagonal * (1 + _AUTO_SURE)`` decides
+#: "attachments" exactly as the extent would, without the covariance and its eigenvectors
+_AUTO_SURE = 1e-9
 _MAX_OBLIQUE_ITERATIONS = 200
 #: relative score margin within which rotations of the oblique-axis iteration are tied
 #: (module docstring): far above rounding (1e-16), far below real score differences
@@ -422,7 +430,9 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
                          fix="Give the two attachment areas of the muscle (origin on one bone, "
                              "insertion on the other).")
     method = axis
-    if axis in ("covariance", "auto"):
+    if axis == "auto" and dist >= AUTO_MIN_SEPARATION * size * (1.0 + _AUTO_SURE):
+        method = "attachments"  # the extent along any unit axis is at most the box diagonal
+    elif axis in ("covariance", "auto"):
         d = _centred(vertices, centroid) if d is None else d
         cov_axis = _covariance_axis(vertices, centroid, d)
         if axis == "auto":

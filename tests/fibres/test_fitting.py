@@ -368,3 +368,38 @@ def test_compiled_scores_equal_numpy_bit_for_bit(monkeypatch):
     want = fitting._scores(tmpl, axes, corner, ext, origin, insertion)
     np.testing.assert_array_equal(got, want)
     assert np.all(np.isfinite(got))
+
+
+def test_auto_axis_without_covariance_decides_as_the_extent(monkeypatch):
+    # axis="auto" skips the covariance where the landmark centroids are at least 1/4 of the
+    # bounding-box diagonal apart (the extent along any unit axis is at most the diagonal):
+    # the method must be exactly the rule's on the covariance extent, also just around the
+    # shortcut's threshold and the rule's own
+    from fibres import fitting
+
+    rng = np.random.default_rng(11)
+    calls = []
+    real = fitting._covariance_axis
+    monkeypatch.setattr(fitting, "_covariance_axis",
+                        lambda *a: calls.append(1) or real(*a))
+    for k in range(12):
+        rot = Rotation.random(random_state=k).as_matrix()
+        v = _ellipsoid(np.array([0.02, 0.03, 0.15]) * rng.uniform(0.5, 2.0, 3), rot) + 0.2
+        d = v - v.mean(axis=0)
+        length = float(np.ptp(d @ real(v, v.mean(axis=0))))
+        diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+        for dist in (0.25 * length * (1 - 1e-12), 0.25 * length, 0.25 * length * (1 + 1e-12),
+                     0.25 * diag * (1 - 1e-12), 0.25 * diag, 0.25 * diag * (1 + 1e-8),
+                     0.3 * diag):
+            step = rng.normal(size=3)
+            o = v.mean(axis=0) + 0.01 * rng.normal(size=3)
+            i = o + dist * step / np.linalg.norm(step)
+            calls.clear()
+            f = principal_frame(v, [o], [i], axis="auto")
+            got_dist = float(np.linalg.norm(np.asarray([i]).mean(axis=0)
+                                            - np.asarray([o]).mean(axis=0)))
+            want = "covariance" if got_dist < 0.25 * length else "attachments"
+            assert f.method == want
+            assert length <= diag
+            if dist >= 0.25 * diag * (1 + 1e-8):
+                assert not calls                  # the covariance was not needed
