@@ -1,7 +1,8 @@
 """Compiled loops of `fibres.fitting` (the box fit of Kohout et al., GRAPP 2012, §3.2).
 
 Each is the array version's arithmetic in the same order (see the callers in
-`fibres.fitting`, which compile them with numba and fall back to numpy without it).
+`fibres.fitting`, which compile them with numba and fall back to numpy without it). The
+support screen's loops are in `fibres.support_screen`.
 """
 from __future__ import annotations
 
@@ -10,81 +11,77 @@ import numpy as np
 __all__ = []
 
 
-def _screen_loop(a, b, dirs, cos_all, sin_all, margin_scale,
-                 stride):  # pragma: no cover - compiled by numba
-    """`_support_candidates` in one call: the array version's polygons, margins and tests
-    (hence its indices), directions ``cos_all``, ``sin_all`` of all passes back to back;
-    each pass gathers its points contiguously and tests them edge by edge (vectorised)."""
-    idx = np.arange(a.size)
-    off = 0
-    for n_dir in dirs:
-        c = cos_all[off:off + n_dir]
-        s = sin_all[off:off + n_dir]
-        step = stride if off == 0 else 1
-        off += n_dir
-        m = idx.size
-        if m <= 4 * n_dir:
-            break
-        if off == n_dir:
-            pa, pb = a, b                   # the first pass: every point, in order
-        else:
-            pa = np.empty(m)
-            pb = np.empty(m)
-            for i in range(m):
-                pa[i] = a[idx[i]]
-                pb[i] = b[idx[i]]
-        best = np.full(n_dir, -np.inf)
-        arg = np.zeros(n_dir, dtype=np.int64)
-        for i in range(0, m, step):
-            for k in range(n_dir):
-                p = c[k] * pa[i] + s[k] * pb[i]
-                if p > best[k]:         # first maximum, as argmax (values are finite)
-                    best[k] = p
-                    arg[k] = i
-        q = np.empty(n_dir, dtype=np.int64)
-        nq = 0
-        for k in range(n_dir):
-            if arg[k] != arg[k + 1 if k + 1 < n_dir else 0]:
-                q[nq] = arg[k]
-                nq += 1
-        if nq == 0 or np.unique(q[:nq]).size < 3:
-            break
-        inside = np.ones(m, dtype=np.bool_)
-        for k in range(nq):
-            kn = k + 1 if k + 1 < nq else 0
-            qa, qb = pa[q[k]], pb[q[k]]
-            ea, eb = pa[q[kn]] - qa, pb[q[kn]] - qb
-            margin = margin_scale * np.hypot(ea, eb)
-            for i in range(m):
-                inside[i] &= ea * (pb[i] - qb) - eb * (pa[i] - qa) > margin
-        keep = np.empty(m, dtype=np.int64)
-        n_keep = 0
-        for i in range(m):
-            keep[n_keep] = idx[i]
-            n_keep += not inside[i]
-        idx = keep[:n_keep]
-    return idx
-
-
 def _extents_loop(a, b, ct, st, out):  # pragma: no cover - compiled by numba
     """Per rotation j: min and max of ``px = ct a + st b`` and ``py = (-st) a + ct b`` into
-    ``out`` (J, 4), with the array version's products and sums (the same bits)."""
+    ``out`` (J, 4), with the array version's products and sums (the same bits). The
+    rotations are the inner loop (independent running minima and maxima, which the
+    compiler vectorises; a reduction over the points is not, without fastmath), each
+    rotation still visits the points in order: the same values, also for signed zeros."""
+    n = ct.size
+    lim = np.empty((4, n))                  # min px, max px, min py, max py per rotation
+    nst = np.empty(n)
+    for j in range(n):
+        nst[j] = -st[j]
+        lim[0, j] = lim[1, j] = ct[j] * a[0] + st[j] * b[0]
+        lim[2, j] = lim[3, j] = nst[j] * a[0] + ct[j] * b[0]
+    x_lo, x_hi, y_lo, y_hi = lim[0], lim[1], lim[2], lim[3]
+    for i in range(1, a.size):
+        ai = a[i]
+        bi = b[i]
+        for j in range(n):
+            px = ct[j] * ai + st[j] * bi
+            py = nst[j] * ai + ct[j] * bi
+            x_lo[j] = min(x_lo[j], px)
+            x_hi[j] = max(x_hi[j], px)
+            y_lo[j] = min(y_lo[j], py)
+            y_hi[j] = max(y_hi[j], py)
+    for j in range(n):
+        out[j, 0] = x_lo[j]
+        out[j, 1] = x_hi[j]
+        out[j, 2] = y_lo[j]
+        out[j, 3] = y_hi[j]
+
+
+def _boxes_loop(a, b, z, ct, st, c, u, v0, w0, dirs, cos_all, sin_all, stride, n_bins,
+                axes, corner, ext):  # pragma: no cover - compiled by numba
+    """`fibres.fitting._boxes` after the projections ``a, b, z`` (V,) of the centred
+    vertices on v0, w0, u: the support screen (`fibres.support_screen._candidates_loop`),
+    the extents (`_extents_loop`) of the candidates and the boxes ``axes`` (J, 3, 3),
+    ``corner`` (J, 3), ``ext`` (J, 3) of the rotations ``ct, st`` (J,), with the array version's
+    operations in its order: ``x = ct v0 + st w0``, ``y = u x x`` (`fibres.fitting.cross3`),
+    ``corner = c + (x lo_x + u lo_z) + y lo_y`` (numpy's einsum adds the three products in
+    this order). The candidates may differ from the array version's screen (both keep
+    every point that attains a minimum or maximum), the boxes are the same bit for bit."""
+    z_lo = z_hi = z[0]
+    for i in range(1, z.size):
+        z_lo = min(z_lo, z[i])
+        z_hi = max(z_hi, z[i])
+    keep = _candidates_loop(a, b, dirs, cos_all, sin_all, stride, n_bins)
+    m = keep.size
+    pa = np.empty(m)
+    pb = np.empty(m)
+    for i in range(m):
+        pa[i] = a[keep[i]]
+        pb[i] = b[keep[i]]
+    xy = np.empty((ct.size, 4))
+    _extents_loop(pa, pb, ct, st, xy)
     for j in range(ct.size):
-        c, s = ct[j], st[j]
-        ns = -s
-        x_lo = x_hi = c * a[0] + s * b[0]
-        y_lo = y_hi = ns * a[0] + c * b[0]
-        for i in range(1, a.size):
-            px = c * a[i] + s * b[i]
-            py = ns * a[i] + c * b[i]
-            x_lo = min(x_lo, px)
-            x_hi = max(x_hi, px)
-            y_lo = min(y_lo, py)
-            y_hi = max(y_hi, py)
-        out[j, 0] = x_lo
-        out[j, 1] = x_hi
-        out[j, 2] = y_lo
-        out[j, 3] = y_hi
+        x0 = ct[j] * v0[0] + st[j] * w0[0]
+        x1 = ct[j] * v0[1] + st[j] * w0[1]
+        x2 = ct[j] * v0[2] + st[j] * w0[2]
+        y0 = u[1] * x2 - u[2] * x1
+        y1 = u[2] * x0 - u[0] * x2
+        y2 = u[0] * x1 - u[1] * x0
+        lx, ly = xy[j, 0], xy[j, 2]
+        axes[j, 0, 0], axes[j, 0, 1], axes[j, 0, 2] = x0, y0, u[0]
+        axes[j, 1, 0], axes[j, 1, 1], axes[j, 1, 2] = x1, y1, u[1]
+        axes[j, 2, 0], axes[j, 2, 1], axes[j, 2, 2] = x2, y2, u[2]
+        corner[j, 0] = c[0] + ((x0 * lx + u[0] * z_lo) + y0 * ly)
+        corner[j, 1] = c[1] + ((x1 * lx + u[1] * z_lo) + y1 * ly)
+        corner[j, 2] = c[2] + ((x2 * lx + u[2] * z_lo) + y2 * ly)
+        ext[j, 0] = xy[j, 1] - lx
+        ext[j, 1] = xy[j, 3] - ly
+        ext[j, 2] = z_hi - z_lo
 
 
 def _nearest_loop(area, landmarks, out):  # pragma: no cover - compiled by numba

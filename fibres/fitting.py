@@ -9,7 +9,8 @@ the minimal box of the vertices aligned with it is built. The winner is the box 
 attachment areas, mapped into the box, best match the user's landmarks: for every template area
 point the distance to the closest landmark of the same attachment, summed over both areas.
 
-All rotations are evaluated at once: (J, V) projections, (J, K_template, K_landmarks) distances.
+All rotations are evaluated at once: (J, V) projections of the vertices that can be extreme
+(`fibres.support_screen`), (J, K_template, K_landmarks) distances.
 
 Ties in the oblique-axis iteration (`principal_frame` with e.g. the pennate template). When
 the landmarks are symmetric about the attachment line (two rings of landmarks around the
@@ -27,10 +28,10 @@ rotation index.
 
 Axis rule (``axis="auto"``): the attachment direction is used unless the two landmark
 centroids are closer than ``AUTO_MIN_SEPARATION`` (1/4) of the surface's extent along its
-covariance axis; then the covariance axis is used, oriented from origin to insertion. The extent along any unit
-axis is at most the diagonal of the surface's bounding box, so where the centroids are at
-least 1/4 of that diagonal apart (most muscles) the covariance is not computed at all: the
-rule's answer is the same.
+covariance axis; then the covariance axis is used, oriented from origin to insertion. The
+extent along any unit axis is at most the diagonal of the surface's bounding box, so where
+the centroids are at least 1/4 of that diagonal apart (most muscles) the covariance is not
+computed at all: the rule's answer is the same.
 """
 from __future__ import annotations
 
@@ -40,8 +41,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
-from .fit_kernels import (_centred_loop, _extents_loop, _mapped_nearest_loop, _nearest_loop,
-                          _row_sum_loop, _screen_loop)
+from .fit_kernels import (_boxes_loop, _centred_loop, _extents_loop, _mapped_nearest_loop,
+                          _nearest_loop, _row_sum_loop)
+from .support_screen import (_FIRST_SCREEN, _HULL_BINS, _SCREEN, _SCREEN_STRIDE,
+                             compile_screens, polygon_screen_numpy)
 from .templates import Template, get_template
 
 __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
@@ -128,7 +131,9 @@ def _boxes(vertices, c, u, v0, w0, theta, d=None):
 
     Only vertices that can be extreme in some direction of the cross-section enter the
     (J, V') projections (`_support_candidates`); the others cannot change a minimum or
-    maximum, so the boxes are exactly those of all vertices.
+    maximum, so the boxes are exactly those of all vertices. Compiled: everything after
+    the three projections in one pass (`fibres.fit_kernels._boxes_loop`, the same
+    operations and order).
 
     Parameters
     ----------
@@ -139,22 +144,25 @@ def _boxes(vertices, c, u, v0, w0, theta, d=None):
         ``vertices - c`` (`_centred`) when at hand.
 
     Returns axes (J, 3, 3) (columns x, y, z), corner (J, 3), extents (J, 3)."""
-    xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
-    ys = cross3(u, xs)                                                # (J, 3)
     d = _centred(vertices, c) if d is None else d
     a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
-    keep = _support_candidates(a, b)
-    a, b = a[keep], b[keep]
     n_rot = len(theta)
     kernels = _fit_kernels()
     if kernels is not None:
-        xy = np.empty((n_rot, 4))                     # min px, max px, min py, max py
-        kernels[1](a, b, np.cos(theta), np.sin(theta), xy)
-        x_lo, x_hi, y_lo, y_hi = xy.T
-    else:
-        px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V')
-        py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V')
-        x_lo, x_hi, y_lo, y_hi = px.min(axis=1), px.max(axis=1), py.min(axis=1), py.max(axis=1)
+        axes, corner, ext = np.empty((n_rot, 3, 3)), np.empty((n_rot, 3)), np.empty((n_rot, 3))
+        f64 = np.float64
+        kernels[6](a, b, z, np.cos(theta), np.sin(theta), np.asarray(c, dtype=f64),
+                   np.asarray(u, dtype=f64), np.asarray(v0, dtype=f64),
+                   np.asarray(w0, dtype=f64), *_FIRST_SCREEN, _SCREEN_STRIDE, _HULL_BINS,
+                   axes, corner, ext)
+        return axes, corner, ext
+    xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
+    ys = cross3(u, xs)                                                # (J, 3)
+    keep = _polygon_screen(a, b)
+    a, b = a[keep], b[keep]
+    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V')
+    py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V')
+    x_lo, x_hi, y_lo, y_hi = px.min(axis=1), px.max(axis=1), py.min(axis=1), py.max(axis=1)
     lo = np.stack([x_lo, y_lo, np.full(n_rot, z.min())], axis=1)
     ext = np.stack([x_hi, y_hi, np.full(n_rot, z.max())], axis=1) - lo
     axes = np.stack([xs, ys, np.broadcast_to(u, xs.shape)], axis=2)
@@ -162,75 +170,56 @@ def _boxes(vertices, c, u, v0, w0, theta, d=None):
     return axes, corner, ext
 
 
-#: directions of the polygons that screen the support candidates (three passes; the third
-#: cuts ~1200 candidates of a twisted 15K-vertex spindle to ~350)
-_SCREEN_DIRECTIONS = (8, 32, 128)
-
-
 def _support_candidates(a, b):
-    """Indices of the 2D points (a, b) that can attain a minimum or maximum of a projection
-    ``cos(t) a + sin(t) b`` for some angle t: a superset of the convex hull's vertices.
+    """Indices (V',) int64, increasing, of the 2D points a, b (V,) that can attain a minimum
+    or maximum of a projection ``cos(t) a + sin(t) b`` for some angle t (a superset of the
+    convex hull's vertices; `fibres.support_screen`: numpy's three polygons, or compiled the
+    first polygon and the sector hull -- different candidates, every extreme point kept)."""
+    kernels = _fit_kernels()
+    if kernels is None or a.size == 0:
+        return _polygon_screen(a, b)
+    return kernels[7](np.ascontiguousarray(a, dtype=np.float64),
+                      np.ascontiguousarray(b, dtype=np.float64), *_FIRST_SCREEN,
+                      _SCREEN_STRIDE, _HULL_BINS)
 
-    The points extreme along `_SCREEN_DIRECTIONS` evenly spread directions span a convex
-    polygon inside the hull (Akl & Toussaint 1978, "A fast convex hull algorithm", Inf.
-    Process. Lett. 7(5):219-222); a point farther than a margin (1e-9 of the spread, far
-    above rounding) inside every edge is below some polygon vertex in every direction, so
-    dropping it leaves every minimum and maximum unchanged, bit for bit. The first, coarse
-    polygon is spanned by the extremes of every `_SCREEN_STRIDE`-th point only (any
-    points of the set span a polygon inside the hull; this one is found 8x faster).
-    a, b: (V,) float; returns (V',) int64, increasing.
-    """
+
+def _polygon_screen(a, b):
+    """`_support_candidates` by the polygons of `fibres.support_screen` (numpy, or compiled
+    with the same candidates)."""
     spread = max(float(np.ptp(a)), float(np.ptp(b))) if a.size else 0.0
     kernels = _fit_kernels()
-    if kernels is not None:
-        dirs = np.array(_SCREEN_DIRECTIONS, dtype=np.int64)
-        phi = [2.0 * np.pi * np.arange(n) / n for n in _SCREEN_DIRECTIONS]
-        return kernels[0](np.ascontiguousarray(a, dtype=np.float64),
-                          np.ascontiguousarray(b, dtype=np.float64), dirs,
-                          np.concatenate([np.cos(p) for p in phi]),
-                          np.concatenate([np.sin(p) for p in phi]), 1e-9 * spread,
-                          _SCREEN_STRIDE)
-    idx = np.arange(a.size)
-    for n_dir in _SCREEN_DIRECTIONS:
-        if idx.size <= 4 * n_dir:
-            break
-        phi = 2.0 * np.pi * np.arange(n_dir) / n_dir
-        pa, pb = a[idx], b[idx]
-        step = _SCREEN_STRIDE if n_dir == _SCREEN_DIRECTIONS[0] else 1
-        proj = np.cos(phi)[:, None] * pa[::step] + np.sin(phi)[:, None] * pb[::step]
-        ext = np.argmax(proj, axis=1) * step        # counter-clockwise around the hull
-        ext = ext[np.append(ext[1:] != ext[:-1], ext[-1] != ext[0])]     # distinct corners
-        if np.unique(ext).size < 3:
-            break
-        qa, qb = pa[ext], pb[ext]
-        ea, eb = np.roll(qa, -1) - qa, np.roll(qb, -1) - qb               # polygon edges
-        margin = 1e-9 * spread * np.hypot(ea, eb)                          # distance * |edge|
-        inside = np.ones(idx.size, dtype=bool)
-        for k in range(ext.size):  # polygon edges (at most 128)
-            inside &= ea[k] * (pb - qb[k]) - eb[k] * (pa - qa[k]) > margin[k]
-        idx = idx[~inside]
-    return idx
+    if kernels is None:
+        return polygon_screen_numpy(a, b, spread)
+    return kernels[0](np.ascontiguousarray(a, dtype=np.float64),
+                      np.ascontiguousarray(b, dtype=np.float64), *_SCREEN, 1e-9 * spread,
+                      _SCREEN_STRIDE)
 
-
-#: the first screening pass takes its polygon from every 8th point
-_SCREEN_STRIDE = 8
 
 _FIT = []
 
 
 def _fit_kernels():
-    """(support screen, box extents, nearest landmark distances, centring, row sums,
-    mapped-area nearest distances) compiled with numba, or None (then numpy)."""
+    """(polygon screen, box extents, nearest landmark distances, centring, row sums,
+    mapped-area nearest distances, boxes, support candidates) compiled with numba, or None
+    (then numpy)."""
     if not _FIT:
         try:
             import numba
         except ImportError:                                     # pragma: no cover - optional
             _FIT.append(None)
         else:
+            import types
+
             jit = numba.njit(cache=True, nogil=True)
-            _FIT.append((jit(_screen_loop), jit(_extents_loop), jit(_nearest_loop),
-                         jit(_centred_loop), jit(_row_sum_loop),
-                         jit(_mapped_nearest_loop)))
+            screen, candidates = compile_screens(jit)
+            extents = jit(_extents_loop)
+            # the boxes pass calls the compiled candidates and extents (numba resolves the
+            # globals of a compiled function when it compiles it)
+            glb = dict(_boxes_loop.__globals__, _candidates_loop=candidates,
+                       _extents_loop=extents)
+            boxes = jit(types.FunctionType(_boxes_loop.__code__, glb, _boxes_loop.__name__))
+            _FIT.append((screen, extents, jit(_nearest_loop), jit(_centred_loop),
+                         jit(_row_sum_loop), jit(_mapped_nearest_loop), boxes, candidates))
     return _FIT[0]
 
 
