@@ -31,6 +31,7 @@ from .containment import contain as contain_points
 from .contours import choose_loops
 from .errors import InputError
 from .filtering import apply_filter, filter_choices
+from . import fitting as _fitting
 from .fitting import fit_box, prepare, principal_frame, reference_frame
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
@@ -120,14 +121,21 @@ def _cross_section_ref(vertices, frame, vt=None):
     direction is defined by the shape and a world axis keeps axis-aligned shapes exact.
 
     Component-wise over the (3, V) coordinates: (3, 3) @ (3, V) products would start BLAS
-    threads for a few microseconds of work. ``vt``: the (3, V) transposed vertices when at
-    hand."""
+    threads for a few microseconds of work; compiled, the element-wise steps are one pass
+    each (`fibres.fit_kernels._section_loop`, `_combine_loop`: the same operations).
+    ``vt``: the (3, V) transposed vertices when at hand."""
     u = frame.axis
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
-    dt = vt - frame.centroid[:, None]                                   # (3, V)
-    along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
-    for c in range(3):  # coordinates
-        dt[c] -= u[c] * along
+    kernels = _fitting._fit_kernels()
+    if kernels is not None and vt.flags.c_contiguous:
+        dt, k = kernels.section(vt, np.ascontiguousarray(frame.centroid, dtype=np.float64),
+                                np.ascontiguousarray(u, dtype=np.float64))
+    else:
+        dt = vt - frame.centroid[:, None]                               # (3, V)
+        along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
+        for c in range(3):  # coordinates
+            dt[c] -= u[c] * along
+        k = np.arange(1.0, dt.shape[1] + 1.0)
     gram = np.empty((3, 3))
     for r in range(3):  # coordinates
         for c in range(r, 3):
@@ -136,8 +144,9 @@ def _cross_section_ref(vertices, frame, vt=None):
     if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
         return None
     ref = vecs[:, -1]
-    k = np.arange(1.0, dt.shape[1] + 1.0)
-    if np.dot(k, ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]) < 0:
+    along = (ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2] if kernels is None
+             else kernels.combine(dt, np.ascontiguousarray(ref)))
+    if np.dot(k, along) < 0:
         ref = -ref
     return ref
 

@@ -154,3 +154,34 @@ def _row_sum_loop(v):  # pragma: no cover - compiled by numba
     out[1] = s1
     out[2] = s2
     return out
+
+
+def _section_loop(vt, c, u):  # pragma: no cover - compiled by numba
+    """``dt = vt - c`` (3, V) with its component along u removed, ``dt_r - u_r ((u0 dt0 +
+    u1 dt1) + u2 dt2)``, and k = 1, 2, ..., V (V,) float: `fibres.decompose`'s
+    cross-section reference, the array version's operations, in one pass."""
+    n = vt.shape[1]
+    dt = np.empty((3, n))
+    k = np.empty(n)
+    c0, c1, c2 = c[0], c[1], c[2]
+    u0, u1, u2 = u[0], u[1], u[2]
+    for i in range(n):
+        d0 = vt[0, i] - c0
+        d1 = vt[1, i] - c1
+        d2 = vt[2, i] - c2
+        along = u0 * d0 + u1 * d1 + u2 * d2
+        dt[0, i] = d0 - u0 * along
+        dt[1, i] = d1 - u1 * along
+        dt[2, i] = d2 - u2 * along
+        k[i] = i + 1.0
+    return dt, k
+
+
+def _combine_loop(dt, r):  # pragma: no cover - compiled by numba
+    """``(r0 dt0 + r1 dt1) + r2 dt2`` (V,) of (3, V) rows, as numpy adds them."""
+    n = dt.shape[1]
+    out = np.empty(n)
+    r0, r1, r2 = r[0], r[1], r[2]
+    for i in range(n):
+        out[i] = r0 * dt[0, i] + r1 * dt[1, i] + r2 * dt[2, i]
+    return out

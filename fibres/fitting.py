@@ -41,8 +41,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
-from .fit_kernels import (_boxes_loop, _centred_loop, _extents_loop, _mapped_nearest_loop,
-                          _nearest_loop, _row_sum_loop)
+from .fit_kernels import (_boxes_loop, _centred_loop, _combine_loop, _extents_loop,
+                          _mapped_nearest_loop, _nearest_loop, _row_sum_loop, _section_loop)
 from .support_screen import (_FIRST_SCREEN, _HULL_BINS, _SCREEN, _SCREEN_STRIDE,
                              compile_screens, polygon_screen_numpy)
 from .templates import Template, get_template
@@ -198,10 +198,23 @@ def _polygon_screen(a, b):
 _FIT = []
 
 
+class _Kernels(NamedTuple):
+    """The compiled loops (`fibres.fit_kernels`, `fibres.support_screen`)."""
+
+    screen: object            # polygon screen
+    extents: object           # box extents
+    nearest: object           # nearest landmark distances
+    centred: object           # vertices - centroid
+    row_sum: object           # row sums
+    mapped_nearest: object    # template areas mapped into the boxes, nearest distances
+    boxes: object             # the boxes after the projections
+    candidates: object        # support candidates
+    section: object           # cross-section reference: perpendicular spread
+    combine: object           # cross-section reference: rows combined
+
+
 def _fit_kernels():
-    """(polygon screen, box extents, nearest landmark distances, centring, row sums,
-    mapped-area nearest distances, boxes, support candidates) compiled with numba, or None
-    (then numpy)."""
+    """`_Kernels` compiled with numba, or None (then numpy)."""
     if not _FIT:
         try:
             import numba
@@ -218,8 +231,9 @@ def _fit_kernels():
             glb = dict(_boxes_loop.__globals__, _candidates_loop=candidates,
                        _extents_loop=extents)
             boxes = jit(types.FunctionType(_boxes_loop.__code__, glb, _boxes_loop.__name__))
-            _FIT.append((screen, extents, jit(_nearest_loop), jit(_centred_loop),
-                         jit(_row_sum_loop), jit(_mapped_nearest_loop), boxes, candidates))
+            _FIT.append(_Kernels(screen, extents, jit(_nearest_loop), jit(_centred_loop),
+                                 jit(_row_sum_loop), jit(_mapped_nearest_loop), boxes,
+                                 candidates, jit(_section_loop), jit(_combine_loop)))
     return _FIT[0]
 
 

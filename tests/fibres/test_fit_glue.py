@@ -1,0 +1,39 @@
+"""Compiled glue of the fresh decomposition (box fit, cross-section reference, template
+fibres): the same numbers as the array versions, bit for bit."""
+import importlib
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from fibres import fitting
+
+decompose_module = importlib.import_module("fibres.decompose")
+
+
+def _shapes():
+    rng = np.random.default_rng(2)
+    for k in range(5):
+        rot = Rotation.random(random_state=k).as_matrix()
+        v = (rng.normal(size=(4000 + k, 3)) * [0.02, 0.035, 0.12]) @ rot.T + rng.normal(size=3)
+        yield v, rot[:, 2]
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)       # circular cylinder: isotropic
+    ring = np.c_[np.cos(t), np.sin(t)]
+    v = np.concatenate([np.c_[0.02 * ring, np.full(64, z)] for z in np.linspace(0, 0.1, 9)])
+    yield v, np.array([0.0, 0.0, 1.0])
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_cross_section_reference_compiled_equals_numpy(reverse, monkeypatch):
+    pytest.importorskip("numba")
+    for v, axis in _shapes():
+        v = v[::-1].copy() if reverse else v          # the vertex order fixes the sign
+        frame = fitting.principal_frame(v, v[:3], v[:3] + axis, axis="attachments")
+        got = decompose_module._cross_section_ref(v, frame)
+        with monkeypatch.context() as mp:
+            mp.setattr(fitting, "_FIT", [None])
+            want = decompose_module._cross_section_ref(v, frame)
+        if want is None:
+            assert got is None
+        else:
+            np.testing.assert_array_equal(got, want)
