@@ -185,3 +185,4 @@ def _combine_loop(dt, r):  # pragma: no cover - compiled by numba
     for i in range(n):
         out[i] = r0 * dt[0, i] + r1 * dt[1, i] + r2 * dt[2, i]
     return out
+

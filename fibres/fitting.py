@@ -224,16 +224,18 @@ def _fit_kernels():
             import types
 
             jit = numba.njit(cache=True, nogil=True)
+
+            def calling(fn, **called):  # numba resolves a compiled function's globals
+                glb = dict(fn.__globals__, **called)  # when it compiles it
+                return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
+
             screen, candidates = compile_screens(jit)
-            extents = jit(_extents_loop)
-            # the boxes pass calls the compiled candidates and extents (numba resolves the
-            # globals of a compiled function when it compiles it)
-            glb = dict(_boxes_loop.__globals__, _candidates_loop=candidates,
-                       _extents_loop=extents)
-            boxes = jit(types.FunctionType(_boxes_loop.__code__, glb, _boxes_loop.__name__))
-            _FIT.append(_Kernels(screen, extents, jit(_nearest_loop), jit(_centred_loop),
-                                 jit(_row_sum_loop), jit(_mapped_nearest_loop), boxes,
-                                 candidates, jit(_section_loop), jit(_combine_loop)))
+            extents, row_sum = jit(_extents_loop), jit(_row_sum_loop)
+            _FIT.append(_Kernels(
+                screen, extents, jit(_nearest_loop), jit(_centred_loop), row_sum,
+                jit(_mapped_nearest_loop),
+                calling(_boxes_loop, _candidates_loop=candidates, _extents_loop=extents),
+                candidates, jit(_section_loop), jit(_combine_loop)))
     return _FIT[0]
 
 
@@ -294,8 +296,7 @@ def _thetas(step):
 def template_offset(template) -> np.ndarray:
     """(2,) cross-section offset (x, y) of the template's insertion-area centroid from its
     origin-area centroid, in unit-cube units (zero for every default template but pennate)."""
-    return (np.asarray(template.insertion_area).mean(axis=0)
-            - np.asarray(template.origin_area).mean(axis=0))[:2]
+    return np.array(template.offset)             # made with the template (`Template.offset`)
 
 
 def principal_frame(vertices, origin, insertion, *, axis: str = "auto", v_ref=None,
@@ -366,7 +367,7 @@ def reference_frame(frame: PrincipalFrame, v_ref, template=None) -> PrincipalFra
     if template is not None and frame.method == "attachments":
         if not isinstance(template, Template):
             template = get_template(template)
-        if np.abs(template_offset(template)).max() > 1e-12:
+        if template.oblique:
             return None
     v0, w0 = _frame_for(frame.axis, v_ref)
     return PrincipalFrame(frame.centroid, frame.axis, v0, w0, frame.method)
@@ -449,8 +450,8 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
     if template is not None and method == "attachments":
         if not isinstance(template, Template):
             template = get_template(template)
-        off = template_offset(template)
-        if np.abs(off).max() > 1e-12:
+        if template.oblique:
+            off = template.offset
             theta = _thetas(float(angle_step_deg))
             if angle_index is not None:
                 theta = theta[[int(angle_index) % len(theta)]]

@@ -307,10 +307,7 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion, *, vt=No
 
 def _oblique(template) -> bool:
     """Whether the template's attachment centroids are offset across the cube (pennate)."""
-    if template is None:
-        return False
-    off = np.mean(template.insertion_area, axis=0) - np.mean(template.origin_area, axis=0)
-    return bool(np.abs(off[:2]).max() > 1e-12)
+    return template is not None and template.oblique
 
 
 def _complete_frame(u, v_ref):

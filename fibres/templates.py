@@ -232,6 +232,14 @@ class Template:
         Points sampling the origin rectangle(s) on the bottom face (z = 0).
     insertion_area : (K, 3) float
         Points sampling the insertion rectangle(s) on the top face (z = 1).
+    offset : (2,) float
+        Cross-section offset (x, y) of the insertion area's centroid from the origin
+        area's, ``(insertion_area.mean(axis=0) - origin_area.mean(axis=0))[:2]``.
+    oblique : bool
+        Whether that offset is not zero (above 1e-12; pennate): the attachment direction
+        is then not the box's z axis (`fibres.fitting.principal_frame`). offset and
+        oblique are derived from the areas once, when the template is made (plain
+        attributes, not dataclass fields).
     """
 
     name: str
@@ -263,6 +271,10 @@ class Template:
         object.__setattr__(self, "_rects", (tuple(rects_o), tuple(rects_i)))
         object.__setattr__(self, "origin_area", _grid_on(rects_o, 0.0))
         object.__setattr__(self, "insertion_area", _grid_on(rects_i, 1.0))
+        offset = (self.insertion_area.mean(axis=0) - self.origin_area.mean(axis=0))[:2]
+        offset.flags.writeable = False
+        object.__setattr__(self, "offset", offset)
+        object.__setattr__(self, "oblique", bool(np.abs(offset).max() > 1e-12))
 
     @property
     def degree(self) -> int:
