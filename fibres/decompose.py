@@ -244,10 +244,12 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
     return _with_choice(plan, choice)
 
 
-def _with_choice(plan, choice):
+def _with_choice(plan, choice, filter_choice=None):
+    """``plan`` with the sweep's ``choice`` (and the attachment filter's, if given)."""
     edges, (anchor_v, anchor_w) = choice
+    extra = {} if filter_choice is None else {"filter_choice": filter_choice}
     return dataclasses.replace(plan, choice=edges, anchor_vertices=anchor_v,
-                               anchor_weights=anchor_w)
+                               anchor_weights=anchor_w, **extra)
 
 
 def _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed):
@@ -374,8 +376,6 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         fresh = False
     box, heights, P, Q, choice, sweep_notes = _sweep(
         plan, v, o, i, fresh=fresh, vt=None if prepared is None else prepared.vt)
-    if fresh:
-        plan = _with_choice(plan, choice)
     notes.extend(sweep_notes)
 
     rs, pts, boxed = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
@@ -402,6 +402,6 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         pts, flags["contained"] = contain_points(
             pts, v, faces, mean_edge=mean_edge,
             bounds=None if prepared is None else (prepared.lo, prepared.hi))
-    if fresh and fc is not None:
-        plan = dataclasses.replace(plan, filter_choice=fc)
+    if fresh:  # the sweep's and the filter's choices recorded at once
+        plan = _with_choice(plan, choice, fc)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

@@ -35,6 +35,7 @@ computed at all: the rule's answer is the same.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -104,6 +105,13 @@ def cross3(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+def _norm(x) -> float:
+    """``np.linalg.norm`` of a real 1D array without its overhead: its formula, the square
+    root of ``x.dot(x)`` of the contiguous ``x.ravel()`` (the same number)."""
+    x = x.ravel()
+    return math.sqrt(x.dot(x))
+
+
 def _covariance_axis(vertices, centroid, d=None):
     """Eigenvector of the largest eigenvalue of the vertex covariance (Kohout 2012 eq. 1-2);
     ``d`` is ``vertices - centroid`` when at hand."""
@@ -119,10 +127,10 @@ def _frame_for(u, v_ref):
         ref = np.eye(3)[int(np.argmin(np.abs(u)))]
     else:
         ref = np.asarray(v_ref, dtype=np.float64)
-        if abs(ref @ u) > 0.999 * np.linalg.norm(ref):
+        if abs(ref @ u) > 0.999 * _norm(ref):
             ref = np.eye(3)[int(np.argmin(np.abs(u)))]
     v0 = ref - (ref @ u) * u
-    v0 /= np.linalg.norm(v0)
+    v0 /= _norm(v0)
     return v0, cross3(u, v0)
 
 
@@ -413,7 +421,7 @@ def prepare(vertices) -> Prepared:
 
 def _size(vt):
     """Diagonal of the axis-aligned bounding box of (3, V) vertices."""
-    return float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
+    return _norm(vt.max(axis=1) - vt.min(axis=1))
 
 
 def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
@@ -424,10 +432,10 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
         centroid, size, d = _mean_rows(vertices), _size(vt), None
     else:
         centroid, d = prepared.centroid, prepared.centred
-        size = float(np.linalg.norm(prepared.hi - prepared.lo))       # `_size`
+        size = _norm(prepared.hi - prepared.lo)                       # `_size`
 
     direction = insertion.mean(axis=0) - origin.mean(axis=0)
-    dist = float(np.linalg.norm(direction))
+    dist = _norm(direction)
     if dist <= 1e-9 * max(size, 1e-300):
         raise InputError("the origin and insertion landmarks have the same centroid",
                          where="origin/insertion",
@@ -463,8 +471,8 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
                     theta = theta[[j]]
                 new = direction - ext[j, 0] * off[0] * axes[j, :, 0] \
                     - ext[j, 1] * off[1] * axes[j, :, 1]
-                new /= np.linalg.norm(new)
-                done = np.linalg.norm(new - u) < 1e-12
+                new /= _norm(new)
+                done = _norm(new - u) < 1e-12
                 u = new
                 v0, w0 = _frame_for(u, v_ref)
                 if done:
@@ -517,7 +525,9 @@ def check_landmarks(vertices, points, *, name: str = "landmarks", file=None):
 
 def _check_in_box(lo, hi, points, *, name, file=None):
     """`check_landmarks` with the surface's bounding box ``lo``, ``hi`` (3,) at hand."""
-    size = float(np.linalg.norm(hi - lo))
+    if ((points >= lo) & (points <= hi)).all(axis=1).any():
+        return              # a landmark in the box: the gap below is 0
+    size = _norm(hi - lo)
 
     def gap(p):
         return float(np.linalg.norm(np.maximum(np.maximum(lo - p, p - hi), 0), axis=1).min())
@@ -662,7 +672,7 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
         d = prepared.centred
     axes, corner, ext = _boxes(vertices, frame.centroid, frame.axis, frame.v0, frame.w0,
                                _thetas(step), d)
-    size = float(np.linalg.norm(hi - lo))
+    size = _norm(hi - lo)
     if (ext <= 1e-12 * max(size, 1e-300)).any():
         raise InputError("the surface is flat (zero thickness)", where="mesh",
                          fix="Pass the muscle's closed volume surface.")

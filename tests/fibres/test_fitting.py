@@ -472,3 +472,22 @@ def test_compiled_boxes_equal_numpy_bit_for_bit(monkeypatch):
             want = fitting._boxes(v, c, u, v0, w0, theta)
         for x, y in zip(got, want):
             np.testing.assert_array_equal(x, y)
+
+
+def test_norm_is_numpys_bit_for_bit():
+    from fibres.fitting import _norm
+
+    rng = np.random.default_rng(13)
+    m = rng.normal(size=(200, 3, 3)) * 10.0 ** rng.integers(-8, 8, size=(200, 1, 1))
+    for x in m:
+        for v in (x[0], x[:, 1], x.ravel(), x[::-1, 2]):      # contiguous and strided
+            assert _norm(v) == np.linalg.norm(v)
+
+
+def test_landmarks_in_the_box_are_accepted_without_measuring():
+    from fibres.fitting import _check_in_box
+
+    lo, hi = np.zeros(3), np.ones(3)
+    _check_in_box(lo, hi, np.array([[5.0, 5.0, 5.0], [1.0, 0.0, 0.5]]), name="origin")
+    with pytest.raises(InputError):
+        _check_in_box(lo, hi, np.array([[50.0, 5.0, 5.0], [1.0, 0.0, 8.5]]), name="origin")
