@@ -2,9 +2,9 @@
 
 A family of N curves of degree D shares one parameter vector t (P,): the basis is computed once,
 (P, D+1), and every curve is evaluated in one pass (compiled with numba when installed; the
-same sums without it). Rational curves (positive weights) stay inside the convex hull of their control points, which is what keeps template fibres inside the
-unit cube (Farin, "Curves and Surfaces for CAGD", 5th ed., ch. 13; Piegl & Tiller, "The NURBS
-Book", §1.4).
+same sums without it). Rational curves (positive weights) stay inside the convex hull of their
+control points, which is what keeps template fibres inside the unit cube (Farin, "Curves and
+Surfaces for CAGD", 5th ed., ch. 13; Piegl & Tiller, "The NURBS Book", §1.4).
 """
 from __future__ import annotations
 

@@ -42,20 +42,42 @@ def _extents_loop(a, b, ct, st, out):  # pragma: no cover - compiled by numba
         out[j, 3] = y_hi[j]
 
 
-def _boxes_loop(a, b, z, ct, st, c, u, v0, w0, dirs, cos_all, sin_all, stride, n_bins,
-                axes, corner, ext):  # pragma: no cover - compiled by numba
-    """`fibres.fitting._boxes` after the projections ``a, b, z`` (V,) of the centred
-    vertices on v0, w0, u: the support screen (`fibres.support_screen._candidates_loop`),
-    the extents (`_extents_loop`) of the candidates and the boxes ``axes`` (J, 3, 3),
-    ``corner`` (J, 3), ``ext`` (J, 3) of the rotations ``ct, st`` (J,), with the array version's
-    operations in its order: ``x = ct v0 + st w0``, ``y = u x x`` (`fibres.fitting.cross3`),
-    ``corner = c + (x lo_x + u lo_z) + y lo_y`` (numpy's einsum adds the three products in
-    this order). The candidates may differ from the array version's screen (both keep
-    every point that attains a minimum or maximum), the boxes are the same bit for bit."""
-    z_lo = z_hi = z[0]
-    for i in range(1, z.size):
-        z_lo = min(z_lo, z[i])
-        z_hi = max(z_hi, z[i])
+def _boxes_loop(v, c, u, v0, w0, ct, st, dirs, cos_all, sin_all, stride, n_bins, axes,
+                corner, ext):  # pragma: no cover - compiled by numba
+    """`fibres.fitting._boxes` in one call, the array version's operations in its order:
+    the projections ``a, b, z`` of the centred vertices ``d = v - c`` (V, 3) on v0, w0, u
+    (``(d_x v_x + d_y v_y) + d_z v_z``; z only for its minimum and maximum), the support
+    screen (`fibres.support_screen._candidates_loop`), the extents (`_extents_loop`) of
+    the candidates and the boxes ``axes`` (J, 3, 3), ``corner`` (J, 3), ``ext`` (J, 3) of
+    the rotations ``ct, st`` (J,): ``x = ct v0 + st w0``, ``y = u x x``
+    (`fibres.fitting.cross3`), ``corner = c + (x lo_x + u lo_z) + y lo_y`` (numpy's einsum
+    adds the three products in this order). The candidates may differ from the array
+    version's screen (both keep every point that attains a minimum or maximum), the boxes
+    are the same bit for bit."""
+    n = v.shape[0]
+    a = np.empty(n)
+    b = np.empty(n)
+    z_lo = z_hi = 0.0
+    for i in range(n):
+        d0 = v[i, 0] - c[0]
+        d1 = v[i, 1] - c[1]
+        d2 = v[i, 2] - c[2]
+        a[i] = d0 * v0[0] + d1 * v0[1] + d2 * v0[2]
+        b[i] = d0 * w0[0] + d1 * w0[1] + d2 * w0[2]
+        z = d0 * u[0] + d1 * u[1] + d2 * u[2]
+        if i == 0:
+            z_lo = z_hi = z
+        else:
+            z_lo = min(z_lo, z)
+            z_hi = max(z_hi, z)
+    _projected_boxes_loop(a, b, z_lo, z_hi, c, u, v0, w0, ct, st, dirs, cos_all, sin_all,
+                          stride, n_bins, axes, corner, ext)
+
+
+def _projected_boxes_loop(a, b, z_lo, z_hi, c, u, v0, w0, ct, st, dirs, cos_all, sin_all,
+                          stride, n_bins, axes, corner,
+                          ext):  # pragma: no cover - compiled by numba
+    """`_boxes_loop` after the projections: a, b (V,), the range ``z_lo, z_hi`` of z."""
     keep = _candidates_loop(a, b, dirs, cos_all, sin_all, stride, n_bins)
     m = keep.size
     pa = np.empty(m)
@@ -186,3 +208,14 @@ def _combine_loop(dt, r):  # pragma: no cover - compiled by numba
         out[i] = r0 * dt[0, i] + r1 * dt[1, i] + r2 * dt[2, i]
     return out
 
+
+
+def _blas_boxes_loop(a, b, z, c, u, v0, w0, ct, st, dirs, cos_all, sin_all, stride, n_bins,
+                     axes, corner, ext):  # pragma: no cover - compiled by numba
+    """`_projected_boxes_loop` of given projections a, b, z (V,) (numpy's ``d @ v0`` ...)."""
+    z_lo = z_hi = z[0]
+    for i in range(1, z.size):
+        z_lo = min(z_lo, z[i])
+        z_hi = max(z_hi, z[i])
+    _projected_boxes_loop(a, b, z_lo, z_hi, c, u, v0, w0, ct, st, dirs, cos_all, sin_all,
+                          stride, n_bins, axes, corner, ext)

@@ -42,8 +42,9 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
-from .fit_kernels import (_boxes_loop, _centred_loop, _combine_loop, _extents_loop,
-                          _mapped_nearest_loop, _nearest_loop, _row_sum_loop, _section_loop)
+from .fit_kernels import (_blas_boxes_loop, _boxes_loop, _centred_loop, _combine_loop,
+                          _extents_loop, _mapped_nearest_loop, _nearest_loop,
+                          _projected_boxes_loop, _row_sum_loop, _section_loop)
 from .support_screen import (_FIRST_SCREEN, _HULL_BINS, _SCREEN, _SCREEN_STRIDE,
                              compile_screens, polygon_screen_numpy)
 from .templates import Template, get_template
@@ -134,36 +135,45 @@ def _frame_for(u, v_ref):
     return v0, cross3(u, v0)
 
 
-def _boxes(vertices, c, u, v0, w0, theta, d=None):
+def _boxes(vertices, c, u, v0, w0, theta, *, blas=False):
     """Minimal boxes of the vertices in the frames rotated by ``theta`` (J,) about u.
 
-    Only vertices that can be extreme in some direction of the cross-section enter the
-    (J, V') projections (`_support_candidates`); the others cannot change a minimum or
-    maximum, so the boxes are exactly those of all vertices. Compiled: everything after
-    the three projections in one pass (`fibres.fit_kernels._boxes_loop`, the same
-    operations and order).
+    The centred vertices ``d = vertices - c`` are projected on v0, w0 and u as
+    ``(d_x v_x + d_y v_y) + d_z v_z`` (a fixed order), or with ``blas`` as ``d @ v0`` etc.
+    (numpy's matrix products; the oblique-axis iteration of `principal_frame` keeps these,
+    its axis depends on the extents). Only vertices that can be extreme in some direction of
+    the cross-section enter the (J, V') projections (`_support_candidates`); the others
+    cannot change a minimum or maximum, so the boxes are exactly those of all vertices.
+    Compiled: everything after the BLAS projections, or everything, in one pass
+    (`fibres.fit_kernels._boxes_loop`, the same operations and order).
 
     Parameters
     ----------
     vertices : (V, 3) float
     c, u, v0, w0 : (3,) float
     theta : (J,) float
-    d : (V, 3) float, optional
-        ``vertices - c`` (`_centred`) when at hand.
 
     Returns axes (J, 3, 3) (columns x, y, z), corner (J, 3), extents (J, 3)."""
-    d = _centred(vertices, c) if d is None else d
-    a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
     n_rot = len(theta)
+    f64 = np.float64
+    c, u, v0, w0 = (np.ascontiguousarray(x, dtype=f64) for x in (c, u, v0, w0))
+    vertices = np.asarray(vertices, dtype=f64)
+    if blas:
+        d = _centred(vertices, c)
+        a, b, z = d @ v0, d @ w0, d @ u                               # (V,)
     kernels = _fit_kernels()
     if kernels is not None:
         axes, corner, ext = np.empty((n_rot, 3, 3)), np.empty((n_rot, 3)), np.empty((n_rot, 3))
-        f64 = np.float64
-        kernels[6](a, b, z, np.cos(theta), np.sin(theta), np.asarray(c, dtype=f64),
-                   np.asarray(u, dtype=f64), np.asarray(v0, dtype=f64),
-                   np.asarray(w0, dtype=f64), *_FIRST_SCREEN, _SCREEN_STRIDE, _HULL_BINS,
-                   axes, corner, ext)
+        tail = (np.cos(theta), np.sin(theta), *_FIRST_SCREEN, _SCREEN_STRIDE, _HULL_BINS,
+                axes, corner, ext)
+        if blas:
+            kernels.projected_boxes(a, b, z, c, u, v0, w0, *tail)
+        else:
+            kernels.boxes(np.ascontiguousarray(vertices), c, u, v0, w0, *tail)
         return axes, corner, ext
+    if not blas:
+        d = vertices - c                                              # (V, 3)
+        a, b, z = ((d[:, 0] * e[0] + d[:, 1] * e[1]) + d[:, 2] * e[2] for e in (v0, w0, u))
     xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
     ys = cross3(u, xs)                                                # (J, 3)
     keep = _polygon_screen(a, b)
@@ -186,9 +196,9 @@ def _support_candidates(a, b):
     kernels = _fit_kernels()
     if kernels is None or a.size == 0:
         return _polygon_screen(a, b)
-    return kernels[7](np.ascontiguousarray(a, dtype=np.float64),
-                      np.ascontiguousarray(b, dtype=np.float64), *_FIRST_SCREEN,
-                      _SCREEN_STRIDE, _HULL_BINS)
+    return kernels.candidates(np.ascontiguousarray(a, dtype=np.float64),
+                              np.ascontiguousarray(b, dtype=np.float64), *_FIRST_SCREEN,
+                              _SCREEN_STRIDE, _HULL_BINS)
 
 
 def _polygon_screen(a, b):
@@ -198,9 +208,9 @@ def _polygon_screen(a, b):
     kernels = _fit_kernels()
     if kernels is None:
         return polygon_screen_numpy(a, b, spread)
-    return kernels[0](np.ascontiguousarray(a, dtype=np.float64),
-                      np.ascontiguousarray(b, dtype=np.float64), *_SCREEN, 1e-9 * spread,
-                      _SCREEN_STRIDE)
+    return kernels.screen(np.ascontiguousarray(a, dtype=np.float64),
+                          np.ascontiguousarray(b, dtype=np.float64), *_SCREEN, 1e-9 * spread,
+                          _SCREEN_STRIDE)
 
 
 _FIT = []
@@ -215,7 +225,8 @@ class _Kernels(NamedTuple):
     centred: object           # vertices - centroid
     row_sum: object           # row sums
     mapped_nearest: object    # template areas mapped into the boxes, nearest distances
-    boxes: object             # the boxes after the projections
+    boxes: object             # the boxes
+    projected_boxes: object   # the boxes of given (BLAS) projections
     candidates: object        # support candidates
     section: object           # cross-section reference: perpendicular spread
     combine: object           # cross-section reference: rows combined
@@ -239,10 +250,13 @@ def _fit_kernels():
 
             screen, candidates = compile_screens(jit)
             extents, row_sum = jit(_extents_loop), jit(_row_sum_loop)
+            projected = calling(_projected_boxes_loop, _candidates_loop=candidates,
+                                _extents_loop=extents)
             _FIT.append(_Kernels(
                 screen, extents, jit(_nearest_loop), jit(_centred_loop), row_sum,
                 jit(_mapped_nearest_loop),
-                calling(_boxes_loop, _candidates_loop=candidates, _extents_loop=extents),
+                calling(_boxes_loop, _projected_boxes_loop=projected),
+                calling(_blas_boxes_loop, _projected_boxes_loop=projected),
                 candidates, jit(_section_loop), jit(_combine_loop)))
     return _FIT[0]
 
@@ -251,7 +265,7 @@ def _centred(vertices, c):
     """(V, 3) ``vertices - c``, bit for bit."""
     kernels = _fit_kernels()
     return (vertices - c if kernels is None or not vertices.flags.c_contiguous
-            else kernels[3](vertices, np.ascontiguousarray(c, dtype=np.float64)))
+            else kernels.centred(vertices, np.ascontiguousarray(c, dtype=np.float64)))
 
 
 def _closest_sum(area, landmarks):
@@ -259,7 +273,7 @@ def _closest_sum(area, landmarks):
     kernels = _fit_kernels()
     if kernels is not None:
         near = np.empty(area.shape[:2])
-        kernels[2](np.ascontiguousarray(area), np.ascontiguousarray(landmarks), near)
+        kernels.nearest(np.ascontiguousarray(area), np.ascontiguousarray(landmarks), near)
         return near.sum(axis=1)
     d2 = 0.0
     for c in range(3):      # component-wise: a reduction over the size-3 axis is slow
@@ -278,9 +292,10 @@ def _scores(template, axes, corner, ext, origin, insertion):
         total = None
         for area, lms in ((template.origin_area, origin), (template.insertion_area, insertion)):
             near = np.empty((len(axes), len(area)))
-            kernels[5](np.ascontiguousarray(area, dtype=np.float64), np.ascontiguousarray(axes),
-                       np.ascontiguousarray(ext), np.ascontiguousarray(corner),
-                       np.ascontiguousarray(lms, dtype=np.float64), near)
+            kernels.mapped_nearest(np.ascontiguousarray(area, dtype=np.float64),
+                                   np.ascontiguousarray(axes), np.ascontiguousarray(ext),
+                                   np.ascontiguousarray(corner),
+                                   np.ascontiguousarray(lms, dtype=np.float64), near)
             total = near.sum(axis=1) if total is None else total + near.sum(axis=1)
         return total
     scale = axes * ext[:, None, :]                                    # (J, 3, 3)
@@ -395,7 +410,7 @@ def _mean_rows(vertices):
     kernels = _fit_kernels()
     if kernels is None or vertices.shape[0] == 0 or not vertices.flags.c_contiguous:
         return vertices.mean(axis=0)        # (other layouts: numpy's own summation order)
-    return kernels[4](vertices) / vertices.shape[0]
+    return kernels.row_sum(vertices) / vertices.shape[0]
 
 
 class Prepared(NamedTuple):
@@ -405,18 +420,15 @@ class Prepared(NamedTuple):
     lo: np.ndarray        # (3,) coordinate-wise minimum
     hi: np.ndarray        # (3,) coordinate-wise maximum
     centroid: np.ndarray  # (3,) `_mean_rows`
-    centred: np.ndarray   # (V, 3) vertices - centroid (`_centred`)
 
 
 def prepare(vertices) -> Prepared:
-    """The transposed vertices, their bounds, centroid and centred copy, made once for the
-    stages of a decomposition that would each make them (`principal_frame`, `fit_box`, the
-    attachment filter, the containment grid): the same arrays, bit for bit."""
+    """The transposed vertices, their bounds and centroid, made once for the stages of a
+    decomposition that would each make them (`principal_frame`, `fit_box`, the attachment
+    filter, the containment grid): the same arrays, bit for bit."""
     vertices = np.asarray(vertices, dtype=np.float64)
     vt = _transposed(vertices)
-    centroid = _mean_rows(vertices)
-    return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid,
-                    _centred(vertices, centroid))
+    return Prepared(vt, vt.min(axis=1), vt.max(axis=1), _mean_rows(vertices))
 
 
 def _size(vt):
@@ -429,10 +441,9 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
     """`principal_frame` on vertices (V, 3), the same transposed ``vt`` (3, V) and checked
     landmark sets; ``prepared``: `prepare` of these vertices when at hand."""
     if prepared is None:
-        centroid, size, d = _mean_rows(vertices), _size(vt), None
+        centroid, size = _mean_rows(vertices), _size(vt)
     else:
-        centroid, d = prepared.centroid, prepared.centred
-        size = _norm(prepared.hi - prepared.lo)                       # `_size`
+        centroid, size = prepared.centroid, _norm(prepared.hi - prepared.lo)   # `_size`
 
     direction = insertion.mean(axis=0) - origin.mean(axis=0)
     dist = _norm(direction)
@@ -445,7 +456,7 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
     if axis == "auto" and dist >= AUTO_MIN_SEPARATION * size * (1.0 + _AUTO_SURE):
         method = "attachments"  # the extent along any unit axis is at most the box diagonal
     elif axis in ("covariance", "auto"):
-        d = _centred(vertices, centroid) if d is None else d
+        d = _centred(vertices, centroid)
         cov_axis = _covariance_axis(vertices, centroid, d)
         if axis == "auto":
             length = float(np.ptp(d @ cov_axis))
@@ -464,7 +475,7 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
             if angle_index is not None:
                 theta = theta[[int(angle_index) % len(theta)]]
             for it in range(_MAX_OBLIQUE_ITERATIONS):
-                axes, corner, ext = _boxes(vertices, centroid, u, v0, w0, theta)
+                axes, corner, ext = _boxes(vertices, centroid, u, v0, w0, theta, blas=True)
                 j = _best_rotation(_scores(template, axes, corner, ext, origin, insertion),
                                    axes, ext, off, origin, direction, vertices, centroid)
                 if it == 3:  # the rotation has settled: keep it, iterate on the axis only
@@ -667,11 +678,8 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
         frame = _principal_frame(vertices, vt, origin, insertion, axis=axis, v_ref=v_ref,
                                  template=template, angle_step_deg=step, angle_index=None,
                                  prepared=prepared)
-    d = None
-    if prepared is not None and np.array_equal(frame.centroid, prepared.centroid):
-        d = prepared.centred
     axes, corner, ext = _boxes(vertices, frame.centroid, frame.axis, frame.v0, frame.w0,
-                               _thetas(step), d)
+                               _thetas(step))
     size = _norm(hi - lo)
     if (ext <= 1e-12 * max(size, 1e-300)).any():
         raise InputError("the surface is flat (zero thickness)", where="mesh",
