@@ -272,10 +272,16 @@ def test_polygon_screen_compiled_equals_numpy(monkeypatch):
     from fibres import fitting
 
     rng = np.random.default_rng(4)
-    a, b = rng.normal(size=4000) * 0.03, rng.normal(size=4000) * 0.01
-    compiled = fitting._polygon_screen(a, b)
+    u, w = rng.uniform(size=(2, 4000))
+    flip = u + w > 1
+    u[flip], w[flip] = 1 - u[flip], 1 - w[flip]
+    shapes = [(rng.normal(size=4000) * 0.03, rng.normal(size=4000) * 0.01),
+              (u + 0.3 * w, w),                                 # a triangle: < 8 corners
+              _shape_points("square", rng), _shape_points("spindle", rng)]
+    compiled = [fitting._polygon_screen(a, b) for a, b in shapes]
     monkeypatch.setattr(fitting, "_FIT", [None])
-    np.testing.assert_array_equal(compiled, fitting._polygon_screen(a, b))
+    for (a, b), got in zip(shapes, compiled):
+        np.testing.assert_array_equal(got, fitting._polygon_screen(a, b))
 
 
 def _bent_spindle(n_z=24, n_t=32, length=0.2):
