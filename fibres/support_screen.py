@@ -199,17 +199,24 @@ def _hull_screen_loop(pa, pb, delta, n_bins):  # pragma: no cover - compiled by 
     oa /= m
     ob /= m
     per = n_bins / 4.0
-    best = np.full(n_bins, -1.0)
-    arg = np.full(n_bins, -1, dtype=np.int64)
     bins = np.empty(m, dtype=np.int64)
-    for i in range(m):                  # bins and the farthest point of each
+    r2s = np.empty(m)
+    top = n_bins - 1
+    for i in range(m):                  # bins (vectorised: no branches)
         x = pa[i] - oa
         y = pb[i] - ob
-        bi = min(int(_pseudo_angle(x, y) * per), n_bins - 1)
-        bins[i] = bi
-        r2 = x * x + y * y
-        if r2 > best[bi]:
-            best[bi] = r2
+        s = abs(x) + abs(y)
+        t = y / (s if s > 0.0 else 1.0)
+        psi = (t if y >= 0.0 else 4.0 + t) if x >= 0.0 else 2.0 - t
+        bi = int(psi * per)
+        bins[i] = bi if bi < top else top
+        r2s[i] = x * x + y * y
+    best = np.full(n_bins, -1.0)
+    arg = np.full(n_bins, -1, dtype=np.int64)
+    for i in range(m):                  # the farthest point of each bin
+        bi = bins[i]
+        if r2s[i] > best[bi]:
+            best[bi] = r2s[i]
             arg[bi] = i
     cand = np.empty(n_bins, dtype=np.int64)
     n_c = 0
@@ -292,11 +299,13 @@ def _hull_screen_loop(pa, pb, delta, n_bins):  # pragma: no cover - compiled by 
         bi = bins[i]
         x = pa[i]
         y = pb[i]
-        out = False
-        for k in range(first[bi], first[bi] + count[bi]):
-            if not ea[k] * (y - qb[k]) - eb[k] * (x - qa[k]) > thr[k]:
-                out = True
-                break
+        k = first[bi]
+        out = not ea[k] * (y - qb[k]) - eb[k] * (x - qa[k]) > thr[k]
+        if not out:
+            for k in range(first[bi] + 1, first[bi] + count[bi]):
+                if not ea[k] * (y - qb[k]) - eb[k] * (x - qa[k]) > thr[k]:
+                    out = True
+                    break
         keep[n_k] = i
         n_k += out
     return keep[:n_k]
