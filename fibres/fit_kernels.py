@@ -219,3 +219,31 @@ def _blas_boxes_loop(a, b, z, c, u, v0, w0, ct, st, dirs, cos_all, sin_all, stri
         z_hi = max(z_hi, z[i])
     _projected_boxes_loop(a, b, z_lo, z_hi, c, u, v0, w0, ct, st, dirs, cos_all, sin_all,
                           stride, n_bins, axes, corner, ext)
+
+
+def _transposed_mean_loop(v):  # pragma: no cover - compiled by numba
+    """The transposed copy (3, V) of C-contiguous (V, 3) vertices, V >= 1, and their
+    centroid (3,) (`_row_sum_loop` / V: the same sums), in one pass."""
+    n = v.shape[0]
+    vt = np.empty((3, n))
+    s0 = v[0, 0]
+    s1 = v[0, 1]
+    s2 = v[0, 2]
+    vt[0, 0] = s0
+    vt[1, 0] = s1
+    vt[2, 0] = s2
+    for i in range(1, n):
+        x = v[i, 0]
+        y = v[i, 1]
+        z = v[i, 2]
+        s0 += x
+        s1 += y
+        s2 += z
+        vt[0, i] = x
+        vt[1, i] = y
+        vt[2, i] = z
+    c = np.empty(3)
+    c[0] = s0 / n
+    c[1] = s1 / n
+    c[2] = s2 / n
+    return vt, c

@@ -44,7 +44,8 @@ import numpy as np
 from .errors import InputError
 from .fit_kernels import (_blas_boxes_loop, _boxes_loop, _centred_loop, _combine_loop,
                           _extents_loop, _mapped_nearest_loop, _nearest_loop,
-                          _projected_boxes_loop, _row_sum_loop, _section_loop)
+                          _projected_boxes_loop, _row_sum_loop, _section_loop,
+                          _transposed_mean_loop)
 from .support_screen import (_FIRST_SCREEN, _HULL_BINS, _SCREEN, _SCREEN_STRIDE,
                              compile_screens, polygon_screen_numpy)
 from .templates import Template, get_template
@@ -230,6 +231,7 @@ class _Kernels(NamedTuple):
     candidates: object        # support candidates
     section: object           # cross-section reference: perpendicular spread
     combine: object           # cross-section reference: rows combined
+    transposed_mean: object   # transposed vertices and their centroid
 
 
 def _fit_kernels():
@@ -257,7 +259,8 @@ def _fit_kernels():
                 jit(_mapped_nearest_loop),
                 calling(_boxes_loop, _projected_boxes_loop=projected),
                 calling(_blas_boxes_loop, _projected_boxes_loop=projected),
-                candidates, jit(_section_loop), jit(_combine_loop)))
+                candidates, jit(_section_loop), jit(_combine_loop),
+                jit(_transposed_mean_loop)))
     return _FIT[0]
 
 
@@ -427,8 +430,12 @@ def prepare(vertices) -> Prepared:
     decomposition that would each make them (`principal_frame`, `fit_box`, the attachment
     filter, the containment grid): the same arrays, bit for bit."""
     vertices = np.asarray(vertices, dtype=np.float64)
-    vt = _transposed(vertices)
-    return Prepared(vt, vt.min(axis=1), vt.max(axis=1), _mean_rows(vertices))
+    kernels = _fit_kernels()
+    if kernels is not None and vertices.shape[0] and vertices.flags.c_contiguous:
+        vt, centroid = kernels.transposed_mean(vertices)      # the same, in one pass
+    else:
+        vt, centroid = _transposed(vertices), _mean_rows(vertices)
+    return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid)
 
 
 def _size(vt):

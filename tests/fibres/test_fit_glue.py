@@ -37,3 +37,19 @@ def test_cross_section_reference_compiled_equals_numpy(reverse, monkeypatch):
             assert got is None
         else:
             np.testing.assert_array_equal(got, want)
+
+
+def test_prepare_compiled_equals_numpy(monkeypatch):
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(3)
+    for n in (1, 7, 15002):
+        v = rng.normal(size=(n, 3)) * 0.05 + 0.3
+        for arr in (v, np.asfortranarray(v)):
+            got = fitting.prepare(arr)
+            with monkeypatch.context() as mp:
+                mp.setattr(fitting, "_FIT", [None])
+                want = fitting.prepare(arr)
+            for x, y in zip(got, want):
+                np.testing.assert_array_equal(x, y)
+            np.testing.assert_array_equal(got.vt, arr.T)
+            np.testing.assert_array_equal(got.centroid, arr.mean(axis=0))
