@@ -222,13 +222,14 @@ def _blas_boxes_loop(a, b, z, c, u, v0, w0, ct, st, dirs, cos_all, sin_all, stri
 
 
 def _transposed_mean_loop(v):  # pragma: no cover - compiled by numba
-    """The transposed copy (3, V) of C-contiguous (V, 3) vertices, V >= 1, and their
-    centroid (3,) (`_row_sum_loop` / V: the same sums), in one pass."""
+    """The transposed copy (3, V) of C-contiguous (V, 3) vertices, V >= 1, their centroid
+    (3,) (`_row_sum_loop` / V: the same sums) and coordinate-wise minimum and maximum
+    (3,) each, in one pass."""
     n = v.shape[0]
     vt = np.empty((3, n))
-    s0 = v[0, 0]
-    s1 = v[0, 1]
-    s2 = v[0, 2]
+    s0 = lo0 = hi0 = v[0, 0]
+    s1 = lo1 = hi1 = v[0, 1]
+    s2 = lo2 = hi2 = v[0, 2]
     vt[0, 0] = s0
     vt[1, 0] = s1
     vt[2, 0] = s2
@@ -242,8 +243,14 @@ def _transposed_mean_loop(v):  # pragma: no cover - compiled by numba
         vt[0, i] = x
         vt[1, i] = y
         vt[2, i] = z
+        lo0 = x if x < lo0 else lo0
+        lo1 = y if y < lo1 else lo1
+        lo2 = z if z < lo2 else lo2
+        hi0 = x if x > hi0 else hi0
+        hi1 = y if y > hi1 else hi1
+        hi2 = z if z > hi2 else hi2
     c = np.empty(3)
     c[0] = s0 / n
     c[1] = s1 / n
     c[2] = s2 / n
-    return vt, c
+    return vt, c, np.array([lo0, lo1, lo2]), np.array([hi0, hi1, hi2])

@@ -231,7 +231,7 @@ class _Kernels(NamedTuple):
     candidates: object        # support candidates
     section: object           # cross-section reference: perpendicular spread
     combine: object           # cross-section reference: rows combined
-    transposed_mean: object   # transposed vertices and their centroid
+    transposed_mean: object   # transposed vertices, centroid, bounds
 
 
 def _fit_kernels():
@@ -432,9 +432,11 @@ def prepare(vertices) -> Prepared:
     vertices = np.asarray(vertices, dtype=np.float64)
     kernels = _fit_kernels()
     if kernels is not None and vertices.shape[0] and vertices.flags.c_contiguous:
-        vt, centroid = kernels.transposed_mean(vertices)      # the same, in one pass
-    else:
-        vt, centroid = _transposed(vertices), _mean_rows(vertices)
+        vt, centroid, lo, hi = kernels.transposed_mean(vertices)    # the same, one pass
+        if not (lo * hi).all() or np.isnan(centroid).any():
+            lo, hi = vt.min(axis=1), vt.max(axis=1)  # numpy's sign of a zero bound, NaN
+        return Prepared(vt, lo, hi, centroid)
+    vt, centroid = _transposed(vertices), _mean_rows(vertices)
     return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid)
 
 

@@ -53,3 +53,12 @@ def test_prepare_compiled_equals_numpy(monkeypatch):
                 np.testing.assert_array_equal(x, y)
             np.testing.assert_array_equal(got.vt, arr.T)
             np.testing.assert_array_equal(got.centroid, arr.mean(axis=0))
+
+
+def test_prepare_bounds_with_zero_and_signed_zero_coordinates(monkeypatch):
+    pytest.importorskip("numba")
+    v = np.array([[0.0, -0.0, 1.0], [-0.0, 0.0, 2.0], [1.0, 0.0, -0.0], [0.5, 0.5, 0.5]])
+    got = fitting.prepare(v)
+    np.testing.assert_array_equal(np.signbit(got.lo), np.signbit(v.min(axis=0)))
+    np.testing.assert_array_equal(np.signbit(got.hi), np.signbit(v.max(axis=0)))
+    np.testing.assert_array_equal(got.lo, v.min(axis=0))
