@@ -57,19 +57,20 @@ def _boxes_loop(v, c, u, v0, w0, ct, st, dirs, cos_all, sin_all, stride, n_bins,
     n = v.shape[0]
     a = np.empty(n)
     b = np.empty(n)
-    z_lo = z_hi = 0.0
+    c0, c1, c2 = c[0], c[1], c[2]
+    a0, a1, a2 = v0[0], v0[1], v0[2]
+    b0, b1, b2 = w0[0], w0[1], w0[2]
+    u0, u1, u2 = u[0], u[1], u[2]
+    z_lo = z_hi = (v[0, 0] - c0) * u0 + (v[0, 1] - c1) * u1 + (v[0, 2] - c2) * u2
     for i in range(n):
-        d0 = v[i, 0] - c[0]
-        d1 = v[i, 1] - c[1]
-        d2 = v[i, 2] - c[2]
-        a[i] = d0 * v0[0] + d1 * v0[1] + d2 * v0[2]
-        b[i] = d0 * w0[0] + d1 * w0[1] + d2 * w0[2]
-        z = d0 * u[0] + d1 * u[1] + d2 * u[2]
-        if i == 0:
-            z_lo = z_hi = z
-        else:
-            z_lo = min(z_lo, z)
-            z_hi = max(z_hi, z)
+        d0 = v[i, 0] - c0
+        d1 = v[i, 1] - c1
+        d2 = v[i, 2] - c2
+        a[i] = d0 * a0 + d1 * a1 + d2 * a2
+        b[i] = d0 * b0 + d1 * b1 + d2 * b2
+        z = d0 * u0 + d1 * u1 + d2 * u2
+        z_lo = z if z < z_lo else z_lo
+        z_hi = z if z > z_hi else z_hi
     _projected_boxes_loop(a, b, z_lo, z_hi, c, u, v0, w0, ct, st, dirs, cos_all, sin_all,
                           stride, n_bins, axes, corner, ext)
 

@@ -320,10 +320,12 @@ def _candidates_loop(a, b, dirs, cos_all, sin_all, stride,
     a_lo = a_hi = a[0]
     b_lo = b_hi = b[0]
     for i in range(1, a.size):
-        a_lo = min(a_lo, a[i])
-        a_hi = max(a_hi, a[i])
-        b_lo = min(b_lo, b[i])
-        b_hi = max(b_hi, b[i])
+        x = a[i]
+        y = b[i]
+        a_lo = x if x < a_lo else a_lo
+        a_hi = x if x > a_hi else a_hi
+        b_lo = y if y < b_lo else b_lo
+        b_hi = y if y > b_hi else b_hi
     delta = 1e-9 * max(a_hi - a_lo, b_hi - b_lo)
     keep = _screen_loop(a, b, dirs, cos_all, sin_all, delta, stride)
     pa = np.empty(keep.size)
