@@ -122,20 +122,23 @@ def _cross_section_ref(vertices, frame, vt=None):
 
     Component-wise over the (3, V) coordinates: (3, 3) @ (3, V) products would start BLAS
     threads for a few microseconds of work; compiled, the element-wise steps are one pass
-    each (`fibres.fit_kernels._section_loop`, `_combine_loop`: the same operations).
-    ``vt``: the (3, V) transposed vertices when at hand."""
+    each (`fibres.fit_kernels._section_loop`, `_combine_loop`: the same operations), and
+    the sign moment is first added in order with the sum of its terms' magnitudes A
+    (`_moment_loop`): any order of adding the V terms (numpy's dot) is within
+    ``gamma_V A`` (``gamma_n = n u / (1 - n u)``, u the unit roundoff) of the exact sum,
+    so where the ordered sum exceeds ``3 gamma_V A`` its sign is numpy's; else numpy's dot
+    decides. ``vt``: the (3, V) transposed vertices when at hand."""
     u = frame.axis
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
     kernels = _fitting._fit_kernels()
     if kernels is not None and vt.flags.c_contiguous:
-        dt, k = kernels.section(vt, np.ascontiguousarray(frame.centroid, dtype=np.float64),
-                                np.ascontiguousarray(u, dtype=np.float64))
+        dt = kernels.section(vt, np.ascontiguousarray(frame.centroid, dtype=np.float64),
+                             np.ascontiguousarray(u, dtype=np.float64))
     else:
         dt = vt - frame.centroid[:, None]                               # (3, V)
         along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
         for c in range(3):  # coordinates
             dt[c] -= u[c] * along
-        k = np.arange(1.0, dt.shape[1] + 1.0)
     gram = np.empty((3, 3))
     for r in range(3):  # coordinates
         for c in range(r, 3):
@@ -144,11 +147,20 @@ def _cross_section_ref(vertices, frame, vt=None):
     if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
         return None
     ref = vecs[:, -1]
+    n = dt.shape[1]
+    if kernels is not None:
+        s, a = kernels.moment(dt, np.ascontiguousarray(ref))
+        gamma = n * _UNIT_ROUNDOFF / (1.0 - n * _UNIT_ROUNDOFF)
+        if abs(s) > 3.0 * gamma * a:
+            return -ref if s < 0 else ref
     along = (ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2] if kernels is None
              else kernels.combine(dt, np.ascontiguousarray(ref)))
-    if np.dot(k, along) < 0:
+    if np.dot(np.arange(1.0, n + 1.0), along) < 0:
         ref = -ref
     return ref
+
+
+_UNIT_ROUNDOFF = 2.0 ** -53
 
 
 #: Relative eigenvalue gap below which a cross-section's spread counts as isotropic.

@@ -181,11 +181,10 @@ def _row_sum_loop(v):  # pragma: no cover - compiled by numba
 
 def _section_loop(vt, c, u):  # pragma: no cover - compiled by numba
     """``dt = vt - c`` (3, V) with its component along u removed, ``dt_r - u_r ((u0 dt0 +
-    u1 dt1) + u2 dt2)``, and k = 1, 2, ..., V (V,) float: `fibres.decompose`'s
-    cross-section reference, the array version's operations, in one pass."""
+    u1 dt1) + u2 dt2)``: `fibres.decompose`'s cross-section reference, the array
+    version's operations, in one pass."""
     n = vt.shape[1]
     dt = np.empty((3, n))
-    k = np.empty(n)
     c0, c1, c2 = c[0], c[1], c[2]
     u0, u1, u2 = u[0], u[1], u[2]
     for i in range(n):
@@ -196,8 +195,20 @@ def _section_loop(vt, c, u):  # pragma: no cover - compiled by numba
         dt[0, i] = d0 - u0 * along
         dt[1, i] = d1 - u1 * along
         dt[2, i] = d2 - u2 * along
-        k[i] = i + 1.0
-    return dt, k
+    return dt
+
+
+def _moment_loop(dt, r):  # pragma: no cover - compiled by numba
+    """``S = sum_i (i + 1) x_i`` added in order and ``A = sum_i |(i + 1) x_i|`` of the
+    rows combined as `_combine_loop`, ``x = (r0 dt0 + r1 dt1) + r2 dt2`` (not stored)."""
+    r0, r1, r2 = r[0], r[1], r[2]
+    s = 0.0
+    a = 0.0
+    for i in range(dt.shape[1]):
+        t = (i + 1.0) * (r0 * dt[0, i] + r1 * dt[1, i] + r2 * dt[2, i])
+        s += t
+        a += abs(t)
+    return s, a
 
 
 def _combine_loop(dt, r):  # pragma: no cover - compiled by numba

@@ -43,7 +43,7 @@ import numpy as np
 
 from .errors import InputError
 from .fit_kernels import (_blas_boxes_loop, _boxes_loop, _centred_loop, _combine_loop,
-                          _extents_loop, _mapped_nearest_loop, _nearest_loop,
+                          _extents_loop, _mapped_nearest_loop, _moment_loop, _nearest_loop,
                           _projected_boxes_loop, _row_sum_loop, _section_loop,
                           _transposed_mean_loop)
 from .support_screen import (_FIRST_SCREEN, _HULL_BINS, _SCREEN, _SCREEN_STRIDE,
@@ -232,6 +232,7 @@ class _Kernels(NamedTuple):
     section: object           # cross-section reference: perpendicular spread
     combine: object           # cross-section reference: rows combined
     transposed_mean: object   # transposed vertices, centroid, bounds
+    moment: object            # cross-section reference: the sign moment and its bound
 
 
 def _fit_kernels():
@@ -260,7 +261,7 @@ def _fit_kernels():
                 calling(_boxes_loop, _projected_boxes_loop=projected),
                 calling(_blas_boxes_loop, _projected_boxes_loop=projected),
                 candidates, jit(_section_loop), jit(_combine_loop),
-                jit(_transposed_mean_loop)))
+                jit(_transposed_mean_loop), jit(_moment_loop)))
     return _FIT[0]
 
 
