@@ -269,7 +269,7 @@ def _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed):
     Returns (rs (N, 2), points (N, R + 1, 3), the template fibres mapped affinely into the
     box (N, R + 1, 3): the attachment filter's ray directions)."""
     rs = sobol_rs(int(n_fibres), seed=seed)
-    unit = tmpl.fibre_points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
+    unit = tmpl._points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
     flat = (unit * box.extents).reshape(-1, 3)
     uv = morph_local(flat[:, :2], flat[:, 2], heights, P, Q)
     pts = box.corner + np.concatenate([uv, flat[:, 2:]], axis=1) @ box.axes.T

@@ -308,10 +308,16 @@ class Template:
             Unit-cube points; t = 0 on the origin area (z = 0), t = 1 on the insertion area
             (z = 1).
         """
-        ctrl, w = self.control_points(rs)
+        rs = self._check_rs(rs)
         t = np.asarray(t, dtype=np.float64).reshape(-1)
         if t.size and (t.min() < 0 or t.max() > 1 or not np.isfinite(t).all()):
             raise ValueError("t must lie in [0, 1]")
+        return self._points(rs, t)
+
+    def _points(self, rs, t) -> np.ndarray:
+        """`fibre_points` of checked ``rs`` (N, 2) and ``t`` (P,) float64 in [0, 1] (e.g.
+        `fibres.sampling.sobol_rs` and a linspace, made by the caller)."""
+        ctrl, w = _control(self.name, self.params, self._rects[0], self._rects[1], rs)
         return evaluate(ctrl, t, w)
 
     @staticmethod
