@@ -1,14 +1,36 @@
-"""Compiled loops of `fibres.fitting` (the box fit of Kohout et al., GRAPP 2012, §3.2).
+"""Compiled loops of `fibres.fitting` (the box fit of Kohout et al., GRAPP 2012, §3.2) and
+of the cross-section reference in `fibres.decompose`.
 
-Each is the array version's arithmetic in the same order (see the callers in
-`fibres.fitting`, which compile them with numba and fall back to numpy without it). The
+Each is the array version's arithmetic in the same order (see the callers, which compile
+them with numba, `fibres.fitting._fit_kernels`, and fall back to numpy without it), except
+`_moment_loop`, an ordered sum whose sign is used only where rounding cannot change it. The
 support screen's loops are in `fibres.support_screen`.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 __all__ = []
+
+
+class _Kernels(NamedTuple):
+    """The compiled loops (`fibres.fit_kernels`, `fibres.support_screen`)."""
+
+    screen: object            # polygon screen
+    extents: object           # box extents
+    nearest: object           # nearest landmark distances
+    centred: object           # vertices - centroid
+    row_sum: object           # row sums
+    mapped_nearest: object    # template areas mapped into the boxes, nearest distances
+    boxes: object             # the boxes
+    projected_boxes: object   # the boxes of given (BLAS) projections
+    candidates: object        # support candidates
+    section: object           # cross-section reference: perpendicular spread
+    combine: object           # cross-section reference: rows combined
+    transposed_mean: object   # transposed vertices, centroid, bounds
+    moment: object            # cross-section reference: the sign moment and its bound
 
 
 def _extents_loop(a, b, ct, st, out):  # pragma: no cover - compiled by numba

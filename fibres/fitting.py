@@ -42,7 +42,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
-from .fit_kernels import (_blas_boxes_loop, _boxes_loop, _centred_loop, _combine_loop,
+from .fit_kernels import (_Kernels, _blas_boxes_loop, _boxes_loop, _centred_loop, _combine_loop,
                           _extents_loop, _mapped_nearest_loop, _moment_loop, _nearest_loop,
                           _projected_boxes_loop, _row_sum_loop, _section_loop,
                           _transposed_mean_loop)
@@ -215,24 +215,6 @@ def _polygon_screen(a, b):
 
 
 _FIT = []
-
-
-class _Kernels(NamedTuple):
-    """The compiled loops (`fibres.fit_kernels`, `fibres.support_screen`)."""
-
-    screen: object            # polygon screen
-    extents: object           # box extents
-    nearest: object           # nearest landmark distances
-    centred: object           # vertices - centroid
-    row_sum: object           # row sums
-    mapped_nearest: object    # template areas mapped into the boxes, nearest distances
-    boxes: object             # the boxes
-    projected_boxes: object   # the boxes of given (BLAS) projections
-    candidates: object        # support candidates
-    section: object           # cross-section reference: perpendicular spread
-    combine: object           # cross-section reference: rows combined
-    transposed_mean: object   # transposed vertices, centroid, bounds
-    moment: object            # cross-section reference: the sign moment and its bound
 
 
 def _fit_kernels():
