@@ -31,6 +31,7 @@ from .containment import contain as contain_points
 from .contours import choose_loops
 from .errors import InputError
 from .filtering import apply_filter, filter_choices
+from . import fitting as _fitting
 from .fitting import fit_box, prepare, principal_frame, reference_frame
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
@@ -120,14 +121,24 @@ def _cross_section_ref(vertices, frame, vt=None):
     direction is defined by the shape and a world axis keeps axis-aligned shapes exact.
 
     Component-wise over the (3, V) coordinates: (3, 3) @ (3, V) products would start BLAS
-    threads for a few microseconds of work. ``vt``: the (3, V) transposed vertices when at
-    hand."""
+    threads for a few microseconds of work; compiled, the element-wise steps are one pass
+    each (`fibres.fit_kernels._section_loop`, `_combine_loop`: the same operations), and
+    the sign moment is first added in order with the sum of its terms' magnitudes A
+    (`_moment_loop`): any order of adding the V terms (numpy's dot) is within
+    ``gamma_V A`` (``gamma_n = n u / (1 - n u)``, u the unit roundoff) of the exact sum,
+    so where the ordered sum exceeds ``3 gamma_V A`` its sign is numpy's; else numpy's dot
+    decides. ``vt``: the (3, V) transposed vertices when at hand."""
     u = frame.axis
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
-    dt = vt - frame.centroid[:, None]                                   # (3, V)
-    along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
-    for c in range(3):  # coordinates
-        dt[c] -= u[c] * along
+    kernels = _fitting._fit_kernels()
+    if kernels is not None and vt.flags.c_contiguous:
+        dt = kernels.section(vt, np.ascontiguousarray(frame.centroid, dtype=np.float64),
+                             np.ascontiguousarray(u, dtype=np.float64))
+    else:
+        dt = vt - frame.centroid[:, None]                               # (3, V)
+        along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
+        for c in range(3):  # coordinates
+            dt[c] -= u[c] * along
     gram = np.empty((3, 3))
     for r in range(3):  # coordinates
         for c in range(r, 3):
@@ -136,10 +147,20 @@ def _cross_section_ref(vertices, frame, vt=None):
     if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
         return None
     ref = vecs[:, -1]
-    k = np.arange(1.0, dt.shape[1] + 1.0)
-    if np.dot(k, ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]) < 0:
+    n = dt.shape[1]
+    if kernels is not None:
+        s, a = kernels.moment(dt, np.ascontiguousarray(ref))
+        gamma = n * _UNIT_ROUNDOFF / (1.0 - n * _UNIT_ROUNDOFF)
+        if abs(s) > 3.0 * gamma * a:
+            return -ref if s < 0 else ref
+    along = (ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2] if kernels is None
+             else kernels.combine(dt, np.ascontiguousarray(ref)))
+    if np.dot(np.arange(1.0, n + 1.0), along) < 0:
         ref = -ref
     return ref
+
+
+_UNIT_ROUNDOFF = 2.0 ** -53
 
 
 #: Relative eigenvalue gap below which a cross-section's spread counts as isotropic.
@@ -235,10 +256,12 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
     return _with_choice(plan, choice)
 
 
-def _with_choice(plan, choice):
+def _with_choice(plan, choice, filter_choice=None):
+    """``plan`` with the sweep's ``choice`` (and the attachment filter's, if given)."""
     edges, (anchor_v, anchor_w) = choice
+    extra = {} if filter_choice is None else {"filter_choice": filter_choice}
     return dataclasses.replace(plan, choice=edges, anchor_vertices=anchor_v,
-                               anchor_weights=anchor_w)
+                               anchor_weights=anchor_w, **extra)
 
 
 def _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed):
@@ -246,7 +269,7 @@ def _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed):
     Returns (rs (N, 2), points (N, R + 1, 3), the template fibres mapped affinely into the
     box (N, R + 1, 3): the attachment filter's ray directions)."""
     rs = sobol_rs(int(n_fibres), seed=seed)
-    unit = tmpl.fibre_points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
+    unit = tmpl._points(rs, np.linspace(0.0, 1.0, int(resolution) + 1))   # (N, P, 3)
     flat = (unit * box.extents).reshape(-1, 3)
     uv = morph_local(flat[:, :2], flat[:, 2], heights, P, Q)
     pts = box.corner + np.concatenate([uv, flat[:, 2:]], axis=1) @ box.axes.T
@@ -365,8 +388,6 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         fresh = False
     box, heights, P, Q, choice, sweep_notes = _sweep(
         plan, v, o, i, fresh=fresh, vt=None if prepared is None else prepared.vt)
-    if fresh:
-        plan = _with_choice(plan, choice)
     notes.extend(sweep_notes)
 
     rs, pts, boxed = _morph_fibres(tmpl, box, heights, P, Q, n_fibres, resolution, seed)
@@ -393,6 +414,6 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         pts, flags["contained"] = contain_points(
             pts, v, faces, mean_edge=mean_edge,
             bounds=None if prepared is None else (prepared.lo, prepared.hi))
-    if fresh and fc is not None:
-        plan = dataclasses.replace(plan, filter_choice=fc)
+    if fresh:  # the sweep's and the filter's choices recorded at once
+        plan = _with_choice(plan, choice, fc)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)

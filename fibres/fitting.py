@@ -9,7 +9,8 @@ the minimal box of the vertices aligned with it is built. The winner is the box 
 attachment areas, mapped into the box, best match the user's landmarks: for every template area
 point the distance to the closest landmark of the same attachment, summed over both areas.
 
-All rotations are evaluated at once: (J, V) projections, (J, K_template, K_landmarks) distances.
+All rotations are evaluated at once: (J, V) projections of the vertices that can be extreme
+(`fibres.support_screen`), (J, K_template, K_landmarks) distances.
 
 Ties in the oblique-axis iteration (`principal_frame` with e.g. the pennate template). When
 the landmarks are symmetric about the attachment line (two rings of landmarks around the
@@ -27,24 +28,37 @@ rotation index.
 
 Axis rule (``axis="auto"``): the attachment direction is used unless the two landmark
 centroids are closer than ``AUTO_MIN_SEPARATION`` (1/4) of the surface's extent along its
-covariance axis; then the covariance axis is used, oriented from origin to insertion.
+covariance axis; then the covariance axis is used, oriented from origin to insertion. The
+extent along any unit axis is at most the diagonal of the surface's bounding box, so where
+the centroids are at least 1/4 of that diagonal apart (most muscles) the covariance is not
+computed at all: the rule's answer is the same.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
 from .errors import InputError
-from .fit_kernels import (_centred_loop, _extents_loop, _nearest_loop, _row_sum_loop,
-                          _screen_loop)
+from .fit_kernels import (_Kernels, _blas_boxes_loop, _boxes_loop, _centred_loop, _combine_loop,
+                          _extents_loop, _mapped_nearest_loop, _moment_loop, _nearest_loop,
+                          _projected_boxes_loop, _row_sum_loop, _section_loop,
+                          _transposed_mean_loop)
+from .support_screen import (_FIRST_SCREEN, _HULL_BINS, _SCREEN, _SCREEN_STRIDE,
+                             compile_screens, polygon_screen_numpy)
 from .templates import Template, get_template
 
 __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
            "template_offset", "reference_frame", "AUTO_MIN_SEPARATION", "ROTATION_TIE"]
 
 AUTO_MIN_SEPARATION = 0.25
+#: relative margin on the bounding-box diagonal that bounds the covariance extent: the
+#: computed extent ``ptp(d @ axis)`` exceeds the true one by rounding only (~1e-15
+#: relative), so ``dist >= AUTO_MIN_SEPARATION * diagonal * (1 + _AUTO_SURE)`` decides
+#: "attachments" exactly as the extent would, without the covariance and its eigenvectors
+_AUTO_SURE = 1e-9
 _MAX_OBLIQUE_ITERATIONS = 200
 #: relative score margin within which rotations of the oblique-axis iteration are tied
 #: (module docstring): far above rounding (1e-16), far below real score differences
@@ -93,6 +107,13 @@ def cross3(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+def _norm(x) -> float:
+    """``np.linalg.norm`` of a real 1D array without its overhead: its formula, the square
+    root of ``x.dot(x)`` of the contiguous ``x.ravel()`` (the same number)."""
+    x = x.ravel()
+    return math.sqrt(x.dot(x))
+
+
 def _covariance_axis(vertices, centroid, d=None):
     """Eigenvector of the largest eigenvalue of the vertex covariance (Kohout 2012 eq. 1-2);
     ``d`` is ``vertices - centroid`` when at hand."""
@@ -108,45 +129,59 @@ def _frame_for(u, v_ref):
         ref = np.eye(3)[int(np.argmin(np.abs(u)))]
     else:
         ref = np.asarray(v_ref, dtype=np.float64)
-        if abs(ref @ u) > 0.999 * np.linalg.norm(ref):
+        if abs(ref @ u) > 0.999 * _norm(ref):
             ref = np.eye(3)[int(np.argmin(np.abs(u)))]
     v0 = ref - (ref @ u) * u
-    v0 /= np.linalg.norm(v0)
+    v0 /= _norm(v0)
     return v0, cross3(u, v0)
 
 
-def _boxes(vertices, c, u, v0, w0, theta, d=None):
+def _boxes(vertices, c, u, v0, w0, theta, *, blas=False):
     """Minimal boxes of the vertices in the frames rotated by ``theta`` (J,) about u.
 
-    Only vertices that can be extreme in some direction of the cross-section enter the
-    (J, V') projections (`_support_candidates`); the others cannot change a minimum or
-    maximum, so the boxes are exactly those of all vertices.
+    The centred vertices ``d = vertices - c`` are projected on v0, w0 and u as
+    ``(d_x v_x + d_y v_y) + d_z v_z`` (a fixed order), or with ``blas`` as ``d @ v0`` etc.
+    (numpy's matrix products; the oblique-axis iteration of `principal_frame` keeps these,
+    its axis depends on the extents). Only vertices that can be extreme in some direction of
+    the cross-section enter the (J, V') projections (`_support_candidates`); the others
+    cannot change a minimum or maximum, so the boxes are exactly those of all vertices.
+    Compiled: everything after the BLAS projections, or everything, in one pass
+    (`fibres.fit_kernels._boxes_loop`, the same operations and order).
 
     Parameters
     ----------
     vertices : (V, 3) float
     c, u, v0, w0 : (3,) float
     theta : (J,) float
-    d : (V, 3) float, optional
-        ``vertices - c`` (`_centred`) when at hand.
 
     Returns axes (J, 3, 3) (columns x, y, z), corner (J, 3), extents (J, 3)."""
-    xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
-    ys = cross3(u, xs)                                                # (J, 3)
-    d = _centred(vertices, c) if d is None else d
-    a, b, z = d @ v0, d @ w0, d @ u                                   # (V,)
-    keep = _support_candidates(a, b)
-    a, b = a[keep], b[keep]
     n_rot = len(theta)
+    f64 = np.float64
+    c, u, v0, w0 = (np.ascontiguousarray(x, dtype=f64) for x in (c, u, v0, w0))
+    vertices = np.asarray(vertices, dtype=f64)
+    if blas:
+        d = _centred(vertices, c)
+        a, b, z = d @ v0, d @ w0, d @ u                               # (V,)
     kernels = _fit_kernels()
     if kernels is not None:
-        xy = np.empty((n_rot, 4))                     # min px, max px, min py, max py
-        kernels[1](a, b, np.cos(theta), np.sin(theta), xy)
-        x_lo, x_hi, y_lo, y_hi = xy.T
-    else:
-        px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V')
-        py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V')
-        x_lo, x_hi, y_lo, y_hi = px.min(axis=1), px.max(axis=1), py.min(axis=1), py.max(axis=1)
+        axes, corner, ext = np.empty((n_rot, 3, 3)), np.empty((n_rot, 3)), np.empty((n_rot, 3))
+        tail = (np.cos(theta), np.sin(theta), *_FIRST_SCREEN, _SCREEN_STRIDE, _HULL_BINS,
+                axes, corner, ext)
+        if blas:
+            kernels.projected_boxes(a, b, z, c, u, v0, w0, *tail)
+        else:
+            kernels.boxes(np.ascontiguousarray(vertices), c, u, v0, w0, *tail)
+        return axes, corner, ext
+    if not blas:
+        d = vertices - c                                              # (V, 3)
+        a, b, z = ((d[:, 0] * e[0] + d[:, 1] * e[1]) + d[:, 2] * e[2] for e in (v0, w0, u))
+    xs = np.cos(theta)[:, None] * v0 + np.sin(theta)[:, None] * w0    # (J, 3)
+    ys = cross3(u, xs)                                                # (J, 3)
+    keep = _polygon_screen(a, b)
+    a, b = a[keep], b[keep]
+    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b      # (J, V')
+    py = -np.sin(theta)[:, None] * a + np.cos(theta)[:, None] * b     # (J, V')
+    x_lo, x_hi, y_lo, y_hi = px.min(axis=1), px.max(axis=1), py.min(axis=1), py.max(axis=1)
     lo = np.stack([x_lo, y_lo, np.full(n_rot, z.min())], axis=1)
     ext = np.stack([x_hi, y_hi, np.full(n_rot, z.max())], axis=1) - lo
     axes = np.stack([xs, ys, np.broadcast_to(u, xs.shape)], axis=2)
@@ -154,74 +189,61 @@ def _boxes(vertices, c, u, v0, w0, theta, d=None):
     return axes, corner, ext
 
 
-#: directions of the polygons that screen the support candidates (three passes; the third
-#: cuts ~1200 candidates of a twisted 15K-vertex spindle to ~350)
-_SCREEN_DIRECTIONS = (8, 32, 128)
-
-
 def _support_candidates(a, b):
-    """Indices of the 2D points (a, b) that can attain a minimum or maximum of a projection
-    ``cos(t) a + sin(t) b`` for some angle t: a superset of the convex hull's vertices.
+    """Indices (V',) int64, increasing, of the 2D points a, b (V,) that can attain a minimum
+    or maximum of a projection ``cos(t) a + sin(t) b`` for some angle t (a superset of the
+    convex hull's vertices; `fibres.support_screen`: numpy's three polygons, or compiled the
+    first polygon and the sector hull -- different candidates, every extreme point kept)."""
+    kernels = _fit_kernels()
+    if kernels is None or a.size == 0:
+        return _polygon_screen(a, b)
+    return kernels.candidates(np.ascontiguousarray(a, dtype=np.float64),
+                              np.ascontiguousarray(b, dtype=np.float64), *_FIRST_SCREEN,
+                              _SCREEN_STRIDE, _HULL_BINS)
 
-    The points extreme along `_SCREEN_DIRECTIONS` evenly spread directions span a convex
-    polygon inside the hull (Akl & Toussaint 1978, "A fast convex hull algorithm", Inf.
-    Process. Lett. 7(5):219-222); a point farther than a margin (1e-9 of the spread, far
-    above rounding) inside every edge is below some polygon vertex in every direction, so
-    dropping it leaves every minimum and maximum unchanged, bit for bit. The first, coarse
-    polygon is spanned by the extremes of every `_SCREEN_STRIDE`-th point only (any
-    points of the set span a polygon inside the hull; this one is found 8x faster).
-    a, b: (V,) float; returns (V',) int64, increasing.
-    """
+
+def _polygon_screen(a, b):
+    """`_support_candidates` by the polygons of `fibres.support_screen` (numpy, or compiled
+    with the same candidates)."""
     spread = max(float(np.ptp(a)), float(np.ptp(b))) if a.size else 0.0
     kernels = _fit_kernels()
-    if kernels is not None:
-        dirs = np.array(_SCREEN_DIRECTIONS, dtype=np.int64)
-        phi = [2.0 * np.pi * np.arange(n) / n for n in _SCREEN_DIRECTIONS]
-        return kernels[0](np.ascontiguousarray(a, dtype=np.float64),
-                          np.ascontiguousarray(b, dtype=np.float64), dirs,
-                          np.concatenate([np.cos(p) for p in phi]),
-                          np.concatenate([np.sin(p) for p in phi]), 1e-9 * spread,
+    if kernels is None:
+        return polygon_screen_numpy(a, b, spread)
+    return kernels.screen(np.ascontiguousarray(a, dtype=np.float64),
+                          np.ascontiguousarray(b, dtype=np.float64), *_SCREEN, 1e-9 * spread,
                           _SCREEN_STRIDE)
-    idx = np.arange(a.size)
-    for n_dir in _SCREEN_DIRECTIONS:
-        if idx.size <= 4 * n_dir:
-            break
-        phi = 2.0 * np.pi * np.arange(n_dir) / n_dir
-        pa, pb = a[idx], b[idx]
-        step = _SCREEN_STRIDE if n_dir == _SCREEN_DIRECTIONS[0] else 1
-        proj = np.cos(phi)[:, None] * pa[::step] + np.sin(phi)[:, None] * pb[::step]
-        ext = np.argmax(proj, axis=1) * step        # counter-clockwise around the hull
-        ext = ext[np.append(ext[1:] != ext[:-1], ext[-1] != ext[0])]     # distinct corners
-        if np.unique(ext).size < 3:
-            break
-        qa, qb = pa[ext], pb[ext]
-        ea, eb = np.roll(qa, -1) - qa, np.roll(qb, -1) - qb               # polygon edges
-        margin = 1e-9 * spread * np.hypot(ea, eb)                          # distance * |edge|
-        inside = np.ones(idx.size, dtype=bool)
-        for k in range(ext.size):  # polygon edges (at most 128)
-            inside &= ea[k] * (pb - qb[k]) - eb[k] * (pa - qa[k]) > margin[k]
-        idx = idx[~inside]
-    return idx
 
-
-#: the first screening pass takes its polygon from every 8th point
-_SCREEN_STRIDE = 8
 
 _FIT = []
 
 
 def _fit_kernels():
-    """(support screen, box extents, nearest landmark distances, centring, row sums)
-    compiled with numba, or None (then numpy)."""
+    """`_Kernels` compiled with numba, or None (then numpy)."""
     if not _FIT:
         try:
             import numba
         except ImportError:                                     # pragma: no cover - optional
             _FIT.append(None)
         else:
+            import types
+
             jit = numba.njit(cache=True, nogil=True)
-            _FIT.append((jit(_screen_loop), jit(_extents_loop), jit(_nearest_loop),
-                         jit(_centred_loop), jit(_row_sum_loop)))
+
+            def calling(fn, **called):  # numba resolves a compiled function's globals
+                glb = dict(fn.__globals__, **called)  # when it compiles it
+                return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
+
+            screen, candidates = compile_screens(jit)
+            extents, row_sum = jit(_extents_loop), jit(_row_sum_loop)
+            projected = calling(_projected_boxes_loop, _candidates_loop=candidates,
+                                _extents_loop=extents)
+            _FIT.append(_Kernels(
+                screen, extents, jit(_nearest_loop), jit(_centred_loop), row_sum,
+                jit(_mapped_nearest_loop),
+                calling(_boxes_loop, _projected_boxes_loop=projected),
+                calling(_blas_boxes_loop, _projected_boxes_loop=projected),
+                candidates, jit(_section_loop), jit(_combine_loop),
+                jit(_transposed_mean_loop), jit(_moment_loop)))
     return _FIT[0]
 
 
@@ -229,7 +251,7 @@ def _centred(vertices, c):
     """(V, 3) ``vertices - c``, bit for bit."""
     kernels = _fit_kernels()
     return (vertices - c if kernels is None or not vertices.flags.c_contiguous
-            else kernels[3](vertices, np.ascontiguousarray(c, dtype=np.float64)))
+            else kernels.centred(vertices, np.ascontiguousarray(c, dtype=np.float64)))
 
 
 def _closest_sum(area, landmarks):
@@ -237,7 +259,7 @@ def _closest_sum(area, landmarks):
     kernels = _fit_kernels()
     if kernels is not None:
         near = np.empty(area.shape[:2])
-        kernels[2](np.ascontiguousarray(area), np.ascontiguousarray(landmarks), near)
+        kernels.nearest(np.ascontiguousarray(area), np.ascontiguousarray(landmarks), near)
         return near.sum(axis=1)
     d2 = 0.0
     for c in range(3):      # component-wise: a reduction over the size-3 axis is slow
@@ -247,7 +269,21 @@ def _closest_sum(area, landmarks):
 
 
 def _scores(template, axes, corner, ext, origin, insertion):
-    """Matching error (J,) of the template areas mapped into each box (Kohout 2012 §3.2)."""
+    """Matching error (J,) of the template areas mapped into each box (Kohout 2012 §3.2).
+
+    Compiled: mapping and closest-landmark distances in one pass per area
+    (`_mapped_nearest_loop`, same operations and order, no (J, Ka, 3) temporaries)."""
+    kernels = _fit_kernels()
+    if kernels is not None:
+        total = None
+        for area, lms in ((template.origin_area, origin), (template.insertion_area, insertion)):
+            near = np.empty((len(axes), len(area)))
+            kernels.mapped_nearest(np.ascontiguousarray(area, dtype=np.float64),
+                                   np.ascontiguousarray(axes), np.ascontiguousarray(ext),
+                                   np.ascontiguousarray(corner),
+                                   np.ascontiguousarray(lms, dtype=np.float64), near)
+            total = near.sum(axis=1) if total is None else total + near.sum(axis=1)
+        return total
     scale = axes * ext[:, None, :]                                    # (J, 3, 3)
 
     def mapped(area):  # corner + sum_l area[k, l] scale[j, :, l], in the order of numpy's
@@ -269,8 +305,7 @@ def _thetas(step):
 def template_offset(template) -> np.ndarray:
     """(2,) cross-section offset (x, y) of the template's insertion-area centroid from its
     origin-area centroid, in unit-cube units (zero for every default template but pennate)."""
-    return (np.asarray(template.insertion_area).mean(axis=0)
-            - np.asarray(template.origin_area).mean(axis=0))[:2]
+    return np.array(template.offset)             # made with the template (`Template.offset`)
 
 
 def principal_frame(vertices, origin, insertion, *, axis: str = "auto", v_ref=None,
@@ -341,7 +376,7 @@ def reference_frame(frame: PrincipalFrame, v_ref, template=None) -> PrincipalFra
     if template is not None and frame.method == "attachments":
         if not isinstance(template, Template):
             template = get_template(template)
-        if np.abs(template_offset(template)).max() > 1e-12:
+        if template.oblique:
             return None
     v0, w0 = _frame_for(frame.axis, v_ref)
     return PrincipalFrame(frame.centroid, frame.axis, v0, w0, frame.method)
@@ -361,7 +396,7 @@ def _mean_rows(vertices):
     kernels = _fit_kernels()
     if kernels is None or vertices.shape[0] == 0 or not vertices.flags.c_contiguous:
         return vertices.mean(axis=0)        # (other layouts: numpy's own summation order)
-    return kernels[4](vertices) / vertices.shape[0]
+    return kernels.row_sum(vertices) / vertices.shape[0]
 
 
 class Prepared(NamedTuple):
@@ -371,23 +406,26 @@ class Prepared(NamedTuple):
     lo: np.ndarray        # (3,) coordinate-wise minimum
     hi: np.ndarray        # (3,) coordinate-wise maximum
     centroid: np.ndarray  # (3,) `_mean_rows`
-    centred: np.ndarray   # (V, 3) vertices - centroid (`_centred`)
 
 
 def prepare(vertices) -> Prepared:
-    """The transposed vertices, their bounds, centroid and centred copy, made once for the
-    stages of a decomposition that would each make them (`principal_frame`, `fit_box`, the
-    attachment filter, the containment grid): the same arrays, bit for bit."""
+    """The transposed vertices, their bounds and centroid, made once for the stages of a
+    decomposition that would each make them (`principal_frame`, `fit_box`, the attachment
+    filter, the containment grid): the same arrays, bit for bit."""
     vertices = np.asarray(vertices, dtype=np.float64)
-    vt = _transposed(vertices)
-    centroid = _mean_rows(vertices)
-    return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid,
-                    _centred(vertices, centroid))
+    kernels = _fit_kernels()
+    if kernels is not None and vertices.shape[0] and vertices.flags.c_contiguous:
+        vt, centroid, lo, hi = kernels.transposed_mean(vertices)    # the same, one pass
+        if not (lo * hi).all() or np.isnan(centroid).any():
+            lo, hi = vt.min(axis=1), vt.max(axis=1)  # numpy's sign of a zero bound, NaN
+        return Prepared(vt, lo, hi, centroid)
+    vt, centroid = _transposed(vertices), _mean_rows(vertices)
+    return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid)
 
 
 def _size(vt):
     """Diagonal of the axis-aligned bounding box of (3, V) vertices."""
-    return float(np.linalg.norm(vt.max(axis=1) - vt.min(axis=1)))
+    return _norm(vt.max(axis=1) - vt.min(axis=1))
 
 
 def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
@@ -395,21 +433,22 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
     """`principal_frame` on vertices (V, 3), the same transposed ``vt`` (3, V) and checked
     landmark sets; ``prepared``: `prepare` of these vertices when at hand."""
     if prepared is None:
-        centroid, size, d = _mean_rows(vertices), _size(vt), None
+        centroid, size = _mean_rows(vertices), _size(vt)
     else:
-        centroid, d = prepared.centroid, prepared.centred
-        size = float(np.linalg.norm(prepared.hi - prepared.lo))       # `_size`
+        centroid, size = prepared.centroid, _norm(prepared.hi - prepared.lo)   # `_size`
 
     direction = insertion.mean(axis=0) - origin.mean(axis=0)
-    dist = float(np.linalg.norm(direction))
+    dist = _norm(direction)
     if dist <= 1e-9 * max(size, 1e-300):
         raise InputError("the origin and insertion landmarks have the same centroid",
                          where="origin/insertion",
                          fix="Give the two attachment areas of the muscle (origin on one bone, "
                              "insertion on the other).")
     method = axis
-    if axis in ("covariance", "auto"):
-        d = _centred(vertices, centroid) if d is None else d
+    if axis == "auto" and dist >= AUTO_MIN_SEPARATION * size * (1.0 + _AUTO_SURE):
+        method = "attachments"  # the extent along any unit axis is at most the box diagonal
+    elif axis in ("covariance", "auto"):
+        d = _centred(vertices, centroid)
         cov_axis = _covariance_axis(vertices, centroid, d)
         if axis == "auto":
             length = float(np.ptp(d @ cov_axis))
@@ -422,21 +461,21 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
     if template is not None and method == "attachments":
         if not isinstance(template, Template):
             template = get_template(template)
-        off = template_offset(template)
-        if np.abs(off).max() > 1e-12:
+        if template.oblique:
+            off = template.offset
             theta = _thetas(float(angle_step_deg))
             if angle_index is not None:
                 theta = theta[[int(angle_index) % len(theta)]]
             for it in range(_MAX_OBLIQUE_ITERATIONS):
-                axes, corner, ext = _boxes(vertices, centroid, u, v0, w0, theta)
+                axes, corner, ext = _boxes(vertices, centroid, u, v0, w0, theta, blas=True)
                 j = _best_rotation(_scores(template, axes, corner, ext, origin, insertion),
                                    axes, ext, off, origin, direction, vertices, centroid)
                 if it == 3:  # the rotation has settled: keep it, iterate on the axis only
                     theta = theta[[j]]
                 new = direction - ext[j, 0] * off[0] * axes[j, :, 0] \
                     - ext[j, 1] * off[1] * axes[j, :, 1]
-                new /= np.linalg.norm(new)
-                done = np.linalg.norm(new - u) < 1e-12
+                new /= _norm(new)
+                done = _norm(new - u) < 1e-12
                 u = new
                 v0, w0 = _frame_for(u, v_ref)
                 if done:
@@ -489,7 +528,9 @@ def check_landmarks(vertices, points, *, name: str = "landmarks", file=None):
 
 def _check_in_box(lo, hi, points, *, name, file=None):
     """`check_landmarks` with the surface's bounding box ``lo``, ``hi`` (3,) at hand."""
-    size = float(np.linalg.norm(hi - lo))
+    if ((points >= lo) & (points <= hi)).all(axis=1).any():
+        return              # a landmark in the box: the gap below is 0
+    size = _norm(hi - lo)
 
     def gap(p):
         return float(np.linalg.norm(np.maximum(np.maximum(lo - p, p - hi), 0), axis=1).min())
@@ -629,12 +670,9 @@ def fit_box(vertices, origin, insertion, template="parallel", *, angle_step_deg:
         frame = _principal_frame(vertices, vt, origin, insertion, axis=axis, v_ref=v_ref,
                                  template=template, angle_step_deg=step, angle_index=None,
                                  prepared=prepared)
-    d = None
-    if prepared is not None and np.array_equal(frame.centroid, prepared.centroid):
-        d = prepared.centred
     axes, corner, ext = _boxes(vertices, frame.centroid, frame.axis, frame.v0, frame.w0,
-                               _thetas(step), d)
-    size = float(np.linalg.norm(hi - lo))
+                               _thetas(step))
+    size = _norm(hi - lo)
     if (ext <= 1e-12 * max(size, 1e-300)).any():
         raise InputError("the surface is flat (zero thickness)", where="mesh",
                          fix="Pass the muscle's closed volume surface.")

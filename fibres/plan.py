@@ -70,7 +70,7 @@ from math import erf, erfc, exp, pi, sqrt
 import numpy as np
 
 from .errors import InputError
-from .fitting import Box, cross3, principal_frame
+from .fitting import Box, _norm, cross3, principal_frame
 from .slicing import MeshTopology
 
 __all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_local",
@@ -284,7 +284,7 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion, *, vt=No
     if plan.axis_method == "attachments" and not _oblique(plan.template):
         # Kohout 2012 §3.2 with the attachment direction (as principal_frame computes it)
         direction = np.mean(insertion, axis=0) - np.mean(origin, axis=0)
-        dist = float(np.linalg.norm(direction))
+        dist = _norm(direction)
         if dist > 0:
             u = direction / dist
             v0, w0 = _complete_frame(u, v_ref)
@@ -307,20 +307,17 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion, *, vt=No
 
 def _oblique(template) -> bool:
     """Whether the template's attachment centroids are offset across the cube (pennate)."""
-    if template is None:
-        return False
-    off = np.mean(template.insertion_area, axis=0) - np.mean(template.origin_area, axis=0)
-    return bool(np.abs(off[:2]).max() > 1e-12)
+    return template is not None and template.oblique
 
 
 def _complete_frame(u, v_ref):
     """(v0, w0) completing u (the same rule as `fibres.fitting.principal_frame`: v_ref
     projected perpendicular to u, a world axis if v_ref is nearly parallel to u)."""
     ref = np.asarray(v_ref, dtype=np.float64)
-    if abs(ref @ u) > 0.999 * np.linalg.norm(ref):
+    if abs(ref @ u) > 0.999 * _norm(ref):
         ref = np.eye(3)[int(np.argmin(np.abs(u)))]
     v0 = ref - (ref @ u) * u
-    v0 /= np.linalg.norm(v0)
+    v0 /= _norm(v0)
     return v0, cross3(u, v0)
 
 

@@ -232,6 +232,14 @@ class Template:
         Points sampling the origin rectangle(s) on the bottom face (z = 0).
     insertion_area : (K, 3) float
         Points sampling the insertion rectangle(s) on the top face (z = 1).
+    offset : (2,) float
+        Cross-section offset (x, y) of the insertion area's centroid from the origin
+        area's, ``(insertion_area.mean(axis=0) - origin_area.mean(axis=0))[:2]``.
+    oblique : bool
+        Whether that offset is not zero (above 1e-12; pennate): the attachment direction
+        is then not the box's z axis (`fibres.fitting.principal_frame`). offset and
+        oblique are derived from the areas once, when the template is made (plain
+        attributes, not dataclass fields).
     """
 
     name: str
@@ -263,6 +271,10 @@ class Template:
         object.__setattr__(self, "_rects", (tuple(rects_o), tuple(rects_i)))
         object.__setattr__(self, "origin_area", _grid_on(rects_o, 0.0))
         object.__setattr__(self, "insertion_area", _grid_on(rects_i, 1.0))
+        offset = (self.insertion_area.mean(axis=0) - self.origin_area.mean(axis=0))[:2]
+        offset.flags.writeable = False
+        object.__setattr__(self, "offset", offset)
+        object.__setattr__(self, "oblique", bool(np.abs(offset).max() > 1e-12))
 
     @property
     def degree(self) -> int:
@@ -296,10 +308,16 @@ class Template:
             Unit-cube points; t = 0 on the origin area (z = 0), t = 1 on the insertion area
             (z = 1).
         """
-        ctrl, w = self.control_points(rs)
+        rs = self._check_rs(rs)
         t = np.asarray(t, dtype=np.float64).reshape(-1)
         if t.size and (t.min() < 0 or t.max() > 1 or not np.isfinite(t).all()):
             raise ValueError("t must lie in [0, 1]")
+        return self._points(rs, t)
+
+    def _points(self, rs, t) -> np.ndarray:
+        """`fibre_points` of checked ``rs`` (N, 2) and ``t`` (P,) float64 in [0, 1] (e.g.
+        `fibres.sampling.sobol_rs` and a linspace, made by the caller)."""
+        ctrl, w = _control(self.name, self.params, self._rects[0], self._rects[1], rs)
         return evaluate(ctrl, t, w)
 
     @staticmethod

@@ -169,42 +169,91 @@ def test_oblique_template_recovers_the_box(theta):
     np.testing.assert_allclose(f.axis, box.axes[:, 2], atol=1e-9)
 
 
-@pytest.mark.parametrize("shape", ["disc", "ellipse", "square", "duplicates", "line", "blob"])
-def test_support_screen_keeps_every_extreme_point(shape):
-    # the screened box search must give bit-identical boxes: every vertex that attains a
-    # minimum or maximum of some projection survives the screen (brute force over all)
-    from fibres.fitting import _boxes, _support_candidates, _thetas
+SHAPES = ["disc", "ellipse", "square", "duplicates", "line", "blob", "polygon", "circle",
+          "crescent", "few", "spindle"]
 
-    rng = np.random.default_rng(3)
-    n = 5000
+
+def _shape_points(shape, rng, n=5000):
     t = rng.uniform(0, 2 * np.pi, n)
     r = np.sqrt(rng.uniform(0, 1, n))
-    a, b = {
+    if shape == "polygon":  # many points exactly on the edges of a hexagon (collinear runs)
+        k = rng.integers(0, 6, n)
+        s = rng.uniform(0, 1, n)
+        c0, c1 = np.exp(2j * np.pi * k / 6), np.exp(2j * np.pi * (k + 1) / 6)
+        z = c0 + s * (c1 - c0)
+        return z.real, z.imag
+    if shape == "crescent":  # a thin arc: its mean lies outside the hull's interior band
+        a = rng.uniform(0, np.pi, n)
+        rr = 1 + 0.01 * rng.uniform(0, 1, n)
+        return rr * np.cos(a) + 0.3, rr * np.sin(a) - 0.2
+    if shape == "spindle":  # vertices of a bent, twisted tube seen along its axis
+        v, _, _ = _bent_spindle(n_z=40, n_t=60)
+        return v[:, 0], v[:, 1]
+    return {
         "disc": (r * np.cos(t), r * np.sin(t)),
         "ellipse": (0.03 * np.cos(t), 0.01 * np.sin(t)),           # all on the boundary
         "square": (np.round(rng.uniform(-1, 1, n), 1), np.round(rng.uniform(-1, 1, n), 1)),
         "duplicates": (np.repeat(np.cos(t[:50]), 100), np.repeat(np.sin(t[:50]), 100)),
         "line": (np.linspace(-1, 1, n), 0.5 * np.linspace(-1, 1, n)),
         "blob": (rng.normal(size=n) * 0.02 + 0.1, rng.normal(size=n) * 0.05 - 0.3),
+        "circle": (np.cos(np.arange(n) * 2 * np.pi / n), np.sin(np.arange(n) * 2 * np.pi / n)),
+        "few": (rng.normal(size=5), rng.normal(size=5)),
     }[shape]
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("shape", SHAPES)
+def test_support_screen_keeps_every_extreme_point(shape, compiled, monkeypatch):
+    # the screened box search must give bit-identical boxes: every vertex that attains a
+    # minimum or maximum of some projection survives the screen (brute force over all),
+    # with the compiled screen (polygon + sector hull) and with numpy's (three polygons)
+    from fibres import fitting
+    from fibres.fitting import _boxes, _support_candidates, _thetas
+
+    if compiled:
+        pytest.importorskip("numba")
+    else:
+        monkeypatch.setattr(fitting, "_FIT", [None])
+    rng = np.random.default_rng(3)
+    a, b = _shape_points(shape, rng)
+    n = a.size
     keep = _support_candidates(a, b)
+    assert np.all(np.diff(keep) > 0)
     theta = np.linspace(0, 2 * np.pi, 720, endpoint=False)
-    px = np.cos(theta)[:, None] * a + np.sin(theta)[:, None] * b
-    extreme = np.union1d(np.flatnonzero((px == px.min(axis=1, keepdims=True)).any(axis=0)),
-                         np.flatnonzero((px == px.max(axis=1, keepdims=True)).any(axis=0)))
-    assert np.isin(extreme, keep).all()
-    if shape in ("disc", "blob"):
-        assert keep.size < n / 5                   # the screen does drop the interior
+    for c_off in (np.zeros(2), np.array([a.mean(), b.mean()])):   # as given, centred
+        aa, bb = a - c_off[0], b - c_off[1]
+        keep = _support_candidates(aa, bb)
+        px = np.cos(theta)[:, None] * aa + np.sin(theta)[:, None] * bb
+        extreme = np.union1d(np.flatnonzero((px == px.min(axis=1, keepdims=True)).any(axis=0)),
+                             np.flatnonzero((px == px.max(axis=1, keepdims=True)).any(axis=0)))
+        assert np.isin(extreme, keep).all()
+        if shape in ("disc", "blob", "spindle"):
+            assert keep.size < n / 5                   # the screen does drop the interior
     # the boxes equal the unscreened search exactly
     v = np.c_[a, b, rng.uniform(0, 0.2, n)]
     c, u, v0, w0 = v.mean(axis=0), np.eye(3)[2], np.eye(3)[0], np.eye(3)[1]
     axes, corner, ext = _boxes(v, c, u, v0, w0, _thetas(5.0))
     d = v - c
     th = _thetas(5.0)
-    pa = np.cos(th)[:, None] * (d @ v0) + np.sin(th)[:, None] * (d @ w0)
-    pb = -np.sin(th)[:, None] * (d @ v0) + np.cos(th)[:, None] * (d @ w0)
+    da, db = [(d[:, 0] * e[0] + d[:, 1] * e[1]) + d[:, 2] * e[2] for e in (v0, w0)]
+    pa = np.cos(th)[:, None] * da + np.sin(th)[:, None] * db
+    pb = -np.sin(th)[:, None] * da + np.cos(th)[:, None] * db
     np.testing.assert_array_equal(ext[:, 0], pa.max(axis=1) - pa.min(axis=1))
     np.testing.assert_array_equal(ext[:, 1], pb.max(axis=1) - pb.min(axis=1))
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_hull_screen_is_effective_where_its_polygon_is_usable(shape):
+    # the compiled sector-hull screen after the first polygon keeps at most what the
+    # numpy three-polygon screen keeps plus a few, where it is used (not a fallback)
+    pytest.importorskip("numba")
+    from fibres import fitting
+
+    a, b = _shape_points(shape, np.random.default_rng(8))
+    a, b = a - a.mean(), b - b.mean()
+    fast, poly = fitting._support_candidates(a, b), fitting._polygon_screen(a, b)
+    if shape in ("disc", "ellipse", "blob", "spindle", "circle", "duplicates"):
+        assert fast.size <= 2 * poly.size + 16
 
 
 def test_mean_rows_is_numpy_mean_bit_for_bit():
@@ -218,15 +267,21 @@ def test_mean_rows_is_numpy_mean_bit_for_bit():
         np.testing.assert_array_equal(_mean_rows(f), f.mean(axis=0))
 
 
-def test_support_screen_compiled_equals_numpy(monkeypatch):
+def test_polygon_screen_compiled_equals_numpy(monkeypatch):
     pytest.importorskip("numba")
     from fibres import fitting
 
     rng = np.random.default_rng(4)
-    a, b = rng.normal(size=4000) * 0.03, rng.normal(size=4000) * 0.01
-    compiled = fitting._support_candidates(a, b)
+    u, w = rng.uniform(size=(2, 4000))
+    flip = u + w > 1
+    u[flip], w[flip] = 1 - u[flip], 1 - w[flip]
+    shapes = [(rng.normal(size=4000) * 0.03, rng.normal(size=4000) * 0.01),
+              (u + 0.3 * w, w),                                 # a triangle: < 8 corners
+              _shape_points("square", rng), _shape_points("spindle", rng)]
+    compiled = [fitting._polygon_screen(a, b) for a, b in shapes]
     monkeypatch.setattr(fitting, "_FIT", [None])
-    np.testing.assert_array_equal(compiled, fitting._support_candidates(a, b))
+    for (a, b), got in zip(shapes, compiled):
+        np.testing.assert_array_equal(got, fitting._polygon_screen(a, b))
 
 
 def _bent_spindle(n_z=24, n_t=32, length=0.2):
@@ -304,10 +359,10 @@ def test_compiled_fit_equals_numpy_bit_for_bit(template, axis, monkeypatch):
 @pytest.mark.parametrize("template", ["parallel", "pennate"])
 @pytest.mark.parametrize("axis", ["auto", "covariance", "attachments"])
 def test_prepared_vertices_give_the_same_frame_and_box_bit_for_bit(template, axis):
-    # fitting.prepare makes the transposed vertices, bounds, centroid and centred copy once
+    # fitting.prepare makes the transposed vertices, bounds and centroid once
     # for the stages of a decomposition: the frame and box must be exactly those made
     # without it (the same functions on the same vertices; prepared arrays read-only
-    # inputs), and its arrays exactly numpy's (transpose, min/max, mean, difference)
+    # inputs), and its arrays exactly numpy's (transpose, min/max, mean)
     from fibres import fitting
 
     v, o, i = _bent_spindle(n_z=30, n_t=40)
@@ -318,7 +373,6 @@ def test_prepared_vertices_give_the_same_frame_and_box_bit_for_bit(template, axi
     np.testing.assert_array_equal(prep.lo, v.min(axis=0))
     np.testing.assert_array_equal(prep.hi, v.max(axis=0))
     np.testing.assert_array_equal(prep.centroid, v.mean(axis=0))
-    np.testing.assert_array_equal(prep.centred, v - v.mean(axis=0))
     ref_dir = np.array([1.0, 0.3, 0.1])
     f1 = principal_frame(v, o, i, axis=axis, template=template, v_ref=ref_dir)
     f2 = principal_frame(v, o, i, axis=axis, template=template, v_ref=ref_dir, prepared=prep)
@@ -346,3 +400,105 @@ def test_compiled_closest_sum_equals_numpy_bit_for_bit(monkeypatch):
     got = fitting._closest_sum(area, lms)
     monkeypatch.setattr(fitting, "_FIT", [None])
     np.testing.assert_array_equal(got, fitting._closest_sum(area, lms))
+
+
+def test_compiled_scores_equal_numpy_bit_for_bit(monkeypatch):
+    # the fused mapping + closest-landmark kernel does the array version's operations in
+    # its order: random boxes, landmarks on mapped area points (exact ties) and repeated
+    pytest.importorskip("numba")
+    from fibres import fitting
+    from fibres.templates import get_template
+
+    rng = np.random.default_rng(7)
+    tmpl = get_template("parallel")
+    axes = rng.normal(size=(72, 3, 3))
+    ext = rng.uniform(0.5, 3.0, size=(72, 3))
+    corner = rng.normal(size=(72, 3))
+    origin = rng.normal(size=(9, 3))
+    insertion = np.concatenate([rng.normal(size=(5, 3)), corner[:2]])
+    insertion = np.concatenate([insertion, insertion[:2]])
+    got = fitting._scores(tmpl, axes, corner, ext, origin, insertion)
+    monkeypatch.setattr(fitting, "_FIT", [None])
+    want = fitting._scores(tmpl, axes, corner, ext, origin, insertion)
+    np.testing.assert_array_equal(got, want)
+    assert np.all(np.isfinite(got))
+
+
+def test_auto_axis_without_covariance_decides_as_the_extent(monkeypatch):
+    # axis="auto" skips the covariance where the landmark centroids are at least 1/4 of the
+    # bounding-box diagonal apart (the extent along any unit axis is at most the diagonal):
+    # the method must be exactly the rule's on the covariance extent, also just around the
+    # shortcut's threshold and the rule's own
+    from fibres import fitting
+
+    rng = np.random.default_rng(11)
+    calls = []
+    real = fitting._covariance_axis
+    monkeypatch.setattr(fitting, "_covariance_axis",
+                        lambda *a: calls.append(1) or real(*a))
+    for k in range(12):
+        rot = Rotation.random(random_state=k).as_matrix()
+        v = _ellipsoid(np.array([0.02, 0.03, 0.15]) * rng.uniform(0.5, 2.0, 3), rot) + 0.2
+        d = v - v.mean(axis=0)
+        length = float(np.ptp(d @ real(v, v.mean(axis=0))))
+        diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+        for dist in (0.25 * length * (1 - 1e-12), 0.25 * length, 0.25 * length * (1 + 1e-12),
+                     0.25 * diag * (1 - 1e-12), 0.25 * diag, 0.25 * diag * (1 + 1e-8),
+                     0.3 * diag):
+            step = rng.normal(size=3)
+            o = v.mean(axis=0) + 0.01 * rng.normal(size=3)
+            i = o + dist * step / np.linalg.norm(step)
+            calls.clear()
+            f = principal_frame(v, [o], [i], axis="auto")
+            got_dist = float(np.linalg.norm(np.asarray([i]).mean(axis=0)
+                                            - np.asarray([o]).mean(axis=0)))
+            want = "covariance" if got_dist < 0.25 * length else "attachments"
+            assert f.method == want
+            assert length <= diag
+            if dist >= 0.25 * diag * (1 + 1e-8):
+                assert not calls                  # the covariance was not needed
+
+
+def test_compiled_boxes_equal_numpy_bit_for_bit(monkeypatch):
+    # one compiled pass (screen, extents, axes, corners: the array version's operations,
+    # incl. einsum's order of the corner sum) gives numpy's boxes exactly
+    pytest.importorskip("numba")
+    from fibres import fitting
+
+    rng = np.random.default_rng(21)
+    for k in range(6):
+        rot = Rotation.random(random_state=k).as_matrix()
+        v = (rng.normal(size=(3000, 3)) * [0.02, 0.03, 0.1]) @ rot.T + rng.normal(size=3)
+        c = v.mean(axis=0)
+        u, v0, w0 = rot[:, 2], rot[:, 0], rot[:, 1]
+        theta = fitting._thetas([5.0, 7.5, 45.0][k % 3])
+        for blas in (False, True):                 # fixed-order or BLAS projections
+            got = fitting._boxes(v, c, u, v0, w0, theta, blas=blas)
+            with monkeypatch.context() as mp:
+                mp.setattr(fitting, "_FIT", [None])
+                want = fitting._boxes(v, c, u, v0, w0, theta, blas=blas)
+            for x, y in zip(got, want):
+                np.testing.assert_array_equal(x, y)
+        # both are the boxes of all vertices up to the projections' rounding
+        for x, y in zip(fitting._boxes(v, c, u, v0, w0, theta),
+                        fitting._boxes(v, c, u, v0, w0, theta, blas=True)):
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-14)
+
+
+def test_norm_is_numpys_bit_for_bit():
+    from fibres.fitting import _norm
+
+    rng = np.random.default_rng(13)
+    m = rng.normal(size=(200, 3, 3)) * 10.0 ** rng.integers(-8, 8, size=(200, 1, 1))
+    for x in m:
+        for v in (x[0], x[:, 1], x.ravel(), x[::-1, 2]):      # contiguous and strided
+            assert _norm(v) == np.linalg.norm(v)
+
+
+def test_landmarks_in_the_box_are_accepted_without_measuring():
+    from fibres.fitting import _check_in_box
+
+    lo, hi = np.zeros(3), np.ones(3)
+    _check_in_box(lo, hi, np.array([[5.0, 5.0, 5.0], [1.0, 0.0, 0.5]]), name="origin")
+    with pytest.raises(InputError):
+        _check_in_box(lo, hi, np.array([[50.0, 5.0, 5.0], [1.0, 0.0, 8.5]]), name="origin")

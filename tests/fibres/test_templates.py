@@ -202,3 +202,34 @@ def test_pennation_sets_the_fibre_angle():
     np.testing.assert_allclose(bi[:, -1, 0], bi[:, 0, 0], atol=1e-14)
     with pytest.raises(InputError, match="pennation"):
         get_template("pennate", pennation=1.5)
+
+
+@pytest.mark.parametrize("degree", [0, 1, 2, 4])
+def test_bezier_evaluate_compiled_equals_numpy_bit_for_bit(degree, monkeypatch):
+    # the compiled weighted sum adds the control points in the array version's order
+    pytest.importorskip("numba")
+    from fibres import bezier
+
+    rng = np.random.default_rng(degree)
+    ctrl = rng.normal(size=(37, degree + 1, 3))
+    t = np.linspace(0.0, 1.0, 20)
+    got = evaluate(ctrl, t)
+    monkeypatch.setattr(bezier, "_KERNEL", [None])
+    want = evaluate(ctrl, t)
+    assert got.shape == want.shape == (37, 20, 3)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(evaluate(ctrl[:0], t), np.zeros((0, 20, 3)))
+
+
+@pytest.mark.parametrize("name", TEMPLATES)
+def test_offset_and_oblique_are_the_areas_centroid_shift(name):
+    from fibres.fitting import template_offset
+
+    for tm in (get_template(name), get_template(name, **({"pennation": 0.3} if name in (
+            "pennate", "bipennate") else {}))):
+        want = (tm.insertion_area.mean(axis=0) - tm.origin_area.mean(axis=0))[:2]
+        np.testing.assert_array_equal(tm.offset, want)
+        np.testing.assert_array_equal(template_offset(tm), want)
+        assert tm.oblique == bool(np.abs(want).max() > 1e-12)
+        assert not tm.offset.flags.writeable
+    assert get_template("pennate").oblique and not get_template("parallel").oblique
