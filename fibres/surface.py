@@ -408,8 +408,54 @@ def _cross3(p, q):
 
 
 def _has_duplicate_rows(q):
-    """Whether two rows of the (V, 3) int64 array are equal: one sort of a row hash (~4x
-    faster than a lexsort of the rows); only equal hashes are checked row by row."""
+    """Whether two rows of the (V, 3) int64 array are equal: compiled, one pass with an
+    open-addressing hash table (`_duplicates_loop`); else one sort of a row hash (~4x faster
+    than a lexsort of the rows), only equal hashes checked row by row."""
+    kernel = _duplicates_kernel()
+    if kernel is not None:
+        return bool(kernel(np.ascontiguousarray(q, dtype=np.int64)))
+    return _has_duplicate_rows_numpy(q)
+
+
+_DUPLICATES = []
+
+
+def _duplicates_kernel():
+    """`_duplicates_loop` compiled with numba, or None (then the sort of the row hashes)."""
+    if not _DUPLICATES:
+        try:
+            import numba
+        except ImportError:                                     # pragma: no cover - optional
+            _DUPLICATES.append(None)
+        else:
+            _DUPLICATES.append(numba.njit(cache=True, nogil=True)(_duplicates_loop))
+    return _DUPLICATES[0]
+
+
+def _duplicates_loop(q):  # pragma: no cover - compiled by numba
+    """Whether two rows of q (V, 3) int64 are equal, in O(V): a row hash picks a slot of a
+    table of >= 2 V slots (linear probing; Knuth, TAOCP vol. 3, §6.4, algorithm L); rows
+    meeting in a probe sequence are compared exactly (the answer does not depend on the hash)."""
+    n = q.shape[0]
+    size = 1
+    while size < 2 * n:
+        size *= 2
+    mask = size - 1
+    slot = np.full(size, -1, np.int32)  # (V < 2**31 rows: a vertex index)
+    for i in range(n):
+        h = (q[i, 0] * np.int64(-7046029254386353131) + q[i, 1]) * np.int64(0x5851F42D4C957F2D)
+        k = ((h + q[i, 2]) ^ ((h + q[i, 2]) >> 29)) & mask
+        while slot[k] >= 0:
+            r = slot[k]
+            if q[r, 0] == q[i, 0] and q[r, 1] == q[i, 1] and q[r, 2] == q[i, 2]:
+                return True
+            k = (k + 1) & mask
+        slot[k] = i
+    return False
+
+
+def _has_duplicate_rows_numpy(q):
+    """`_has_duplicate_rows` in numpy (only rows of equal hashes compared row by row)."""
     h = (q[:, 0] * np.int64(-7046029254386353131) + q[:, 1]) * np.int64(0x5851F42D4C957F2D) \
         + q[:, 2]                                            # wraps around: a hash, not a key
     if not (np.diff(np.sort(h)) == 0).any():

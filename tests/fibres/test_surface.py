@@ -377,3 +377,24 @@ def test_closest_points_within_a_distance(kernels, monkeypatch):
         assert (dist[~kept] > w * (1 - 1e-9)).all()
         assert (dist[kept] <= w * (1 + 1e-9) + 1e-12).all()      # 1e-12: touching pairs
         assert 0 < kept.sum() < n or w == 0.0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_duplicate_rows_equal_numpy(seed):
+    # the hash-table pass answers as the sort of the row hashes: rows with and without one
+    # duplicate (placed anywhere), rows differing in one coordinate only, tiny value ranges
+    from fibres.surface import _duplicates_kernel, _has_duplicate_rows, _has_duplicate_rows_numpy
+
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(seed)
+    for n, span in ((1, 5), (2, 2), (50, 3), (3000, 10 ** 9), (3000, 40)):
+        q = rng.integers(-span, span, size=(n, 3)).astype(np.int64)
+        for rows in (q, np.unique(q, axis=0), np.vstack([q, q[rng.integers(0, n)]])[::-1]):
+            rows = np.ascontiguousarray(rows)
+            expected = _has_duplicate_rows_numpy(rows)
+            assert bool(_duplicates_kernel()(rows)) == expected == _has_duplicate_rows(rows)
+    line = np.zeros((500, 3), np.int64)
+    line[:, 2] = np.arange(500)                              # unique, one coordinate differs
+    assert not _duplicates_kernel()(line) and not _has_duplicate_rows_numpy(line)
+    line[499, 2] = 0
+    assert _duplicates_kernel()(line) and _has_duplicate_rows_numpy(line)
