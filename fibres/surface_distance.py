@@ -34,7 +34,8 @@ one with a triangle within ``watch`` (< `reach`) looks again within ``d_min + KA
 one with a distance gets the negative sign whatever the blend's vote (not with ``offset``:
 `SurfaceGrid.signed_distance`, whose signed normal offset is signed by itself). Other points visit rings of cells
 around their own until the ring's distance exceeds the current bound ``min(d_min + KAPPA tau,
-reach)``, skipping empty cells, far cells and triangles too far by a lower bound (the distance
+reach)``, skipping empty cells, far cells (whole slabs and rows of the ring when one
+coordinate alone is too far) and triangles too far by a lower bound (the distance
 to the triangle's plane and, within it, to its bounding circle). Compiled with numba; the numpy
 fallback tests every triangle (the same formulas; equal where both report a distance).
 """
@@ -393,11 +394,15 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
                     if i < 0 or i >= nx:
                         continue
                     gx = max(lo[0] + i * cell - px, px - lo[0] - (i + 1) * cell, 0.0)
+                    if gx * gx > lim * lim:   # every cell of this slab is too far
+                        continue
                     for dj in range(-r, r + 1):
                         j = cj + dj
                         if j < 0 or j >= ny:
                             continue
                         gy = max(lo[1] + j * cell - py, py - lo[1] - (j + 1) * cell, 0.0)
+                        if gy * gy > lim * lim:   # every cell of this row is too far
+                            continue
                         step = 1 if (abs(di) == r or abs(dj) == r or r == 0) else 2 * r
                         for k in range(ck - r, ck + r + 1, step):
                             if k < 0 or k >= nz:
