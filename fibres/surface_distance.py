@@ -43,7 +43,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid_kernels import _bounds_loop, _edge_loop, _grid_loop, _shapes_loop, _triangle_shape
+from .grid_kernels import (_bounds_loop, _edge_loop, _flood, _grid_loop, _label_loop,
+                           _shapes_loop, _triangle_shape)
 
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
 
@@ -138,74 +139,6 @@ def _shape(t, v, faces, nrm, centre, radius, ready):  # pragma: no cover - compi
         return
     ready[t] = 1
     _triangle_shape(t, v, faces, nrm, centre, radius)
-
-
-def _flood(label, comp, dims, stack, top, value, cid):  # pragma: no cover - numba
-    """Flood the empty unlabelled cells (label 0) face-connected to the cells on the stack
-    with ``value`` (and component ``cid`` when >= 0)."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    while top > 0:
-        top -= 1
-        q = stack[top]
-        k = q % nz
-        j = (q // nz) % ny
-        i = q // (ny * nz)
-        for a in range(6):
-            ii, jj, kk = i, j, k
-            if a == 0:
-                ii -= 1
-            elif a == 1:
-                ii += 1
-            elif a == 2:
-                jj -= 1
-            elif a == 3:
-                jj += 1
-            elif a == 4:
-                kk -= 1
-            else:
-                kk += 1
-            if 0 <= ii < nx and 0 <= jj < ny and 0 <= kk < nz:
-                w = (ii * ny + jj) * nz + kk
-                if label[w] == 0:
-                    label[w] = value
-                    comp[w] = cid
-                    stack[top] = w
-                    top += 1
-
-
-def _label_loop(start, dims):  # pragma: no cover - compiled by numba
-    """Label the grid cells: 1 holds a triangle, 2 empty and face-connected to the grid's
-    border through empty cells (outside), 3 the other empty cells, grouped in face-connected
-    components ``comp`` (-1 elsewhere) with one representative cell each."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    n = nx * ny * nz
-    label = np.zeros(n, np.int8)
-    comp = np.full(n, -1, np.int32)
-    stack = np.empty(n, np.int64)
-    top = 0
-    for q in range(n):
-        if start[q + 1] > start[q]:
-            label[q] = 1
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if i == 0 or j == 0 or k == 0 or i == nx - 1 or j == ny - 1 or k == nz - 1:
-                    q = (i * ny + j) * nz + k
-                    if label[q] == 0:
-                        label[q] = 2
-                        stack[top] = q
-                        top += 1
-    _flood(label, comp, dims, stack, top, 2, -1)
-    reps = []
-    for q in range(n):
-        if label[q] == 0:
-            cid = len(reps)
-            reps.append(q)
-            label[q] = 3
-            comp[q] = cid
-            stack[0] = q
-            _flood(label, comp, dims, stack, 1, 3, cid)
-    return label, comp, np.array(reps, dtype=np.int64)
 
 
 def _owns(w, ex, ey):  # pragma: no cover - compiled by numba
