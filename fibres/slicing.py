@@ -124,15 +124,15 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
 def _closed_topology(f, n_vertices, vertices=None, tol2=0.0):
     """`mesh_topology` of (T, 3) int64 faces with its indices in range, with the number of
     edge-connected pieces and whether every vertex is used -- in one compiled pass (for
-    `fibres.surface.clean_mesh_geometry`), or None without numba or when some edge is not
+    `fibres.clean_check.clean_mesh_geometry`), or None without numba or when some edge is not
     shared by exactly two faces. With ``vertices`` (V, 3) float64 C-contiguous, the same
-    pass measures the faces as `fibres.surface._geometry_loop` (threshold ``tol2``).
+    pass measures the faces as `fibres.clean_check._geometry_loop` (threshold ``tol2``).
 
     Returns
     -------
     (MeshTopology, n_pieces, all_used, geometry) or None
         ``geometry``: (every edge and height above tol2, 6 x signed volume, sum of the edge
-        lengths, vertex minimum (3,), maximum (3,)) -- `fibres.surface._geometry_loop`'s
+        lengths, vertex minimum (3,), maximum (3,)) -- `fibres.clean_check._geometry_loop`'s
         results -- or None without ``vertices``.
     """
     kernel = _topology_kernel()
@@ -234,7 +234,7 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     order. With ``pieces``, the edge-connected pieces are counted by a flood fill over the
     face neighbours (depth-first, an explicit stack) and the used vertices marked. With
     vertices ``v`` (V, 3) (else (0, 3)), the first pass also measures each face as
-    `fibres.surface._geometry_loop` (the same operations in the same order; its integer work
+    `fibres.clean_check._geometry_loop` (the same operations in the same order; its integer work
     and this floating-point work overlap).
 
     Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces,
@@ -262,7 +262,7 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     volume = 0.0
     edge_sum = 0.0
     geometry_ok = True
-    if measure:  # the vertices' bounds (`fibres.surface._geometry_loop`)
+    if measure:  # the vertices' bounds (`fibres.clean_check._geometry_loop`)
         _vertex_bounds(v, v_lo, v_hi)
     used = np.zeros(n_vertices if pieces else 0, dtype=np.bool_)
     for t in range(n_t):
@@ -278,7 +278,7 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
             used[a0] = True
             used[a1] = True
             used[a2] = True
-        if measure:  # `fibres.surface._geometry_loop`, face t
+        if measure:  # `fibres.clean_check._geometry_loop`, face t
             face_ok, vol, edges_t = _face_measure(v, a0, a1, a2, tol2)
             if not face_ok:
                 geometry_ok = False
