@@ -219,9 +219,11 @@ def _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label, dims, 
     return odd == (label[(i * ny + j) * nz + k] == 2)   # inside: outside end and odd
 
 
-def _reps_inside(reps, v, faces, start, items, dims, lo, cell):  # pragma: no cover - numba
+def _reps_inside(reps, v, faces, start, items, dims, lo, cell, label,
+                 comp):  # pragma: no cover - numba
     """Inside test of the centres of the cells ``reps`` (flat indices) by ray parity along
-    +x to the grid's (empty, outside) border layer (`_crossings`)."""
+    +x to the grid's (empty, outside) border layer (`_crossings`); each cell of component
+    ``comp`` then labelled 3 (inside) or 2 (outside) in place. Returns the tests (R,)."""
     nx, ny, nz = dims[0], dims[1], dims[2]
     stamp = np.full(faces.shape[0], -1, np.int32)
     out = np.zeros(reps.shape[0], np.bool_)
@@ -234,6 +236,9 @@ def _reps_inside(reps, v, faces, start, items, dims, lo, cell):  # pragma: no co
         pz = lo[2] + (ck + 0.5) * cell
         out[r] = _crossings(px, py, pz, ci, cj, ck, 0, 1, nx - ci, lo[0] + nx * cell, v,
                             faces, start, items, dims, stamp, r)
+    for q in range(comp.shape[0]):
+        if comp[q] >= 0:
+            label[q] = 3 if out[comp[q]] else 2
     return out
 
 
@@ -588,9 +593,8 @@ class SurfaceGrid:
                 # (ray parity: the sign of the distance there, a vote of the nearest
                 # triangles' normals with unit weights, can be wrong at a mesh vertex; measured
                 # on the LHDL psoas bent 10.2 degrees: an inside component labelled outside)
-                inside = self.kernels["reps"](reps, v, f, self.start, self.items, self.dims,
-                                              self.lo, cell)
-                label[comp >= 0] = np.where(inside[comp[comp >= 0]], 3, 2)
+                self.kernels["reps"](reps, v, f, self.start, self.items, self.dims,
+                                     self.lo, cell, label, comp)
             self.labelled, self.label = True, label
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,
