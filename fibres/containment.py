@@ -127,7 +127,6 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     if n == 0 or p < 3:
         return out, np.zeros(n, bool)
     grid = SurfaceGrid(vertices, faces, reach=reach, mean_edge=mean_edge, bounds=bounds)
-    index = _inner(n, p)
     # inside points deeper than the band are not measured: they look for triangles within
     # `watch` only (and, when one is nearer, for every triangle of their blend); beyond
     # OFFSET_FAR tau the offset measure is the blended distance (>= d_min), so an inside
@@ -137,21 +136,23 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     if grid.cell is not None and watch > grid.cell:
         raise ValueError(f"margin and {OFFSET_FAR:g} softness ({watch:g}) must not exceed the "
                          f"grid cell ({grid.cell:g}); raise reach or lower margin/softness")
-    s, d = grid.signed_distance(out.reshape(-1, 3)[index], tau=softness, watch=watch,
+    # the inner points, fibre by fibre (the flat rows `_inner`; a strided copy)
+    s, d = grid.signed_distance(out[:, 1:-1].reshape(-1, 3), tau=softness, watch=watch,
                                 offset=True)
-    return _pull(out, index, s, d, grid, margin, softness, iterations, watch)
+    return _pull(out, s, d, grid, margin, softness, iterations, watch)
 
 
-def _pull(out, index, s, d, grid, margin, softness, iterations, watch):
-    """Move the points ``index`` (flat) of out (N, P, 3) with signed distance s > -margin
-    along -d to ``s'`` (module docstring), in place; returns (out, moved (N,))."""
+def _pull(out, s, d, grid, margin, softness, iterations, watch):
+    """Move the inner points of out (N, P, 3) (flat rows `_inner`, in that order) with
+    signed distance s > -margin along -d to ``s'`` (module docstring), in place; returns
+    (out, moved (N,))."""
     n, p = out.shape[:2]
     moved = np.zeros(n, bool)
     band = s > -margin                    # (-inf, i.e. deep or unmeasured, is not)
     if not band.any():
         return out, moved
     flat = out.reshape(-1, 3)
-    rows, s, d = index[band], s[band], d[band]
+    rows, s, d = _inner(n, p)[band], s[band], d[band]
     a = 0.5 * margin
     target = -margin - a * np.expm1(-(s + margin) / a)
     y = flat[rows] - (s - target)[:, None] * d

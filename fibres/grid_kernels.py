@@ -1,7 +1,7 @@
 """Compiled loops that build `fibres.surface_distance.SurfaceGrid`: the mean edge, the
-vertex bounds, the uniform grid of the triangles' bounding boxes (CSR) and the triangles'
-normals, centroids and bounding-sphere radii. Compiled with numba by
-`fibres.surface_distance._kernels`.
+vertex bounds, the uniform grid of the triangles' bounding boxes (CSR), the inside/outside
+labels of its empty cells and the triangles' normals, centroids and bounding-sphere radii.
+Compiled with numba by `fibres.surface_distance._kernels`.
 """
 from __future__ import annotations
 
@@ -101,3 +101,94 @@ def _shapes_loop(v, faces, nrm, centre, radius):  # pragma: no cover - compiled 
     than the lazy `fibres.surface_distance._shape` when all are needed)."""
     for t in range(faces.shape[0]):
         _triangle_shape(t, v, faces, nrm, centre, radius)
+
+
+def _flood(label, comp, s1, s2, stack, top, value, cid):  # pragma: no cover - numba
+    """Flood the empty unlabelled cells (label 0) face-connected to the cells on the stack
+    with ``value`` (and component ``cid`` when >= 0). The stacked cells are interior (not in
+    the grid's border layer), so their six neighbours ``q -+ s2, q -+ s1, q -+ 1`` (strides
+    of i and j) exist: no coordinates (divisions) and no range tests."""
+    while top > 0:
+        top -= 1
+        q = stack[top]
+        for a in range(6):
+            if a == 0:
+                w = q - s2
+            elif a == 1:
+                w = q + s2
+            elif a == 2:
+                w = q - s1
+            elif a == 3:
+                w = q + s1
+            elif a == 4:
+                w = q - 1
+            else:
+                w = q + 1
+            if label[w] == 0:
+                label[w] = value
+                comp[w] = cid
+                stack[top] = w
+                top += 1
+
+
+def _label_loop(start, dims):  # pragma: no cover - compiled by numba
+    """Label the grid cells: 1 holds a triangle, 2 empty and face-connected to the grid's
+    border through empty cells (outside), 3 the other empty cells, grouped in face-connected
+    components ``comp`` (-1 elsewhere) with one representative cell each (its first cell in
+    flat order). The empty border cells are labelled 2 first and the flood starts from
+    their empty interior neighbours, so that `_flood` only ever stacks interior cells (the
+    enclosed components hold no border cell either: every empty border cell is outside)."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    n = nx * ny * nz
+    label = np.zeros(n, np.int8)
+    comp = np.full(n, -1, np.int32)
+    stack = np.empty(n, np.int64)
+    top = 0
+    for q in range(n):
+        if start[q + 1] > start[q]:
+            label[q] = 1
+    for rnd in range(2):  # the empty border cells; then their empty interior neighbours
+        for i in range(nx):
+            for j in range(ny):
+                for k in range(nz):
+                    if not (i == 0 or j == 0 or k == 0 or i == nx - 1 or j == ny - 1
+                            or k == nz - 1):
+                        continue
+                    q = (i * ny + j) * nz + k
+                    if rnd == 0:
+                        if label[q] == 0:
+                            label[q] = 2
+                        continue
+                    if label[q] != 2:
+                        continue
+                    for a in range(6):
+                        ii, jj, kk = i, j, k
+                        if a == 0:
+                            ii -= 1
+                        elif a == 1:
+                            ii += 1
+                        elif a == 2:
+                            jj -= 1
+                        elif a == 3:
+                            jj += 1
+                        elif a == 4:
+                            kk -= 1
+                        else:
+                            kk += 1
+                        if 0 <= ii < nx and 0 <= jj < ny and 0 <= kk < nz:
+                            w = (ii * ny + jj) * nz + kk
+                            if label[w] == 0:
+                                label[w] = 2
+                                stack[top] = w
+                                top += 1
+    _flood(label, comp, nz, ny * nz, stack, top, 2, -1)
+    reps = []
+    for q in range(n):
+        if label[q] == 0:
+            cid = len(reps)
+            reps.append(q)
+            label[q] = 3
+            comp[q] = cid
+            stack[0] = q
+            _flood(label, comp, nz, ny * nz, stack, 1, 3, cid)
+    return label, comp, np.array(reps, dtype=np.int64)

@@ -124,15 +124,15 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
 def _closed_topology(f, n_vertices, vertices=None, tol2=0.0):
     """`mesh_topology` of (T, 3) int64 faces with its indices in range, with the number of
     edge-connected pieces and whether every vertex is used -- in one compiled pass (for
-    `fibres.surface.clean_mesh_geometry`), or None without numba or when some edge is not
+    `fibres.clean_check.clean_mesh_geometry`), or None without numba or when some edge is not
     shared by exactly two faces. With ``vertices`` (V, 3) float64 C-contiguous, the same
-    pass measures the faces as `fibres.surface._geometry_loop` (threshold ``tol2``).
+    pass measures the faces as `fibres.clean_check._geometry_loop` (threshold ``tol2``).
 
     Returns
     -------
     (MeshTopology, n_pieces, all_used, geometry) or None
         ``geometry``: (every edge and height above tol2, 6 x signed volume, sum of the edge
-        lengths, vertex minimum (3,), maximum (3,)) -- `fibres.surface._geometry_loop`'s
+        lengths, vertex minimum (3,), maximum (3,)) -- `fibres.clean_check._geometry_loop`'s
         results -- or None without ``vertices``.
     """
     kernel = _topology_kernel()
@@ -227,14 +227,15 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     """`mesh_topology` of a mesh whose edges are each shared by exactly two faces, in
     O(T + V): the half-edges are bucketed by their smaller vertex (a counting sort in
     half-edge order; Cormen et al., Introduction to Algorithms, §8.2) and each bucket (a
-    vertex's few edges) is insertion-sorted by the larger vertex. Both sorts are stable, so the order is that of a stable argsort of the
-    keys ``min * V + max`` and edge ``e`` is the pair of sorted positions ``2e, 2e+1``,
-    exactly as in the array version. The sorted half-edges carry their larger vertex and
-    ``2 h + (runs min -> max)`` (int32 while T < 2**29), so that the pairing reads them in
-    order. With ``pieces``, the edge-connected pieces are counted by a flood fill over the
+    vertex's few edges) is insertion-sorted by the larger vertex. Both sorts are stable, so
+    the order is that of a stable argsort of the keys ``min * V + max`` and edge ``e`` is the
+    pair of sorted positions ``2e, 2e+1``, exactly as in the array version. A half-edge is
+    one int64 ``max << 32 | (2 h + (runs min -> max))`` (T < 2**29): sorting these by value
+    in a bucket is the stable sort by the larger vertex (ties in half-edge order), with one
+    array to move, and the pairing reads them in order. With ``pieces``, the edge-connected pieces are counted by a flood fill over the
     face neighbours (depth-first, an explicit stack) and the used vertices marked. With
     vertices ``v`` (V, 3) (else (0, 3)), the first pass also measures each face as
-    `fibres.surface._geometry_loop` (the same operations in the same order; its integer work
+    `fibres.clean_check._geometry_loop` (the same operations in the same order; its integer work
     and this floating-point work overlap).
 
     Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces,
@@ -262,7 +263,7 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     volume = 0.0
     edge_sum = 0.0
     geometry_ok = True
-    if measure:  # the vertices' bounds (`fibres.surface._geometry_loop`)
+    if measure:  # the vertices' bounds (`fibres.clean_check._geometry_loop`)
         _vertex_bounds(v, v_lo, v_hi)
     used = np.zeros(n_vertices if pieces else 0, dtype=np.bool_)
     for t in range(n_t):
@@ -278,7 +279,7 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
             used[a0] = True
             used[a1] = True
             used[a2] = True
-        if measure:  # `fibres.surface._geometry_loop`, face t
+        if measure:  # `fibres.clean_check._geometry_loop`, face t
             face_ok, vol, edges_t = _face_measure(v, a0, a1, a2, tol2)
             if not face_ok:
                 geometry_ok = False
@@ -287,8 +288,7 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     for q in range(n_vertices):
         start[q + 1] += start[q]
     fill = start[:n_vertices].copy()
-    s_hi = np.empty(n, dtype=np.int32)
-    s_h = np.empty(n, dtype=np.int32)
+    key = np.empty(n, dtype=np.int64)
     for t in range(n_t):  # (from the contiguous copy)
         for j in range(3):
             a = fc[t, j]
@@ -296,40 +296,43 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
             lo = min(a, b)
             p = fill[lo]
             fill[lo] = p + 1
-            s_hi[p] = max(a, b)
-            s_h[p] = 2 * (3 * t + j) + (a < b)
+            key[p] = (max(a, b) << 32) | (2 * (3 * t + j) + (a < b))
+    for vb in range(n_vertices):  # each bucket insertion-sorted by key
+        s0 = start[vb]
+        for i in range(s0 + 1, start[vb + 1]):
+            x = key[i]
+            m = i - 1
+            while m >= s0 and key[m] > x:
+                key[m + 1] = key[m]
+                m -= 1
+            key[m + 1] = x
     fe = face_edges.ravel()
     nb = neighbours.ravel()
     oriented = True
-    for vb in range(n_vertices):  # each bucket sorted, then paired while in cache
-        for i in range(start[vb] + 1, start[vb + 1]):
-            k = s_hi[i]
-            x = s_h[i]
-            m = i - 1
-            while m >= start[vb] and s_hi[m] > k:
-                s_hi[m + 1] = s_hi[m]
-                s_h[m + 1] = s_h[m]
-                m -= 1
-            s_hi[m + 1] = k
-            s_h[m + 1] = x
-        for p in range(start[vb], start[vb + 1], 2):  # edge p // 2: sorted positions p, p+1
-            if start[vb + 1] == p + 1 or s_hi[p] != s_hi[p + 1] or (
-                    p > start[vb] and s_hi[p - 1] == s_hi[p]):
-                return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0,
+    vb = 0
+    for e in range(n_e):  # edge e: sorted positions p = 2e, p + 1, in bucket vb
+        p = 2 * e
+        while start[vb + 1] <= p:
+            vb += 1
+        k0 = key[p]
+        k1 = key[p + 1]
+        hi = k0 >> 32
+        if start[vb + 1] == p + 1 or hi != (k1 >> 32) or (
+                p > start[vb] and (key[p - 1] >> 32) == hi):
+            return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0,
                     0.0, v_lo, v_hi)
-            e = p // 2
-            h0 = s_h[p] >> 1
-            h1 = s_h[p + 1] >> 1
-            t0 = h0 // 3
-            t1 = h1 // 3
-            edges[e, 0] = vb
-            edges[e, 1] = s_hi[p]
-            fe[h0] = e
-            fe[h1] = e
-            nb[h0] = t1
-            nb[h1] = t0
-            if (s_h[p] & 1) == (s_h[p + 1] & 1) and s_hi[p] != vb:   # not one each way
-                oriented = False
+        x0 = k0 & 0xFFFFFFFF
+        x1 = k1 & 0xFFFFFFFF
+        h0 = x0 >> 1
+        h1 = x1 >> 1
+        edges[e, 0] = vb
+        edges[e, 1] = hi
+        fe[h0] = e
+        fe[h1] = e
+        nb[h0] = h1 // 3
+        nb[h1] = h0 // 3
+        if (x0 & 1) == (x1 & 1) and hi != vb:   # not one each way
+            oriented = False
     n_pieces = 0
     if pieces:  # edge-connected pieces: a flood fill over the face neighbours
         seen = np.zeros(n_t, dtype=np.bool_)

@@ -34,7 +34,8 @@ one with a triangle within ``watch`` (< `reach`) looks again within ``d_min + KA
 one with a distance gets the negative sign whatever the blend's vote (not with ``offset``:
 `SurfaceGrid.signed_distance`, whose signed normal offset is signed by itself). Other points visit rings of cells
 around their own until the ring's distance exceeds the current bound ``min(d_min + KAPPA tau,
-reach)``, skipping empty cells, far cells and triangles too far by a lower bound (the distance
+reach)``, skipping empty cells, far cells (whole slabs and rows of the ring when one
+coordinate alone is too far) and triangles too far by a lower bound (the distance
 to the triangle's plane and, within it, to its bounding circle). Compiled with numba; the numpy
 fallback tests every triangle (the same formulas; equal where both report a distance).
 """
@@ -42,7 +43,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid_kernels import _bounds_loop, _edge_loop, _grid_loop, _shapes_loop, _triangle_shape
+from .grid_kernels import (_bounds_loop, _edge_loop, _flood, _grid_loop, _label_loop,
+                           _shapes_loop, _triangle_shape)
 
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
 
@@ -139,74 +141,6 @@ def _shape(t, v, faces, nrm, centre, radius, ready):  # pragma: no cover - compi
     _triangle_shape(t, v, faces, nrm, centre, radius)
 
 
-def _flood(label, comp, dims, stack, top, value, cid):  # pragma: no cover - numba
-    """Flood the empty unlabelled cells (label 0) face-connected to the cells on the stack
-    with ``value`` (and component ``cid`` when >= 0)."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    while top > 0:
-        top -= 1
-        q = stack[top]
-        k = q % nz
-        j = (q // nz) % ny
-        i = q // (ny * nz)
-        for a in range(6):
-            ii, jj, kk = i, j, k
-            if a == 0:
-                ii -= 1
-            elif a == 1:
-                ii += 1
-            elif a == 2:
-                jj -= 1
-            elif a == 3:
-                jj += 1
-            elif a == 4:
-                kk -= 1
-            else:
-                kk += 1
-            if 0 <= ii < nx and 0 <= jj < ny and 0 <= kk < nz:
-                w = (ii * ny + jj) * nz + kk
-                if label[w] == 0:
-                    label[w] = value
-                    comp[w] = cid
-                    stack[top] = w
-                    top += 1
-
-
-def _label_loop(start, dims):  # pragma: no cover - compiled by numba
-    """Label the grid cells: 1 holds a triangle, 2 empty and face-connected to the grid's
-    border through empty cells (outside), 3 the other empty cells, grouped in face-connected
-    components ``comp`` (-1 elsewhere) with one representative cell each."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    n = nx * ny * nz
-    label = np.zeros(n, np.int8)
-    comp = np.full(n, -1, np.int32)
-    stack = np.empty(n, np.int64)
-    top = 0
-    for q in range(n):
-        if start[q + 1] > start[q]:
-            label[q] = 1
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if i == 0 or j == 0 or k == 0 or i == nx - 1 or j == ny - 1 or k == nz - 1:
-                    q = (i * ny + j) * nz + k
-                    if label[q] == 0:
-                        label[q] = 2
-                        stack[top] = q
-                        top += 1
-    _flood(label, comp, dims, stack, top, 2, -1)
-    reps = []
-    for q in range(n):
-        if label[q] == 0:
-            cid = len(reps)
-            reps.append(q)
-            label[q] = 3
-            comp[q] = cid
-            stack[0] = q
-            _flood(label, comp, dims, stack, 1, 3, cid)
-    return label, comp, np.array(reps, dtype=np.int64)
-
-
 def _owns(w, ex, ey):  # pragma: no cover - compiled by numba
     """Whether a point with edge function w counts as inside that (counter-clockwise) edge:
     w > 0, or on it and the edge is a "top-left" one (each shared edge counted once)."""
@@ -285,9 +219,11 @@ def _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label, dims, 
     return odd == (label[(i * ny + j) * nz + k] == 2)   # inside: outside end and odd
 
 
-def _reps_inside(reps, v, faces, start, items, dims, lo, cell):  # pragma: no cover - numba
+def _reps_inside(reps, v, faces, start, items, dims, lo, cell, label,
+                 comp):  # pragma: no cover - numba
     """Inside test of the centres of the cells ``reps`` (flat indices) by ray parity along
-    +x to the grid's (empty, outside) border layer (`_crossings`)."""
+    +x to the grid's (empty, outside) border layer (`_crossings`); each cell of component
+    ``comp`` then labelled 3 (inside) or 2 (outside) in place. Returns the tests (R,)."""
     nx, ny, nz = dims[0], dims[1], dims[2]
     stamp = np.full(faces.shape[0], -1, np.int32)
     out = np.zeros(reps.shape[0], np.bool_)
@@ -300,6 +236,9 @@ def _reps_inside(reps, v, faces, start, items, dims, lo, cell):  # pragma: no co
         pz = lo[2] + (ck + 0.5) * cell
         out[r] = _crossings(px, py, pz, ci, cj, ck, 0, 1, nx - ci, lo[0] + nx * cell, v,
                             faces, start, items, dims, stamp, r)
+    for q in range(comp.shape[0]):
+        if comp[q] >= 0:
+            label[q] = 3 if out[comp[q]] else 2
     return out
 
 
@@ -393,11 +332,15 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
                     if i < 0 or i >= nx:
                         continue
                     gx = max(lo[0] + i * cell - px, px - lo[0] - (i + 1) * cell, 0.0)
+                    if gx * gx > lim * lim:   # every cell of this slab is too far
+                        continue
                     for dj in range(-r, r + 1):
                         j = cj + dj
                         if j < 0 or j >= ny:
                             continue
                         gy = max(lo[1] + j * cell - py, py - lo[1] - (j + 1) * cell, 0.0)
+                        if gy * gy > lim * lim:   # every cell of this row is too far
+                            continue
                         step = 1 if (abs(di) == r or abs(dj) == r or r == 0) else 2 * r
                         for k in range(ck - r, ck + r + 1, step):
                             if k < 0 or k >= nz:
@@ -650,9 +593,8 @@ class SurfaceGrid:
                 # (ray parity: the sign of the distance there, a vote of the nearest
                 # triangles' normals with unit weights, can be wrong at a mesh vertex; measured
                 # on the LHDL psoas bent 10.2 degrees: an inside component labelled outside)
-                inside = self.kernels["reps"](reps, v, f, self.start, self.items, self.dims,
-                                              self.lo, cell)
-                label[comp >= 0] = np.where(inside[comp[comp >= 0]], 3, 2)
+                self.kernels["reps"](reps, v, f, self.start, self.items, self.dims,
+                                     self.lo, cell, label, comp)
             self.labelled, self.label = True, label
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,

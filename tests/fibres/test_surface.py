@@ -236,7 +236,7 @@ def test_compiled_geometry_check_equals_numpy(case, monkeypatch):
     # the one-pass compiled face check and the component-wise numpy check make the same
     # decision; the mean edge is the plain mean of the 3 T directed face edges (rounding:
     # 1e-12 relative covers any summation order over ~4K terms)
-    import fibres.surface as fs
+    import fibres.clean_check as fs
 
     v, f = _imperfect_variants()[case]
     f = np.asarray(f, np.int64)
@@ -257,7 +257,7 @@ def test_topology_pass_measures_the_faces_as_the_geometry_loop(case):
     # bounds) inside the compiled topology pass: exactly _geometry_loop's numbers, bit for
     # bit, wherever the topology pass gets through (the topology equal to the plain pass's)
     pytest.importorskip("numba")
-    import fibres.surface as fs
+    import fibres.clean_check as fs
     from fibres.slicing import _closed_topology
 
     if case == "collapsed edge":  # a clean topology with two zero-length edges: check fails
@@ -302,7 +302,7 @@ def test_compiled_pieces_count_equals_scipy(n_pieces, monkeypatch):
     # the compiled flood fill counts the same edge-connected pieces as scipy's connected
     # components (the fallback), with the pieces' faces interleaved in the face list
     pytest.importorskip("numba")
-    import fibres.surface as fs
+    import fibres.clean_check as fs
     from fibres.slicing import mesh_topology
 
     m = trimesh.creation.icosphere(subdivisions=2)
@@ -377,3 +377,41 @@ def test_closest_points_within_a_distance(kernels, monkeypatch):
         assert (dist[~kept] > w * (1 - 1e-9)).all()
         assert (dist[kept] <= w * (1 + 1e-9) + 1e-12).all()      # 1e-12: touching pairs
         assert 0 < kept.sum() < n or w == 0.0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_merge_test_equals_numpy(seed):
+    # the hash-table pass that rounds the rows itself answers as numpy's rows
+    # (v * scale).round().astype(int64) and the sort of their hashes: rows with and without
+    # one duplicate (placed anywhere), rows differing in one coordinate only, ties at .5
+    # (rounded half to even), -0.0 and 0.0; rows rounding beyond int64 are left to numpy
+    from fibres.clean_check import _duplicates_kernel, _has_duplicate_rows, _has_merged_vertices
+
+    pytest.importorskip("numba")
+    rng = np.random.default_rng(seed)
+    scale = 10 ** 8
+
+    def rows_of(v):
+        return (v * scale).round().astype(np.int64)
+
+    seen = set()
+    for n, span in ((1, 5), (2, 2), (50, 3), (3000, 10 ** 9), (3000, 40)):
+        q = rng.integers(-span, span, size=(n, 3)).astype(np.float64)
+        v = (q + rng.choice([-0.4, 0.0, 0.3, 0.5, -0.5], size=q.shape)) / scale
+        for x in (v, v[np.unique(rows_of(v), axis=0, return_index=True)[1]],
+                  np.vstack([v, v[rng.integers(0, n)] + 0.2 / scale])[::-1]):
+            x = np.ascontiguousarray(x)
+            expected = _has_duplicate_rows(rows_of(x))
+            seen.add(expected)
+            assert _duplicates_kernel()(x, float(scale)) == int(expected)
+            assert _has_merged_vertices(x, scale) == expected
+    assert seen == {False, True}                                 # not vacuous
+    line = np.zeros((500, 3))
+    line[:, 2] = np.arange(500) / scale                      # unique, one coordinate differs
+    assert _duplicates_kernel()(line, float(scale)) == 0
+    line[499, 2] = -0.3 / scale                               # rounds to -0.0: equals row 0
+    assert _duplicates_kernel()(line, float(scale)) == 1 and _has_duplicate_rows(rows_of(line))
+    huge = np.array([[1e12, 0.0, 0.0], [2e12, 0.0, 0.0]])    # beyond int64 once scaled
+    assert _duplicates_kernel()(huge, float(scale)) == -1
+    with np.errstate(invalid="ignore"):
+        assert _has_merged_vertices(huge, scale) == _has_duplicate_rows(rows_of(huge))

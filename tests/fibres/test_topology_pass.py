@@ -1,0 +1,63 @@
+"""The compiled topology pass of the clean check (`fibres.slicing._topology_loop`) against the
+array version of `fibres.slicing.mesh_topology`, on meshes that stress its bucket sort and
+pairing: shuffled faces and vertex numbers (unsorted buckets, large valences), edges used
+once or three or four times, degenerate faces, inconsistent winding, several pieces."""
+import numpy as np
+import pytest
+import trimesh
+
+from fibres import slicing
+from fibres.slicing import _closed_topology, mesh_topology
+
+
+def _meshes():
+    rng = np.random.default_rng(11)
+    m = trimesh.creation.icosphere(subdivisions=3)
+    f0 = np.asarray(m.faces)
+    nv = len(m.vertices)
+    out = {"sphere": (f0, nv)}
+    perm = rng.permutation(nv)                                # vertex numbers shuffled
+    out["shuffled"] = (perm[f0][rng.permutation(len(f0))], nv)
+    cone = trimesh.creation.cone(radius=1.0, height=1.0, sections=200)   # valence 200
+    out["fan"] = (np.asarray(cone.faces), len(cone.vertices))
+    flipped = f0.copy()
+    flipped[::7] = flipped[::7, ::-1]
+    out["flipped"] = (flipped, nv)
+    out["two pieces"] = (np.vstack([f0, f0 + nv])[rng.permutation(2 * len(f0))], 2 * nv)
+    out["open"] = (f0[:-1], nv)                                # edges used once
+    out["tripled"] = (np.vstack([f0, f0[:1]]), nv)             # edges used three times
+    out["doubled"] = (np.vstack([f0, f0[:1], f0[:1, ::-1]]), nv)   # four times
+    bowtie = np.vstack([f0, f0 + nv])
+    bowtie = np.where(bowtie == nv + f0[0, 0], f0[0, 0], bowtie)   # pieces share a vertex
+    out["one shared vertex"] = (bowtie, 2 * nv)
+    out["unused vertex"] = (f0, nv + 1)
+    return out
+
+
+@pytest.mark.parametrize("case", list(_meshes()))
+def test_compiled_topology_pass_equals_the_array_version(case, monkeypatch):
+    pytest.importorskip("numba")
+    faces, nv = _meshes()[case]
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    with monkeypatch.context() as mp:
+        mp.setattr(slicing, "_TOPOLOGY", [None])
+        try:
+            ref = mesh_topology(faces, nv)
+        except ValueError:
+            ref = None
+    got = _closed_topology(faces, nv)
+    assert (got is None) == (ref is None) == (case in ("open", "tripled", "doubled"))
+    if ref is None:
+        return
+    top, n_pieces, all_used, _ = got
+    for name in ("faces", "edges", "face_edges", "neighbours"):
+        np.testing.assert_array_equal(getattr(top, name), getattr(ref, name))
+    assert top.oriented == ref.oriented == (case != "flipped")
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rows = np.repeat(np.arange(len(faces)), 3)
+    graph = coo_matrix((np.ones(rows.size), (rows, ref.neighbours.ravel())),
+                       shape=(len(faces), len(faces)))
+    assert n_pieces == connected_components(graph, directed=False, return_labels=False)
+    assert all_used == (np.bincount(faces.ravel(), minlength=nv) > 0).all()
