@@ -22,14 +22,15 @@ def _edge_loop(v, faces):  # pragma: no cover - compiled by numba
 
 
 def _bounds_loop(v):  # pragma: no cover - compiled by numba
-    """Coordinate-wise minimum and maximum of the vertices (V, 3)."""
-    lo = v[0].copy()
-    hi = v[0].copy()
+    """Coordinate-wise minimum and maximum of the vertices (V, 3) (running bounds in
+    scalars)."""
+    lx, ly, lz = v[0, 0], v[0, 1], v[0, 2]
+    hx, hy, hz = lx, ly, lz
     for i in range(1, v.shape[0]):
-        for k in range(3):
-            lo[k] = min(lo[k], v[i, k])
-            hi[k] = max(hi[k], v[i, k])
-    return lo, hi
+        x, y, z = v[i, 0], v[i, 1], v[i, 2]
+        lx, ly, lz = min(lx, x), min(ly, y), min(lz, z)
+        hx, hy, hz = max(hx, x), max(hy, y), max(hz, z)
+    return np.array([lx, ly, lz]), np.array([hx, hy, hz])
 
 
 def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numba
@@ -149,11 +150,9 @@ def _label_loop(start, dims):  # pragma: no cover - compiled by numba
             label[q] = 1
     for rnd in range(2):  # the empty border cells; then their empty interior neighbours
         for i in range(nx):
-            for j in range(ny):
-                for k in range(nz):
-                    if not (i == 0 or j == 0 or k == 0 or i == nx - 1 or j == ny - 1
-                            or k == nz - 1):
-                        continue
+            for j in range(ny):  # (inner rows: their two end cells only)
+                edge = i == 0 or j == 0 or i == nx - 1 or j == ny - 1
+                for k in range(0, nz, 1 if edge else nz - 1):
                     q = (i * ny + j) * nz + k
                     if rnd == 0:
                         if label[q] == 0:

@@ -169,11 +169,16 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
 
 
 def _vertex_bounds(v, lo, hi):  # pragma: no cover - compiled by numba
-    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place."""
+    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place (the
+    running bounds in scalars, not in the arrays: no store-to-load chain per vertex)."""
+    lx, ly, lz = lo[0], lo[1], lo[2]
+    hx, hy, hz = hi[0], hi[1], hi[2]
     for i in range(v.shape[0]):
-        for c in range(3):
-            lo[c] = min(lo[c], v[i, c])
-            hi[c] = max(hi[c], v[i, c])
+        x, y, z = v[i, 0], v[i, 1], v[i, 2]
+        lx, ly, lz = min(lx, x), min(ly, y), min(lz, z)
+        hx, hy, hz = max(hx, x), max(hy, y), max(hz, z)
+    lo[0], lo[1], lo[2] = lx, ly, lz
+    hi[0], hi[1], hi[2] = hx, hy, hz
 
 
 def _face_measure(v, i, j, k, tol2):  # pragma: no cover - compiled by numba
