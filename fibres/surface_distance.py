@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid_kernels import (_bounds_loop, _edge_loop, _flood, _grid_loop, _label_loop,
+from .grid_kernels import (_bounds_loop, _edge_loop, _flood, _grid_loop, _label_loop, _put,
                            _shapes_loop, _triangle_shape)
 
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
@@ -77,7 +77,8 @@ def _kernels():
             # the query calls the compiled helpers: numba resolves globals at compile time
             inline = numba.njit(inline="always", nogil=True)
             glb = dict(globals(), _closest_point=jit(_closest_point), _unit=inline(_unit),
-                       _flood=jit(_flood), _triangle_shape=inline(_triangle_shape))
+                       _flood=jit(_flood), _triangle_shape=inline(_triangle_shape),
+                       _put=inline(_put))
             glb["_blend"] = jit(types.FunctionType(_blend.__code__, glb, "_blend"))
             glb["_shape"] = inline(types.FunctionType(_shape.__code__, glb, "_shape"))
             glb["_shapes"] = jit(types.FunctionType(_shapes_loop.__code__, glb, "_shapes_loop"))
@@ -89,7 +90,7 @@ def _kernels():
             def bound(fn):
                 return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
 
-            _KERNELS.append({"edges": jit(_edge_loop), "grid": jit(_grid_loop),
+            _KERNELS.append({"edges": jit(_edge_loop), "grid": bound(_grid_loop),
                              "label": bound(_label_loop), "query": bound(_query_loop),
                              "reps": bound(_reps_inside),
                              "bounds": jit(_bounds_loop)})
