@@ -204,12 +204,14 @@ def _duplicates_loop(v, scale):  # pragma: no cover - compiled by numba
     """1 if two rows of ``q = rint(v * scale)`` (v (V, 3) float64; rint rounds half to even
     as numpy's round) are equal, else 0, in O(V); -1 (undecided) when some ``|q|`` is not
     below 2**63 (or NaN), where numpy's int64 cast is not exact. A row hash of the int64
-    rows picks a slot of a table of >= 2 V slots (linear probing; Knuth, TAOCP vol. 3, §6.4,
-    algorithm L); rows meeting in a probe sequence are compared exactly (equal int64 rows
-    are equal rounded rows, -0.0 == 0.0 included; the answer does not depend on the hash)."""
+    rows picks a slot of a table of >= 4 V slots (linear probing; Knuth, TAOCP vol. 3, §6.4,
+    algorithm L; at most a quarter full, so few rows probe twice: on the 15K bench mesh
+    0.126 -> 0.074 ms against 2 V slots, 8 V no faster); rows meeting in a probe sequence
+    are compared exactly (equal int64 rows are equal rounded rows, -0.0 == 0.0 included;
+    the answer does not depend on the hash)."""
     n = v.shape[0]
     size = 1
-    while size < 2 * n:
+    while size < 4 * n:
         size *= 2
     mask = size - 1
     slot = np.full(size, -1, np.int32)  # (V < 2**31 rows: a vertex index)

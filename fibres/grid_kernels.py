@@ -22,14 +22,22 @@ def _edge_loop(v, faces):  # pragma: no cover - compiled by numba
 
 
 def _bounds_loop(v):  # pragma: no cover - compiled by numba
-    """Coordinate-wise minimum and maximum of the vertices (V, 3)."""
-    lo = v[0].copy()
-    hi = v[0].copy()
+    """Coordinate-wise minimum and maximum of the vertices (V, 3) (running bounds in
+    scalars)."""
+    lx, ly, lz = v[0, 0], v[0, 1], v[0, 2]
+    hx, hy, hz = lx, ly, lz
     for i in range(1, v.shape[0]):
-        for k in range(3):
-            lo[k] = min(lo[k], v[i, k])
-            hi[k] = max(hi[k], v[i, k])
-    return lo, hi
+        x, y, z = v[i, 0], v[i, 1], v[i, 2]
+        lx, ly, lz = min(lx, x), min(ly, y), min(lz, z)
+        hx, hy, hz = max(hx, x), max(hy, y), max(hz, z)
+    return np.array([lx, ly, lz]), np.array([hx, hy, hz])
+
+
+def _put(items, fill, q, t):  # pragma: no cover - compiled by numba (inlined)
+    """Append triangle t to cell q's items (next free position fill[q])."""
+    p = fill[q]
+    items[p] = t
+    fill[q] = p + 1
 
 
 def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numba
@@ -38,9 +46,13 @@ def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numb
     Each vertex's cell is computed once: ``floor((x - lo) / cell)`` is monotone in x, so a
     triangle's range is the min/max of its vertices' cells (the cells of its coordinate-wise
     minimum and maximum). The counting pass keeps each triangle's first cell and its spans
-    (21 bits each) for the filling pass."""
+    (21 bits each) for the filling pass. A triangle spanning at most 2 cells along each axis
+    (nearly all: cells are >= 1.5 mean edges) has its cells enumerated by bit tests, without
+    loops (whose short, varying trip counts cost more than the work: on the 15K bench mesh
+    0.60 -> 0.48 ms); the others by the nested loops. Items stay in triangle order."""
     n_tri, n_v = faces.shape[0], v.shape[0]
     ny, nz = dims[1], dims[2]
+    s1, s2 = nz, ny * nz          # the strides of j and i
     vc = np.empty(n_v * 3, np.int32)
     for i in range(n_v):
         for k in range(3):
@@ -48,6 +60,7 @@ def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numb
     count = np.zeros(dims[0] * ny * nz + 1, np.int32)
     base = np.empty(n_tri, np.int32)
     span = np.empty(n_tri, np.int64)
+    small = np.int64((1 << 42) | (1 << 21) | 1)   # the span bits of 0 or 1 more cell
     for t in range(n_tri):
         a, b, c = 3 * faces[t, 0], 3 * faces[t, 1], 3 * faces[t, 2]
         i0, i1 = min(vc[a], vc[b], vc[c]), max(vc[a], vc[b], vc[c])
@@ -55,7 +68,26 @@ def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numb
         k0, k1 = min(vc[a + 2], vc[b + 2], vc[c + 2]), max(vc[a + 2], vc[b + 2], vc[c + 2])
         q0 = (i0 * ny + j0) * nz + k0
         base[t] = q0
-        span[t] = (np.int64(i1 - i0) << 42) | (np.int64(j1 - j0) << 21) | (k1 - k0)
+        sp = (np.int64(i1 - i0) << 42) | (np.int64(j1 - j0) << 21) | (k1 - k0)
+        span[t] = sp
+        if sp & ~small == 0:   # counts (shifted by one: the prefix sum makes the starts)
+            q = q0 + 1
+            count[q] += 1
+            if sp & 1:
+                count[q + 1] += 1
+            if sp & (1 << 21):
+                count[q + s1] += 1
+                if sp & 1:
+                    count[q + s1 + 1] += 1
+            if sp & (1 << 42):
+                count[q + s2] += 1
+                if sp & 1:
+                    count[q + s2 + 1] += 1
+                if sp & (1 << 21):
+                    count[q + s2 + s1] += 1
+                    if sp & 1:
+                        count[q + s2 + s1 + 1] += 1
+            continue
         for i in range(i1 - i0 + 1):
             for j in range(j1 - j0 + 1):
                 qq = q0 + (i * ny + j) * nz + 1
@@ -67,12 +99,28 @@ def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numb
     fill = count[:-1].copy()
     for t in range(n_tri):
         q0, sp = base[t], span[t]
+        if sp & ~small == 0:
+            _put(items, fill, q0, t)
+            if sp & 1:
+                _put(items, fill, q0 + 1, t)
+            if sp & (1 << 21):
+                _put(items, fill, q0 + s1, t)
+                if sp & 1:
+                    _put(items, fill, q0 + s1 + 1, t)
+            if sp & (1 << 42):
+                _put(items, fill, q0 + s2, t)
+                if sp & 1:
+                    _put(items, fill, q0 + s2 + 1, t)
+                if sp & (1 << 21):
+                    _put(items, fill, q0 + s2 + s1, t)
+                    if sp & 1:
+                        _put(items, fill, q0 + s2 + s1 + 1, t)
+            continue
         for i in range((sp >> 42) + 1):
             for j in range(((sp >> 21) & 2097151) + 1):
                 qq = q0 + (i * ny + j) * nz
                 for k in range((sp & 2097151) + 1):
-                    items[fill[qq + k]] = t
-                    fill[qq + k] += 1
+                    _put(items, fill, qq + k, t)
     return count, items
 
 
@@ -149,11 +197,9 @@ def _label_loop(start, dims):  # pragma: no cover - compiled by numba
             label[q] = 1
     for rnd in range(2):  # the empty border cells; then their empty interior neighbours
         for i in range(nx):
-            for j in range(ny):
-                for k in range(nz):
-                    if not (i == 0 or j == 0 or k == 0 or i == nx - 1 or j == ny - 1
-                            or k == nz - 1):
-                        continue
+            for j in range(ny):  # (inner rows: their two end cells only)
+                edge = i == 0 or j == 0 or i == nx - 1 or j == ny - 1
+                for k in range(0, nz, 1 if edge else nz - 1):
                     q = (i * ny + j) * nz + k
                     if rnd == 0:
                         if label[q] == 0:

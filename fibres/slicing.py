@@ -169,11 +169,16 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
 
 
 def _vertex_bounds(v, lo, hi):  # pragma: no cover - compiled by numba
-    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place."""
+    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place (the
+    running bounds in scalars, not in the arrays: no store-to-load chain per vertex)."""
+    lx, ly, lz = lo[0], lo[1], lo[2]
+    hx, hy, hz = hi[0], hi[1], hi[2]
     for i in range(v.shape[0]):
-        for c in range(3):
-            lo[c] = min(lo[c], v[i, c])
-            hi[c] = max(hi[c], v[i, c])
+        x, y, z = v[i, 0], v[i, 1], v[i, 2]
+        lx, ly, lz = min(lx, x), min(ly, y), min(lz, z)
+        hx, hy, hz = max(hx, x), max(hy, y), max(hz, z)
+    lo[0], lo[1], lo[2] = lx, ly, lz
+    hi[0], hi[1], hi[2] = hx, hy, hz
 
 
 def _face_measure(v, i, j, k, tol2):  # pragma: no cover - compiled by numba
@@ -197,14 +202,18 @@ def _face_measure(v, i, j, k, tol2):  # pragma: no cover - compiled by numba
 
 
 def compile_with_measures(fn):
-    """``fn`` compiled by numba with `_vertex_bounds` and `_face_measure` inlined into it
-    (numba resolves the globals a compiled function calls when it compiles it)."""
+    """``fn`` compiled by numba with `_vertex_bounds`, `_face_measure` and
+    `fibres.sort_networks._sort_small` inlined into it (numba resolves the globals a compiled
+    function calls when it compiles it)."""
     import types
 
     import numba
 
+    from .sort_networks import _sort_small
+
     inline = numba.njit(inline="always", nogil=True)
-    glb = dict(fn.__globals__, _vertex_bounds=inline(_vertex_bounds), _face_measure=inline(_face_measure))
+    glb = dict(fn.__globals__, _vertex_bounds=inline(_vertex_bounds),
+               _face_measure=inline(_face_measure), _sort_small=inline(_sort_small))
     return numba.njit(cache=True, nogil=True)(types.FunctionType(fn.__code__, glb, fn.__name__))
 
 
@@ -227,16 +236,17 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     """`mesh_topology` of a mesh whose edges are each shared by exactly two faces, in
     O(T + V): the half-edges are bucketed by their smaller vertex (a counting sort in
     half-edge order; Cormen et al., Introduction to Algorithms, §8.2) and each bucket (a
-    vertex's few edges) is insertion-sorted by the larger vertex. Both sorts are stable, so
-    the order is that of a stable argsort of the keys ``min * V + max`` and edge ``e`` is the
-    pair of sorted positions ``2e, 2e+1``, exactly as in the array version. A half-edge is
-    one int64 ``max << 32 | (2 h + (runs min -> max))`` (T < 2**29): sorting these by value
-    in a bucket is the stable sort by the larger vertex (ties in half-edge order), with one
-    array to move, and the pairing reads them in order. With ``pieces``, the edge-connected pieces are counted by a flood fill over the
-    face neighbours (depth-first, an explicit stack) and the used vertices marked. With
+    vertex's few edges) is sorted by the larger vertex, stably. So the order is that of a
+    stable argsort of the keys ``min * V + max`` and edge ``e`` is the pair of sorted
+    positions ``2e, 2e+1``, exactly as in the array version. A half-edge is one int64
+    ``max << 32 | (2 h + (runs min -> max))`` (T < 2**29): sorting these distinct keys by
+    value in a bucket is the stable sort by the larger vertex (ties in half-edge order), with
+    one array to move, by a sorting network for 4, 6 or 8 keys (`fibres.sort_networks`:
+    nearly every bucket; no data-dependent branches) or else by insertion; the pairing reads
+    them in order. With ``pieces``, the edge-connected pieces are counted by a flood fill over
+    the face neighbours (depth-first, an explicit stack) and the used vertices marked. With
     vertices ``v`` (V, 3) (else (0, 3)), the first pass also measures each face as
-    `fibres.clean_check._geometry_loop` (the same operations in the same order; its integer work
-    and this floating-point work overlap).
+    `fibres.clean_check._geometry_loop` (the same operations in the same order).
 
     Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces,
     geometry_ok, volume, edge_sum, lo, hi); ``ok``
@@ -297,8 +307,10 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
             p = fill[lo]
             fill[lo] = p + 1
             key[p] = (max(a, b) << 32) | (2 * (3 * t + j) + (a < b))
-    for vb in range(n_vertices):  # each bucket insertion-sorted by key
-        s0 = start[vb]
+    for vb in range(n_vertices):  # each bucket sorted by key: a network for 4, 6 or 8
+        s0 = start[vb]            # keys (nearly all buckets), else insertion
+        if _sort_small(key, s0, start[vb + 1] - s0):
+            continue
         for i in range(s0 + 1, start[vb + 1]):
             x = key[i]
             m = i - 1

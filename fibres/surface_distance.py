@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .grid_kernels import (_bounds_loop, _edge_loop, _flood, _grid_loop, _label_loop,
+from .grid_kernels import (_bounds_loop, _edge_loop, _flood, _grid_loop, _label_loop, _put,
                            _shapes_loop, _triangle_shape)
 
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
@@ -77,7 +77,8 @@ def _kernels():
             # the query calls the compiled helpers: numba resolves globals at compile time
             inline = numba.njit(inline="always", nogil=True)
             glb = dict(globals(), _closest_point=jit(_closest_point), _unit=inline(_unit),
-                       _flood=jit(_flood), _triangle_shape=inline(_triangle_shape))
+                       _flood=jit(_flood), _triangle_shape=inline(_triangle_shape),
+                       _put=inline(_put))
             glb["_blend"] = jit(types.FunctionType(_blend.__code__, glb, "_blend"))
             glb["_shape"] = inline(types.FunctionType(_shape.__code__, glb, "_shape"))
             glb["_shapes"] = jit(types.FunctionType(_shapes_loop.__code__, glb, "_shapes_loop"))
@@ -89,7 +90,7 @@ def _kernels():
             def bound(fn):
                 return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
 
-            _KERNELS.append({"edges": jit(_edge_loop), "grid": jit(_grid_loop),
+            _KERNELS.append({"edges": jit(_edge_loop), "grid": bound(_grid_loop),
                              "label": bound(_label_loop), "query": bound(_query_loop),
                              "reps": bound(_reps_inside),
                              "bounds": jit(_bounds_loop)})
@@ -166,9 +167,10 @@ def _crossings(px, py, pz, ci, cj, ck, axis, sgn, n_cells, end, v, faces, start,
         q = (i * ny + j) * nz + k
         for e in range(start[q], start[q + 1]):
             t = items[e]
-            if stamp[t] == p:
-                continue
-            stamp[t] = p
+            if n_cells > 1:   # (in one cell each triangle comes once)
+                if stamp[t] == p:
+                    continue
+                stamp[t] = p
             a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
             au, aw, bu, bw, cu, cw = v[a, u], v[a, w], v[b, u], v[b, w], v[c, u], v[c, w]
             d = (bu - au) * (cw - aw) - (bw - aw) * (cu - au)
@@ -321,12 +323,26 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
         if stamp.shape[0] == 0:
             stamp = np.full(n_tri, -1, np.int32)
         lim0 = lim
+        # a narrow search whose point is farther than lim from its cell's six neighbours
+        # (by the ring's own gap tests, which prune their slabs and rows) visits no cell of
+        # ring 1: it skips the ring at once
+        skip1 = narrow
+        if narrow:
+            for dd in range(-1, 3, 2):
+                gx = max(lo[0] + (ci + dd) * cell - px, px - lo[0] - (ci + dd + 1) * cell, 0.0)
+                gy = max(lo[1] + (cj + dd) * cell - py, py - lo[1] - (cj + dd + 1) * cell, 0.0)
+                gz = max(lo[2] + (ck + dd) * cell - pz, pz - lo[2] - (ck + dd + 1) * cell, 0.0)
+                if not (gx * gx > lim * lim and gy * gy > lim * lim and gz * gz > lim * lim):
+                    skip1 = False
         for attempt in range(2):  # inside points: a second pass when one within watch
             mark = p if attempt == 0 else -2 - p  # (a fresh stamp for the pass)
             best = np.inf
             nb = 0
             r = 0
             while (r - 1) * cell <= lim:
+                if r == 1 and skip1 and attempt == 0:
+                    r = 2
+                    continue
                 for di in range(-r, r + 1):
                     i = ci + di
                     if i < 0 or i >= nx:

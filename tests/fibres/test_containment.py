@@ -293,6 +293,38 @@ def test_cell_labels_match_connected_components(torus):
     assert n_enclosed > 10                                  # not vacuous
 
 
+def test_grid_csr_matches_a_numpy_binning(torus):
+    # the compiled binning (bit-tested spans of 0/1 cell, loops beyond) against a plain
+    # numpy one: every triangle in every cell of its vertex box, each cell's triangles in
+    # ascending order; on the torus, and on a fine sphere with a large tetrahedron beside it
+    # (its faces span many cells of the sphere's grid)
+    v, f = torus
+    fine = trimesh.creation.icosphere(subdivisions=4)
+    tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]) * 0.06 + 0.012
+    vs = np.vstack([np.asarray(fine.vertices) * 0.01, tet])
+    fs = np.vstack([fine.faces, np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+                    + len(fine.vertices)])
+    spans = set()
+    for vv, ff in ((v, f), (vs, fs)):
+        grid = SurfaceGrid(vv, ff, reach=0.008)
+        cells = np.clip(np.floor((grid.vertices - grid.lo) / grid.cell).astype(np.int64), 0,
+                        grid.dims - 1)[grid.faces]                  # (T, 3 corners, 3)
+        lo, hi = cells.min(axis=1), cells.max(axis=1)
+        pairs = []
+        for t in range(len(ff)):
+            i, j, k = np.meshgrid(*[np.arange(lo[t, a], hi[t, a] + 1) for a in range(3)],
+                                  indexing="ij")
+            q = ((i * grid.dims[1] + j) * grid.dims[2] + k).ravel()
+            pairs.append(np.c_[q, np.full(q.size, t)])
+            spans.add(int((hi[t] - lo[t]).max()))
+        pairs = np.concatenate(pairs)
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+        start = np.searchsorted(pairs[:, 0], np.arange(np.prod(grid.dims) + 1))
+        np.testing.assert_array_equal(grid.start, start)
+        np.testing.assert_array_equal(grid.items, pairs[:, 1])
+    assert {0, 1}.issubset(spans) and max(spans) >= 5                # not vacuous
+
+
 def test_grid_cell_size_does_not_change_the_distances(torus):
     v, f = torus
     x = chords().reshape(-1, 3)
