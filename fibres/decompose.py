@@ -354,13 +354,14 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     axis : {"auto", "attachments", "covariance"}, keyword-only
         Principal-axis rule when no plan is given.
     contain : bool, keyword-only
-        Finally pull every inner fibre point that lies outside the surface back in along
-        its shortest path, smoothly (`fibres.containment`; our addition to the paper: its
-        straight reconstructed end segments, resampling chords and mean value coordinates
-        on non-convex contours leave points up to ~4 mm outside curved muscles). Points
-        inside are not moved; pulled points end less than 0.2 mm outside. Every inner
+        Finally pull every inner fibre point that lies outside the surface, or inside it
+        by less than 0.2 mm, smoothly in along the surface normal (`fibres.containment`;
+        our addition to the paper: its straight reconstructed end segments, resampling
+        chords and mean value coordinates on non-convex contours leave points up to ~4 mm
+        outside curved muscles). Points deeper than 0.2 mm are not moved; pulled points
+        end inside, at least 0.1 mm deep. Every inner
         point is classified on every call (no choice is kept in the plan). Cost (one
-        core, CPU): ~1.4 ms per call at 15K vertices x 100 fibres x 20 points, ~4.6 ms at
+        core, CPU): ~1.6 ms per call at 15K vertices x 100 fibres x 20 points, ~4.6 ms at
         60K vertices (`fibres.containment`); False skips it.
 
     Returns
