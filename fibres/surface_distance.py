@@ -427,6 +427,10 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
             if not (enclosed and watch < reach and best < lim0 < best + keep):
                 break
             lim = best + keep
+        if nb == 0:   # no triangle: `_blend`'s empty blend, without the call
+            out_s[p] = -np.inf
+            out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
+            continue
         _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p, offset)
         if enclosed and not offset and np.isfinite(out_s[p]):
             out_s[p] = -abs(out_s[p])
