@@ -44,10 +44,17 @@ nearer, for the others of its blend; `fibres.surface_distance`, ``watch``).
 Cost (one core, CPU): the grid and its cell labels are built per call, O(T); the inside test
 of a point is a label look-up or a short parity walk, the distance search runs for outside
 points only (the triangles' normals and bounding spheres are made only then). Measured per
-call on the bench meshes (100 fibres x 20 points): 0.8 ms (1K vertices), 1.4 ms (15K),
-4.6 ms (60K); LHDL muscles 1.3-2.8 ms. Tried and dropped:
+call (median CPU time on a shared 2-core machine, where the earlier figures 0.8/1.4/4.6 ms
+measured 2.0/2.0/5.8 ms) on the bench meshes (100 fibres x 20 points): 1.6 ms (1K vertices),
+1.4 ms (15K), 4.0 ms (60K); LHDL muscles (100 x 16) 1.5-4.7 ms. Tried and dropped:
 candidate triangles or watched points chosen on the rest pose and frozen in the plan (cheap per
-frame, but wrong on deformed frames: fibres slide along the surface, see above).
+frame, but wrong on deformed frames: fibres slide along the surface, see above); each
+triangle's box in eighth-cells kept by the grid, to pass over triangles before reading their
+vertices (15K: the searches 0.09 ms faster, the grid as much slower); the own cell's vertex
+box tests made during the parity test (no faster); classifying every point first by one pass
+over the triangles, building the grid only for points near the surface or outside (saves the
+grid only when no point is near, as on the 15K bench; the 1K and 60K bench meshes and the
+LHDL muscles always have some).
 """
 from __future__ import annotations
 

@@ -49,7 +49,9 @@ def _grid_loop(v, faces, lo, cell, dims):  # pragma: no cover - compiled by numb
     (21 bits each) for the filling pass. A triangle spanning at most 2 cells along each axis
     (nearly all: cells are >= 1.5 mean edges) has its cells enumerated by bit tests, without
     loops (whose short, varying trip counts cost more than the work: on the 15K bench mesh
-    0.60 -> 0.48 ms); the others by the nested loops. Items stay in triangle order."""
+    0.60 -> 0.48 ms); the others by the nested loops. Items stay in triangle order. (Slower:
+    runs of consecutive triangles with equal cells counted and filled at once; (cell,
+    triangle) pairs listed, then counting-sorted.)"""
     n_tri, n_v = faces.shape[0], v.shape[0]
     ny, nz = dims[1], dims[2]
     s1, s2 = nz, ny * nz          # the strides of j and i

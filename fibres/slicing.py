@@ -169,8 +169,7 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
 
 
 def _vertex_bounds(v, lo, hi):  # pragma: no cover - compiled by numba
-    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place (the
-    running bounds in scalars, not in the arrays: no store-to-load chain per vertex)."""
+    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place."""
     lx, ly, lz = lo[0], lo[1], lo[2]
     hx, hy, hz = hi[0], hi[1], hi[2]
     for i in range(v.shape[0]):
@@ -243,9 +242,9 @@ def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compil
     value in a bucket is the stable sort by the larger vertex (ties in half-edge order), with
     one array to move, by a sorting network for 4, 6 or 8 keys (`fibres.sort_networks`:
     nearly every bucket; no data-dependent branches) or else by insertion; the pairing reads
-    them in order. With ``pieces``, the edge-connected pieces are counted by a flood fill over
-    the face neighbours (depth-first, an explicit stack) and the used vertices marked. With
-    vertices ``v`` (V, 3) (else (0, 3)), the first pass also measures each face as
+    them in order. With ``pieces``, the edge-connected pieces are counted by a flood fill
+    over the face neighbours (depth-first, an explicit stack) and the used vertices marked.
+    With vertices ``v`` (V, 3) (else (0, 3)), the first pass also measures each face as
     `fibres.clean_check._geometry_loop` (the same operations in the same order).
 
     Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces,

@@ -2,7 +2,10 @@
 pass): fixed sequences of compare-exchanges, without the data-dependent branches of an
 insertion sort (Knuth, The Art of Computer Programming vol. 3, §5.3.4). The networks are the
 known optimal ones for 4 (5 comparators), 6 (12) and 8 (19) keys; with distinct keys any
-sort gives the same order, so they replace the insertion sort exactly.
+sort gives the same order, so they replace the insertion sort exactly. (Tried for the
+topology pass and no faster: a radix sort of the half-edges by larger then smaller vertex,
+ranks by counting in each bucket, the pieces by union-find in the pairing loop, a
+branch-free flood fill.)
 """
 from __future__ import annotations
 

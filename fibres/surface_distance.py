@@ -253,8 +253,10 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
     only those the searches visit."""
     n_tri = faces.shape[0]
     nx, ny, nz = dims[0], dims[1], dims[2]
-    stamp = np.full(0, -1, np.int32)      # made on first need (point index per triangle)
-    parity = np.full(0, -1, np.int32)
+    # made on first need: per triangle the last search that met it (p, -2 - p: the two
+    # passes of point p's search; n + p: its parity test)
+    stamp = np.full(0, -1, np.int32)
+    n_pts = points.shape[0]
     cap = 4096
     bd, bx, by, bz = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
     bt = np.empty(cap, np.int64)
@@ -284,10 +286,10 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
                     out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
                     continue
             elif labelled and watch < reach and label[q] == 1:
-                if parity.shape[0] == 0:
-                    parity = np.full(n_tri, -1, np.int32)
+                if stamp.shape[0] == 0:
+                    stamp = np.full(n_tri, -1, np.int32)
                 if _column_inside(px, py, pz, ci, cj, ck, v, faces, start, items, label,
-                                  dims, lo, cell, parity, p):
+                                  dims, lo, cell, stamp, n_pts + p):
                     if watch <= 0.0:
                         out_s[p] = -np.inf      # inside (ray parity): no distance wanted
                         out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
@@ -425,6 +427,10 @@ def _query_loop(points, v, faces, nrm, centre, radius, ready, lazy, lo, cell, di
             if not (enclosed and watch < reach and best < lim0 < best + keep):
                 break
             lim = best + keep
+        if nb == 0:   # no triangle: `_blend`'s empty blend, without the call
+            out_s[p] = -np.inf
+            out_n[p, 0] = out_n[p, 1] = out_n[p, 2] = 0.0
+            continue
         _blend(bd, bx, by, bz, bt, nb, best, nrm, tau, kappa, out_s, out_n, p, offset)
         if enclosed and not offset and np.isfinite(out_s[p]):
             out_s[p] = -abs(out_s[p])
