@@ -250,10 +250,9 @@ def _has_duplicate_rows(q):
 
 
 def _n_pieces(neighbours):
-    """Number of edge-connected pieces of a closed mesh from its (T, 3) face neighbours."""
-    kernel = _pieces_kernel()
-    if kernel is not None:
-        return int(kernel(np.ascontiguousarray(neighbours, dtype=np.int64)))
+    """Number of edge-connected pieces of a closed mesh from its (T, 3) face neighbours
+    (scipy's connected components). Only the path without the compiled topology pass needs
+    it: that pass counts the pieces itself (`fibres.slicing._topology_loop`)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -263,42 +262,3 @@ def _n_pieces(neighbours):
     return connected_components(graph, directed=False, return_labels=False)
 
 
-_PIECES = []
-
-
-def _pieces_kernel():
-    """`_pieces_loop` compiled with numba, or None (then scipy's connected components)."""
-    if not _PIECES:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _PIECES.append(None)
-        else:
-            _PIECES.append(numba.njit(cache=True, nogil=True)(_pieces_loop))
-    return _PIECES[0]
-
-
-def _pieces_loop(nb):  # pragma: no cover - compiled by numba
-    """Flood fill (depth first, an explicit stack) over the face adjacency; returns the
-    number of pieces. Every face is pushed once, so the stack never exceeds T."""
-    n = nb.shape[0]
-    seen = np.zeros(n, dtype=np.bool_)
-    stack = np.empty(n, dtype=np.int64)
-    pieces = 0
-    for s in range(n):
-        if seen[s]:
-            continue
-        pieces += 1
-        seen[s] = True
-        stack[0] = s
-        top = 1
-        while top > 0:
-            top -= 1
-            t = stack[top]
-            for j in range(3):
-                u = nb[t, j]
-                if not seen[u]:
-                    seen[u] = True
-                    stack[top] = u
-                    top += 1
-    return pieces

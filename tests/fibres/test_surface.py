@@ -298,22 +298,22 @@ def test_pieces_touching_at_one_vertex_are_not_clean():
 
 
 @pytest.mark.parametrize("n_pieces", [1, 2, 5])
-def test_compiled_pieces_count_equals_scipy(n_pieces, monkeypatch):
-    # the compiled flood fill counts the same edge-connected pieces as scipy's connected
-    # components (the fallback), with the pieces' faces interleaved in the face list
+def test_compiled_pieces_count_equals_scipy(n_pieces):
+    # the compiled topology pass's flood fill counts the same edge-connected pieces as
+    # scipy's connected components (the path without it), with the pieces' faces
+    # interleaved in the face list
     pytest.importorskip("numba")
     import fibres.clean_check as fs
-    from fibres.slicing import mesh_topology
+    from fibres.slicing import _closed_topology, mesh_topology
 
     m = trimesh.creation.icosphere(subdivisions=2)
     v0, f0 = np.asarray(m.vertices), np.asarray(m.faces)
     v = np.vstack([v0 + [3.0 * p, 0, 0] for p in range(n_pieces)])
-    f = np.vstack([f0 + p * len(v0) for p in range(n_pieces)])
+    f = np.vstack([f0 + p * len(v0) for p in range(n_pieces)]).astype(np.int64)
     f = f[np.random.default_rng(n_pieces).permutation(len(f))]
     nb = mesh_topology(f, len(v)).neighbours
     assert fs._n_pieces(nb) == n_pieces
-    monkeypatch.setattr(fs, "_PIECES", [None])
-    assert fs._n_pieces(nb) == n_pieces
+    assert _closed_topology(np.ascontiguousarray(f), len(v))[1] == n_pieces
 
 
 def test_attachment_area_closest_points_compiled_equal_numpy(monkeypatch):
