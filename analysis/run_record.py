@@ -12,8 +12,16 @@ Layout::
       "settings": {...},
       "timings_s": {"<stage>": seconds, ...},
       "frames": {"count": F, "motion_rows": [first, last], "time": [t0, t1]},
-      "muscles": {"<name>": {"n_fibres": N, "coordinates": [...], "action_lines": [...]}}
+      "muscles": {"<name>": {"n_fibres": N, "coordinates": [...], "action_lines": [...]}},
+      "estimate": {"memory_bytes": ..., "disk_bytes": ..., "max_memory_bytes": ...},
+      "files": ["fibre_lengths.csv", ..., "run.json"],          # fibres run: what it wrote
+      "file_names": {"muscles": {"<name>": "<file stem>"}, "coordinates": {...}}
     }
+
+``files`` is the manifest of the run (paths relative to the output folder; the next run into
+the folder removes those it does not write again, `analysis.out_folder`); ``file_names`` maps
+every muscle and coordinate name to the stem its files are named with (`analysis.file_names`:
+the name itself unless it is unsafe as a file name).
 """
 from __future__ import annotations
 
@@ -91,13 +99,16 @@ def run_record(result, *, command=None) -> dict:
     }
 
 
-def write_run_json(result, path, *, command=None, extra_timings=None) -> dict:
-    """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing)."""
+def write_run_json(result, path, *, command=None, extra_timings=None, extra=None) -> dict:
+    """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing),
+    ``extra`` adds top-level keys (`fibres run`: ``files``, ``file_names``)."""
     from .output_files import write_text
 
     record = run_record(result, command=command)
     if extra_timings:
         record["timings_s"].update({k: round(float(v), 6) for k, v in extra_timings.items()})
+    if extra:
+        record.update(_jsonable(extra))
     write_text(json.dumps(record, indent=2, allow_nan=True) + "\n", path)
     return record
 
