@@ -516,12 +516,13 @@ def _read_points(ctx, file, table, where, unit):
         for k in ("where", "columns"):
             if k in table:
                 ctx.fail(f"{where}.{k}", "only allowed with a CSV file", f"Remove {k}.")
-        try:
-            import pyvista
+        from fibres.errors import InputError as MeshError
+        from fibres.surface import read_mesh
 
-            pts = np.asarray(pyvista.read(str(file)).points, dtype=float)
-        except Exception as exc:  # noqa: BLE001 - any reader failure is bad input
-            ctx.fail(f"{where}.file", f"cannot read the point cloud {file.name} ({exc})",
+        try:
+            pts, _ = read_mesh(file)
+        except MeshError as exc:   # untrusted file: read without VTK (fibres.vtk_reader)
+            ctx.fail(f"{where}.file", f"cannot read the point cloud {file.name} ({exc.problem})",
                      "Give a CSV with x,y,z columns or a VTK/VTP/PLY point cloud.")
         if pts.ndim != 2 or len(pts) == 0:
             ctx.fail(f"{where}.file", f"no points in {file.name}", "Give a file with at least one point.")
