@@ -84,7 +84,7 @@ def execute(args) -> int:
     from .budget import parse_size
     from .out_folder import OutFolderLock, check_out_folder, clean_stale
     from .output_files import prepare_out_dir
-    from .run import _select_muscles, run
+    from .run import _select_muscles, check_mesh_files, run
     from .spec import load_spec
 
     spec = Path(args.spec) if args.spec is not None else default_spec()
@@ -99,8 +99,9 @@ def execute(args) -> int:
     try:
         # bad input is reported before the output folder is created
         loaded = load_spec(spec)
-        _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution,
-                        template=args.template)
+        chosen = _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution,
+                                 template=args.template)
+        check_mesh_files(chosen)
         out = prepare_out_dir(args.out)
         if lock.fd is None:
             lock.acquire()

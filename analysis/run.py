@@ -308,6 +308,16 @@ def _select_muscles(spec, muscles, *, fibres, resolution, template):
     return [dataclasses.replace(m, **over) for m in chosen]
 
 
+def check_mesh_files(mspecs) -> None:
+    """Read every mesh and bone file of the muscles once (`fibres.surface.read_mesh`), so that a
+    damaged file is reported before any work or output folder (the run reads them again)."""
+    from fibres.surface import read_mesh
+
+    for m in mspecs:
+        for path in ([m.mesh] if m.mesh is not None else []) + [p for _, p in m.bones]:
+            read_mesh(path)
+
+
 def _spanned_coordinates(ctx, mspec):
     """Indices (into model coordinates) of the independent coordinates the muscle's lines span."""
     lines = ctx.lines

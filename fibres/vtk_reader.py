@@ -116,14 +116,14 @@ def _cells_from_offsets(offsets, conn, n_points, what, *, leading_zero):
         if offsets.size == 0:
             raise _Bad(f"{what}: empty OFFSETS array")
         if offsets[0] != 0:
-            raise _Bad(f"{what}: OFFSETS must start at 0, got {offsets[0]}")
+            raise _Bad(f"{what}: the cell OFFSETS must start at 0, got {offsets[0]}")
         ends = offsets[1:]
     else:
         ends = offsets
     starts = np.concatenate([[0], ends[:-1]]) if ends.size else np.zeros(0, np.int64)
     if ends.size and (np.any(np.diff(np.concatenate([[0], ends])) < 0) or ends[-1] != conn.size):
-        raise _Bad(f"{what}: the offsets are not increasing or do not end at the connectivity "
-                   f"size {conn.size}")
+        raise _Bad(f"{what}: the cell OFFSETS are not increasing or do not end at the "
+                   f"connectivity size {conn.size}")
     if not ends.size and conn.size:
         raise _Bad(f"{what}: connectivity without offsets")
     if conn.size and (conn.min() < 0 or conn.max() >= n_points):
