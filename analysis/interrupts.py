@@ -17,14 +17,24 @@ for the few milliseconds in which finished files are moved into place, and raise
 
 Without `honoured` (the Python API) nothing is installed: `check` only looks at the flag, which
 stays clear, and Ctrl-C behaves as Python's default.
+
+Before `honoured` there is the time in which Python loads the packages (about 0.2 s: numpy,
+pandas ...). When the process *is* the ``fibres`` command (``fibres ...`` or ``python -m
+analysis.cli``, `is_the_command`), ``analysis/__init__.py`` calls `install_early` first thing:
+a Ctrl-C then ends the process at once with status 130 and one line, as nothing has started
+and nothing needs cleaning up (instead of Python's traceback from inside an import). Only the
+interpreter's own start-up (tens of milliseconds, before any of our code runs) is left to
+Python's default handling.
 """
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 import threading
 
-__all__ = ["honoured", "deferred", "check", "requested", "clear"]
+__all__ = ["honoured", "deferred", "check", "requested", "clear", "install_early", "is_the_command"]
 
 _FLAG = threading.Event()
 _DEFERRING = threading.Event()
@@ -35,6 +45,30 @@ def handler(signum, frame):  # noqa: ARG001 - signal API
     _FLAG.set()
     if not _DEFERRING.is_set():
         raise KeyboardInterrupt
+
+
+def is_the_command() -> bool:
+    """Whether this process is the ``fibres`` command line (not a library user)."""
+    if os.path.basename(sys.argv[0] if sys.argv else "").lower() in ("fibres", "fibres.exe",
+                                                                      "fibres-script.py"):
+        return True
+    orig = list(getattr(sys, "orig_argv", ()))
+    return any(a == "-m" and orig[i + 1:i + 2] == ["analysis.cli"] for i, a in enumerate(orig))
+
+
+def _early(signum, frame):  # noqa: ARG001 - signal API
+    try:
+        sys.stderr.write("fibres: interrupted while starting; nothing was written.\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(130)
+
+
+def install_early() -> None:
+    """SIGINT -> exit 130 at once, while the command's packages load (module docstring)."""
+    if threading.current_thread() is threading.main_thread() and \
+            signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _early)
 
 
 def requested() -> bool:
