@@ -105,6 +105,8 @@ def main(argv=None) -> int:
     if code == 130:
         command = _command_name(argv)
         print(f"fibres {command}: interrupted; no partial output was left.", file=sys.stderr)
+    if argv is None and interrupts.is_the_command():
+        interrupts.exit_now(code)       # no slow finalization with SIGINT at its default
     return code
 
 

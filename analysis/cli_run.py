@@ -28,6 +28,7 @@ import shutil
 import sys
 import tempfile
 import time as _time
+import warnings
 from pathlib import Path
 
 from .errors import InputError
@@ -81,6 +82,20 @@ def add_arguments(parser) -> None:
 
 
 def execute(args) -> int:
+    """Run ``fibres run``; returns the exit status (errors are raised as InputError). Warnings of
+    the readers are printed as one line each."""
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        return _execute(args)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Warnings of the readers (motion header counts, ranges, surface repairs) as one line each."""
+    text = " ".join(str(message).split())
+    print(f"fibres run: warning: {text}", file=sys.stderr)
+
+
+def _execute(args) -> int:
     from .budget import parse_size
     from .out_folder import OutFolderLock, check_out_folder, clean_stale
     from .output_files import prepare_out_dir

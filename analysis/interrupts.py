@@ -34,7 +34,8 @@ import signal
 import sys
 import threading
 
-__all__ = ["honoured", "deferred", "check", "requested", "clear", "install_early", "is_the_command"]
+__all__ = ["honoured", "deferred", "check", "requested", "clear", "install_early", "is_the_command",
+           "exit_now"]
 
 _FLAG = threading.Event()
 _DEFERRING = threading.Event()
@@ -91,6 +92,17 @@ def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
+def _unraisable(previous):
+    """``sys.unraisablehook`` that drops a KeyboardInterrupt raised where Python cannot raise it
+    (a ``__del__``, a weakref callback): the flag is set, so the next `check` raises it. Python
+    would print "Exception ignored in ... Traceback ... KeyboardInterrupt" and go on."""
+    def hook(unraisable):
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _FLAG.is_set():
+            return
+        previous(unraisable)
+    return hook
+
+
 @contextlib.contextmanager
 def honoured():
     """Install `handler` for SIGINT for the duration of a command (main thread only)."""
@@ -99,10 +111,25 @@ def honoured():
         yield
         return
     previous = signal.signal(signal.SIGINT, handler)
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _unraisable(previous_hook)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = previous_hook
+
+
+def exit_now(code: int):
+    """End the command process with ``code`` at once (`is_the_command` only): the files are
+    written and closed, so the interpreter's finalization (up to a second of freeing arrays and
+    tearing down libraries, during which Python resets SIGINT to its default and a Ctrl-C killed
+    the process silently) is skipped. SIGINT is ignored from here on: the work is complete."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
 
 
 @contextlib.contextmanager

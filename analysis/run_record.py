@@ -9,11 +9,10 @@ Layout::
       "command": ["fibres", "run", ...] | null,
       "inputs": {"<role>": {"path": "...", "sha256": "..."}, ...},
       "versions": {"python": "3.11.7", "numpy": "...", ...},
-      "settings": {...},
+      "settings": {..., "estimate": {"memory_bytes": ..., "disk_bytes": ..., "max_memory_bytes": ...}},
       "timings_s": {"<stage>": seconds, ...},
       "frames": {"count": F, "motion_rows": [first, last], "time": [t0, t1]},
       "muscles": {"<name>": {"n_fibres": N, "coordinates": [...], "action_lines": [...]}},
-      "estimate": {"memory_bytes": ..., "disk_bytes": ..., "max_memory_bytes": ...},
       "files": ["fibre_lengths.csv", ..., "run.json"],          # fibres run: what it wrote
       "file_names": {"muscles": {"<name>": "<file stem>"}, "coordinates": {...}}
     }

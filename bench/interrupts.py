@@ -7,7 +7,8 @@ Runs the bundled example (a private copy) as a child process, ``python -m analys
 1. One complete run into ``OUT`` (the "previous outputs"), timed.
 2. ``--ctrl-c`` runs into the same ``OUT`` with other settings (``--frames 0:27:2``), half of them
    with ``--jobs 2``, each sent SIGINT at a moment drawn uniformly between 0.02 s and 95 % of the
-   complete run's duration (from the interpreter loading the packages to writing the files). Each must exit 130 with no traceback, and ``OUT`` must hold exactly
+   complete run's duration (from the interpreter loading the packages to writing the files); a
+   run that ended before its signal (the machine was faster than when timed) is drawn again. Each must exit 130 with no traceback, and ``OUT`` must hold exactly
    the previous run's files (byte for byte) -- or, if the signal landed while the finished files
    were being moved into place, exactly the new run's files (its run.json manifest) -- and no
    debris (staging folders, lock, journal, ``.part`` files).
@@ -77,14 +78,33 @@ def main(argv=None) -> int:
         assert first.returncode == 0, err.decode()
         previous = _files(out)
         print(f"complete run: {duration:.1f} s, {len(previous)} files")
+        # the interrupted runs have other settings: time them (one each) so that every signal
+        # lands while the process still runs; the folder is restored to the complete run after
+        durations = {}
+        for jobs in ([], ["--jobs", "2"]):
+            t0 = time.perf_counter()
+            proc = _start(toml, out, "--frames", "0:27:2", *jobs)
+            proc.communicate()
+            durations[bool(jobs)] = time.perf_counter() - t0
+        restore = _start(toml, out)
+        restore.communicate()
+        previous = _files(out)
+        print(f"interrupted settings, complete: {durations[False]:.1f} s (--jobs 1), "
+              f"{durations[True]:.1f} s (--jobs 2)")
 
         counts = {"ctrl_c": 0, "exit_130": 0, "no_traceback": 0, "previous_intact": 0,
                   "new_complete": 0, "no_debris": 0}
+        late = 0
         for k in range(args.ctrl_c):
             jobs = ["--jobs", "2"] if k % 2 else []
-            delay = rng.uniform(0.02, 0.95 * duration)
-            proc = _start(toml, out, "--frames", "0:27:2", *jobs)
-            time.sleep(delay)
+            while True:       # a run that ended before its signal (machine load) is drawn again
+                delay = rng.uniform(0.02, 0.95 * durations[bool(jobs)])
+                proc = _start(toml, out, "--frames", "0:27:2", *jobs)
+                time.sleep(delay)
+                if proc.poll() is None:
+                    break
+                late += 1
+                previous = _files(out)       # it completed: its files are the previous ones now
             proc.send_signal(signal.SIGINT)
             _, err = proc.communicate()
             text = err.decode(errors="replace")
@@ -104,12 +124,14 @@ def main(argv=None) -> int:
                   f"exit {proc.returncode}, {'previous intact' if intact else 'new complete' if complete else 'MIXED'}"
                   f"{'' if clean else ', debris ' + str(_debris(out))}"
                   f"{', TRACEBACK' if 'Traceback' in text else ''}{'' if ok else '  <-- FAIL'}")
+            if not ok:
+                print("    stderr: " + "\n    stderr: ".join(text.strip().splitlines()[-12:]))
             if complete:                       # the new run won the race: it is the previous one now
                 previous = now
         kills = {"sigkill": 0, "next_run_ok": 0, "no_debris": 0}
         for k in range(args.kills):
-            delay = rng.uniform(0.02, 0.95 * duration)
-            proc = _start(toml, out, "--frames", "0:27:3", *(["--jobs", "2"] if k % 2 else []))
+            delay = rng.uniform(0.02, 0.95 * durations[bool(k % 2)])
+            proc = _start(toml, out, "--frames", "0:27:2", *(["--jobs", "2"] if k % 2 else []))
             time.sleep(delay)
             proc.kill()
             proc.communicate()
@@ -124,6 +146,7 @@ def main(argv=None) -> int:
             failures += not (ok_run and clean)
             print(f"SIGKILL {k + 1:2d} at {delay:5.2f} s: left {left or 'nothing'}; next run exit "
                   f"{nxt.returncode}, {'no debris' if clean else 'DEBRIS ' + str(_debris(out))}")
+        counts["redrawn_runs_that_ended_before_their_signal"] = late
         print("Ctrl-C:", json.dumps(counts))
         print("SIGKILL:", json.dumps(kills))
         print("failures:", failures)
