@@ -192,3 +192,27 @@ def test_ctrl_c_while_publishing_completes_the_new_set_then_exits_130(example, t
     record = _manifest_matches(out)                                # all of the new run, none of the old
     assert record["frames"]["count"] == 2 and list(record["muscles"]) == ["biceps"]
     assert not (out / JOURNAL_NAME).exists()
+
+
+# ----------------------------------------------------------------- Ctrl-C of the real process
+@pytest.mark.skipif(os.name != "posix", reason="sends SIGINT to a child process")
+@pytest.mark.parametrize("delay", [0.15, 1.5])
+def test_ctrl_c_early_in_the_process_exits_130_without_traceback(example, tmp_path, delay):
+    """SIGINT while the packages load (0.15 s: it used to print a traceback from inside an
+    import, or "module 'motion' has no attribute 'errors'") and while the inputs load (1.5 s)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    env = dict(os.environ, PYTHONPATH=str(MODELS.parent))
+    proc = subprocess.Popen([sys.executable, "-m", "analysis.cli", "run", str(example / "arm_example.toml"),
+                             "--out", str(out), "--quiet"], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    time.sleep(delay)
+    assert proc.poll() is None, "the run ended before its signal"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    text = err.decode()
+    assert proc.returncode == 130, text
+    assert "Traceback" not in text and len(text.strip().splitlines()) == 1, text
+    assert not out.exists() or [p.name for p in out.iterdir()] == []
