@@ -129,10 +129,15 @@ def main(argv=None) -> int:
             if complete:                       # the new run won the race: it is the previous one now
                 previous = now
         kills = {"sigkill": 0, "next_run_ok": 0, "no_debris": 0}
+        late_kills = 0
         for k in range(args.kills):
-            delay = rng.uniform(0.02, 0.95 * durations[bool(k % 2)])
-            proc = _start(toml, out, "--frames", "0:27:2", *(["--jobs", "2"] if k % 2 else []))
-            time.sleep(delay)
+            while True:       # as above: a run that ended before its signal is drawn again
+                delay = rng.uniform(0.02, 0.95 * durations[bool(k % 2)])
+                proc = _start(toml, out, "--frames", "0:27:2", *(["--jobs", "2"] if k % 2 else []))
+                time.sleep(delay)
+                if proc.poll() is None:
+                    break
+                late_kills += 1
             proc.kill()
             proc.communicate()
             left = _debris(out)
@@ -148,6 +153,7 @@ def main(argv=None) -> int:
                   f"{nxt.returncode}, {'no debris' if clean else 'DEBRIS ' + str(_debris(out))}")
         counts["redrawn_runs_that_ended_before_their_signal"] = late
         print("Ctrl-C:", json.dumps(counts))
+        kills["redrawn_runs_that_ended_before_their_signal"] = late_kills
         print("SIGKILL:", json.dumps(kills))
         print("failures:", failures)
     finally:
