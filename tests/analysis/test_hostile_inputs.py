@@ -238,3 +238,21 @@ def test_parse_size():
     for bad in ("0", "-1G", "8X", "", "G"):
         with pytest.raises(Exception, match="cannot read the size"):
             parse_size(bad)
+
+
+# ----------------------------------------------------------------- --jobs in a fresh process
+def test_jobs_in_a_fresh_process_compile_the_kernels_once(example, tmp_path):
+    """`fibres` compiles its numba kernels lazily without a lock; three muscles in three threads
+    of a fresh process raised "A jit decorator was called on an already jitted function" (exit 1)
+    every time. `analysis.run` now warms them in one thread first."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    env = dict(__import__("os").environ, PYTHONPATH=str(MODELS.parent))
+    proc = subprocess.run([sys.executable, "-m", "analysis.cli", "run", str(example / "arm_example.toml"),
+                           "--out", str(out), "--jobs", "3", "--frames", "0:4", "--fibres", "20",
+                           "--resolution", "8", "--quiet", "--no-plots"], env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "run.json").is_file()
