@@ -20,9 +20,10 @@ Memory model (bytes; F frames, N fibres, R segments, V surface vertices, K coord
   (pandas columns and the CSV formatting);
 
 plus the memory the process already holds (its resident size when the estimate is made).
-``WRAP_COPIES`` and the row costs were calibrated on the bundled example (peak resident size vs
-estimate; see ``tests/analysis/test_budget.py``); the estimate is meant to be within a factor of
-about 2 -- a guard against runs that cannot fit, not a precise forecast.
+``WRAP_COPIES`` (the wrapping's working arrays) was calibrated on the bundled example with
+``bench/budget.py``: measured peak growth / estimate 0.93 (200 frames x 100 fibres), 0.64
+(400 x 300), 0.39 (200 x 300 with ``--jobs 2``, whose two muscles' peaks rarely coincide). It is
+a guard against runs that cannot fit, erring on the safe side, not a precise forecast.
 
 Disk: the CSV rows (``CSV_BYTES_PER_ROW``), the ``.vtp`` files (``F x N (R + 1) x 32`` bytes plus
 a header per frame) and about ``PLOT_BYTES`` per muscle for the plots; refused when above the free
@@ -46,7 +47,7 @@ __all__ = ["parse_size", "default_budget", "format_size", "resident_bytes", "che
 
 MOTION_PARSE_BYTES_PER_BYTE = 20
 LINES_COPIES = 6
-WRAP_COPIES = 6
+WRAP_COPIES = 12
 TABLE_BYTES_PER_ROW = 220
 CSV_BYTES_PER_ROW = 80
 PLOT_BYTES = 400_000

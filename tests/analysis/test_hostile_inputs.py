@@ -185,14 +185,15 @@ def test_unknown_in_degrees_in_the_motion_is_a_one_line_error(example, tmp_path,
 def test_max_memory_refuses_before_the_long_computation(example, tmp_path, capfd, monkeypatch):
     run_module = __import__("importlib").import_module("analysis.run")
     monkeypatch.setattr(run_module, "_run_muscle", lambda *a, **k: pytest.fail("work started"))
-    from analysis.budget import resident_bytes
+    from analysis import budget
 
-    # what the process holds plus 20 MiB: the motion and action lines fit, the muscles do not
-    # (27 frames x 3 poses x (1922 + 100 x 39) points x 24 bytes x 6 copies = 68 MB per muscle)
-    limit = resident_bytes() + 20 * 2**20
+    # counting only the run's own needs (not what this test process holds), 50 MiB: the motion
+    # and the action lines fit, the muscles do not
+    # (27 frames x 3 poses x (1922 + 100 x 39) points x 24 bytes x 12 copies = 136 MB per muscle)
+    monkeypatch.setattr(budget, "resident_bytes", lambda: 0)
     line = _fails(capfd, ["run", str(example / "arm_example.toml"), "--out", str(tmp_path / "o"),
-                          "--quiet", "--max-memory", str(limit)], "--max-memory", "needs about",
-                  "27 frames x 100 fibres x 20 points x 3 poses")
+                          "--quiet", "--max-memory", "50M"], "--max-memory", "needs about",
+                  "27 frames x 100 fibres x 20 points x 3 poses", "budget of 50.0 MiB")
     assert "Use fewer frames" in line
     _fails(capfd, ["run", str(example / "arm_example.toml"), "--out", str(tmp_path / "o"), "--quiet",
                    "--max-memory", "lots"], "--max-memory", "cannot read the size")
