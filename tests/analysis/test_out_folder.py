@@ -77,6 +77,19 @@ def test_root_home_and_project_are_refused_unless_forced(example, tmp_path, caps
     assert (project / "run.json").is_file() and (project / "fibres" / "__init__.py").read_text() == ""
 
 
+def test_fibres_lines_refuses_them_too(example, tmp_path, capsys):
+    project = tmp_path / "project"
+    (project / ".git").mkdir(parents=True)
+    code = cli.main(["lines", str(example / "arm_example.osim"), str(example / "elbow_flexion.mot"),
+                     "--out", str(project), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "git repository" in err[0] and "--force" in err[0]
+    assert [p.name for p in project.iterdir()] == [".git"]
+    assert cli.main(["lines", str(example / "arm_example.osim"), str(example / "elbow_flexion.mot"),
+                     "--out", str(project), "--quiet", "--force"]) == 0
+    assert (project / "action_lines.csv").is_file() and not (project / LOCK_NAME).exists()
+
+
 # ----------------------------------------------------------------- one run at a time
 def test_second_run_into_a_busy_folder_refuses_at_once(example, tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
