@@ -97,7 +97,11 @@ class OutFolderLock:
 
     def acquire(self):
         for _ in range(100):   # retry only while the file is replaced under us
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise InputError(f"the output folder is not writable ({exc.strerror})", file=self.out,
+                                 where="--out", fix="Choose a folder you can write to with --out.") from None
             try:
                 if not _try_lock(fd):
                     owner = _read_pid(fd)
