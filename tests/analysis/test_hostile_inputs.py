@@ -200,6 +200,7 @@ def test_max_memory_refuses_before_the_long_computation(example, tmp_path, capfd
     assert list((tmp_path / "o").iterdir()) == []
 
 
+@pytest.mark.slow
 def test_a_million_frame_motion_is_refused_up_front(example, tmp_path, capfd, monkeypatch):
     """1,000,000 frames x 100 fibres x 20 points x 3 poses: refused by the estimate, with the
     numbers, before the action lines (it used to grow past 5 GB until MemoryError)."""
