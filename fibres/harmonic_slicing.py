@@ -1,0 +1,463 @@
+"""Harmonic-field slicing: template slices mapped onto the isolines of a harmonic field.
+
+The decomposition of Modenese & Kohout (Ann. Biomed. Eng. 48:1793-1804, 2020; Kohout's
+later LHPBuilder pipeline) replaces the parallel planes of Kohout et al. (GRAPP 2012) by the
+isolines of a harmonic scalar field between the attachment areas (Dong, Kircher & Garland,
+CAGD 22, 2005). Here, step by step:
+
+1. **Patches and field** (rest pose, once): the landmarks become surface patches
+   (`fibres.attachment_patch`); the field is 0 on the origin patch, 1 on the insertion patch
+   and harmonic elsewhere (`fibres.harmonic_field`). The field is a material property: it
+   is kept per vertex in the `HarmonicPlan`, so a deformed frame needs no new solve and its
+   isolines are the same material curves (`fibres.isolines`).
+2. **Levels**: the R + 1 slices of a fibre of resolution R sit at field levels chosen so
+   that the centroids of the field's level bands are evenly spaced along the muscle (a
+   harmonic field is not proportional to length: it changes fast where a fan narrows).
+   Levels 0 and 1 are the patches themselves.
+3. **One loop per level**: where an isoline has several loops (a saddle of the field: a
+   patch in several pieces, a forked muscle), the longest is kept and a note says so.
+4. **Cross-section frame**: each loop's centroid ``c`` and unit normal ``n`` (its vector
+   area; loops of a field turn the same way, so all normals point towards the insertion).
+   The axis ``e1`` is the major axis of the middle loop (its sign by a rule on the vertex
+   numbering, so it is material), carried to the other loops by parallel transport
+   (projection onto each next loop's plane); ``e2 = n x e1``.
+5. **Square <-> loop**: a loop point at polar angle ``theta`` about ``c`` (coordinates
+   scaled by the loop's half-extents along ``e1``, ``e2``) corresponds to the point of the
+   unit square's boundary at the same angle about the square's centre; that angle is made
+   non-decreasing along the loop (running maximum) so the correspondence is a monotone,
+   continuous map of the loop onto the square's perimeter. The loop is sampled at `SAMPLES`
+   points evenly spaced on that perimeter; a template point ``(x, y)`` of the slice goes to
+   ``sum_k lambda_k(x, y) S_k``, its mean value coordinates (Hormann & Floater 2006) with
+   respect to the square's samples applied to the loop's (a 3D generalisation of Kohout
+   2012 §3.3: no planarisation, the map spans the loop like a membrane). Consecutive loops
+   and frames change continuously, so fibres do not jump between slices.
+6. **Fibre ends over the patches**: the template's origin and insertion faces are mapped
+   onto the whole patches by area, order-preserving (a Knothe-Rosenblatt map in the patch's
+   frame: ``x`` by the area quantile along ``e1``, then ``y`` by the quantile along ``e2``
+   among the patch near that ``x``); the difference between that end and the membrane
+   point of the patch's rim is faded out along the first and last `END_BLEND` of the fibre,
+   so fibres leave the patch without hooks.
+7. The template's cross-section coordinates are first normalised by its attachment
+   rectangles, blended along the axis: a fibre at height ``z`` with ``x`` in the blend of the
+   origin and insertion extents has ``X = (x - lo(z)) / (hi(z) - lo(z))``. The field already
+   follows the muscle's fan and bends, so a fan template is not fanned twice; values are
+   clipped to the square.
+
+Every fibre point is then a fixed linear combination of the vertices (the loop samples are
+edge points, the ends are points of patch triangles), frozen in the plan: ``points = W V``
+on any deformed copy. Smoothing and the containment pull (`fibres.containment`) follow as
+for the planar method.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import threading
+
+import numpy as np
+import scipy.sparse as sp
+
+from .attachment_patch import attachment_patches
+from .errors import InputError
+from .harmonic_field import harmonic_field, mesh_edges
+from .isolines import isoline_loops, isoline_moments
+from .mvc import mean_value_coordinates
+from .patch_map import patch_points
+
+__all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
+
+#: loop samples per level (a multiple of 4: the square's corners are samples)
+SAMPLES = 64
+#: candidate levels (x 2) searched for the slice levels
+_CANDIDATES = 96
+#: field level of the patches' rim loops
+_RIM = 1e-6
+
+
+@dataclass(frozen=True)
+class _Faces:
+    faces: np.ndarray
+    n_vertices: int
+
+
+@dataclass(frozen=True, eq=False)
+class HarmonicPlan:
+    """The rest-pose choices of a harmonic-field decomposition (module docstring).
+
+    Attributes
+    ----------
+    faces : (T, 3) int64
+    rest_vertices : (V, 3) float
+    field : (V,) float
+        The harmonic field, 0 on the origin patch, 1 on the insertion patch.
+    origin, insertion : (V,) bool
+        The patches.
+    origin_faces, insertion_faces : (T,) bool
+    rest_origin, rest_insertion : (K, 3) float
+        The rest landmarks (metres).
+    notes : tuple of str
+        What the patches and the field did (far landmarks, pieces).
+    """
+
+    faces: np.ndarray
+    rest_vertices: np.ndarray
+    field: np.ndarray
+    origin: np.ndarray
+    insertion: np.ndarray
+    origin_faces: np.ndarray
+    insertion_faces: np.ndarray
+    rest_origin: np.ndarray
+    rest_insertion: np.ndarray
+    edges: np.ndarray = field(repr=False)
+    face_edges: np.ndarray = field(repr=False)
+    notes: tuple = ()
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+    _lock: object = field(default_factory=threading.Lock, repr=False, compare=False)
+
+    slicing = "harmonic"
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_cache"], state["_lock"] = {}, None
+        return state
+
+    def __setstate__(self, state):
+        state["_lock"] = threading.Lock()
+        self.__dict__.update(state)
+
+    @property
+    def topology(self):
+        """The faces and vertex count (what `fibres.decompose` checks a frame against)."""
+        return _Faces(self.faces, len(self.rest_vertices))
+
+    def check_mesh(self, vertices, faces) -> None:
+        """Refuse a mesh that is not a deformed copy of the plan's."""
+        if (np.shape(vertices) != self.rest_vertices.shape
+                or np.shape(faces) != self.faces.shape
+                or not np.array_equal(faces, self.faces)):
+            raise InputError("the mesh does not match the plan's (same faces, same number of "
+                             "vertices)", where="mesh", fix="Pass a deformed copy of the mesh "
+                             "the plan was made on.")
+
+
+def make_harmonic_plan(vertices, faces, origin, insertion) -> HarmonicPlan:
+    """Patches and harmonic field of a rest-pose surface (metres)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    edges, face_edges = mesh_edges(f, len(v))
+    patches = attachment_patches(v, f, origin, insertion, edges)
+    u = harmonic_field(v, f, patches.origin, patches.insertion, edges=edges,
+                       face_edges=face_edges)
+    return HarmonicPlan(f, v, u, patches.origin, patches.insertion, patches.origin_faces,
+                        patches.insertion_faces, np.asarray(origin, float),
+                        np.asarray(insertion, float), edges, face_edges, patches.notes)
+
+
+# -- levels, loops, frames ------------------------------------------------------------------
+
+def _levels(plan: HarmonicPlan, resolution: int) -> np.ndarray:
+    """(R + 1,) field levels whose isolines' centroids are evenly spaced along the muscle.
+
+    The centroid C(t) and vector area of the whole isoline are measured at `_CANDIDATES`
+    levels (evenly spaced, and at the area quantiles of the field, which resolve the levels
+    where the muscle is; `fibres.isolines.isoline_moments`). Progress along the muscle is
+    the centroid's advance along the isolines' mean normal, ``ds = max(0, dC . n)``: an
+    isoline sweeping back through a dead end beyond a patch (the field is flat there) makes
+    no progress and gets no slice. The R - 1 inner levels divide s evenly."""
+    v, u, f = plan.rest_vertices, plan.field, plan.faces
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    uc = u[f].mean(axis=1)
+    order = np.argsort(uc, kind="stable")
+    cum = np.cumsum(area[order])
+    q = np.interp(np.linspace(0, 1, _CANDIDATES), cum / cum[-1], uc[order])
+    cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
+    cand = cand[(cand > 2 * _RIM) & (cand < 1 - 2 * _RIM)]
+    cand = np.concatenate([[_RIM], cand, [1 - _RIM]])
+    length, centre, varea = isoline_moments(u, v, f, cand)
+    ok = length > 0
+    cand, centre, varea = cand[ok], centre[ok], varea[ok]
+    nrm = varea / np.maximum(np.linalg.norm(varea, axis=1, keepdims=True), 1e-300)
+    mean_n = nrm[1:] + nrm[:-1]
+    mean_n /= np.maximum(np.linalg.norm(mean_n, axis=1, keepdims=True), 1e-300)
+    ds = np.maximum(0.0, np.einsum("ij,ij->i", np.diff(centre, axis=0), mean_n))
+    s = np.concatenate([[0.0], np.cumsum(ds)])
+    s = s + 1e-12 * np.arange(s.size)                     # strictly increasing
+    levels = np.interp(np.linspace(0.0, s[-1], resolution + 1), s, cand)
+    levels[0], levels[-1] = _RIM, 1.0 - _RIM
+    levels[1:-1] = np.clip(levels[1:-1], 2 * _RIM, 1 - 2 * _RIM)
+    return levels
+
+
+def _loop_frame(points):
+    """(centroid, unit normal, segment lengths) of a closed loop."""
+    nxt = np.roll(points, -1, axis=0)
+    seg = np.linalg.norm(nxt - points, axis=1)
+    total = seg.sum()
+    c = (0.5 * (points + nxt) * seg[:, None]).sum(axis=0) / total if total > 0 \
+        else points.mean(axis=0)
+    area = 0.5 * np.cross(points - c, nxt - c).sum(axis=0)
+    norm = np.linalg.norm(area)
+    n = area / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
+    return c, n, seg
+
+
+def _major_axis(points, c, n, loop):
+    d = points - c
+    d = d - np.outer(d @ n, n)
+    vals, vecs = np.linalg.eigh(d.T @ d)
+    e1 = vecs[:, -1]
+    # material sign: the vertex numbering rides along with a deformed copy
+    if np.dot((loop.a + 1.0), d @ e1) < 0:
+        e1 = -e1
+    return e1
+
+
+def _transport(e1, n):
+    p = e1 - np.dot(e1, n) * n
+    norm = np.linalg.norm(p)
+    if norm < 1e-9:
+        return None
+    return p / norm
+
+
+def _square_param(theta):
+    """Perimeter parameter in [0, 1) of the unit square's boundary point at polar angle
+    ``theta`` about its centre, counter-clockwise from the corner (0, 0)."""
+    cx, cy = np.cos(theta), np.sin(theta)
+    t = 0.5 / np.maximum(np.abs(cx), np.abs(cy))
+    x, y = 0.5 + t * cx, 0.5 + t * cy
+    bottom = (np.abs(cy) >= np.abs(cx)) & (cy < 0)
+    right = (np.abs(cx) > np.abs(cy)) & (cx > 0)
+    top = (np.abs(cy) >= np.abs(cx)) & (cy >= 0)
+    return np.where(bottom, x / 4, np.where(right, 0.25 + y / 4,
+                    np.where(top, 0.5 + (1 - x) / 4, 0.75 + (1 - y) / 4)))
+
+
+def _square_samples(k: int) -> np.ndarray:
+    """(k, 2) points evenly spaced on the unit square's perimeter from (0, 0), CCW."""
+    s = np.arange(k) / k * 4.0
+    side = np.floor(s).astype(int)
+    f = s - side
+    out = np.empty((k, 2))
+    out[side == 0] = np.stack([f[side == 0], 0 * f[side == 0]], axis=1)
+    out[side == 1] = np.stack([1 + 0 * f[side == 1], f[side == 1]], axis=1)
+    out[side == 2] = np.stack([1 - f[side == 2], 1 + 0 * f[side == 2]], axis=1)
+    out[side == 3] = np.stack([0 * f[side == 3], 1 - f[side == 3]], axis=1)
+    return out
+
+
+def _face_gradients(plan: HarmonicPlan) -> np.ndarray:
+    """(T,) |grad u| of the field's linear interpolant on each face."""
+    v, u, f = plan.rest_vertices, plan.field, plan.faces
+    tri = v[f]
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    dbl2 = np.maximum(np.einsum("ij,ij->i", nrm, nrm), 1e-300)
+    uf = u[f]
+    g = (np.cross(nrm, tri[:, 2] - tri[:, 1]) * uf[:, :1]
+         + np.cross(nrm, tri[:, 0] - tri[:, 2]) * uf[:, 1:2]
+         + np.cross(nrm, tri[:, 1] - tri[:, 0]) * uf[:, 2:]) / dbl2[:, None]
+    return np.linalg.norm(g, axis=1)
+
+
+def _position_point(points, pos):
+    m = len(points)
+    i = int(np.floor(pos)) % m
+    f = pos - np.floor(pos)
+    return (1.0 - f) * points[i] + f * points[(i + 1) % m]
+
+
+def _closest_position(points, q) -> float:
+    """Fractional loop position (node + fraction) of the closed polyline's point nearest q."""
+    a = points
+    b = np.roll(points, -1, axis=0)
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(
+        np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+    d = np.linalg.norm(a + t[:, None] * ab - q, axis=1)
+    k = int(np.argmin(d))
+    return k + float(t[k])
+
+
+def _flux_positions(points, flux, start, k):
+    """(k,) fractional loop positions where the cumulative flux from ``start`` reaches
+    0, 1/k, ..., (k-1)/k of the loop's total (the harmonic conjugate's levels)."""
+    m = len(points)
+    i0 = int(np.floor(start)) % m
+    f0 = start - np.floor(start)
+    # flux of each segment, the first split at the start
+    order = (np.arange(m) + i0) % m
+    seg = flux[order].copy()
+    head = seg[0] * (1.0 - f0)
+    cum = np.concatenate([[0.0, head], head + np.cumsum(seg[1:])])
+    cum = np.append(cum, cum[-1] + seg[0] * f0)                  # back at the start
+    pos = np.concatenate([[start], i0 + 1.0 + np.arange(m), [start + m]])
+    cum = cum + 1e-15 * cum[-1] * np.arange(cum.size)            # strictly increasing
+    target = np.arange(k) / k * cum[-1]
+    return np.interp(target, cum, pos) % m
+
+
+@dataclass(frozen=True)
+class _Slices:
+    """The loops of one resolution: per level (L = R + 1), `SAMPLES` loop samples as a sparse
+    (L * SAMPLES, V) matrix of vertex weights, the frames at rest, and notes."""
+
+    samples: sp.csr_matrix
+    centres: np.ndarray
+    normals: np.ndarray
+    axes: np.ndarray
+    notes: tuple
+
+
+def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
+    levels = _levels(plan, max(int(resolution), 2))[1:-1]
+    if resolution < 2:  # one segment: the ends still come from a middle membrane
+        levels = levels[:1]
+    v = plan.rest_vertices
+    loops, notes = [], []
+    for j, t in enumerate(levels):
+        found = isoline_loops(plan.field, plan.faces, t, plan.edges, plan.face_edges, v)
+        if not found:
+            raise InputError("the harmonic field has no isoline at a slice level",
+                             where="mesh", fix="Check the attachment landmarks.")
+        if len(found) > 1:
+            notes.append(f"slice {j}: {len(found)} isoline loops, the longest kept")
+        loops.append(found[0])
+    pts = [lp.points(v) for lp in loops]
+    frames = [_loop_frame(p) for p in pts]
+    centres = np.array([f[0] for f in frames])
+    normals = np.array([f[1] for f in frames])
+    mid = len(loops) // 2
+    axes = np.zeros_like(centres)
+    axes[mid] = _major_axis(pts[mid], centres[mid], normals[mid], loops[mid])
+    for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
+        prev = mid
+        for j in rng:
+            e = _transport(axes[prev], normals[j])
+            axes[j] = e if e is not None else axes[prev]
+            prev = j
+    # the harmonic conjugate: position along each loop by the field's flux across it, from
+    # a seam that starts at the middle loop's point towards the square's corner (0, 0) and is
+    # carried to each next loop by its nearest point (flow lines cross isolines at right angles)
+    grad = _face_gradients(plan)
+    e2m = np.cross(normals[mid], axes[mid])
+    d = pts[mid] - centres[mid]
+    x, y = d @ axes[mid], d @ e2m
+    score = -x / max(np.ptp(x), 1e-12) - y / max(np.ptp(y), 1e-12)
+    seams = [0.0] * len(loops)
+    seams[mid] = float(np.argmax(score))
+    for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
+        prev = mid
+        for j in rng:
+            q = _position_point(pts[prev], seams[prev])
+            seams[j] = _closest_position(pts[j], q)
+            prev = j
+    rows, cols, vals = [], [], []
+    for j, (lp, p) in enumerate(zip(loops, pts)):
+        seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+        pos = _flux_positions(p, grad[lp.face] * seg, seams[j], SAMPLES)
+        i0 = np.floor(pos).astype(np.int64) % len(lp)
+        f = pos - np.floor(pos)
+        i1 = (i0 + 1) % len(lp)
+        r = j * SAMPLES + np.arange(SAMPLES)
+        for idx, wgt in ((i0, 1.0 - f), (i1, f)):
+            rows += [r, r]
+            cols += [lp.a[idx], lp.b[idx]]
+            vals += [wgt * (1.0 - lp.s[idx]), wgt * lp.s[idx]]
+    mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                        shape=(len(loops) * SAMPLES, len(v)))
+    return _Slices(mat, centres, normals, axes, tuple(notes))
+
+
+# -- template points to the muscle ----------------------------------------------------------
+
+def _normalised(tmpl, unit):
+    """Template cross-section coordinates normalised by the attachment rectangles blended
+    along the axis (module docstring, step 7); (N, P) X, Y and heights z."""
+    ro, ri = tmpl._rects
+    lo_o = np.array([min(r[0] for r in ro), min(r[2] for r in ro)])
+    hi_o = np.array([max(r[1] for r in ro), max(r[3] for r in ro)])
+    lo_i = np.array([min(r[0] for r in ri), min(r[2] for r in ri)])
+    hi_i = np.array([max(r[1] for r in ri), max(r[3] for r in ri)])
+    z = np.clip(unit[..., 2], 0.0, 1.0)
+    lo = lo_o + (lo_i - lo_o) * z[..., None]
+    hi = hi_o + (hi_i - hi_o) * z[..., None]
+    xy = (unit[..., :2] - lo) / np.maximum(hi - lo, 1e-12)
+    xy = np.clip(xy, 1e-4, 1.0 - 1e-4)
+    return xy[..., 0], xy[..., 1], z
+
+
+def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
+    """Sparse (N * P, L * SAMPLES + V) matrix: fibre points from [loop samples; vertices]."""
+    n = len(rs)
+    p = resolution + 1
+    unit = tmpl._points(rs, np.linspace(0.0, 1.0, p))               # (N, P, 3)
+    X, Y, z = _normalised(tmpl, unit)
+    z[:, 0], z[:, -1] = 0.0, 1.0
+    k = SAMPLES
+    n_loops = slices.centres.shape[0]
+    base = n_loops * k
+    lam = mean_value_coordinates(np.stack([X.reshape(-1), Y.reshape(-1)], axis=1),
+                                 _square_samples(k)).reshape(n, p, k)
+    rest = (slices.samples @ plan.rest_vertices).reshape(n_loops, k, 3)
+    rows, cols, vals = [], [], []
+    rid = np.arange(n * p).reshape(n, p)
+    # inner points: the membranes of the two loops around their height, blended (heights
+    # before the first or after the last inner slice are clamped onto it)
+    if p > 2:
+        pos = np.clip(z[:, 1:-1] * resolution - 1.0, 0.0, n_loops - 1.0)
+        j0 = np.clip(np.floor(pos).astype(np.int64), 0, max(n_loops - 2, 0)).reshape(-1)
+        a = pos.reshape(-1) - j0
+        j1 = np.minimum(j0 + 1, n_loops - 1)
+        r_in = rid[:, 1:-1].reshape(-1)
+        lam_in = lam[:, 1:-1].reshape(-1, k)
+        kk = np.arange(k)
+        for jj, wj in ((j0, 1.0 - a), (j1, a)):
+            rows.append(np.repeat(r_in, k))
+            cols.append((jj[:, None] * k + kk).reshape(-1))
+            vals.append((lam_in * wj[:, None]).reshape(-1))
+    # ends: the first / last inner membrane carried onto the patch along its normal
+    # (fibres.patch_map): the end segment continues the fibre's course, no hook
+    for col, mask, patch, j in ((0, plan.origin_faces, plan.origin, 0),
+                                (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
+        if not mask.any():
+            mask = patch[plan.faces].any(axis=1)
+        membrane = lam[:, col] @ rest[j]
+        face, bary = patch_points(plan.rest_vertices, plan.faces, mask, membrane,
+                                  slices.normals[j])
+        rows.append(np.repeat(rid[:, col], 3))
+        cols.append(base + plan.faces[face].reshape(-1))
+        vals.append(bary.reshape(-1))
+    n_cols = base + len(plan.rest_vertices)
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n * p, n_cols))
+
+
+def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed):
+    """(slices, fibre matrix, rs) for these fibres, made once per plan and cached."""
+    from .plan import template_spec
+    from .sampling import sobol_rs
+    spec = template_spec(tmpl)
+    key = (spec[0], repr(sorted(dict(spec[1]).items())), int(n_fibres), int(resolution),
+           int(seed))
+    with plan._lock:
+        hit = plan._cache.get(key)
+        if hit is not None:
+            return hit
+        slices = plan._cache.get(("slices", int(resolution)))
+        if slices is None:
+            slices = _slices(plan, int(resolution))
+            plan._cache[("slices", int(resolution))] = slices
+        rs = sobol_rs(int(n_fibres), seed=seed)
+        mat = _fibre_matrix(plan, slices, tmpl, rs, int(resolution))
+        plan._cache[key] = (slices, mat, rs)
+        return plan._cache[key]
+
+
+def harmonic_points(plan: HarmonicPlan, vertices, tmpl, n_fibres, resolution, seed):
+    """Fibre points (N, R + 1, 3) of the surface ``vertices`` (the plan's rest pose or a
+    deformed copy), before smoothing; also returns rs (N, 2) and notes."""
+    slices, mat, rs = _maps(plan, tmpl, n_fibres, resolution, seed)
+    v = np.asarray(vertices, dtype=np.float64)
+    basis = np.concatenate([slices.samples @ v, v])
+    pts = (mat @ basis).reshape(len(rs), int(resolution) + 1, 3)
+    return pts, rs, slices.notes
