@@ -8,19 +8,19 @@ outline encloses. Our rule, step by step:
 1. every landmark is projected to its nearest surface vertex (a *seed*); landmarks farther
    than `FAR_LANDMARK` from the surface are reported in one note (they still count);
 2. the patch is the union of
-   a. the surface grown from the seeds along the surface (Dijkstra over the mesh edges, so it
+   a. the surface facing the landmarks (as in b) grown from the seeds along the surface (Dijkstra over the mesh edges, so it
       never jumps through a thin muscle to its other face) up to the radius ``r``: the median
       distance from a seed to its nearest other seed (the landmarks' spacing; at least 2 mean
       edge lengths), so that neighbouring landmarks' disks overlap; and
    b. the region the landmarks outline (landmarks are often digitised around the border of
       the area): vertices whose projection on the landmarks' best-fit plane falls inside
-      their convex hull, that lie within `ENCLOSED_DEPTH` (or 1.5 x the landmarks' median
+      their convex hull, that lie within `ENCLOSED_DEPTH` (or 2 x the landmarks' median
       distance from the surface + 2 mean edges) of the landmarks' surface (a quadratic height
-      field fitted to them) on the muscle's side, and whose outward normal faces it (the
+      field fitted to them; muscles may overlap the bone a little), and whose outward normal
+      faces it (the
       deep face of a flat muscle, not its superficial face);
-3. holes are filled: every region of the rest of the surface that does not hold the largest
-   such region (the muscle's free surface) is enclosed by the landmarks' outline and joins the
-   patch;
+3. holes are filled: every region of the rest of the surface smaller than half the patch
+   (but never the largest region, the muscle's free surface) joins the patch;
 4. pieces of the patch with less than `MIN_PIECE` of its area (a stray landmark) are dropped,
    with a note;
 5. where origin and insertion patches meet or overlap, each vertex goes to the nearer
@@ -43,10 +43,11 @@ __all__ = ["AttachmentPatches", "attachment_patches", "FAR_LANDMARK", "MIN_PIECE
 #: landmarks farther than this (metres) from the muscle surface are named in a note
 FAR_LANDMARK = 0.02
 #: vertices over the landmarks' outline count when this near (metres) to the landmarks'
-#: surface (or nearer than 1.5 x the median landmark distance + 2 mean edges)
-ENCLOSED_DEPTH = 0.008
+#: surface (or nearer than 2 x the median landmark distance + 2 mean edges)
+ENCLOSED_DEPTH = 0.02
 #: patch pieces with less than this share of the patch area are dropped
 MIN_PIECE = 0.05
+_STRIP = False
 
 
 @dataclass(frozen=True)
@@ -91,18 +92,21 @@ def _grow(graph, seeds, radius):
     return d
 
 
-def _fill_holes(patch, graph_free):
-    """The patch plus every component of the rest but the largest."""
+def _fill_holes(patch, graph, vertex_area):
+    """The patch plus every component of the rest of the surface smaller than half the
+    patch (holes between landmarks; not the muscle's free surface, nor a face that a ring of
+    landmarks round a thin muscle's rim happens to enclose)."""
     rest = np.flatnonzero(~patch)
     if rest.size == 0:
         return patch
-    sub = graph_free[rest][:, rest]
-    n, label = connected_components(sub, directed=False)
+    n, label = connected_components(graph[rest][:, rest], directed=False)
     if n <= 1:
         return patch
-    biggest = np.bincount(label).argmax()
+    area = np.bincount(label, vertex_area[rest])
+    small = area < 0.5 * vertex_area[patch].sum()
+    small[area.argmax()] = False
     out = patch.copy()
-    out[rest[label != biggest]] = True
+    out[rest[small[label]]] = True
     return out
 
 
@@ -161,8 +165,9 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
         else:
             radius = 2.0 * mean_edge
         d = _grow(graph, seeds, radius)
-        patch = np.isfinite(d) | _enclosed(v, faces, pts, dist, mean_edge)
-        patch = _fill_holes(patch, graph)
+        enclosed, facing = _enclosed(v, faces, pts, dist, mean_edge)
+        patch = np.isfinite(d) if _STRIP else (np.isfinite(d) & facing) | enclosed
+        patch = _fill_holes(patch, graph, vertex_area)
         patch = _drop_small_pieces(patch, graph, vertex_area, name, notes)
         patches.append(patch)
         dists.append(dist)
@@ -186,14 +191,16 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
 
 
 def _enclosed(v, faces, landmarks, dist, mean_edge):
-    """(V,) vertices over the region the landmarks outline (module docstring, step 2b)."""
+    """(V,) vertices over the region the landmarks outline (module docstring, step 2b), and
+    (V,) vertices facing the landmarks' surface (all, for fewer than 4 landmarks)."""
+    none, every = np.zeros(len(v), dtype=bool), np.ones(len(v), dtype=bool)
     if len(landmarks) < 4:
-        return np.zeros(len(v), dtype=bool)
+        return none, every
     centre = landmarks.mean(axis=0)
     d = landmarks - centre
     vals, vecs = np.linalg.eigh(d.T @ d)
     if vals[1] < 1e-6 * vals[2]:                     # collinear landmarks: no area
-        return np.zeros(len(v), dtype=bool)
+        return none, every
     frame = vecs[:, ::-1]                            # in-plane e1, e2; normal e3
     lx, ly, lz = (d @ frame).T
     # the landmarks' surface as a height field over their plane (quadratic with >= 6)
@@ -204,13 +211,13 @@ def _enclosed(v, faces, landmarks, dist, mean_edge):
     height = vz - basis(vx, vy) @ coef
     # the muscle lies on one side: its vertices' median height says which
     side = np.sign(np.median(height)) or 1.0
-    limit = max(ENCLOSED_DEPTH, 1.5 * float(np.median(dist)) + 2.0 * mean_edge)
-    near = (height * side > -2.0 * mean_edge) & (height * side < limit)
+    limit = max(ENCLOSED_DEPTH, 2.0 * float(np.median(dist)) + 2.0 * mean_edge)
+    near = np.abs(height) < limit
     try:
         hull = Delaunay(np.stack([lx, ly], axis=1))
         inside = hull.find_simplex(np.stack([vx, vy], axis=1)) >= 0
     except QhullError:
-        return np.zeros(len(v), dtype=bool)
+        return none, every
     # facing the bone: the outward vertex normal points towards the landmarks' side
     tri = v[faces]
     fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -218,7 +225,7 @@ def _enclosed(v, faces, landmarks, dist, mean_edge):
     for k in range(3):
         np.add.at(vn, faces[:, k], fn)
     facing = (vn @ frame[:, 2]) * side < 0
-    return inside & near & facing
+    return inside & near & facing, facing
 
 
 def _touching(a, b, edges) -> bool:

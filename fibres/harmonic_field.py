@@ -16,7 +16,8 @@ to zero: the matrix is then an M-matrix, so the discrete field obeys the maximum
 (no interior extrema, values in [0, 1], so no spurious small isoline loops), at the price of
 exact linear precision on such edges only. Dirichlet values on the patch vertices; the free
 vertices' system ``L_ff u_f = -L_fb u_b`` is symmetric positive definite and solved by a sparse
-LU factorisation (scipy.sparse.linalg.splu, SuperLU with a COLAMD ordering).
+LU factorisation (scipy.sparse.linalg.splu: SuperLU in symmetric mode with a minimum degree
+ordering of A^T + A).
 """
 from __future__ import annotations
 
@@ -107,5 +108,6 @@ def harmonic_field(vertices, faces, zero, one, *, edges=None, face_edges=None) -
     if free.size:
         rhs = -(lap[free][:, np.flatnonzero(one)] @ np.ones(int(one.sum())))
         a = lap[free][:, free].tocsc()
-        u[free] = splu(a, permc_spec="COLAMD").solve(rhs)
+        u[free] = splu(a, permc_spec="MMD_AT_PLUS_A",
+                       options={"SymmetricMode": True}).solve(rhs)
     return np.clip(u, 0.0, 1.0)

@@ -10,43 +10,44 @@ CAGD 22, 2005). Here, step by step:
    and harmonic elsewhere (`fibres.harmonic_field`). The field is a material property: it
    is kept per vertex in the `HarmonicPlan`, so a deformed frame needs no new solve and its
    isolines are the same material curves (`fibres.isolines`).
-2. **Levels**: the R + 1 slices of a fibre of resolution R sit at field levels chosen so
-   that the centroids of the field's level bands are evenly spaced along the muscle (a
-   harmonic field is not proportional to length: it changes fast where a fan narrows).
-   Levels 0 and 1 are the patches themselves.
+2. **Levels** (`_levels`): the R - 1 inner slices of a fibre of resolution R sit at field
+   levels whose isolines' centroids are evenly spaced along the muscle (a harmonic field is
+   not proportional to length: it changes fast where a fan narrows); the fibre's two ends
+   lie on the patches.
 3. **One loop per level**: where an isoline has several loops (a saddle of the field: a
-   patch in several pieces, a forked muscle), the longest is kept and a note says so.
+   patch in several pieces), the longest is kept and a note says so.
 4. **Cross-section frame**: each loop's centroid ``c`` and unit normal ``n`` (its vector
-   area; loops of a field turn the same way, so all normals point towards the insertion).
-   The axis ``e1`` is the major axis of the middle loop (its sign by a rule on the vertex
-   numbering, so it is material), carried to the other loops by parallel transport
-   (projection onto each next loop's plane); ``e2 = n x e1``.
-5. **Square <-> loop**: a loop point at polar angle ``theta`` about ``c`` (coordinates
-   scaled by the loop's half-extents along ``e1``, ``e2``) corresponds to the point of the
-   unit square's boundary at the same angle about the square's centre; that angle is made
-   non-decreasing along the loop (running maximum) so the correspondence is a monotone,
-   continuous map of the loop onto the square's perimeter. The loop is sampled at `SAMPLES`
-   points evenly spaced on that perimeter; a template point ``(x, y)`` of the slice goes to
-   ``sum_k lambda_k(x, y) S_k``, its mean value coordinates (Hormann & Floater 2006) with
-   respect to the square's samples applied to the loop's (a 3D generalisation of Kohout
-   2012 §3.3: no planarisation, the map spans the loop like a membrane). Consecutive loops
-   and frames change continuously, so fibres do not jump between slices.
-6. **Fibre ends over the patches**: the template's origin and insertion faces are mapped
-   onto the whole patches by area, order-preserving (a Knothe-Rosenblatt map in the patch's
-   frame: ``x`` by the area quantile along ``e1``, then ``y`` by the quantile along ``e2``
-   among the patch near that ``x``); the difference between that end and the membrane
-   point of the patch's rim is faded out along the first and last `END_BLEND` of the fibre,
-   so fibres leave the patch without hooks.
+   area; loops of a field turn the same way round it, so all normals point towards the
+   insertion). The axis ``e1`` is the major axis of the middle loop (its sign by a rule on
+   the vertex numbering, so it is material), carried to the other loops by parallel
+   transport (projection onto each next loop's plane); ``e2 = n x e1``.
+5. **Square <-> loop**: each loop is sampled at `SAMPLES` points of equal arc length from a
+   *seam*: on the middle loop, its point towards the square's corner (0, 0) in the frame
+   ``(e1, e2)``; on every other loop, the point nearest to the previous loop's seam (the
+   field's flow lines cross the isolines at right angles, so the seam follows one). Sample k
+   corresponds to the point at k / SAMPLES of the unit square's perimeter, counter-clockwise
+   from (0, 0). A template point ``(x, y)`` of the slice goes to ``sum_k lambda_k(x, y)
+   S_k``: its mean value coordinates (Hormann & Floater, ACM TOG 25(4), 2006) with respect
+   to the square's samples applied to the loop's -- a 3D generalisation of Kohout 2012
+   §3.3 without planarisation: the map spans the loop like a membrane. Seam and arc
+   lengths change continuously from loop to loop, so fibres do not jump between slices.
+6. **Fibre ends on the patches** (`fibres.patch_map`): the fibre's course past its first
+   (last) inner slice is continued as a ray onto the patch, or, where the ray misses, to the
+   patch's nearest point; the end's offset from the straight continuation is spread over
+   the fibre's first (last) `END_BEND` so fibres turn towards a patch at their side without
+   hooking (`_bend_to_ends`). The points are then put at equal arc-length steps of each
+   rest fibre (`_even`): a slice that hugs a patch leaves no stub segment.
 7. The template's cross-section coordinates are first normalised by its attachment
    rectangles, blended along the axis: a fibre at height ``z`` with ``x`` in the blend of the
    origin and insertion extents has ``X = (x - lo(z)) / (hi(z) - lo(z))``. The field already
    follows the muscle's fan and bends, so a fan template is not fanned twice; values are
-   clipped to the square.
+   clipped to the square. Template heights below the first or above the last inner slice
+   are clamped onto it.
 
-Every fibre point is then a fixed linear combination of the vertices (the loop samples are
-edge points, the ends are points of patch triangles), frozen in the plan: ``points = W V``
-on any deformed copy. Smoothing and the containment pull (`fibres.containment`) follow as
-for the planar method.
+Every fibre point is then a fixed linear combination of the vertices (loop samples are
+edge points, ends are points of patch triangles, bending and resampling are fixed blends),
+frozen in the plan: ``points = W V`` on any deformed copy. Smoothing and the containment
+pull (`fibres.containment`) follow as for the planar method.
 """
 from __future__ import annotations
 
@@ -67,6 +68,8 @@ __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
 #: loop samples per level (a multiple of 4: the square's corners are samples)
 SAMPLES = 64
+#: share of a fibre over which it bends towards its ends (`_bend_to_ends`)
+END_BEND = 0.3
 #: candidate levels (x 2) searched for the slice levels
 _CANDIDATES = 96
 #: field level of the patches' rim loops
@@ -173,13 +176,12 @@ def _levels(plan: HarmonicPlan, resolution: int) -> np.ndarray:
     cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
     cand = cand[(cand > 2 * _RIM) & (cand < 1 - 2 * _RIM)]
     cand = np.concatenate([[_RIM], cand, [1 - _RIM]])
-    length, centre, varea = isoline_moments(u, v, f, cand)
+    length, centre, _ = isoline_moments(u, v, f, cand)
     ok = length > 0
-    cand, centre, varea = cand[ok], centre[ok], varea[ok]
-    nrm = varea / np.maximum(np.linalg.norm(varea, axis=1, keepdims=True), 1e-300)
-    mean_n = nrm[1:] + nrm[:-1]
-    mean_n /= np.maximum(np.linalg.norm(mean_n, axis=1, keepdims=True), 1e-300)
-    ds = np.maximum(0.0, np.einsum("ij,ij->i", np.diff(centre, axis=0), mean_n))
+    cand, centre = cand[ok], centre[ok]
+    step = np.diff(centre, axis=0)
+    ahead = np.einsum("ij,ij->i", step, centre[-1] - centre[:-1]) > 0
+    ds = np.where(ahead, np.linalg.norm(step, axis=1), 0.0)
     s = np.concatenate([[0.0], np.cumsum(ds)])
     s = s + 1e-12 * np.arange(s.size)                     # strictly increasing
     levels = np.interp(np.linspace(0.0, s[-1], resolution + 1), s, cand)
@@ -220,19 +222,6 @@ def _transport(e1, n):
     return p / norm
 
 
-def _square_param(theta):
-    """Perimeter parameter in [0, 1) of the unit square's boundary point at polar angle
-    ``theta`` about its centre, counter-clockwise from the corner (0, 0)."""
-    cx, cy = np.cos(theta), np.sin(theta)
-    t = 0.5 / np.maximum(np.abs(cx), np.abs(cy))
-    x, y = 0.5 + t * cx, 0.5 + t * cy
-    bottom = (np.abs(cy) >= np.abs(cx)) & (cy < 0)
-    right = (np.abs(cx) > np.abs(cy)) & (cx > 0)
-    top = (np.abs(cy) >= np.abs(cx)) & (cy >= 0)
-    return np.where(bottom, x / 4, np.where(right, 0.25 + y / 4,
-                    np.where(top, 0.5 + (1 - x) / 4, 0.75 + (1 - y) / 4)))
-
-
 def _square_samples(k: int) -> np.ndarray:
     """(k, 2) points evenly spaced on the unit square's perimeter from (0, 0), CCW."""
     s = np.arange(k) / k * 4.0
@@ -244,19 +233,6 @@ def _square_samples(k: int) -> np.ndarray:
     out[side == 2] = np.stack([1 - f[side == 2], 1 + 0 * f[side == 2]], axis=1)
     out[side == 3] = np.stack([0 * f[side == 3], 1 - f[side == 3]], axis=1)
     return out
-
-
-def _face_gradients(plan: HarmonicPlan) -> np.ndarray:
-    """(T,) |grad u| of the field's linear interpolant on each face."""
-    v, u, f = plan.rest_vertices, plan.field, plan.faces
-    tri = v[f]
-    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    dbl2 = np.maximum(np.einsum("ij,ij->i", nrm, nrm), 1e-300)
-    uf = u[f]
-    g = (np.cross(nrm, tri[:, 2] - tri[:, 1]) * uf[:, :1]
-         + np.cross(nrm, tri[:, 0] - tri[:, 2]) * uf[:, 1:2]
-         + np.cross(nrm, tri[:, 1] - tri[:, 0]) * uf[:, 2:]) / dbl2[:, None]
-    return np.linalg.norm(g, axis=1)
 
 
 def _position_point(points, pos):
@@ -278,15 +254,15 @@ def _closest_position(points, q) -> float:
     return k + float(t[k])
 
 
-def _flux_positions(points, flux, start, k):
-    """(k,) fractional loop positions where the cumulative flux from ``start`` reaches
-    0, 1/k, ..., (k-1)/k of the loop's total (the harmonic conjugate's levels)."""
-    m = len(points)
+def _arc_positions(seg, start, k):
+    """(k,) fractional loop positions (node + fraction) that divide the closed loop with
+    segment lengths ``seg`` into k equal arcs from the position ``start``."""
+    m = len(seg)
     i0 = int(np.floor(start)) % m
     f0 = start - np.floor(start)
-    # flux of each segment, the first split at the start
+    # segment lengths in loop order from the start, the first one split there
     order = (np.arange(m) + i0) % m
-    seg = flux[order].copy()
+    seg = seg[order]
     head = seg[0] * (1.0 - f0)
     cum = np.concatenate([[0.0, head], head + np.cumsum(seg[1:])])
     cum = np.append(cum, cum[-1] + seg[0] * f0)                  # back at the start
@@ -335,10 +311,9 @@ def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
             e = _transport(axes[prev], normals[j])
             axes[j] = e if e is not None else axes[prev]
             prev = j
-    # the harmonic conjugate: position along each loop by the field's flux across it, from
-    # a seam that starts at the middle loop's point towards the square's corner (0, 0) and is
-    # carried to each next loop by its nearest point (flow lines cross isolines at right angles)
-    grad = _face_gradients(plan)
+    # positions along each loop by arc length from a seam that starts at the middle loop's
+    # point towards the square's corner (0, 0) and is carried to each next loop by its nearest
+    # point (the field's flow lines cross its isolines at right angles)
     e2m = np.cross(normals[mid], axes[mid])
     d = pts[mid] - centres[mid]
     x, y = d @ axes[mid], d @ e2m
@@ -354,7 +329,7 @@ def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
     rows, cols, vals = [], [], []
     for j, (lp, p) in enumerate(zip(loops, pts)):
         seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
-        pos = _flux_positions(p, grad[lp.face] * seg, seams[j], SAMPLES)
+        pos = _arc_positions(seg, seams[j], SAMPLES)
         i0 = np.floor(pos).astype(np.int64) % len(lp)
         f = pos - np.floor(pos)
         i1 = (i0 + 1) % len(lp)
@@ -421,15 +396,73 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
                                 (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
         if not mask.any():
             mask = patch[plan.faces].any(axis=1)
-        membrane = lam[:, col] @ rest[j]
-        face, bary = patch_points(plan.rest_vertices, plan.faces, mask, membrane,
-                                  slices.normals[j])
+        first = lam[:, col] @ rest[j]
+        jn = j + 1 if j == 0 else j - 1
+        if 0 <= jn < n_loops and jn != j:
+            direction = first - lam[:, col] @ rest[jn]
+        else:
+            direction = np.broadcast_to(-slices.normals[j] if j == 0 else slices.normals[j],
+                                        first.shape)
+        face, bary = patch_points(plan.rest_vertices, plan.faces, mask, first, direction)
         rows.append(np.repeat(rid[:, col], 3))
         cols.append(base + plan.faces[face].reshape(-1))
         vals.append(bary.reshape(-1))
     n_cols = base + len(plan.rest_vertices)
+    mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                        shape=(n * p, n_cols))
+    mat = _bend_to_ends(n, p) @ mat
+    rest_pts = (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
+                                      plan.rest_vertices])).reshape(n, p, 3)
+    return _even(rest_pts) @ mat
+
+
+def _bend_to_ends(n, p):
+    """Sparse (N P, N P) matrix bending each fibre gradually towards its ends: the offset
+    ``delta = E - (2 P_1 - P_2)`` of the end E from the fibre's own course continued one
+    segment is added to the inner points at ``q`` segments from that end with weight
+    ``(1 - q / B)^2`` (B = `END_BEND` of the points, at least 3): where an attachment patch
+    lies to the side of the fibres' course (a strip along the muscle's edge), the fibres
+    turn towards it over several segments instead of hooking in the last one."""
+    bend = max(3.0, END_BEND * (p - 1))
+    rows, cols, vals = [np.arange(n * p)], [np.arange(n * p)], [np.ones(n * p)]
+    base = np.arange(n) * p
+    for end, one, two, sign in ((0, 1, 2, 1), (p - 1, p - 2, p - 3, -1)):
+        if p < 3:
+            break
+        for q in range(1, p - 1):
+            g = (1.0 - q / bend) ** 2 if q < bend else 0.0
+            if g <= 0.0:
+                break
+            r = base + (q if sign > 0 else p - 1 - q)
+            for c, w in ((end, g), (one, -2.0 * g), (two, g)):
+                rows.append(r)
+                cols.append(base + c)
+                vals.append(np.full(n, w))
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(n * p, n_cols))
+                         shape=(n * p, n * p))
+
+
+def _even(points):
+    """Sparse (N P, N P) matrix putting each fibre's points at equal arc-length steps of its
+    rest polyline (each new point a fixed blend of two consecutive old ones, so the result
+    stays a linear map of the vertices): a slice that lies very near a patch leaves no stub
+    segment at the fibre's end."""
+    n, p, _ = points.shape
+    seg = np.linalg.norm(np.diff(points, axis=1), axis=2)            # (N, P - 1)
+    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(seg, axis=1)], axis=1)
+    total = np.maximum(cum[:, -1:], 1e-300)
+    target = np.linspace(0.0, 1.0, p)[None] * total                  # (N, P)
+    rows, cols, vals = [], [], []
+    for f in range(n):
+        c = cum[f] + 1e-15 * total[f, 0] * np.arange(p)
+        k = np.clip(np.searchsorted(c, target[f], side="right") - 1, 0, p - 2)
+        w = np.clip((target[f] - c[k]) / np.maximum(c[k + 1] - c[k], 1e-300), 0.0, 1.0)
+        r = f * p + np.arange(p)
+        rows += [r, r]
+        cols += [f * p + k, f * p + k + 1]
+        vals += [1.0 - w, w]
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n * p, n * p))
 
 
 def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed):

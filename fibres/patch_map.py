@@ -17,7 +17,10 @@ import numpy as np
 
 from .surface_distance import _closest_points
 
-__all__ = ["patch_points"]
+__all__ = ["patch_points", "REACH"]
+
+#: a ray may reach this many times the distance to the nearest patch point
+REACH = 3.0
 
 
 def _closest_barycentrics(p, tri):
@@ -37,8 +40,8 @@ def _closest_barycentrics(p, tri):
     return np.stack([1.0 - v - w, v, w], axis=1)
 
 
-def patch_points(vertices, faces, face_mask, membrane, normal):
-    """Patch points under membrane points (module docstring).
+def patch_points(vertices, faces, face_mask, start, direction):
+    """Patch points where the fibres' end rays meet the patch (module docstring).
 
     Parameters
     ----------
@@ -46,10 +49,10 @@ def patch_points(vertices, faces, face_mask, membrane, normal):
     faces : (T, 3) int
     face_mask : (T,) bool
         The patch's faces (at least one).
-    membrane : (N, 3) float
-        Points of the rim's membrane.
-    normal : (3,) float
-        The rim's unit normal.
+    start : (N, 3) float
+        The fibres' last inner points.
+    direction : (N, 3) float
+        The rays' directions (the fibres' last segment, continued).
 
     Returns
     -------
@@ -63,27 +66,31 @@ def patch_points(vertices, faces, face_mask, membrane, normal):
     a = tri[:, 0]
     e1 = tri[:, 1] - a
     e2 = tri[:, 2] - a
-    pv = np.cross(normal, e2)                                      # (Tp, 3)
-    det = np.einsum("ij,ij->i", e1, pv)
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    pv = np.cross(d[:, None, :], e2[None])                          # (N, Tp, 3)
+    det = np.einsum("ntk,tk->nt", pv, e1)
     ok = np.abs(det) > 1e-300
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    tv = membrane[:, None, :] - a[None]                            # (N, Tp, 3)
-    u = np.einsum("ntk,tk->nt", tv, pv) * inv
+    tv = start[:, None, :] - a[None]                                # (N, Tp, 3)
+    u = np.einsum("ntk,ntk->nt", tv, pv) * inv
     qv = np.cross(tv, e1[None])
-    v = np.einsum("k,ntk->nt", normal, qv) * inv
+    v = np.einsum("nk,ntk->nt", d, qv) * inv
     t = np.einsum("ntk,tk->nt", qv, e2) * inv
-    hit = ok[None] & (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9)
-    dist = np.where(hit, np.abs(t), np.inf)
+    hit = ok & (t > 0) & (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9)
+    # the nearest patch point: the fallback, and the limit on how far a ray may go
+    cen = tri.mean(axis=1)
+    near = np.argmin(((start[:, None] - cen[None]) ** 2).sum(axis=2), axis=1)
+    near_bary = _closest_barycentrics(start, tri[near])
+    near_pt = np.einsum("nk,nkd->nd", near_bary, tri[near])
+    reach = REACH * np.linalg.norm(near_pt - start, axis=1) + 1e-9
+    dist = np.where(hit & (t <= reach[:, None]), t, np.inf)
     pick = np.argmin(dist, axis=1)
-    rows = np.arange(len(membrane))
+    rows = np.arange(len(start))
     found = np.isfinite(dist[rows, pick])
     bary = np.stack([1 - u[rows, pick] - v[rows, pick], u[rows, pick], v[rows, pick]], axis=1)
-    if not found.all():
-        miss = np.flatnonzero(~found)
-        cen = tri.mean(axis=1)
-        near = np.argmin(((membrane[miss, None] - cen[None]) ** 2).sum(axis=2), axis=1)
-        pick[miss] = near
-        bary[miss] = _closest_barycentrics(membrane[miss], tri[near])
+    pick = np.where(found, pick, near)
+    bary = np.where(found[:, None], bary, near_bary)
     bary = np.clip(bary, 0.0, None)
     bary /= np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
     return idx[pick], bary
