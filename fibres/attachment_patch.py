@@ -8,17 +8,18 @@ outline encloses. Our rule, step by step:
 1. every landmark is projected to its nearest surface vertex (a *seed*); landmarks farther
    than `FAR_LANDMARK` from the surface are reported in one note (they still count);
 2. the patch is the union of
-   a. the surface facing the landmarks (as in b) grown from the seeds along the surface (Dijkstra over the mesh edges, so it
-      never jumps through a thin muscle to its other face) up to the radius ``r``: the median
-      distance from a seed to its nearest other seed (the landmarks' spacing; at least 2 mean
-      edge lengths), so that neighbouring landmarks' disks overlap; and
+   a. the surface grown from the seeds along the surface (Dijkstra over the mesh edges, so it
+      never jumps through a thin muscle to its other face) up to the radius ``r`` (the
+      median distance from a seed to its nearest other seed, at least half a mean edge), so
+      that neighbouring landmarks' disks overlap, keeping the vertices that face the
+      landmarks (as in b); and
    b. the region the landmarks outline (landmarks are often digitised around the border of
       the area): vertices whose projection on the landmarks' best-fit plane falls inside
-      their convex hull, that lie within `ENCLOSED_DEPTH` (or 2 x the landmarks' median
-      distance from the surface + 2 mean edges) of the landmarks' surface (a quadratic height
-      field fitted to them; muscles may overlap the bone a little), and whose outward normal
-      faces it (the
-      deep face of a flat muscle, not its superficial face);
+      their convex hull, that lie within 2 x the landmarks' median distance from the surface
+      + 2 mean edges of the landmarks' surface (a quadratic height field fitted to them, on
+      either side: muscles overlap bones a little), and whose outward normal faces that
+      surface within 60 degrees (`FACING_COS`: the deep face of a flat muscle, not its
+      superficial face nor the flanks of a tapering end);
 3. holes are filled: every region of the rest of the surface smaller than half the patch
    (but never the largest region, the muscle's free surface) joins the patch;
 4. pieces of the patch with less than `MIN_PIECE` of its area (a stray landmark) are dropped,
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .errors import InputError
 
@@ -42,9 +43,8 @@ __all__ = ["AttachmentPatches", "attachment_patches", "FAR_LANDMARK", "MIN_PIECE
 
 #: landmarks farther than this (metres) from the muscle surface are named in a note
 FAR_LANDMARK = 0.02
-#: vertices over the landmarks' outline count when this near (metres) to the landmarks'
-#: surface (or nearer than 2 x the median landmark distance + 2 mean edges)
-ENCLOSED_DEPTH = 0.02
+#: a vertex faces the landmarks' surface when its normal is within acos(FACING_COS) of it
+FACING_COS = 0.5
 #: patch pieces with less than this share of the patch area are dropped
 MIN_PIECE = 0.05
 _STRIP = False
@@ -161,9 +161,9 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
         proj = v[np.unique(seeds)]
         if len(proj) > 1:
             nn = cKDTree(proj).query(proj, k=2)[0][:, 1]
-            radius = max(float(np.median(nn)), 2.0 * mean_edge)
+            radius = max(float(np.median(nn)), 0.5 * mean_edge)
         else:
-            radius = 2.0 * mean_edge
+            radius = 0.5 * mean_edge
         d = _grow(graph, seeds, radius)
         enclosed, facing = _enclosed(v, faces, pts, dist, mean_edge)
         patch = np.isfinite(d) if _STRIP else (np.isfinite(d) & facing) | enclosed
@@ -211,20 +211,21 @@ def _enclosed(v, faces, landmarks, dist, mean_edge):
     height = vz - basis(vx, vy) @ coef
     # the muscle lies on one side: its vertices' median height says which
     side = np.sign(np.median(height)) or 1.0
-    limit = max(ENCLOSED_DEPTH, 2.0 * float(np.median(dist)) + 2.0 * mean_edge)
+    limit = 2.0 * float(np.median(dist)) + 2.0 * mean_edge
     near = np.abs(height) < limit
     try:
-        hull = Delaunay(np.stack([lx, ly], axis=1))
-        inside = hull.find_simplex(np.stack([vx, vy], axis=1)) >= 0
+        hull = ConvexHull(np.stack([lx, ly], axis=1))
     except QhullError:
         return none, every
-    # facing the bone: the outward vertex normal points towards the landmarks' side
+    eq = hull.equations                                  # (H, 3): a x + b y + c <= 0 inside
+    inside = (np.stack([vx, vy], axis=1) @ eq[:, :2].T + eq[:, 2] <= 1e-12).all(axis=1)
+    # facing the bone: the outward vertex normal points towards the landmarks' surface
     tri = v[faces]
     fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    vn = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(vn, faces[:, k], fn)
-    facing = (vn @ frame[:, 2]) * side < 0
+    vn = np.stack([np.bincount(faces.reshape(-1), np.repeat(fn[:, d], 3), len(v))
+                   for d in range(3)], axis=1)
+    cos = (vn @ frame[:, 2]) / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)
+    facing = cos * side < -FACING_COS
     return inside & near & facing, facing
 
 

@@ -27,7 +27,8 @@ from scipy.spatial import cKDTree
 
 from .inside import inside as _inside, inside_grid
 
-__all__ = ["FibreQuality", "fibre_quality", "LIMITS", "VOLUME_SAMPLES", "FIBRE_STEP"]
+__all__ = ["FibreQuality", "FibreQualityWarning", "fibre_quality", "LIMITS", "VOLUME_SAMPLES",
+           "FIBRE_STEP"]
 
 #: volume grid points inside the surface (about)
 VOLUME_SAMPLES = 40_000
@@ -38,6 +39,10 @@ NEAR = 5e-3
 #: the limits of `FibreQuality.problems` (shares, degrees, counts)
 LIMITS = {"empty_5mm": 0.10, "turn_max": 60.0, "turn_p95": 30.0, "origin_covered": 0.75,
           "insertion_covered": 0.75, "outside": 0}
+
+
+class FibreQualityWarning(UserWarning):
+    """A muscle's fibres fall below the usual limits (`LIMITS`)."""
 
 
 @dataclass(frozen=True)
