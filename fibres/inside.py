@@ -1,6 +1,7 @@
 """Which points lie inside a closed triangle surface: vertical ray parity.
 
-A point is inside when a ray from it in +z crosses the surface an odd number of times
+A point is inside when a ray from it (+z, tilted by about 0.1 degree so that it meets no
+vertex or edge of an axis-aligned mesh exactly) crosses the surface an odd number of times
 (Jordan). The triangles are binned by their xy bounding boxes in a uniform 2D grid; a point
 meets only the triangles of its cell whose xy projection contains it (barycentric test, ties
 on shared edges and vertices broken half-open so a crossing through an edge counts once)
@@ -63,12 +64,24 @@ def _crossings(points_xy, tri):
     return pid[hit], z[hit]
 
 
+_TILT = np.array([1.0 / (7.0 * np.pi), 1.0 / (11.0 * np.e)]) * 1e-2
+
+
+def _shear(x):
+    out = np.array(x, dtype=np.float64, copy=True)
+    out[..., :2] -= x[..., 2:3] * _TILT
+    return out
+
+
 def inside(points, vertices, faces) -> np.ndarray:
     """(N,) bool: points strictly inside the closed surface (module docstring)."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
     if len(pts) == 0:
         return np.zeros(0, dtype=bool)
+    # the ray is tilted a little off +z (a shear of the xy plane along z), so that points on
+    # an axis of a synthetic mesh do not meet its vertices and edges exactly
+    pts, tri = _shear(pts), _shear(tri)
     pid, z = _crossings(pts[:, :2], tri)
     above = z > pts[pid, 2]
     return (np.bincount(pid[above], minlength=len(pts)) % 2) == 1
