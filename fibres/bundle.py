@@ -106,7 +106,8 @@ def _patch_faces(plan, faces):
     """(origin_faces, insertion_faces) of a plan: its own patches, or patches made from its
     rest landmarks on its rest surface (cached on the plan object)."""
     if hasattr(plan, "origin_faces"):
-        return plan.origin_faces, plan.insertion_faces
+        return tuple(fm if fm.any() else vm[faces].any(axis=1) for fm, vm in
+                     ((plan.origin_faces, plan.origin), (plan.insertion_faces, plan.insertion)))
     cache = plan.__dict__.get("_patch_faces")
     if cache is None:
         from .attachment_patch import attachment_patches
@@ -114,7 +115,8 @@ def _patch_faces(plan, faces):
         v = plan.rest_vertices
         edges, _ = mesh_edges(faces, len(v))
         p = attachment_patches(v, faces, plan.rest_origin, plan.rest_insertion, edges)
-        cache = (p.origin_faces, p.insertion_faces)
+        cache = tuple(fm if fm.any() else vm[faces].any(axis=1) for fm, vm in
+                      ((p.origin_faces, p.origin), (p.insertion_faces, p.insertion)))
         plan.__dict__["_patch_faces"] = cache
     return cache
 

@@ -37,12 +37,13 @@ CAGD 22, 2005). Here, step by step:
    the fibre's first (last) `END_BEND` so fibres turn towards a patch at their side without
    hooking (`_bend_to_ends`). The points are then put at equal arc-length steps of each
    rest fibre (`_even`): a slice that hugs a patch leaves no stub segment.
-7. The template's cross-section coordinates are first normalised by its attachment
-   rectangles, blended along the axis: a fibre at height ``z`` with ``x`` in the blend of the
-   origin and insertion extents has ``X = (x - lo(z)) / (hi(z) - lo(z))``. The field already
-   follows the muscle's fan and bends, so a fan template is not fanned twice; values are
-   clipped to the square. Template heights below the first or above the last inner slice
-   are clamped onto it.
+7. The template's cross-section coordinates are first normalised by the extent of its whole
+   family at the same curve parameter (a grid of `_ENVELOPE` x `_ENVELOPE` fibres): the
+   field already follows the muscle's fans and bends, so the template gives the fibres'
+   arrangement across the section (their order and relative places), not their course; a
+   fan, curved or pennate template is not fanned, bent or slanted a second time (pennation
+   then comes from the patches: aponeurosis landmarks). Template heights below the first or
+   above the last inner slice are clamped onto it.
 
 Every fibre point is then a fixed linear combination of the vertices (loop samples are
 edge points, ends are points of patch triangles, bending and resampling are fixed blends),
@@ -68,6 +69,8 @@ __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
 #: loop samples per level (a multiple of 4: the square's corners are samples)
 SAMPLES = 64
+#: template fibres per side of the grid that measures the family's extent (step 7)
+_ENVELOPE = 11
 #: share of a fibre over which it bends towards its ends (`_bend_to_ends`)
 END_BEND = 0.3
 #: candidate levels (x 2) searched for the slice levels
@@ -345,28 +348,26 @@ def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
 
 # -- template points to the muscle ----------------------------------------------------------
 
-def _normalised(tmpl, unit):
-    """Template cross-section coordinates normalised by the attachment rectangles blended
-    along the axis (module docstring, step 7); (N, P) X, Y and heights z."""
-    ro, ri = tmpl._rects
-    lo_o = np.array([min(r[0] for r in ro), min(r[2] for r in ro)])
-    hi_o = np.array([max(r[1] for r in ro), max(r[3] for r in ro)])
-    lo_i = np.array([min(r[0] for r in ri), min(r[2] for r in ri)])
-    hi_i = np.array([max(r[1] for r in ri), max(r[3] for r in ri)])
-    z = np.clip(unit[..., 2], 0.0, 1.0)
-    lo = lo_o + (lo_i - lo_o) * z[..., None]
-    hi = hi_o + (hi_i - hi_o) * z[..., None]
+def _normalised(tmpl, unit, t):
+    """Template cross-section coordinates normalised by the family's extent at each curve
+    parameter (module docstring, step 7); (N, P) X, Y and heights z."""
+    g = np.linspace(0.0, 1.0, _ENVELOPE)
+    grid = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    family = tmpl._points(grid, t)                                   # (G, P, 3)
+    lo = family[..., :2].min(axis=0)                                 # (P, 2)
+    hi = family[..., :2].max(axis=0)
     xy = (unit[..., :2] - lo) / np.maximum(hi - lo, 1e-12)
     xy = np.clip(xy, 1e-4, 1.0 - 1e-4)
-    return xy[..., 0], xy[..., 1], z
+    return xy[..., 0], xy[..., 1], np.clip(unit[..., 2], 0.0, 1.0)
 
 
 def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     """Sparse (N * P, L * SAMPLES + V) matrix: fibre points from [loop samples; vertices]."""
     n = len(rs)
     p = resolution + 1
-    unit = tmpl._points(rs, np.linspace(0.0, 1.0, p))               # (N, P, 3)
-    X, Y, z = _normalised(tmpl, unit)
+    t = np.linspace(0.0, 1.0, p)
+    unit = tmpl._points(rs, t)                                       # (N, P, 3)
+    X, Y, z = _normalised(tmpl, unit, t)
     z[:, 0], z[:, -1] = 0.0, 1.0
     k = SAMPLES
     n_loops = slices.centres.shape[0]
