@@ -38,7 +38,7 @@ from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
 from .slicing import _topology_kernel, mesh_topology, slice_mesh
-from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
+from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth, smooth_taubin
 from .surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .templates import Template, get_template
 
@@ -357,7 +357,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     template_params : mapping, optional
         Parameters of the template (`fibres.get_template`).
     smoothing_iterations : int, keyword-only
-        Iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
+        Planes: iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
+        harmonic: twice as many lambda|mu pairs of `fibres.smoothing.smooth_taubin`;
         default `fibres.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Each point's
         smoothing shift is softly bounded by `fibres.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm)
         so that smoothing cannot pull fibres out through a concave wall.
@@ -455,8 +456,9 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
 
 def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolution, seed,
                         smoothing_iterations, contain, plan):
-    """`decompose` by harmonic-field slicing (`fibres.harmonic_slicing`), then the same
-    smoothing and containment as the planar method."""
+    """`decompose` by harmonic-field slicing (`fibres.harmonic_slicing`), then Taubin's
+    non-shrinking smoothing (2 x ``smoothing_iterations`` lambda|mu pairs,
+    `fibres.smoothing.smooth_taubin`) and the containment pull of the planar method."""
     if plan is None:
         plan = make_harmonic_plan(v, faces, o, i)
         notes.extend(plan.notes)
@@ -466,8 +468,7 @@ def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolu
     notes.extend(slice_notes)
     flags = {}
     if smoothing_iterations:
-        pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations),
-                     max_shift=DECOMPOSE_MAX_SHIFT)
+        pts = smooth_taubin(pts, iterations=2 * int(smoothing_iterations))
     if contain:
         pts, flags["contained"] = contain_points(pts, v, faces, mean_edge=mean_edge)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))

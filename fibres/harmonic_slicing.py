@@ -25,18 +25,22 @@ CAGD 22, 2005). Here, step by step:
    *seam*: on the middle loop, its point towards the square's corner (0, 0) in the frame
    ``(e1, e2)``; on every other loop, the point nearest to the previous loop's seam (the
    field's flow lines cross the isolines at right angles, so the seam follows one). Sample k
-   corresponds to the point at k / SAMPLES of the unit square's perimeter, counter-clockwise
-   from (0, 0). A template point ``(x, y)`` of the slice goes to ``sum_k lambda_k(x, y)
+   corresponds to the point at k / SAMPLES of the perimeter of a rectangle with the loop's
+   aspect (its extents along e1 and e2), counter-clockwise from (0, 0), scaled to the unit
+   square: the square's sides go to the loop's sides, also for a flat muscle. A template
+   point ``(x, y)`` of the slice goes to ``sum_k lambda_k(x, y)
    S_k``: its mean value coordinates (Hormann & Floater, ACM TOG 25(4), 2006) with respect
    to the square's samples applied to the loop's -- a 3D generalisation of Kohout 2012
    §3.3 without planarisation: the map spans the loop like a membrane. Seam and arc
    lengths change continuously from loop to loop, so fibres do not jump between slices.
-6. **Fibre ends on the patches** (`fibres.patch_map`): the fibre's course past its first
-   (last) inner slice is continued as a ray onto the patch, or, where the ray misses, to the
-   patch's nearest point; the end's offset from the straight continuation is spread over
-   the fibre's first (last) `END_BEND` so fibres turn towards a patch at their side without
-   hooking (`_bend_to_ends`). The points are then put at equal arc-length steps of each
-   rest fibre (`_even`): a slice that hugs a patch leaves no stub segment.
+6. **Fibre ends spread over the patches** (`fibres.patch_map`): the template's origin and
+   insertion coordinates go onto the whole patches by area and order-preserving (a
+   Knothe-Rosenblatt map in the frame of the first / last inner loop, so the ends line up
+   with the fibres' places in the sections); the end's offset from the fibre's own course
+   (its first inner segment continued) is spread over the fibre's first (last) `END_BEND`,
+   so fibres turn towards their place on the patch without hooking (`_bend_to_ends`). The
+   points are then put at equal arc-length steps of each rest fibre (`_even`): a slice that
+   hugs a patch leaves no stub segment.
 7. The template's cross-section coordinates are first normalised by the extent of its whole
    family at the same curve parameter (a grid of `_ENVELOPE` x `_ENVELOPE` fibres): the
    field already follows the muscle's fans and bends, so the template gives the fibres'
@@ -63,7 +67,7 @@ from .errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
 from .isolines import isoline_loops, isoline_moments
 from .mvc import mean_value_coordinates
-from .patch_map import patch_points
+from .patch_map import area_points, knothe_rosenblatt, locate
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
@@ -71,6 +75,8 @@ __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 SAMPLES = 64
 #: template fibres per side of the grid that measures the family's extent (step 7)
 _ENVELOPE = 11
+#: grid cells per side of the square that triangulate a membrane for its area measure
+_MEMBRANE = 24
 #: share of a fibre over which it bends towards its ends (`_bend_to_ends`)
 END_BEND = 0.3
 #: candidate levels (x 2) searched for the slice levels
@@ -225,16 +231,18 @@ def _transport(e1, n):
     return p / norm
 
 
-def _square_samples(k: int) -> np.ndarray:
-    """(k, 2) points evenly spaced on the unit square's perimeter from (0, 0), CCW."""
-    s = np.arange(k) / k * 4.0
-    side = np.floor(s).astype(int)
-    f = s - side
+def _rectangle_samples(k: int, share: float) -> np.ndarray:
+    """(k, 2) points of the unit square's boundary, counter-clockwise from (0, 0), evenly
+    spaced on the perimeter of a rectangle whose sides along x take ``share`` of its
+    perimeter (the loop's aspect: ``a / (a + b)`` for extents a along e1, b along e2)."""
+    w = min(max(float(share), 0.02), 0.98)
+    phi = np.arange(k) / k
     out = np.empty((k, 2))
-    out[side == 0] = np.stack([f[side == 0], 0 * f[side == 0]], axis=1)
-    out[side == 1] = np.stack([1 + 0 * f[side == 1], f[side == 1]], axis=1)
-    out[side == 2] = np.stack([1 - f[side == 2], 1 + 0 * f[side == 2]], axis=1)
-    out[side == 3] = np.stack([0 * f[side == 3], 1 - f[side == 3]], axis=1)
+    bounds = np.array([0.0, w / 2, 0.5, 0.5 + w / 2, 1.0])
+    side = np.searchsorted(bounds, phi, side="right") - 1
+    f = (phi - bounds[side]) / np.diff(bounds)[side]
+    out[:, 0] = np.choose(side, [f, np.ones_like(f), 1 - f, np.zeros_like(f)])
+    out[:, 1] = np.choose(side, [np.zeros_like(f), f, np.ones_like(f), 1 - f])
     return out
 
 
@@ -284,6 +292,7 @@ class _Slices:
     centres: np.ndarray
     normals: np.ndarray
     axes: np.ndarray
+    shares: np.ndarray
     notes: tuple
 
 
@@ -329,8 +338,12 @@ def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
             q = _position_point(pts[prev], seams[prev])
             seams[j] = _closest_position(pts[j], q)
             prev = j
+    shares = np.empty(len(loops))
     rows, cols, vals = [], [], []
     for j, (lp, p) in enumerate(zip(loops, pts)):
+        d = p - centres[j]
+        a, b = np.ptp(d @ axes[j]), np.ptp(d @ np.cross(normals[j], axes[j]))
+        shares[j] = a / max(a + b, 1e-300)
         seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
         pos = _arc_positions(seg, seams[j], SAMPLES)
         i0 = np.floor(pos).astype(np.int64) % len(lp)
@@ -343,7 +356,7 @@ def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
             vals += [wgt * (1.0 - lp.s[idx]), wgt * lp.s[idx]]
     mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                         shape=(len(loops) * SAMPLES, len(v)))
-    return _Slices(mat, centres, normals, axes, tuple(notes))
+    return _Slices(mat, centres, normals, axes, shares, tuple(notes))
 
 
 # -- template points to the muscle ----------------------------------------------------------
@@ -372,39 +385,62 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     k = SAMPLES
     n_loops = slices.centres.shape[0]
     base = n_loops * k
-    lam = mean_value_coordinates(np.stack([X.reshape(-1), Y.reshape(-1)], axis=1),
-                                 _square_samples(k)).reshape(n, p, k)
+    xy = np.stack([X, Y], axis=-1)                                   # (N, P, 2)
+    polygons = [_rectangle_samples(k, share) for share in slices.shares]
+
     rest = (slices.samples @ plan.rest_vertices).reshape(n_loops, k, 3)
+    # the membranes at rest, triangulated on a grid of the square (step 5's area measure)
+    g = np.linspace(0.0, 1.0, _MEMBRANE + 1)
+    nodes = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    a_, b_ = np.meshgrid(np.arange(_MEMBRANE), np.arange(_MEMBRANE), indexing="ij")
+    n00 = (a_ * (_MEMBRANE + 1) + b_).reshape(-1)
+    cells = np.concatenate([np.stack([n00, n00 + _MEMBRANE + 1, n00 + _MEMBRANE + 2], 1),
+                            np.stack([n00, n00 + _MEMBRANE + 2, n00 + 1], 1)])
+
+    def lam(j, pts):
+        """MVC weights of the points of the square that spread ``pts`` evenly by area over
+        loop j's membrane (Knothe-Rosenblatt in the loop's frame, as at the patches)."""
+        pts = pts.reshape(-1, 2)
+        memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]        # (G+1)^2 x 3
+        e1 = slices.axes[j]
+        e2 = np.cross(slices.normals[j], e1)
+        tri = memb[cells]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                    axis=1)
+        px, py = (tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2
+        xs, ys = knothe_rosenblatt(px, py, area, pts[:, 0], pts[:, 1])
+        pick, bary = locate(px, py, xs, ys)
+        square = np.einsum("nk,nkd->nd", bary, nodes[cells[pick]])
+        return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons[j])
+
     rows, cols, vals = [], [], []
     rid = np.arange(n * p).reshape(n, p)
+    kk = np.arange(k)
     # inner points: the membranes of the two loops around their height, blended (heights
     # before the first or after the last inner slice are clamped onto it)
     if p > 2:
-        pos = np.clip(z[:, 1:-1] * resolution - 1.0, 0.0, n_loops - 1.0)
-        j0 = np.clip(np.floor(pos).astype(np.int64), 0, max(n_loops - 2, 0)).reshape(-1)
-        a = pos.reshape(-1) - j0
+        pos = np.clip(z[:, 1:-1] * resolution - 1.0, 0.0, n_loops - 1.0).reshape(-1)
+        j0 = np.clip(np.floor(pos).astype(np.int64), 0, max(n_loops - 2, 0))
+        a = pos - j0
         j1 = np.minimum(j0 + 1, n_loops - 1)
         r_in = rid[:, 1:-1].reshape(-1)
-        lam_in = lam[:, 1:-1].reshape(-1, k)
-        kk = np.arange(k)
+        xy_in = xy[:, 1:-1].reshape(-1, 2)
         for jj, wj in ((j0, 1.0 - a), (j1, a)):
-            rows.append(np.repeat(r_in, k))
-            cols.append((jj[:, None] * k + kk).reshape(-1))
-            vals.append((lam_in * wj[:, None]).reshape(-1))
-    # ends: the first / last inner membrane carried onto the patch along its normal
-    # (fibres.patch_map): the end segment continues the fibre's course, no hook
+            use = wj > 0
+            for j in np.unique(jj[use]):
+                sel = np.flatnonzero(use & (jj == j))
+                rows.append(np.repeat(r_in[sel], k))
+                cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
+                vals.append((lam(j, xy_in[sel]) * wj[sel, None]).reshape(-1))
+    # ends: the template's end coordinates onto the whole patch by area, in the first / last
+    # inner loop's frame (fibres.patch_map), the fibres then bent towards them (_bend_to_ends)
     for col, mask, patch, j in ((0, plan.origin_faces, plan.origin, 0),
                                 (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
         if not mask.any():
             mask = patch[plan.faces].any(axis=1)
-        first = lam[:, col] @ rest[j]
-        jn = j + 1 if j == 0 else j - 1
-        if 0 <= jn < n_loops and jn != j:
-            direction = first - lam[:, col] @ rest[jn]
-        else:
-            direction = np.broadcast_to(-slices.normals[j] if j == 0 else slices.normals[j],
-                                        first.shape)
-        face, bary = patch_points(plan.rest_vertices, plan.faces, mask, first, direction)
+        e1 = slices.axes[j]
+        face, bary = area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j], e1,
+                                 np.cross(slices.normals[j], e1), xy[:, col, 0], xy[:, col, 1])
         rows.append(np.repeat(rid[:, col], 3))
         cols.append(base + plan.faces[face].reshape(-1))
         vals.append(bary.reshape(-1))

@@ -1,47 +1,104 @@
-"""Fibre ends on an attachment patch: the rim membrane's points carried onto the patch.
+"""Fibre ends on an attachment patch: the unit square onto the patch, by area, in order.
 
-`fibres.harmonic_slicing` maps a template slice onto a loop as a membrane spanning it (mean
-value coordinates of the square applied to the loop's samples). The fibre ends use the same
-map on the patch's rim (the isoline that hugs the patch's border), and each membrane point is
-carried onto the patch surface along the rim's normal ``n``: the nearest intersection of the
-line ``m + t n`` with the patch's triangles (Moeller & Trumbore, J. Graphics Tools 2(1),
-1997), or, where the line misses the patch, the patch point nearest to ``m``. The square's
-border goes to the rim and its inside to the patch's inside, with the same order and the
-same map as every other slice: a fibre of a straight cylinder between its caps is straight,
-and fibres leave the patch without hooks. The result is a face and barycentric weights: a
-material point that rides a deformed copy of the surface.
+`fibres.harmonic_slicing` spreads the fibres' ends over the whole origin and insertion
+patches: template end coordinates ``(X, Y)`` in [0, 1]^2 go onto the patch by the
+Knothe-Rosenblatt rearrangement of the uniform square onto the patch's area measure
+(`area_points`). The result is a face and barycentric weights: a material point that rides
+a deformed copy of the surface.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .surface_distance import _closest_points
-
-__all__ = ["patch_points", "REACH"]
-
-#: a ray may reach this many times the distance to the nearest patch point
-REACH = 3.0
+__all__ = ["area_points", "knothe_rosenblatt", "locate", "WINDOW", "SAMPLES"]
 
 
-def _closest_barycentrics(p, tri):
-    """Barycentric weights (N, 3) of the closest points of (N, 3) points on (N, 3, 3) paired
-    triangles (`fibres.surface_distance._closest_points`)."""
-    q = _closest_points(tri, p)
-    a = tri[:, 0]
-    e1, e2, d = tri[:, 1] - a, tri[:, 2] - a, q - a
-    d00 = np.einsum("ij,ij->i", e1, e1)
-    d01 = np.einsum("ij,ij->i", e1, e2)
-    d11 = np.einsum("ij,ij->i", e2, e2)
-    d20 = np.einsum("ij,ij->i", d, e1)
-    d21 = np.einsum("ij,ij->i", d, e2)
-    den = np.maximum(d00 * d11 - d01 * d01, 1e-300)
-    v = (d11 * d20 - d01 * d21) / den
-    w = (d00 * d21 - d01 * d20) / den
-    return np.stack([1.0 - v - w, v, w], axis=1)
+#: about this many samples of a patch's area measure (each triangle split into n^2 equal parts)
+SAMPLES = 4000
 
 
-def patch_points(vertices, faces, face_mask, start, direction):
-    """Patch points where the fibres' end rays meet the patch (module docstring).
+def _sub_centroids(n: int) -> np.ndarray:
+    """(n^2, 3) barycentric weights of the centroids of a triangle's regular split into n^2
+    equal sub-triangles."""
+    out = []
+    for i in range(n):
+        for j in range(n - i):
+            out.append(((i + 1 / 3) / n, (j + 1 / 3) / n))
+            if i + j <= n - 2:
+                out.append(((i + 2 / 3) / n, (j + 2 / 3) / n))
+    uv = np.array(out)
+    return np.c_[1.0 - uv.sum(axis=1), uv]
+#: conditional window width of `area_points`, as a share of the patch's extent along e1
+WINDOW = 0.08
+
+
+def _quantile(values, weights, q):
+    """Weighted quantiles (piecewise linear in the mid-point cumulative weights)."""
+    order = np.argsort(values, kind="stable")
+    v, w = values[order], weights[order]
+    cum = np.cumsum(w)
+    mid = (cum - 0.5 * w) / cum[-1]
+    return np.interp(q, mid, v)
+
+
+def knothe_rosenblatt(px, py, area, X, Y):
+    """Planar targets ``(x*, y*)`` of unit-square coordinates ``(X, Y)`` under the
+    Knothe-Rosenblatt map onto the area measure of triangles with projected corners ``px``,
+    ``py`` (T, 3) and areas ``area`` (T,): ``x* = F1^-1(X)`` (the area quantile along x),
+    ``y* = F2^-1(Y | x*)`` (along y among the triangles near x*, a Gaussian window of
+    `WINDOW` of the extent along x). The measure is sampled at the centroids of each
+    triangle's split into n^2 equal parts (n so that there are about `SAMPLES` samples)."""
+    n = int(np.clip(np.sqrt(SAMPLES / max(len(px), 1)), 1, 8))
+    sub = _sub_centroids(n)
+    sx = (px @ sub.T).reshape(-1)
+    sy = (py @ sub.T).reshape(-1)
+    sw = np.repeat(np.asarray(area, dtype=np.float64) / len(sub), len(sub))
+    xs = _quantile(sx, sw, np.clip(X, 0.0, 1.0))
+    h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
+    order = np.argsort(sy, kind="stable")
+    sy, sx, sw = sy[order], sx[order], sw[order]
+    w = sw[None] * np.exp(-0.5 * ((sx[None] - xs[:, None]) / h) ** 2)   # (N, S)
+    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    q = np.clip(Y, 0.0, 1.0)[:, None]
+    k = np.clip((mid < q).sum(axis=1), 1, len(sy) - 1)
+    rows = np.arange(len(xs))
+    m0, m1 = mid[rows, k - 1], mid[rows, k]
+    f = np.clip((q[:, 0] - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
+    ys = sy[k - 1] + f * (sy[k] - sy[k - 1])
+    below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
+    ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
+    return xs, ys
+
+
+def locate(px, py, xs, ys):
+    """The triangle (T, 3 projected corners ``px``, ``py``) under each planar point, or the
+    nearest by centroid, and the point's barycentric weights there (clipped, normalised)."""
+    ax, ay = px[:, 0], py[:, 0]
+    bx, by, cx, cy = px[:, 1] - ax, py[:, 1] - ay, px[:, 2] - ax, py[:, 2] - ay
+    det = bx * cy - by * cx
+    det = np.where(np.abs(det) < 1e-30, 1e-30, det)
+    qx, qy = xs[:, None] - ax[None], ys[:, None] - ay[None]
+    l1 = (qx * cy[None] - qy * cx[None]) / det[None]
+    l2 = (bx[None] * qy - by[None] * qx) / det[None]
+    l0 = 1.0 - l1 - l2
+    inside = np.minimum(np.minimum(l0, l1), l2) >= -1e-9
+    d2 = (xs[:, None] - px.mean(axis=1)[None]) ** 2 + (ys[:, None] - py.mean(axis=1)[None]) ** 2
+    pick = np.where(inside.any(axis=1), np.argmax(inside, axis=1), np.argmin(d2, axis=1))
+    rows = np.arange(len(xs))
+    bary = np.clip(np.stack([l0[rows, pick], l1[rows, pick], l2[rows, pick]], axis=1), 0.0, None)
+    return pick, bary / np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
+
+
+def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
+    """Template end coordinates ``(X, Y)`` in [0, 1]^2 onto a patch, by area and order-preserving.
+
+    The Knothe-Rosenblatt rearrangement (Rosenblatt, Ann. Math. Stat. 23(3):470-472, 1952;
+    Villani, "Optimal transport", 2009, ch. 1) of the uniform square onto the patch's area,
+    in the frame ``(e1, e2)`` (`knothe_rosenblatt`), then the patch point whose projection is
+    the target (`locate`). Equal areas of the square go to about equal areas of the patch,
+    and fibres keep their order across it.
 
     Parameters
     ----------
@@ -49,10 +106,9 @@ def patch_points(vertices, faces, face_mask, start, direction):
     faces : (T, 3) int
     face_mask : (T,) bool
         The patch's faces (at least one).
-    start : (N, 3) float
-        The fibres' last inner points.
-    direction : (N, 3) float
-        The rays' directions (the fibres' last segment, continued).
+    centre, e1, e2 : (3,) float
+        The frame: origin and two orthonormal axes.
+    X, Y : (N,) float in [0, 1]
 
     Returns
     -------
@@ -63,34 +119,9 @@ def patch_points(vertices, faces, face_mask, start, direction):
     """
     idx = np.flatnonzero(face_mask)
     tri = vertices[faces[idx]]                                     # (Tp, 3, 3)
-    a = tri[:, 0]
-    e1 = tri[:, 1] - a
-    e2 = tri[:, 2] - a
-    d = np.asarray(direction, dtype=np.float64)
-    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
-    pv = np.cross(d[:, None, :], e2[None])                          # (N, Tp, 3)
-    det = np.einsum("ntk,tk->nt", pv, e1)
-    ok = np.abs(det) > 1e-300
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    tv = start[:, None, :] - a[None]                                # (N, Tp, 3)
-    u = np.einsum("ntk,ntk->nt", tv, pv) * inv
-    qv = np.cross(tv, e1[None])
-    v = np.einsum("nk,ntk->nt", d, qv) * inv
-    t = np.einsum("ntk,tk->nt", qv, e2) * inv
-    hit = ok & (t > 0) & (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9)
-    # the nearest patch point: the fallback, and the limit on how far a ray may go
-    cen = tri.mean(axis=1)
-    near = np.argmin(((start[:, None] - cen[None]) ** 2).sum(axis=2), axis=1)
-    near_bary = _closest_barycentrics(start, tri[near])
-    near_pt = np.einsum("nk,nkd->nd", near_bary, tri[near])
-    reach = REACH * np.linalg.norm(near_pt - start, axis=1) + 1e-9
-    dist = np.where(hit & (t <= reach[:, None]), t, np.inf)
-    pick = np.argmin(dist, axis=1)
-    rows = np.arange(len(start))
-    found = np.isfinite(dist[rows, pick])
-    bary = np.stack([1 - u[rows, pick] - v[rows, pick], u[rows, pick], v[rows, pick]], axis=1)
-    pick = np.where(found, pick, near)
-    bary = np.where(found[:, None], bary, near_bary)
-    bary = np.clip(bary, 0.0, None)
-    bary /= np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    px = (tri - centre) @ e1
+    py = (tri - centre) @ e2
+    xs, ys = knothe_rosenblatt(px, py, area, X, Y)
+    pick, bary = locate(px, py, xs, ys)
     return idx[pick], bary

@@ -57,18 +57,18 @@ def test_isolines_of_the_cylinder_are_circles():
 
 def test_straight_cylinder_gives_straight_axial_fibres():
     """Landmarks on both caps: every fibre is a straight segment along the axis, from cap to
-    cap (the loops are equal circles, the membranes equal, the ends continue the course)."""
+    cap (the loops are equal circles, the membranes and their area maps equal)."""
     v, f = tube(_circle, *straight(L), n_sect=64, n_path=41)
     b = decompose((v, f), _disk(0.0), _disk(L), n_fibres=50, resolution=10)
     p = b.points
-    # the fibres' xy stays put along each fibre, up to the containment pull of points within
-    # 0.2 mm of the wall (`fibres.containment`: they move by less than 0.1 mm)
-    assert np.abs(p[:, :, :2] - p[:, :1, :2]).max() < 1e-4
-    b0 = decompose((v, f), _disk(0.0), _disk(L), n_fibres=50, resolution=10, contain=False)
-    assert np.abs(b0.points[:, :, :2] - b0.points[:, :1, :2]).max() < 1e-9
+    # the fibres' xy stays put along each fibre: every section and both caps are spread by
+    # the same area map (Knothe-Rosenblatt on a disk), up to the sampling of the measures
+    # (caps: the mesh's fan triangles; sections: a 24 x 24 membrane grid) and the
+    # containment pull of points within 0.2 mm of the wall: 0.3 mm on a 10 mm radius
+    assert np.abs(p[:, :, :2] - p[:, :1, :2]).max() < 3e-4
     np.testing.assert_allclose(p[:, 0, 2], 0.0, atol=1e-9)
     np.testing.assert_allclose(p[:, -1, 2], L, atol=1e-9)
-    assert b.quality.turn_max < 0.5
+    assert b.quality.turn_max < 2.0
     assert b.quality.outside == 0
     assert isinstance(b.plan, HarmonicPlan)
 
@@ -202,12 +202,12 @@ def test_lhdl_isolines_are_single_loops(lhdl_dir, muscle):
 
 
 # measured (this code, resolution 15, 100 fibres, the TOML's templates; psoas with its own
-# lumbar origins): volume farther than 5 mm 13.1 / 9.0 / 6.1 / 8.0 %, sharpest turn p95
-# 36 / 60 / 42 / 42 degrees, origin covered 77 / 62 / 74 / 81 %, insertion 99 / 76 / 100 / 100 %;
+# lumbar origins): volume farther than 5 mm 7.9 / 2.9 / 0.6 / 3.3 %, sharpest turn p95
+# 39 / 31 / 29 / 42 degrees, origin covered 99 / 86 / 85 / 99 %, insertion 100 % each;
 # the bounds below are those numbers with a margin (they guard against regressions; the
 # acceptance targets of issue 11 are not all met, see docs/decisions.md)
-BOUNDS = {"glut_max_r": (0.16, 45, 0.70, 0.90), "glut_med_r": (0.12, 70, 0.55, 0.68),
-          "iliacus_r": (0.09, 55, 0.65, 0.90), "psoas_r": (0.11, 55, 0.70, 0.90)}
+BOUNDS = {"glut_max_r": (0.10, 45, 0.92, 0.95), "glut_med_r": (0.05, 38, 0.80, 0.95),
+          "iliacus_r": (0.03, 36, 0.80, 0.95), "psoas_r": (0.05, 48, 0.92, 0.95)}
 
 
 @pytest.mark.shared
