@@ -76,7 +76,7 @@ SAMPLES = 64
 #: template fibres per side of the grid that measures the family's extent (step 7)
 _ENVELOPE = 11
 #: grid cells per side of the square that triangulate a membrane for its area measure
-_MEMBRANE = 24
+_MEMBRANE = 16
 #: share of a fibre over which it bends towards its ends (`_bend_to_ends`)
 END_BEND = 0.3
 #: candidate levels (x 2) searched for the slice levels
@@ -408,7 +408,7 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
                                     axis=1)
         px, py = (tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2
-        xs, ys = knothe_rosenblatt(px, py, area, pts[:, 0], pts[:, 1])
+        xs, ys = knothe_rosenblatt(px, py, area, pts[:, 0], pts[:, 1], samples=len(cells))
         pick, bary = locate(px, py, xs, ys)
         square = np.einsum("nk,nkd->nd", bary, nodes[cells[pick]])
         return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons[j])

@@ -13,6 +13,8 @@ import numpy as np
 __all__ = ["area_points", "knothe_rosenblatt", "locate", "WINDOW", "SAMPLES"]
 
 
+#: nearest triangles tried first when locating a point (`locate`)
+CANDIDATES = 12
 #: about this many samples of a patch's area measure (each triangle split into n^2 equal parts)
 SAMPLES = 4000
 
@@ -41,14 +43,15 @@ def _quantile(values, weights, q):
     return np.interp(q, mid, v)
 
 
-def knothe_rosenblatt(px, py, area, X, Y):
+def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     """Planar targets ``(x*, y*)`` of unit-square coordinates ``(X, Y)`` under the
     Knothe-Rosenblatt map onto the area measure of triangles with projected corners ``px``,
     ``py`` (T, 3) and areas ``area`` (T,): ``x* = F1^-1(X)`` (the area quantile along x),
     ``y* = F2^-1(Y | x*)`` (along y among the triangles near x*, a Gaussian window of
     `WINDOW` of the extent along x). The measure is sampled at the centroids of each
-    triangle's split into n^2 equal parts (n so that there are about `SAMPLES` samples)."""
-    n = int(np.clip(np.sqrt(SAMPLES / max(len(px), 1)), 1, 8))
+    triangle's split into n^2 equal parts (n so that there are about ``samples``, at least
+    one per triangle)."""
+    n = int(np.clip(np.sqrt(samples / max(len(px), 1)), 1, 8))
     sub = _sub_centroids(n)
     sx = (px @ sub.T).reshape(-1)
     sy = (py @ sub.T).reshape(-1)
@@ -74,21 +77,42 @@ def knothe_rosenblatt(px, py, area, X, Y):
 
 def locate(px, py, xs, ys):
     """The triangle (T, 3 projected corners ``px``, ``py``) under each planar point, or the
-    nearest by centroid, and the point's barycentric weights there (clipped, normalised)."""
-    ax, ay = px[:, 0], py[:, 0]
-    bx, by, cx, cy = px[:, 1] - ax, py[:, 1] - ay, px[:, 2] - ax, py[:, 2] - ay
+    nearest by centroid, and the point's barycentric weights there (clipped, normalised).
+    Candidates: the `CANDIDATES` triangles with the nearest centroids (all triangles for a
+    point none of them holds)."""
+    from scipy.spatial import cKDTree
+
+    cx, cy = px.mean(axis=1), py.mean(axis=1)
+    k = min(CANDIDATES, len(px))
+    near = cKDTree(np.c_[cx, cy]).query(np.c_[xs, ys], k=k)[1].reshape(len(xs), k)
+    pick, bary, ok = _barycentric(px, py, xs, ys, near)
+    if not ok.all():
+        miss = np.flatnonzero(~ok)
+        every = np.broadcast_to(np.arange(len(px)), (miss.size, len(px)))
+        p2, b2, ok2 = _barycentric(px, py, xs[miss], ys[miss], every)
+        pick[miss[ok2]], bary[miss[ok2]] = p2[ok2], b2[ok2]
+    return pick, bary
+
+
+def _barycentric(px, py, xs, ys, cand):
+    """Among candidate triangles ``cand`` (N, k) of each point: the first holding it (else the
+    first candidate, the nearest), its clipped barycentrics, and whether one held it."""
+    ax, ay = px[cand, 0], py[cand, 0]
+    bx, by = px[cand, 1] - ax, py[cand, 1] - ay
+    cx, cy = px[cand, 2] - ax, py[cand, 2] - ay
     det = bx * cy - by * cx
     det = np.where(np.abs(det) < 1e-30, 1e-30, det)
-    qx, qy = xs[:, None] - ax[None], ys[:, None] - ay[None]
-    l1 = (qx * cy[None] - qy * cx[None]) / det[None]
-    l2 = (bx[None] * qy - by[None] * qx) / det[None]
+    qx, qy = xs[:, None] - ax, ys[:, None] - ay
+    l1 = (qx * cy - qy * cx) / det
+    l2 = (bx * qy - by * qx) / det
     l0 = 1.0 - l1 - l2
     inside = np.minimum(np.minimum(l0, l1), l2) >= -1e-9
-    d2 = (xs[:, None] - px.mean(axis=1)[None]) ** 2 + (ys[:, None] - py.mean(axis=1)[None]) ** 2
-    pick = np.where(inside.any(axis=1), np.argmax(inside, axis=1), np.argmin(d2, axis=1))
+    ok = inside.any(axis=1)
+    col = np.where(ok, np.argmax(inside, axis=1), 0)
     rows = np.arange(len(xs))
-    bary = np.clip(np.stack([l0[rows, pick], l1[rows, pick], l2[rows, pick]], axis=1), 0.0, None)
-    return pick, bary / np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
+    bary = np.clip(np.stack([l0[rows, col], l1[rows, col], l2[rows, col]], axis=1), 0.0, None)
+    bary /= np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
+    return cand[rows, col].copy(), bary, ok
 
 
 def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
