@@ -182,8 +182,6 @@ def execute(args) -> int:
     bundle = decompose(surface, origin, insertion, template=args.template,
                        n_fibres=args.fibres, resolution=args.resolution, seed=args.seed,
                        slicing=args.slicing)
-    for note in bundle.notes:
-        print(f"fibres decompose: note: {note}", file=sys.stderr)
     write_fibres(out, bundle)
     n, p = np.shape(bundle.points)[:2]
     print(f"wrote {n} fibres of {p} points to {out}")

@@ -146,7 +146,7 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
     notes = []
     areas = _face_areas(v, faces)
     vertex_area = np.bincount(faces.reshape(-1), np.repeat(areas / 3.0, 3), len(v))
-    patches, dists, grown = [], [], []
+    patches, dists, seed_sets = [], [], []
     for name, pts in (("origin", origin), ("insertion", insertion)):
         pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
         if len(pts) == 0:
@@ -171,12 +171,12 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
         patch = _drop_small_pieces(patch, graph, vertex_area, name, notes)
         patches.append(patch)
         dists.append(dist)
-        grown.append(_grow(graph, seeds, np.inf))
+        seed_sets.append(seeds)
     o, i = patches
     both = o & i
     if both.any() or _touching(o, i, edges):
         # split by the nearer seed set, then free one ring between them
-        nearer_o = grown[0] <= grown[1]
+        nearer_o = _grow(graph, seed_sets[0], np.inf) <= _grow(graph, seed_sets[1], np.inf)
         o, i = o & nearer_o, i & ~nearer_o
         ring = _touching_vertices(o, i, edges)
         o, i = o & ~ring, i & ~ring

@@ -63,9 +63,9 @@ def test_straight_cylinder_gives_straight_axial_fibres():
     p = b.points
     # the fibres' xy stays put along each fibre: every section and both caps are spread by
     # the same area map (Knothe-Rosenblatt on a disk), up to the sampling of the measures
-    # (caps: the mesh's fan triangles; sections: a 24 x 24 membrane grid) and the
-    # containment pull of points within 0.2 mm of the wall: 0.3 mm on a 10 mm radius
-    assert np.abs(p[:, :, :2] - p[:, :1, :2]).max() < 3e-4
+    # (caps: the mesh's fan triangles; sections: a 16 x 16 membrane grid, cells ~1.3 mm) and
+    # the containment pull of points within 0.2 mm of the wall: 0.5 mm on a 10 mm radius
+    assert np.abs(p[:, :, :2] - p[:, :1, :2]).max() < 5e-4
     np.testing.assert_allclose(p[:, 0, 2], 0.0, atol=1e-9)
     np.testing.assert_allclose(p[:, -1, 2], L, atol=1e-9)
     assert b.quality.turn_max < 2.0
