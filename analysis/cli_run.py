@@ -56,6 +56,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--fibres", type=int, default=None, metavar="N", help="fibres per muscle")
     parser.add_argument("--resolution", type=int, default=None, metavar="R", help="segments per fibre")
     parser.add_argument("--template", default=None, metavar="NAME", help="fibre template for every muscle")
+    parser.add_argument("--slicing", default=None, choices=("harmonic", "planes"),
+                        help="cross-sections for every muscle: isolines of a harmonic field (the TOML's "
+                             "default) or parallel planes (Kohout 2012)")
     add_frames_argument(parser)
     parser.add_argument("--jobs", type=int, default=1, metavar="N", help="muscles in parallel (default 1)")
     parser.add_argument("--transport", choices=("bind", "decompose"), default="bind",
@@ -78,11 +81,12 @@ def execute(args) -> int:
             raise InputError(f"{key} must be >= 1, got {val}", where=key, fix=f"Give {key} a whole number >= 1.")
     # bad input is reported before the output folder is created
     loaded = load_spec(spec)
-    _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution, template=args.template)
+    _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution, template=args.template,
+                    slicing=args.slicing)
     out = prepare_out_dir(args.out)
     result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
                  template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
-                 transport=args.transport)
+                 transport=args.transport, slicing=args.slicing)
     command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
     write_outputs(result, out, plots=not args.no_plots, sto=args.sto, quiet=args.quiet, command=command)
     if not args.quiet:

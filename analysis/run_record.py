@@ -86,7 +86,8 @@ def run_record(result, *, command=None) -> dict:
                    "motion_rows": [int(result.frames[0]), int(result.frames[-1])] if n_f else [],
                    "time": [float(result.time[0]), float(result.time[-1])] if n_f else []},
         "muscles": {m.name: {"n_fibres": m.n_fibres, "coordinates": list(m.coordinates),
-                             "action_lines": list(m.action_lines), "notes": list(m.notes)}
+                             "action_lines": list(m.action_lines), "notes": list(m.notes),
+                             "quality": _jsonable(getattr(m, "quality", None))}
                     for m in result.muscles},
     }
 

@@ -68,11 +68,16 @@ __all__ = ["load_spec", "FibreModelSpec", "MuscleSpec", "AttachmentSpec", "TEMPL
 TEMPLATE_NAMES = ("parallel", "pennate", "bipennate", "curved", "fanned", "rectus")
 _TOP_KEYS = ("model", "motion", "units", "defaults", "muscles")
 _MUSCLE_KEYS = ("action_lines", "mesh", "frame", "rest_pose", "origin", "insertion", "template",
-                "fibres", "resolution", "seed", "template_params", "units", "bones", "volume")
+                "fibres", "resolution", "seed", "template_params", "units", "bones", "volume",
+                "slicing")
 _BONE_KEYS = ("body", "mesh")
 _ATTACH_KEYS = ("body", "points", "file", "where", "columns", "units")
 _UNITS = {"m": 1.0, "mm": 1e-3}
-_DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0}
+_DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0,
+             "slicing": "harmonic"}
+
+#: cross-section methods of the decomposition (``fibres.SLICINGS``)
+SLICINGS = ("harmonic", "planes")
 
 
 def _template_names():
@@ -145,6 +150,8 @@ class MuscleSpec:
         Bone meshes (in the muscle's frame and units) that the wrapped surface keeps out of.
     volume : float or None
         Volume (m^3) of a generated surface (no mesh); None: motion's default rule.
+    slicing : str
+        "harmonic" (isolines of a harmonic field, default) or "planes" (Kohout 2012).
     """
 
     name: str
@@ -162,6 +169,7 @@ class MuscleSpec:
     template_params: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     bones: tuple = ()
     volume: float | None = None
+    slicing: str = "harmonic"
 
     @property
     def scale(self) -> float:
@@ -357,6 +365,9 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
     names_t = _template_names()
     if template not in names_t:
         ctx.fail(src["template"], f"unknown template {template!r}", f"Use one of: {', '.join(names_t)}.")
+    slicing = d["slicing"]
+    if slicing not in SLICINGS:
+        ctx.fail(src["slicing"], f"unknown slicing {slicing!r}", f"Use one of: {', '.join(SLICINGS)}.")
     ints = {}
     for key, lo in (("fibres", 1), ("resolution", 1), ("seed", 0)):
         v = d[key]
@@ -392,7 +403,7 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
                       origin=ends["origin"], insertion=ends["insertion"], template=template,
                       n_fibres=ints["fibres"], resolution=ints["resolution"], seed=ints["seed"],
                       template_params=MappingProxyType(dict(params)), bones=tuple(bones),
-                      volume=None if volume is None else float(volume))
+                      volume=None if volume is None else float(volume), slicing=slicing)
 
 
 def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:

@@ -184,12 +184,21 @@ def result_long_frame(result):
     return df.astype({"frame": np.int64, "fibre": np.int64, "value": float})
 
 
+def fibre_quality_table(result):
+    """One row per muscle: the rest-pose fibres' quality (`fibres.quality.FibreQuality`)."""
+    import pandas as pd
+
+    rows = [dict(muscle=m.name, **(m.quality or {})) for m in result.muscles]
+    return pd.DataFrame(rows)
+
+
 TABLES.update({
     "fibre_lengths.csv": fibre_lengths_table,
     "fibre_moment_arms.csv": fibre_moment_arms_table,
     "action_lines.csv": action_lines_table,
     "action_line_moment_arms.csv": action_line_moment_arms_table,
     "summary.csv": summary_table,
+    "fibre_quality.csv": fibre_quality_table,
 })
 
 
