@@ -19,6 +19,7 @@ COMMANDS = {
     "run": ("analysis.cli_run", "fibre lengths and moment arms for a fibre model and a motion"),
     "lines": ("analysis.cli_lines", "action lines only: body poses, path lengths, moment arms"),
     "decompose": ("analysis.cli_decompose", "decompose one static muscle surface into fibres"),
+    "export-osim": ("analysis.cli_export", "an OpenSim model with one muscle per fibre (polynomial paths)"),
 }
 
 

@@ -64,6 +64,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="do not draw plots/*.png")
     parser.add_argument("--sto", action="store_true",
                         help="also write OpenSim .sto copies of the action-line and fibre-summary tables")
+    parser.add_argument("--osim", action="store_true",
+                        help="also write <model>_fibres.osim: the OpenSim model with one muscle per fibre "
+                             "(see fibres export-osim; fit report in run.json)")
+    from .cli_export import add_export_options
+
+    add_export_options(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -78,21 +84,36 @@ def execute(args) -> int:
             raise InputError(f"{key} must be >= 1, got {val}", where=key, fix=f"Give {key} a whole number >= 1.")
     # bad input is reported before the output folder is created
     loaded = load_spec(spec)
+    if args.osim:
+        from .cli_export import check_export_options
+
+        check_export_options(args)
     _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution, template=args.template)
     out = prepare_out_dir(args.out)
     result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
                  template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
                  transport=args.transport)
     command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
-    write_outputs(result, out, plots=not args.no_plots, sto=args.sto, quiet=args.quiet, command=command)
+    osim = None
+    if args.osim:
+        from .cli_export import announcer
+
+        osim = {"spec": loaded, "keep_original": args.keep_original, "muscle_class": args.muscle_class,
+                "max_order": args.max_order, "announce": announcer(args.quiet)}
+    write_outputs(result, out, plots=not args.no_plots, sto=args.sto, quiet=args.quiet, command=command,
+                  osim=osim)
     if not args.quiet:
         print(f"fibres run: wrote {out}/ ({len(result.muscles)} muscles, {len(result.time)} frames)",
               file=sys.stderr)
     return 0
 
 
-def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=True, command=None) -> list:
+def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=True, command=None,
+                  osim=None) -> list:
     """Write every output file of a run into ``out_dir`` (staged, then moved into place).
+
+    ``osim``: None, or the keyword arguments of `analysis.osim_export.export_osim` (with ``spec``)
+    to also write ``<model>_fibres.osim``; its record goes into run.json under ``osim_export``.
 
     Returns the final paths written.
     """
@@ -119,7 +140,18 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=Tru
             t0 = _time.perf_counter()
             _write_vtk(result, staging / "fibres", quiet=quiet, progress=progress)
             timings["vtk_files"] = _time.perf_counter() - t0
-        write_run_json(result, staging / "run.json", command=command, extra_timings=timings)
+        extra = None
+        if osim is not None:
+            from .osim_export import export_osim
+
+            t0 = _time.perf_counter()
+            kw = dict(osim)
+            spec = kw.pop("spec")
+            name = f"{Path(spec.model_path).stem}_fibres.osim"
+            extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
+            extra["osim_export"]["file"] = name
+            timings["osim_export"] = _time.perf_counter() - t0
+        write_run_json(result, staging / "run.json", command=command, extra_timings=timings, extra=extra)
         return _publish(staging, out)
     finally:
         with contextlib.suppress(FileNotFoundError):

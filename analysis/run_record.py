@@ -91,13 +91,16 @@ def run_record(result, *, command=None) -> dict:
     }
 
 
-def write_run_json(result, path, *, command=None, extra_timings=None) -> dict:
-    """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing)."""
+def write_run_json(result, path, *, command=None, extra_timings=None, extra=None) -> dict:
+    """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing),
+    ``extra`` adds top-level sections (e.g. ``osim_export``)."""
     from .output_files import write_text
 
     record = run_record(result, command=command)
     if extra_timings:
         record["timings_s"].update({k: round(float(v), 6) for k, v in extra_timings.items()})
+    if extra:
+        record.update(_jsonable(extra))
     write_text(json.dumps(record, indent=2, allow_nan=True) + "\n", path)
     return record
 
