@@ -1,11 +1,13 @@
 """``fibres run [SPEC] [--motion FILE] [--out DIR] [--muscle NAME]... [--fibres N] [--resolution R]
 [--template NAME] [--frames START:STOP:STEP] [--jobs N] [--transport bind|decompose] [--no-plots]
-[--sto] [--quiet]``.
+[--sto | --no-sto] [--sto-fibres] [--osim [--keep-original] [--muscle-class CLASS] [--max-order N]]
+[--quiet]``.
 
 Runs `analysis.run` and writes into DIR (default ``fibres-out/``) the files of INTERFACE.md:
-the four CSV tables, ``summary.csv``, ``run.json``, ``plots/*.png`` and ``fibres/<muscle>.pvd`` +
-``fibres/<muscle>_<frame>.vtp`` (plus, with ``--sto``, OpenSim ``.sto`` copies of the
-action-line and fibre-summary tables).
+the four tables and ``summary`` (``.csv`` and ``.parquet``), ``run.json``, ``plots/*.png``,
+``fibres/<muscle>.pvd`` + ``fibres/<muscle>_<frame>.vtp``, OpenSim ``.sto`` copies of the
+action-line and fibre tables (`analysis.sto_files`; ``--no-sto`` leaves them out) and, with
+``--osim``, the fibre-resolved OpenSim model (`analysis.osim_export`).
 
 No partial output: everything is first written into a hidden staging folder inside DIR and
 moved into place (``os.replace``, one file at a time, atomic each) only after every file was
@@ -24,6 +26,7 @@ import time as _time
 from pathlib import Path
 
 from .errors import InputError
+from .sto_files import write_sto_files
 
 __all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
 
@@ -62,8 +65,12 @@ def add_arguments(parser) -> None:
                         help="how the rest fibres reach each frame: bound to the action lines with the "
                              "surface (default) or decomposed again per frame with the rest plan")
     parser.add_argument("--no-plots", action="store_true", help="do not draw plots/*.png")
-    parser.add_argument("--sto", action="store_true",
-                        help="also write OpenSim .sto copies of the action-line and fibre-summary tables")
+    parser.add_argument("--sto", dest="sto", action="store_true", default=True,
+                        help="write OpenSim .sto copies of the action-line and fibre-summary tables, "
+                             "MuscleAnalysis names (the default)")
+    parser.add_argument("--no-sto", dest="sto", action="store_false", help="do not write the .sto files")
+    parser.add_argument("--sto-fibres", action="store_true",
+                        help="also write one .sto per muscle with a column per fibre (FibreAnalysis_<muscle>_*.sto)")
     parser.add_argument("--osim", action="store_true",
                         help="also write <model>_fibres.osim: the OpenSim model with one muscle per fibre "
                              "(see fibres export-osim; fit report in run.json)")
@@ -100,16 +107,16 @@ def execute(args) -> int:
 
         osim = {"spec": loaded, "keep_original": args.keep_original, "muscle_class": args.muscle_class,
                 "max_order": args.max_order, "announce": announcer(args.quiet)}
-    write_outputs(result, out, plots=not args.no_plots, sto=args.sto, quiet=args.quiet, command=command,
-                  osim=osim)
+    write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
+                  quiet=args.quiet, command=command, osim=osim)
     if not args.quiet:
         print(f"fibres run: wrote {out}/ ({len(result.muscles)} muscles, {len(result.time)} frames)",
               file=sys.stderr)
     return 0
 
 
-def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=True, command=None,
-                  osim=None) -> list:
+def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres=False, quiet=True,
+                  command=None, osim=None) -> list:
     """Write every output file of a run into ``out_dir`` (staged, then moved into place).
 
     ``osim``: None, or the keyword arguments of `analysis.osim_export.export_osim` (with ``spec``)
@@ -130,7 +137,7 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=Tru
         timings["write_tables"] = _time.perf_counter() - t0
         if sto:
             t0 = _time.perf_counter()
-            write_sto_files(result, staging)
+            write_sto_files(result, staging, per_fibre=sto_fibres)
             timings["write_sto"] = _time.perf_counter() - t0
         if plots:
             t0 = _time.perf_counter()
@@ -199,38 +206,3 @@ def _write_vtk(result, folder: Path, *, quiet, progress):
         if m.surface_vertices is not None:
             vtk_files.write_surface_frames(folder, m.name, m.surface_vertices, m.surface_faces,
                                            times=result.time)
-
-
-def write_sto_files(result, folder) -> list:
-    """OpenSim .sto copies, named like MuscleAnalysis's: ``MuscleAnalysis_Length.sto`` (columns:
-    action lines), ``MuscleAnalysis_MomentArm_<coord>.sto``, and the fibre summaries
-    ``FibreAnalysis_Length.sto`` / ``FibreAnalysis_MomentArm_<coord>.sto`` with columns
-    ``<muscle>_median``, ``<muscle>_p5``, ``<muscle>_p95`` (SI units, inDegrees=no)."""
-    import numpy as np
-
-    from motion import write_sto
-
-    folder = Path(folder)
-    written = []
-    lengths, fibre_len = {}, {}
-    arms, fibre_arms = {}, {}
-    for m in result.muscles:
-        for i, name in enumerate(m.action_lines):
-            lengths[name] = m.action_line_lengths[:, i]
-        for q, v in zip(("p5", "median", "p95"), np.percentile(m.fibre_lengths, [5, 50, 95], axis=1)):
-            fibre_len[f"{m.name}_{q}"] = v
-        for c, coord in enumerate(m.coordinates):
-            for i, name in enumerate(m.action_lines):
-                arms.setdefault(coord, {})[name] = np.nan_to_num(m.action_line_moment_arms[:, i, c])
-            pct = np.percentile(m.fibre_moment_arms[:, :, c], [5, 50, 95], axis=1)
-            for q, v in zip(("p5", "median", "p95"), pct):
-                fibre_arms.setdefault(coord, {})[f"{m.name}_{q}"] = v
-    tables = {"MuscleAnalysis_Length": lengths, "FibreAnalysis_Length": fibre_len}
-    tables.update({f"MuscleAnalysis_MomentArm_{c}": v for c, v in arms.items()})
-    tables.update({f"FibreAnalysis_MomentArm_{c}": v for c, v in fibre_arms.items()})
-    for name, cols in tables.items():
-        if cols:
-            path = folder / f"{name}.sto"
-            write_sto(path, result.time, cols, name=name)
-            written.append(path)
-    return written

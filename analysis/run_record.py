@@ -27,7 +27,7 @@ from pathlib import Path
 
 __all__ = ["sha256_file", "software_versions", "run_record", "write_run_json"]
 
-_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "trimesh", "pyvista", "casadi", "matplotlib",
+_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "pyarrow", "trimesh", "pyvista", "casadi", "matplotlib",
              "numba", "tqdm", "opensim")
 
 
