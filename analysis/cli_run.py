@@ -32,18 +32,21 @@ __all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
 
 
 def default_spec() -> Path:
-    """The bundled example fibre model in ``models/`` next to the package sources."""
+    """The bundled example fibre model: ``models/`` next to the package sources (a clone or an
+    editable install), else the copy installed as package data (``analysis/example/``)."""
     import analysis
 
-    models = Path(analysis.__file__).resolve().parents[1] / "models"
-    preferred = models / "arm_example.toml"
-    if preferred.is_file():
-        return preferred
-    found = sorted(models.glob("*.toml"))
-    if not found:
-        raise InputError("no SPEC given and the bundled example model is missing", file=models,
-                         fix="Pass a fibre-model .toml file: fibres run MODEL.toml.")
-    return found[0]
+    here = Path(analysis.__file__).resolve().parent
+    for models in (here.parent / "models", here / "example"):
+        preferred = models / "arm_example.toml"
+        if preferred.is_file():
+            return preferred
+    for models in (here.parent / "models", here / "example"):
+        found = sorted(models.glob("*.toml"))
+        if found:
+            return found[0]
+    raise InputError("no SPEC given and the bundled example model is missing", file=here / "example",
+                     fix="Pass a fibre-model .toml file: fibres run MODEL.toml (or reinstall musclefibres).")
 
 
 def add_arguments(parser) -> None:
@@ -96,19 +99,26 @@ def execute(args) -> int:
 
         check_export_options(args)
     _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution, template=args.template)
+    existed = Path(args.out).exists()
     out = prepare_out_dir(args.out)
-    result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
-                 template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
-                 transport=args.transport)
-    command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
-    osim = None
-    if args.osim:
-        from .cli_export import announcer
+    try:
+        result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
+                     template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
+                     transport=args.transport)
+        command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
+        osim = None
+        if args.osim:
+            from .cli_export import announcer
 
-        osim = {"spec": loaded, "keep_original": args.keep_original, "muscle_class": args.muscle_class,
-                "max_order": args.max_order, "announce": announcer(args.quiet)}
-    write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
-                  quiet=args.quiet, command=command, osim=osim)
+            osim = {"spec": loaded, "keep_original": args.keep_original, "muscle_class": args.muscle_class,
+                    "max_order": args.max_order, "announce": announcer(args.quiet)}
+        write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
+                      quiet=args.quiet, command=command, osim=osim)
+    except BaseException:
+        if not existed:    # a failed run leaves no empty output folder behind
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
     if not args.quiet:
         print(f"fibres run: wrote {out}/ ({len(result.muscles)} muscles, {len(result.time)} frames)",
               file=sys.stderr)
