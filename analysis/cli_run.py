@@ -102,6 +102,9 @@ def execute(args) -> int:
     existed = Path(args.out).exists()
     out = prepare_out_dir(args.out)
     try:
+        from .progress import first_run_notice
+
+        first_run_notice(args.quiet)
         result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
                      template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
                      transport=args.transport)

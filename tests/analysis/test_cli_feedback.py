@@ -82,3 +82,18 @@ def test_default_spec_falls_back_to_the_package_data(tmp_path, monkeypatch):
         cli_run.default_spec()
     text = (ROOT / "pyproject.toml").read_text()
     assert '"analysis.example" = "models"' in text
+
+
+def test_first_run_notice(tmp_path, monkeypatch, capsys):
+    import fibres
+
+    from analysis.progress import first_run_notice
+
+    fake = tmp_path / "fibres"
+    (fake / "__pycache__").mkdir(parents=True)
+    monkeypatch.setattr(fibres, "__file__", str(fake / "__init__.py"))
+    assert first_run_notice() is True
+    assert "compiling" in capsys.readouterr().err
+    (fake / "__pycache__" / "x.nbi").write_text("")
+    assert first_run_notice() is False and capsys.readouterr().err == ""
+    assert first_run_notice(quiet=True) is False
