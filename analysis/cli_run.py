@@ -1,6 +1,6 @@
 """``fibres run [SPEC] [--motion FILE] [--out DIR] [--muscle NAME]... [--fibres N] [--resolution R]
 [--template NAME] [--frames START:STOP:STEP] [--jobs N] [--transport bind|decompose] [--no-plots]
-[--sto | --no-sto] [--sto-fibres] [--osim [--keep-original] [--muscle-class CLASS] [--max-order N]]
+[--setup SETUP.xml] [--sto | --no-sto] [--sto-fibres] [--osim [--keep-original] [--muscle-class CLASS] [--max-order N]]
 [--quiet]``.
 
 Runs `analysis.run` and writes into DIR (default ``fibres-out/``) the files of INTERFACE.md:
@@ -57,6 +57,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--motion", default=None, metavar="FILE",
                         help="motion (.mot/.sto); default: the 'motion' of the fibre model")
     parser.add_argument("--out", default="fibres-out", metavar="DIR", help="output folder (default fibres-out)")
+    parser.add_argument("--setup", default=None, metavar="SETUP.xml",
+                        help="an OpenSim AnalyzeTool setup: its coordinates_file, initial/final time and "
+                             "MuscleAnalysis muscle list in place of --motion/--frames (analysis/setup_file.py)")
     parser.add_argument("--muscle", action="append", default=None, metavar="NAME",
                         help="run only this muscle of the fibre model (repeatable)")
     parser.add_argument("--fibres", type=int, default=None, metavar="N", help="fibres per muscle")
@@ -98,15 +101,25 @@ def execute(args) -> int:
         from .cli_export import check_export_options
 
         check_export_options(args)
-    _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution, template=args.template)
+    motion_arg, frames_arg, muscles_arg = args.motion, args.frames, args.muscle
+    if getattr(args, "setup", None):
+        from .setup_file import apply_setup, read_setup
+
+        if args.motion is not None or args.frames is not None:
+            raise InputError("--setup gives the motion and the time range", where="--setup",
+                             fix="Give either --setup SETUP.xml or --motion/--frames, not both.")
+        plan = apply_setup(read_setup(args.setup), loaded)
+        motion_arg, frames_arg = plan["motion"], plan["frames"]
+        muscles_arg = args.muscle or plan["muscles"]
+    _select_muscles(loaded, muscles_arg, fibres=args.fibres, resolution=args.resolution, template=args.template)
     existed = Path(args.out).exists()
     out = prepare_out_dir(args.out)
     try:
         from .progress import first_run_notice
 
         first_run_notice(args.quiet)
-        result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
-                     template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
+        result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres, resolution=args.resolution,
+                     template=args.template, frames=frames_arg, quiet=args.quiet, jobs=args.jobs,
                      transport=args.transport)
         command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
         osim = None
