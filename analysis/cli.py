@@ -20,6 +20,7 @@ COMMANDS = {
     "lines": ("analysis.cli_lines", "action lines only: body poses, path lengths, moment arms"),
     "decompose": ("analysis.cli_decompose", "decompose one static muscle surface into fibres"),
     "export-osim": ("analysis.cli_export", "an OpenSim model with one muscle per fibre (polynomial paths)"),
+    "render": ("analysis.cli_render", "an off-screen picture (PNG) of one frame of a run's 3D scene"),
 }
 
 

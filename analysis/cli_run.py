@@ -77,6 +77,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-sto", dest="sto", action="store_false", help="do not write the .sto files")
     parser.add_argument("--sto-fibres", action="store_true",
                         help="also write one .sto per muscle with a column per fibre (FibreAnalysis_<muscle>_*.sto)")
+    parser.add_argument("--no-scene", action="store_true",
+                        help="do not write scene/ (bones, surfaces, action lines and fibres per frame in one .pvd)")
+    parser.add_argument("--scene-step", type=int, default=None, metavar="K",
+                        help="write every K-th frame to scene/ (default: at most 100 frames)")
     parser.add_argument("--osim", action="store_true",
                         help="also write <model>_fibres.osim: the OpenSim model with one muscle per fibre "
                              "(see fibres export-osim; fit report in run.json)")
@@ -92,7 +96,8 @@ def execute(args) -> int:
     from .spec import load_spec
 
     spec = Path(args.spec) if args.spec is not None else default_spec()
-    for key, val in (("--fibres", args.fibres), ("--resolution", args.resolution), ("--jobs", args.jobs)):
+    for key, val in (("--fibres", args.fibres), ("--resolution", args.resolution), ("--jobs", args.jobs),
+                     ("--scene-step", args.scene_step)):
         if val is not None and val < 1:
             raise InputError(f"{key} must be >= 1, got {val}", where=key, fix=f"Give {key} a whole number >= 1.")
     # bad input is reported before the output folder is created
@@ -120,7 +125,7 @@ def execute(args) -> int:
         first_run_notice(args.quiet)
         result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres, resolution=args.resolution,
                      template=args.template, frames=frames_arg, quiet=args.quiet, jobs=args.jobs,
-                     transport=args.transport)
+                     transport=args.transport, keep_surfaces=not args.no_scene)
         command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
         osim = None
         if args.osim:
@@ -128,8 +133,9 @@ def execute(args) -> int:
 
             osim = {"spec": loaded, "keep_original": args.keep_original, "muscle_class": args.muscle_class,
                     "max_order": args.max_order, "announce": announcer(args.quiet)}
+        scene = None if args.no_scene else {"spec": loaded, "step": args.scene_step}
         write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
-                      quiet=args.quiet, command=command, osim=osim)
+                      quiet=args.quiet, command=command, osim=osim, scene=scene)
     except BaseException:
         if not existed:    # a failed run leaves no empty output folder behind
             with contextlib.suppress(OSError):
@@ -142,9 +148,11 @@ def execute(args) -> int:
 
 
 def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres=False, quiet=True,
-                  command=None, osim=None) -> list:
+                  command=None, osim=None, scene=None) -> list:
     """Write every output file of a run into ``out_dir`` (staged, then moved into place).
 
+    ``scene``: None, or ``{"spec": FibreModelSpec, "step": K or None}`` to write ``scene/``
+    (`analysis.scene`).
     ``osim``: None, or the keyword arguments of `analysis.osim_export.export_osim` (with ``spec``)
     to also write ``<model>_fibres.osim``; its record goes into run.json under ``osim_export``.
 
@@ -173,6 +181,12 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
             t0 = _time.perf_counter()
             _write_vtk(result, staging / "fibres", quiet=quiet, progress=progress)
             timings["vtk_files"] = _time.perf_counter() - t0
+        if scene is not None:
+            from .scene import write_scene
+
+            t0 = _time.perf_counter()
+            write_scene(staging / "scene", result, scene["spec"], step=scene.get("step"))
+            timings["scene"] = _time.perf_counter() - t0
         extra = None
         if osim is not None:
             from .osim_export import export_osim
