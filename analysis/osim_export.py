@@ -63,8 +63,12 @@ def _source_tree(model_file):
 
     path = Path(model_file)
     root = read_document(path).el
-    version = int(root.get("Version", "0") or 0)
+    version = int(float(root.get("Version", "0") or 0))
     if version >= 40000:
+        return root
+    model = root.find("Model")
+    if model is not None and (model.find("JointSet") is not None or model.find("Ground") is not None):
+        root.set("Version", "40000")    # 4.x content behind an older header (motion.osim_reader)
         return root
     try:
         import opensim
@@ -106,9 +110,10 @@ def _float(el, tag):
         return None
 
 
-def line_properties(model_file, names) -> dict:
-    """The OpenSim muscle properties of the named forces (for `fibre_paths.muscle_parameters`)."""
-    model_el = _find_model(_source_tree(model_file))
+def line_properties(model_file, names, *, root=None) -> dict:
+    """The OpenSim muscle properties of the named forces (for `fibre_paths.muscle_parameters`);
+    ``root``: the document already read by `_source_tree`."""
+    model_el = _find_model(root if root is not None else _source_tree(model_file))
     forces = {f.get("name"): f for f in model_el.find("ForceSet/objects")}
     out = {}
     for n in names:
@@ -174,7 +179,7 @@ def _repoint_meshes(model_el, source_dir: Path, out_dir: Path):
 
 
 def write_fibre_model(model_file, out_path, muscles, *, keep_original=False, muscle_class=None,
-                      final_folder=None) -> Path:
+                      final_folder=None, root=None) -> Path:
     """Write the fibre model.
 
     Parameters
@@ -194,11 +199,13 @@ def write_fibre_model(model_file, out_path, muscles, *, keep_original=False, mus
     final_folder : path, optional
         The folder the model will finally live in, if it is written elsewhere first (staging):
         mesh paths are made relative to it.
+    root : Element, optional
+        The source document already read by `_source_tree` (not modified).
     """
     from .output_files import write_text
 
     out_path = Path(out_path)
-    root = copy.deepcopy(_source_tree(model_file))
+    root = copy.deepcopy(root if root is not None else _source_tree(model_file))
     model_el = _find_model(root)
     objects = model_el.find("ForceSet/objects")
     if objects is None:
@@ -283,9 +290,10 @@ def export_osim(spec, result, out_path, *, muscles=None, keep_original=False, mu
 
     fits = fit_fibre_paths(spec, result, muscles=muscles, max_order=max_order, seed=seed, announce=announce)
     entries, record = [], {}
+    source = _source_tree(spec.model_path)          # read (and for a 3.x file upgraded) once
     for name, fit in fits.items():
         mspec = spec.muscle(name)
-        props = line_properties(spec.model_path, mspec.action_lines)
+        props = line_properties(spec.model_path, mspec.action_lines, root=source)
         params = muscle_parameters(spec.model, mspec, props, fit.rest_lengths)
         entries.append({"name": name, "action_lines": list(mspec.action_lines), "coordinates": fit.coordinates,
                         "orders": fit.orders, "coefficients": fit.coefficients, "params": params})
@@ -297,7 +305,7 @@ def export_osim(spec, result, out_path, *, muscles=None, keep_original=False, mu
                     "tendon_slack_length_m": [round(float(v), 6) for v in params["tendon_slack_length"]]})
         record[name] = rep
     path = write_fibre_model(spec.model_path, out_path, entries, keep_original=keep_original,
-                             muscle_class=muscle_class, final_folder=final_folder)
+                             muscle_class=muscle_class, final_folder=final_folder, root=source)
     return {"file": str(Path(path)), "muscle_class": muscle_class or "as the original",
             "keep_original": bool(keep_original),
             "parameter_rules": {"max_isometric_force": "sum of the action lines' forces / number of fibres",
