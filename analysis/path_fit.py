@@ -212,5 +212,7 @@ def select_orders(train, validation, *, max_order: int, length_tol: float,
             best[key] = np.where(take, val, best[key])
         if best["ok"].all():
             break
+    if best is None:
+        raise ValueError(f"{len(q_t)} training poses are too few for a polynomial of {d} coordinates")
     best.pop("score")
     return OrderChoice(**best)

@@ -93,3 +93,10 @@ def test_samples_are_latin_hypercube_around_the_frames():
     q = path_fit.sample_poses(frames, [0], ["rotational"], 30, rng)
     nearest = np.abs(q[:, None, 0] - frames[None, :, 0]).argmin(axis=1)
     assert np.bincount(nearest).tolist() == [10, 10, 10]
+
+
+def test_select_orders_refuses_too_few_poses():
+    q = np.zeros((1, 3))
+    with pytest.raises(ValueError, match="too few"):
+        path_fit.select_orders((q, np.zeros((1, 2)), np.zeros((1, 2, 3))), (q, np.zeros((1, 2)), np.zeros((1, 2, 3))),
+                               max_order=4, length_tol=1e-4, moment_arm_tol=1e-4)
