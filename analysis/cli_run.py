@@ -126,6 +126,10 @@ def execute(args) -> int:
         result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres, resolution=args.resolution,
                      template=args.template, frames=frames_arg, quiet=args.quiet, jobs=args.jobs,
                      transport=args.transport, keep_surfaces=not args.no_scene)
+        if getattr(args, "setup", None):     # run.json names (and hashes) the setup file too
+            import dataclasses
+
+            result = dataclasses.replace(result, inputs={**result.inputs, "setup": Path(args.setup).resolve()})
         command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
         osim = None
         if args.osim:

@@ -55,6 +55,10 @@ def test_setup_gives_the_same_tables_as_motion_and_frames(tmp_path, capsys):
         a = (tmp_path / "a" / name).read_text()
         assert a == (tmp_path / "b" / name).read_text(), name
     assert "triceps" not in (tmp_path / "a" / "fibre_lengths.csv").read_text()
+    import json
+
+    record = json.loads((tmp_path / "a" / "run.json").read_text())
+    assert record["inputs"]["setup"]["path"] == str(setup.resolve())
     assert capsys.readouterr().err == ""        # nothing unsupported in this setup
 
 
