@@ -459,6 +459,9 @@ def _run_muscle(ctx, mspec):
     with _timed(timings, "wrap"):   # the rest surface and landmarks in ground (one frame)
         first = motion_pkg.Motion.from_array(ctx.model, ctx.motion.time[:1], ctx.motion.q[:1])
         (rest,) = wrap_surfaces(ctx.model, first, [sspec])
+    from .landmark_checks import check_landmarks
+
+    check_landmarks(ctx.model, mspec, sspec, rest)
     opts = dict(template=mspec.template, n_fibres=mspec.n_fibres, resolution=mspec.resolution,
                 seed=mspec.seed, slicing=mspec.slicing)
     if mspec.template_params:

@@ -27,7 +27,7 @@ from pathlib import Path
 
 __all__ = ["sha256_file", "software_versions", "run_record", "write_run_json"]
 
-_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "trimesh", "pyvista", "casadi", "matplotlib",
+_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "pyarrow", "trimesh", "pyvista", "casadi", "matplotlib",
              "numba", "tqdm", "opensim")
 
 
@@ -92,13 +92,16 @@ def run_record(result, *, command=None) -> dict:
     }
 
 
-def write_run_json(result, path, *, command=None, extra_timings=None) -> dict:
-    """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing)."""
+def write_run_json(result, path, *, command=None, extra_timings=None, extra=None) -> dict:
+    """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing),
+    ``extra`` adds top-level sections (e.g. ``osim_export``)."""
     from .output_files import write_text
 
     record = run_record(result, command=command)
     if extra_timings:
         record["timings_s"].update({k: round(float(v), 6) for k, v in extra_timings.items()})
+    if extra:
+        record.update(_jsonable(extra))
     write_text(json.dumps(record, indent=2, allow_nan=True) + "\n", path)
     return record
 

@@ -41,7 +41,9 @@ first action line) take exactly one of
   cloud (legacy VTK, VTP, PLY, ...): its vertices are the points.
 
 and ``body`` (the body the points ride on; default: the body of the first / last path point of the
-first action line).
+first action line) and ``frame``: ``"muscle"`` (default: the points are in the muscle's ``frame``,
+like its mesh) or ``"body"`` (the points are in ``body``'s own frame, as path-point locations in the
+.osim, e.g. ``origin = { body = "pelvis", frame = "body", points = [[-0.014, 0.017, 0.107]] }``).
 
 Every mistake raises one :class:`analysis.errors.InputError` naming the TOML file, the key (e.g.
 ``muscles.biceps.action_lines[1]``) and the fix.
@@ -71,7 +73,9 @@ _MUSCLE_KEYS = ("action_lines", "mesh", "frame", "rest_pose", "origin", "inserti
                 "fibres", "resolution", "seed", "template_params", "units", "bones", "volume",
                 "slicing")
 _BONE_KEYS = ("body", "mesh")
-_ATTACH_KEYS = ("body", "points", "file", "where", "columns", "units")
+_ATTACH_KEYS = ("body", "frame", "points", "file", "where", "columns", "units")
+#: an attachment's own ``frame``: "muscle" (the muscle's frame, the default) or "body" (its body's)
+_ATTACH_FRAMES = ("muscle", "body")
 _UNITS = {"m": 1.0, "mm": 1e-3}
 _DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0,
              "slicing": "harmonic"}
@@ -417,6 +421,14 @@ def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
     body = table.get("body", default_body)
     if body not in bodies:
         ctx.fail(f"{where}.body", f"'{body}' is not a body of the model", f"Use one of: {', '.join(bodies)}.")
+    own = table.get("frame", "muscle")
+    if own == body:
+        own = "body"
+    if own not in _ATTACH_FRAMES:
+        ctx.fail(f"{where}.frame", f"unknown attachment frame {own!r}",
+                 f"Use frame = \"body\" (points in the frame of body '{body}', as path points in the .osim) "
+                 "or frame = \"muscle\" (the muscle's own frame, the default).")
+    in_body = own == "body"
     if ("points" in table) == ("file" in table):
         ctx.fail(where, "needs exactly one of 'points' and 'file'",
                  "Give points = [[x, y, z], ...] or file = \"<landmarks>.csv\".")
@@ -434,10 +446,10 @@ def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
         scale = _UNITS.get(table.get("units", unit))
         if scale is None:
             ctx.fail(f"{where}.units", f"unknown units {table['units']!r}", "Use \"m\" or \"mm\".")
-        return AttachmentSpec(body=body, points=pts * scale, source=f"{where}.points")
+        return AttachmentSpec(body=body, points=pts * scale, in_body_frame=in_body, source=f"{where}.points")
     file = ctx.file_path(table["file"], f"{where}.file", "landmark file")
     pts, scale = _read_points(ctx, file, table, where, unit)
-    return AttachmentSpec(body=body, points=pts * scale, source=str(file))
+    return AttachmentSpec(body=body, points=pts * scale, in_body_frame=in_body, source=str(file))
 
 
 def _read_points(ctx, file, table, where, unit):

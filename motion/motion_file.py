@@ -15,7 +15,8 @@ dialects occur in real files and are all accepted:
   ``inDegrees`` means radians, as in OpenSim.
 
 Like OpenSim, ``nRows``/``nColumns``/``datarows`` are not trusted: the rows and labels actually
-present are read (the LHDL hip motions say ``nRows=51`` and hold 36 rows; OpenSim reads 36).
+present are read (the LHDL hip motions say ``nRows=51`` and hold 36 rows; OpenSim reads 36), and
+a disagreement is reported with one `MotionFileWarning`.
 Labels are tab-separated (whitespace-separated when a label line has no tab); numbers are
 separated by any whitespace.
 
@@ -224,6 +225,16 @@ def load_motion(path, model) -> Motion:
         warnings.warn(f"{path}: line {label_line}: ignored {len(unknown)} column(s) that are not "
                       f"coordinates of model '{_model_name(model)}': {', '.join(unknown)}",
                       MotionFileWarning, stacklevel=2)
+    declared = header.get("nrows", header.get("datarows"))
+    if declared is not None:
+        try:
+            n_declared = int(float(declared))
+        except ValueError:
+            n_declared = None
+        if n_declared is not None and n_declared != time.shape[0]:
+            warnings.warn(f"{path}: the header says nRows={n_declared} but the file holds {time.shape[0]} "
+                          f"data rows; using the {time.shape[0]} rows present (as OpenSim does)",
+                          MotionFileWarning, stacklevel=2)
     silent = _locked_or_dependent(model)
     loud = [n for n in missing if n not in silent]
     if loud:
