@@ -26,6 +26,8 @@ COMMANDS = {
     "run": ("analysis.cli_run", "fibre lengths and moment arms for a fibre model and a motion"),
     "lines": ("analysis.cli_lines", "action lines only: body poses, path lengths, moment arms"),
     "decompose": ("analysis.cli_decompose", "decompose one static muscle surface into fibres"),
+    "export-osim": ("analysis.cli_export", "an OpenSim model with one muscle per fibre (polynomial paths)"),
+    "render": ("analysis.cli_render", "an off-screen picture (PNG) of one frame of a run's 3D scene"),
 }
 
 
@@ -88,6 +90,24 @@ def _input_error_types():
     return (motion.errors.InputError, fibres.errors.InputError, errors.InputError)
 
 
+def _one_line_warnings(prefix: str) -> None:
+    """Print every warning as one line ``<prefix>: warning: <message>`` on stderr, without the
+    Python file and source line that the default format adds (``--debug`` keeps the default),
+    and each distinct message once."""
+    import warnings
+
+    seen = set()
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = " ".join(str(message).split())
+        if text in seen:
+            return
+        seen.add(text)
+        print(f"{prefix}: warning: {text}", file=file or sys.stderr, flush=True)
+
+    warnings.showwarning = show
+
+
 def main(argv=None) -> int:
     """Run the command line (``argv`` default: ``sys.argv[1:]``); return the exit status."""
     from . import interrupts
@@ -128,6 +148,18 @@ def _main(argv) -> int:
               file=sys.stderr)
         return 1
     debug = getattr(args, "debug", False)
+    import warnings
+
+    saved = warnings.showwarning
+    if not debug:
+        _one_line_warnings(f"fibres {args.command}")
+    try:
+        return _execute(module, args, debug, errors)
+    finally:
+        warnings.showwarning = saved
+
+
+def _execute(module, args, debug, errors) -> int:
     from . import interrupts
 
     try:

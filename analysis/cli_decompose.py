@@ -68,6 +68,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--template", default="parallel", metavar="NAME",
                         help="fibre template: parallel (default), pennate, bipennate, curved, "
                              "fanned, rectus")
+    parser.add_argument("--slicing", choices=("harmonic", "planes"), default="harmonic",
+                        help="cross-sections: isolines of a harmonic field between the attachment "
+                             "patches (default) or parallel planes (Kohout 2012)")
     parser.add_argument("--fibres", type=_positive_int, default=100, metavar="N",
                         help="number of fibres (default 100)")
     parser.add_argument("--resolution", type=_positive_int, default=19, metavar="R",
@@ -181,10 +184,18 @@ def execute(args) -> int:
     check_landmarks(surface.vertices, origin, name="origin", file=_label(args.origin))
     check_landmarks(surface.vertices, insertion, name="insertion", file=_label(args.insertion))
     bundle = decompose(surface, origin, insertion, template=args.template,
-                              n_fibres=args.fibres, resolution=args.resolution, seed=args.seed)
+                       n_fibres=args.fibres, resolution=args.resolution, seed=args.seed,
+                       slicing=args.slicing)
     write_fibres(out, bundle)
     n, p = np.shape(bundle.points)[:2]
     print(f"wrote {n} fibres of {p} points to {out}")
+    q = bundle.quality
+    print(f"fibre quality: {q.empty_5mm:.1%} of the volume farther than 5 mm from a fibre, "
+          f"sharpest turns max {q.turn_max:.0f} / p95 {q.turn_p95:.0f} degrees, "
+          f"{q.origin_covered:.0%} of the origin and {q.insertion_covered:.0%} of the insertion "
+          f"area within 5 mm of a fibre end, {q.outside} points outside")
+    for problem in q.problems():
+        print(f"fibres decompose: warning: fibre quality: {problem}", file=sys.stderr)
     return 0
 
 

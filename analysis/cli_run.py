@@ -1,11 +1,13 @@
 """``fibres run [SPEC] [--motion FILE] [--out DIR] [--muscle NAME]... [--fibres N] [--resolution R]
 [--template NAME] [--frames START:STOP:STEP] [--jobs N] [--transport bind|decompose] [--no-plots]
-[--sto] [--quiet]``.
+[--setup SETUP.xml] [--sto | --no-sto] [--sto-fibres] [--osim [--keep-original] [--muscle-class CLASS] [--max-order N]]
+[--quiet]``.
 
 Runs `analysis.run` and writes into DIR (default ``fibres-out/``) the files of INTERFACE.md:
-the four CSV tables, ``summary.csv``, ``run.json``, ``plots/*.png`` and ``fibres/<muscle>.pvd`` +
-``fibres/<muscle>_<frame>.vtp`` (plus, with ``--sto``, OpenSim ``.sto`` copies of the
-action-line and fibre-summary tables).
+the four tables and ``summary`` (``.csv`` and ``.parquet``), ``run.json``, ``plots/*.png``,
+``fibres/<muscle>.pvd`` + ``fibres/<muscle>_<frame>.vtp``, OpenSim ``.sto`` copies of the
+action-line and fibre tables (`analysis.sto_files`; ``--no-sto`` leaves them out) and, with
+``--osim``, the fibre-resolved OpenSim model (`analysis.osim_export`).
 
 No partial output: everything is first written into a hidden staging folder inside DIR and
 moved into place (``os.replace``, one file at a time, atomic each) only after every file was
@@ -28,27 +30,30 @@ import shutil
 import sys
 import tempfile
 import time as _time
-import warnings
 from pathlib import Path
 
 from .errors import InputError
+from .sto_files import write_sto_files
 
 __all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
 
 
 def default_spec() -> Path:
-    """The bundled example fibre model in ``models/`` next to the package sources."""
+    """The bundled example fibre model: ``models/`` next to the package sources (a clone or an
+    editable install), else the copy installed as package data (``analysis/example/``)."""
     import analysis
 
-    models = Path(analysis.__file__).resolve().parents[1] / "models"
-    preferred = models / "arm_example.toml"
-    if preferred.is_file():
-        return preferred
-    found = sorted(models.glob("*.toml"))
-    if not found:
-        raise InputError("no SPEC given and the bundled example model is missing", file=models,
-                         fix="Pass a fibre-model .toml file: fibres run MODEL.toml.")
-    return found[0]
+    here = Path(analysis.__file__).resolve().parent
+    for models in (here.parent / "models", here / "example"):
+        preferred = models / "arm_example.toml"
+        if preferred.is_file():
+            return preferred
+    for models in (here.parent / "models", here / "example"):
+        found = sorted(models.glob("*.toml"))
+        if found:
+            return found[0]
+    raise InputError("no SPEC given and the bundled example model is missing", file=here / "example",
+                     fix="Pass a fibre-model .toml file: fibres run MODEL.toml (or reinstall musclefibres).")
 
 
 def add_arguments(parser) -> None:
@@ -59,19 +64,39 @@ def add_arguments(parser) -> None:
     parser.add_argument("--motion", default=None, metavar="FILE",
                         help="motion (.mot/.sto); default: the 'motion' of the fibre model")
     parser.add_argument("--out", default="fibres-out", metavar="DIR", help="output folder (default fibres-out)")
+    parser.add_argument("--setup", default=None, metavar="SETUP.xml",
+                        help="an OpenSim AnalyzeTool setup: its coordinates_file, initial/final time and "
+                             "MuscleAnalysis muscle list in place of --motion/--frames (analysis/setup_file.py)")
     parser.add_argument("--muscle", action="append", default=None, metavar="NAME",
                         help="run only this muscle of the fibre model (repeatable)")
     parser.add_argument("--fibres", type=int, default=None, metavar="N", help="fibres per muscle")
     parser.add_argument("--resolution", type=int, default=None, metavar="R", help="segments per fibre")
     parser.add_argument("--template", default=None, metavar="NAME", help="fibre template for every muscle")
+    parser.add_argument("--slicing", default=None, choices=("harmonic", "planes"),
+                        help="cross-sections for every muscle: isolines of a harmonic field (the TOML's "
+                             "default) or parallel planes (Kohout 2012)")
     add_frames_argument(parser)
     parser.add_argument("--jobs", type=int, default=1, metavar="N", help="muscles in parallel (default 1)")
     parser.add_argument("--transport", choices=("bind", "decompose"), default="bind",
                         help="how the rest fibres reach each frame: bound to the action lines with the "
                              "surface (default) or decomposed again per frame with the rest plan")
     parser.add_argument("--no-plots", action="store_true", help="do not draw plots/*.png")
-    parser.add_argument("--sto", action="store_true",
-                        help="also write OpenSim .sto copies of the action-line and fibre-summary tables")
+    parser.add_argument("--sto", dest="sto", action="store_true", default=True,
+                        help="write OpenSim .sto copies of the action-line and fibre-summary tables, "
+                             "MuscleAnalysis names (the default)")
+    parser.add_argument("--no-sto", dest="sto", action="store_false", help="do not write the .sto files")
+    parser.add_argument("--sto-fibres", action="store_true",
+                        help="also write one .sto per muscle with a column per fibre (FibreAnalysis_<muscle>_*.sto)")
+    parser.add_argument("--no-scene", action="store_true",
+                        help="do not write scene/ (bones, surfaces, action lines and fibres per frame in one .pvd)")
+    parser.add_argument("--scene-step", type=int, default=None, metavar="K",
+                        help="write every K-th frame to scene/ (default: at most 100 frames)")
+    parser.add_argument("--osim", action="store_true",
+                        help="also write <model>_fibres.osim: the OpenSim model with one muscle per fibre "
+                             "(see fibres export-osim; fit report in run.json)")
+    from .cli_export import add_export_options
+
+    add_export_options(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.add_argument("--force", action="store_true",
                         help="write into DIR even if it is /, the home folder, or holds a git "
@@ -82,60 +107,98 @@ def add_arguments(parser) -> None:
 
 
 def execute(args) -> int:
-    """Run ``fibres run``; returns the exit status (errors are raised as InputError). Warnings of
-    the readers are printed as one line each."""
-    with warnings.catch_warnings():
-        warnings.showwarning = _show_warning
-        return _execute(args)
-
-
-def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """Warnings of the readers (motion header counts, ranges, surface repairs) as one line each."""
-    text = " ".join(str(message).split())
-    print(f"fibres run: warning: {text}", file=sys.stderr)
-
-
-def _execute(args) -> int:
+    """Run ``fibres run``; returns the exit status (errors are raised as InputError)."""
     from .budget import parse_size
-    from .out_folder import OutFolderLock, check_out_folder, clean_stale
-    from .output_files import prepare_out_dir
-    from .run import _select_muscles, check_mesh_files, run
-    from .spec import load_spec
+    from .out_folder import OutFolderLock, check_out_folder
 
     spec = Path(args.spec) if args.spec is not None else default_spec()
-    for key, val in (("--fibres", args.fibres), ("--resolution", args.resolution), ("--jobs", args.jobs)):
+    for key, val in (("--fibres", args.fibres), ("--resolution", args.resolution), ("--jobs", args.jobs),
+                     ("--scene-step", args.scene_step)):
         if val is not None and val < 1:
             raise InputError(f"{key} must be >= 1, got {val}", where=key, fix=f"Give {key} a whole number >= 1.")
     max_memory = parse_size(args.max_memory, where="--max-memory")
     check_out_folder(args.out, force=args.force)
     lock = OutFolderLock(args.out)
+    existed = Path(args.out).exists()
     if Path(args.out).is_dir():   # a second run into a busy folder refuses before any work
         lock.acquire()
     try:
-        # bad input is reported before the output folder is created
-        loaded = load_spec(spec)
-        chosen = _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution,
-                                 template=args.template)
-        check_mesh_files(chosen)
-        out = prepare_out_dir(args.out)
+        return _execute(args, spec, lock, existed, max_memory)
+    finally:
+        lock.release()
+
+
+def _execute(args, spec, lock, existed, max_memory) -> int:
+    from .out_folder import clean_stale
+    from .output_files import prepare_out_dir
+    from .run import _select_muscles, check_mesh_files, run
+    from .spec import load_spec
+
+    # bad input is reported before the output folder is created
+    loaded = load_spec(spec)
+    if args.osim:
+        from .cli_export import check_export_options
+
+        check_export_options(args)
+    motion_arg, frames_arg, muscles_arg = args.motion, args.frames, args.muscle
+    if getattr(args, "setup", None):
+        from .setup_file import apply_setup, read_setup
+
+        if args.motion is not None or args.frames is not None:
+            raise InputError("--setup gives the motion and the time range", where="--setup",
+                             fix="Give either --setup SETUP.xml or --motion/--frames, not both.")
+        plan = apply_setup(read_setup(args.setup), loaded)
+        motion_arg, frames_arg = plan["motion"], plan["frames"]
+        muscles_arg = args.muscle or plan["muscles"]
+    chosen = _select_muscles(loaded, muscles_arg, fibres=args.fibres, resolution=args.resolution,
+                             template=args.template, slicing=args.slicing)
+    check_mesh_files(chosen)
+    out = prepare_out_dir(args.out)
+    try:
         if lock.fd is None:
             lock.acquire()
         clean_stale(out)
-        result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
-                     template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
-                     transport=args.transport, max_memory=max_memory, out_dir=out)
+        from .progress import first_run_notice
+
+        first_run_notice(args.quiet)
+        result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres, resolution=args.resolution,
+                     template=args.template, frames=frames_arg, quiet=args.quiet, jobs=args.jobs,
+                     transport=args.transport, keep_surfaces=not args.no_scene, slicing=args.slicing,
+                     max_memory=max_memory, out_dir=out)
+        if getattr(args, "setup", None):     # run.json names (and hashes) the setup file too
+            import dataclasses
+
+            result = dataclasses.replace(result, inputs={**result.inputs, "setup": Path(args.setup).resolve()})
         command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
-        write_outputs(result, out, plots=not args.no_plots, sto=args.sto, quiet=args.quiet, command=command)
-    finally:
+        osim = None
+        if args.osim:
+            from .cli_export import announcer
+
+            osim = {"spec": loaded, "keep_original": args.keep_original, "muscle_class": args.muscle_class,
+                    "max_order": args.max_order, "announce": announcer(args.quiet)}
+        scene = None if args.no_scene else {"spec": loaded, "step": args.scene_step}
+        write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
+                      quiet=args.quiet, command=command, osim=osim, scene=scene)
+    except BaseException:
         lock.release()
+        if not existed:    # a failed run leaves no empty output folder behind
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
     if not args.quiet:
         print(f"fibres run: wrote {out}/ ({len(result.muscles)} muscles, {len(result.time)} frames)",
               file=sys.stderr)
     return 0
 
 
-def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=True, command=None) -> list:
+def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres=False, quiet=True,
+                  command=None, osim=None, scene=None) -> list:
     """Write every output file of a run into ``out_dir`` (staged, then moved into place).
+
+    ``scene``: None, or ``{"spec": FibreModelSpec, "step": K or None}`` to write ``scene/``
+    (`analysis.scene`).
+    ``osim``: None, or the keyword arguments of `analysis.osim_export.export_osim` (with ``spec``)
+    to also write ``<model>_fibres.osim``; its record goes into run.json under ``osim_export``.
 
     Muscle and coordinate names become file names only through `analysis.file_names.file_stems`
     (the mapping is ``file_names`` in run.json); every path is checked to stay inside the staging
@@ -164,7 +227,8 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=Tru
             interrupts.check()
             if sto:
                 t0 = _time.perf_counter()
-                write_sto_files(result, staging, coordinate_stems=coord_stems)
+                write_sto_files(result, staging, per_fibre=sto_fibres, muscle_stems=stems,
+                                coordinate_stems=coord_stems)
                 timings["write_sto"] = _time.perf_counter() - t0
             if plots:
                 t0 = _time.perf_counter()
@@ -175,10 +239,28 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=Tru
                 t0 = _time.perf_counter()
                 _write_vtk(result, staging / "fibres", stems, quiet=quiet, progress=progress)
                 timings["vtk_files"] = _time.perf_counter() - t0
-            files = [f for f in staged_files(staging) if f != "run.json"] + ["run.json"]
-            write_run_json(result, staging / "run.json", command=command, extra_timings=timings,
-                           extra={"files": files,
-                                  "file_names": {"muscles": stems, "coordinates": coord_stems}})
+            interrupts.check()
+            if scene is not None:
+                from .scene import write_scene
+
+                t0 = _time.perf_counter()
+                write_scene(staging / "scene", result, scene["spec"], step=scene.get("step"))
+                timings["scene"] = _time.perf_counter() - t0
+            extra = {}
+            if osim is not None:
+                from .osim_export import export_osim
+
+                interrupts.check()
+                t0 = _time.perf_counter()
+                kw = dict(osim)
+                spec = kw.pop("spec")
+                name = f"{Path(spec.model_path).stem}_fibres.osim"
+                extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
+                extra["osim_export"]["file"] = name
+                timings["osim_export"] = _time.perf_counter() - t0
+            extra["files"] = [f for f in staged_files(staging) if f != "run.json"] + ["run.json"]
+            extra["file_names"] = {"muscles": stems, "coordinates": coord_stems}
+            write_run_json(result, staging / "run.json", command=command, extra_timings=timings, extra=extra)
         interrupts.check()
         return publish(staging, out)
     finally:
@@ -188,9 +270,7 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=False, quiet=Tru
 
 def _write_plots(result, folder: Path, stems, *, quiet, progress):
     """Per muscle: fibre-length band over time, moment arm vs coordinate, L/L_rest histogram."""
-    from . import plots
-
-    from . import interrupts
+    from . import interrupts, plots
 
     folder.mkdir(parents=True, exist_ok=True)
     motion_types = result.settings.get("motion_types", {})
@@ -219,45 +299,3 @@ def _write_vtk(result, folder: Path, stems, *, quiet, progress):
         if m.surface_vertices is not None:
             vtk_files.write_surface_frames(folder, stems[m.name], m.surface_vertices, m.surface_faces,
                                            times=result.time)
-
-
-def write_sto_files(result, folder, *, coordinate_stems=None) -> list:
-    """OpenSim .sto copies, named like MuscleAnalysis's: ``MuscleAnalysis_Length.sto`` (columns:
-    action lines), ``MuscleAnalysis_MomentArm_<coord>.sto``, and the fibre summaries
-    ``FibreAnalysis_Length.sto`` / ``FibreAnalysis_MomentArm_<coord>.sto`` with columns
-    ``<muscle>_median``, ``<muscle>_p5``, ``<muscle>_p95`` (SI units, inDegrees=no).
-    ``<coord>`` is the coordinate's safe file stem (`analysis.file_names`)."""
-    import numpy as np
-
-    from motion import write_sto
-
-    from .file_names import file_stems
-    from .output_files import checked_path
-
-    if coordinate_stems is None:
-        coordinate_stems = file_stems(c for m in result.muscles for c in m.coordinates)
-
-    folder = Path(folder)
-    written = []
-    lengths, fibre_len = {}, {}
-    arms, fibre_arms = {}, {}
-    for m in result.muscles:
-        for i, name in enumerate(m.action_lines):
-            lengths[name] = m.action_line_lengths[:, i]
-        for q, v in zip(("p5", "median", "p95"), np.percentile(m.fibre_lengths, [5, 50, 95], axis=1)):
-            fibre_len[f"{m.name}_{q}"] = v
-        for c, coord in enumerate(m.coordinates):
-            for i, name in enumerate(m.action_lines):
-                arms.setdefault(coord, {})[name] = np.nan_to_num(m.action_line_moment_arms[:, i, c])
-            pct = np.percentile(m.fibre_moment_arms[:, :, c], [5, 50, 95], axis=1)
-            for q, v in zip(("p5", "median", "p95"), pct):
-                fibre_arms.setdefault(coord, {})[f"{m.name}_{q}"] = v
-    tables = {"MuscleAnalysis_Length": lengths, "FibreAnalysis_Length": fibre_len}
-    tables.update({f"MuscleAnalysis_MomentArm_{coordinate_stems[c]}": v for c, v in arms.items()})
-    tables.update({f"FibreAnalysis_MomentArm_{coordinate_stems[c]}": v for c, v in fibre_arms.items()})
-    for name, cols in tables.items():
-        if cols:
-            path = checked_path(folder / f"{name}.sto")
-            write_sto(path, result.time, cols, name=name)
-            written.append(path)
-    return written

@@ -1,9 +1,29 @@
-"""Progress bars for long work (tqdm on stderr); silent with ``quiet=True`` or when not a TTY."""
+"""Progress for long work on stderr: a tqdm bar on a terminal; elsewhere (a log file, a pipe, a batch
+job) one plain line per muscle done (``unit="muscle"``), so long runs are never silent; nothing with
+``quiet=True``."""
 from __future__ import annotations
 
 import sys
 
-__all__ = ["progress"]
+__all__ = ["progress", "first_run_notice"]
+
+
+def first_run_notice(quiet=False) -> bool:
+    """Say so (one line on stderr) before the one-time preparation of a fresh installation: numba
+    compiles the fibre kernels on their first call and caches them beside the sources
+    (``fibres/__pycache__/*.nbi``); with no cached kernel yet, the first muscle takes about two
+    minutes longer (measured: 136 s on a 2-core machine for the bundled example). Returns whether
+    the notice was printed."""
+    from pathlib import Path
+
+    import fibres
+
+    cache = Path(fibres.__file__).resolve().parent / "__pycache__"
+    if quiet or any(cache.glob("*.nbi")):
+        return False
+    print("fibres: first run after installation: compiling the numerical kernels once "
+          "(about 2 minutes; later runs start at once)", file=sys.stderr, flush=True)
+    return True
 
 
 def progress(iterable=None, *, total=None, desc=None, quiet=False, unit="it"):
@@ -15,11 +35,52 @@ def progress(iterable=None, *, total=None, desc=None, quiet=False, unit="it"):
     import os
 
     force = os.environ.get("FIBRES_PROGRESS") == "1"
-    if quiet or not (force or sys.stderr.isatty()):
+    if quiet:
         return iterable if iterable is not None else _NullBar()
+    if not (force or sys.stderr.isatty()):
+        if unit != "muscle":       # per-frame counters would flood a log: muscles only
+            return iterable if iterable is not None else _NullBar()
+        bar = _LineBar(total, desc, unit)
+        return bar.wrap(iterable) if iterable is not None else bar
     from tqdm import tqdm
 
     return tqdm(iterable, total=total, desc=desc, unit=unit, file=sys.stderr, leave=False)
+
+
+class _LineBar:
+    """One line per step on stderr: ``fibres: <desc>: 2/3 muscles (12.4 s)``."""
+
+    def __init__(self, total, desc, unit):
+        import time
+
+        self.total, self.desc, self.unit, self.n = total, desc or "working", unit, 0
+        self._clock = time.perf_counter
+        self.t0 = self._clock()
+
+    def update(self, n=1):
+        self.n += n
+        total = f"/{self.total}" if self.total else ""
+        print(f"fibres: {self.desc}: {self.n}{total} {self.unit}s ({self._clock() - self.t0:.1f} s)",
+              file=sys.stderr, flush=True)
+
+    def wrap(self, iterable):
+        if self.total is None and hasattr(iterable, "__len__"):
+            self.total = len(iterable)
+        for item in iterable:
+            yield item
+            self.update(1)
+
+    def set_description(self, desc):
+        self.desc = desc
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
 
 
 class _NullBar:

@@ -44,6 +44,9 @@ class MuscleResult:
         Fibre polylines per frame in ground (kept unless the run was told not to).
     surface_vertices : (F, V, 3) float or None
         The wrapped surface per frame, if kept; ``surface_faces`` (T, 3) int goes with it.
+    notes : tuple of str
+    quality : dict or None
+        `fibres.quality.FibreQuality` of the rest-pose fibres, as a dict.
     """
 
     name: str
@@ -58,6 +61,7 @@ class MuscleResult:
     surface_vertices: np.ndarray | None = None
     surface_faces: np.ndarray | None = None
     notes: tuple = ()
+    quality: dict | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "coordinates", tuple(self.coordinates))

@@ -64,8 +64,10 @@ the side that keeps the frame's own path (error ~ h/2 * L'' instead of a spike o
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import dataclasses
 import time as _time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -155,7 +157,7 @@ def _timed(timings, stage):
 
 def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, template=None,
         frames=None, quiet=True, jobs=1, step=None, keep_points=True, keep_surfaces=False,
-        transport="bind", max_memory=None, out_dir=None) -> RunResult:
+        transport="bind", slicing=None, max_memory=None, out_dir=None) -> RunResult:
     """Run the fibre study of a fibre model over a motion.
 
     Parameters
@@ -184,6 +186,8 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         Keep the wrapped surfaces per frame.
     transport : {"bind", "decompose"}, keyword-only
         How the rest fibres reach each frame (module docstring).
+    slicing : {"harmonic", "planes"}, optional, keyword-only
+        Override the cross-section method for every muscle (`fibres.decompose`).
     max_memory : int, optional, keyword-only
         Memory budget in bytes (default: `analysis.budget.default_budget`, 80 % of the physical
         memory). The run is refused with an InputError, before the long computation, when its
@@ -217,7 +221,8 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
             full = motion
         rows = select_frames(frames, len(full.time), file=mot_path)
         mot = motion_pkg.Motion.from_array(model, full.time[rows], full.q[rows], source=full.source)
-        mspecs = _select_muscles(spec, muscles, fibres=fibres, resolution=resolution, template=template)
+        mspecs = _select_muscles(spec, muscles, fibres=fibres, resolution=resolution, template=template,
+                                 slicing=slicing)
     names = tuple(dict.fromkeys(n for m in mspecs for n in m.action_lines))
     budget.check_lines(len(rows), len(names), len(model.coordinates), limit)
     interrupts.check()
@@ -277,13 +282,14 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         "muscles": {m.name: {"action_lines": list(m.action_lines), "template": m.template,
                              "fibres": m.n_fibres, "resolution": m.resolution, "seed": m.seed,
                              "frame": m.frame, "units": m.units, "rest_pose": dict(m.rest_pose),
-                             "template_params": dict(m.template_params)} for m in mspecs},
+                             "template_params": dict(m.template_params), "slicing": m.slicing}
+                    for m in mspecs},
     }
     return RunResult(time=mot.time, frames=rows, coordinate_names=model.coordinate_names, q=mot.q,
                      muscles=tuple(results), timings=timings, settings=settings, inputs=inputs)
 
 
-def _select_muscles(spec, muscles, *, fibres, resolution, template):
+def _select_muscles(spec, muscles, *, fibres, resolution, template, slicing=None):
     if muscles:
         unknown = [m for m in muscles if m not in spec.muscle_names]
         if unknown:
@@ -307,6 +313,13 @@ def _select_muscles(spec, muscles, *, fibres, resolution, template):
             raise InputError(f"unknown template {template!r}", where="--template",
                              fix=f"Use one of: {', '.join(_template_names())}.")
         over["template"] = template
+    if slicing is not None:
+        from .spec import SLICINGS
+
+        if slicing not in SLICINGS:
+            raise InputError(f"unknown slicing {slicing!r}", where="--slicing",
+                             fix=f"Use one of: {', '.join(SLICINGS)}.")
+        over["slicing"] = slicing
     return [dataclasses.replace(m, **over) for m in chosen]
 
 
@@ -327,9 +340,13 @@ def _warm_kernels(mspecs) -> None:
     axis = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.05], [0.0, 0.0, 0.1]])
     v, f = fusiform_surface(axis, max_radius=0.01, n_rings=12, n_around=10)
     surface = as_surface((v, f))
-    for template in dict.fromkeys(m.template for m in mspecs):
-        decompose(surface, v[:1] + [0.0, 0.0, 0.002], v[-1:] - [0.0, 0.0, 0.002], template=template,
-                  n_fibres=4, resolution=4)
+    for template, slicing in dict.fromkeys((m.template, getattr(m, "slicing", None)) for m in mspecs):
+        opts = {} if slicing is None else {"slicing": slicing}
+        # only the compilation matters: a warning or failure on this small surface is not the run's
+        with warnings.catch_warnings(), contextlib.suppress(Exception):
+            warnings.simplefilter("ignore")
+            decompose(surface, v[:1] + [0.0, 0.0, 0.002], v[-1:] - [0.0, 0.0, 0.002], template=template,
+                      n_fibres=4, resolution=4, **opts)
 
 
 def check_mesh_files(mspecs) -> None:
@@ -500,8 +517,11 @@ def _run_muscle(ctx, mspec):
     with _timed(timings, "wrap"):   # the rest surface and landmarks in ground (one frame)
         first = motion_pkg.Motion.from_array(ctx.model, ctx.motion.time[:1], ctx.motion.q[:1])
         (rest,) = wrap_surfaces(ctx.model, first, [sspec])
+    from .landmark_checks import check_landmarks
+
+    check_landmarks(ctx.model, mspec, sspec, rest)
     opts = dict(template=mspec.template, n_fibres=mspec.n_fibres, resolution=mspec.resolution,
-                seed=mspec.seed)
+                seed=mspec.seed, slicing=mspec.slicing)
     if mspec.template_params:
         opts["template_params"] = dict(mspec.template_params)
     faces = rest.faces
@@ -560,6 +580,15 @@ def _run_muscle(ctx, mspec):
     al_r = np.asarray(lines.moment_arms)[:, line_rows][:, :, coord_idx]
     names = tuple(ctx.model.coordinate_names[c] for c in coord_idx)
     notes = tuple(getattr(bundle0, "notes", ()) or ())
+    quality = bundle0.quality
+    problems = quality.problems() if quality is not None else []
+    if problems:
+        from fibres.quality import FibreQualityWarning
+
+        notes += (f"fibre quality below the usual limits: {'; '.join(problems)}",)
+        warnings.warn(f"{mspec.name}: fibre quality below the usual limits: {'; '.join(problems)}"
+                      f" (see fibre_quality.csv; try --slicing or another template)",
+                      FibreQualityWarning, stacklevel=2)
     if getattr(rest, "rest_residual", 0.0):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)
     result = MuscleResult(
@@ -568,5 +597,6 @@ def _run_muscle(ctx, mspec):
         rest_lengths=fibre_lengths(bundle0.points),
         fibre_points=points[:n_f] if ctx.keep_points else None,
         surface_vertices=surfaces[:n_f] if ctx.keep_surfaces else None,
-        surface_faces=faces if ctx.keep_surfaces else None, notes=notes)
+        surface_faces=faces if ctx.keep_surfaces else None, notes=notes,
+        quality=None if quality is None else quality.as_dict())
     return result, timings

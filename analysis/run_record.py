@@ -34,7 +34,7 @@ from pathlib import Path
 
 __all__ = ["sha256_file", "software_versions", "run_record", "write_run_json"]
 
-_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "trimesh", "pyvista", "casadi", "matplotlib",
+_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "pyarrow", "trimesh", "pyvista", "casadi", "matplotlib",
              "numba", "tqdm", "opensim")
 
 
@@ -93,14 +93,15 @@ def run_record(result, *, command=None) -> dict:
                    "motion_rows": [int(result.frames[0]), int(result.frames[-1])] if n_f else [],
                    "time": [float(result.time[0]), float(result.time[-1])] if n_f else []},
         "muscles": {m.name: {"n_fibres": m.n_fibres, "coordinates": list(m.coordinates),
-                             "action_lines": list(m.action_lines), "notes": list(m.notes)}
+                             "action_lines": list(m.action_lines), "notes": list(m.notes),
+                             "quality": _jsonable(getattr(m, "quality", None))}
                     for m in result.muscles},
     }
 
 
 def write_run_json(result, path, *, command=None, extra_timings=None, extra=None) -> dict:
     """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing),
-    ``extra`` adds top-level keys (`fibres run`: ``files``, ``file_names``)."""
+    ``extra`` adds top-level sections (e.g. ``osim_export``; `fibres run`: ``files``, ``file_names``)."""
     from .output_files import write_text
 
     record = run_record(result, command=command)

@@ -41,7 +41,9 @@ first action line) take exactly one of
   cloud (legacy VTK, VTP, PLY, ...): its vertices are the points.
 
 and ``body`` (the body the points ride on; default: the body of the first / last path point of the
-first action line).
+first action line) and ``frame``: ``"muscle"`` (default: the points are in the muscle's ``frame``,
+like its mesh) or ``"body"`` (the points are in ``body``'s own frame, as path-point locations in the
+.osim, e.g. ``origin = { body = "pelvis", frame = "body", points = [[-0.014, 0.017, 0.107]] }``).
 
 Every mistake raises one :class:`analysis.errors.InputError` naming the TOML file, the key (e.g.
 ``muscles.biceps.action_lines[1]``) and the fix.
@@ -68,11 +70,18 @@ __all__ = ["load_spec", "FibreModelSpec", "MuscleSpec", "AttachmentSpec", "TEMPL
 TEMPLATE_NAMES = ("parallel", "pennate", "bipennate", "curved", "fanned", "rectus")
 _TOP_KEYS = ("model", "motion", "units", "defaults", "muscles")
 _MUSCLE_KEYS = ("action_lines", "mesh", "frame", "rest_pose", "origin", "insertion", "template",
-                "fibres", "resolution", "seed", "template_params", "units", "bones", "volume")
+                "fibres", "resolution", "seed", "template_params", "units", "bones", "volume",
+                "slicing")
 _BONE_KEYS = ("body", "mesh")
-_ATTACH_KEYS = ("body", "points", "file", "where", "columns", "units")
+_ATTACH_KEYS = ("body", "frame", "points", "file", "where", "columns", "units")
+#: an attachment's own ``frame``: "muscle" (the muscle's frame, the default) or "body" (its body's)
+_ATTACH_FRAMES = ("muscle", "body")
 _UNITS = {"m": 1.0, "mm": 1e-3}
-_DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0}
+_DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0,
+             "slicing": "harmonic"}
+
+#: cross-section methods of the decomposition (``fibres.SLICINGS``)
+SLICINGS = ("harmonic", "planes")
 #: Most fibres per muscle. Every fibre is sampled, morphed, filtered, carried through every frame
 #: and every perturbed pose, and written per frame; Kohout et al. (2012) use hundreds. Above this a
 #: run needs tens of GB (see `analysis.budget`), so the value is almost surely a typo.
@@ -178,6 +187,8 @@ class MuscleSpec:
         Bone meshes (in the muscle's frame and units) that the wrapped surface keeps out of.
     volume : float or None
         Volume (m^3) of a generated surface (no mesh); None: motion's default rule.
+    slicing : str
+        "harmonic" (isolines of a harmonic field, default) or "planes" (Kohout 2012).
     """
 
     name: str
@@ -195,6 +206,7 @@ class MuscleSpec:
     template_params: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     bones: tuple = ()
     volume: float | None = None
+    slicing: str = "harmonic"
 
     @property
     def scale(self) -> float:
@@ -438,6 +450,9 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
     names_t = _template_names()
     if template not in names_t:
         ctx.fail(src["template"], f"unknown template {template!r}", f"Use one of: {', '.join(names_t)}.")
+    slicing = d["slicing"]
+    if slicing not in SLICINGS:
+        ctx.fail(src["slicing"], f"unknown slicing {slicing!r}", f"Use one of: {', '.join(SLICINGS)}.")
     ints = {key: check_count(key, d[key], where=src[key], file=ctx.file)
             for key in ("fibres", "resolution", "seed")}
     bones = []
@@ -471,7 +486,7 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
                       origin=ends["origin"], insertion=ends["insertion"], template=template,
                       n_fibres=ints["fibres"], resolution=ints["resolution"], seed=ints["seed"],
                       template_params=MappingProxyType(dict(params)), bones=tuple(bones),
-                      volume=None if volume is None else float(volume))
+                      volume=None if volume is None else float(volume), slicing=slicing)
 
 
 def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
@@ -485,6 +500,14 @@ def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
     body = table.get("body", default_body)
     if not isinstance(body, str) or body not in bodies:
         ctx.fail(f"{where}.body", f"'{body}' is not a body of the model", f"Use one of: {', '.join(bodies)}.")
+    own = table.get("frame", "muscle")
+    if own == body:
+        own = "body"
+    if own not in _ATTACH_FRAMES:
+        ctx.fail(f"{where}.frame", f"unknown attachment frame {own!r}",
+                 f"Use frame = \"body\" (points in the frame of body '{body}', as path points in the .osim) "
+                 "or frame = \"muscle\" (the muscle's own frame, the default).")
+    in_body = own == "body"
     if ("points" in table) == ("file" in table):
         ctx.fail(where, "needs exactly one of 'points' and 'file'",
                  "Give points = [[x, y, z], ...] or file = \"<landmarks>.csv\".")
@@ -502,10 +525,10 @@ def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
         scale = _UNITS.get(table.get("units", unit)) if _is_unit(table.get("units", unit)) else None
         if scale is None:
             ctx.fail(f"{where}.units", f"unknown units {table['units']!r}", "Use \"m\" or \"mm\".")
-        return AttachmentSpec(body=body, points=pts * scale, source=f"{where}.points")
+        return AttachmentSpec(body=body, points=pts * scale, in_body_frame=in_body, source=f"{where}.points")
     file = ctx.file_path(table["file"], f"{where}.file", "landmark file")
     pts, scale = _read_points(ctx, file, table, where, unit)
-    return AttachmentSpec(body=body, points=pts * scale, source=str(file))
+    return AttachmentSpec(body=body, points=pts * scale, in_body_frame=in_body, source=str(file))
 
 
 def _read_points(ctx, file, table, where, unit):

@@ -10,6 +10,7 @@
   lines: n_action_lines, action_line_mean, action_line_min, action_line_max and
   action_line_values ("name=value;name=value", values with 12 significant digits).
 
+Each is also written as ``<name>.parquet`` (same columns, full precision; `write_tables`).
 ``frame`` is 0-based over the frames actually used; SI units throughout. Every table is built
 with array operations (repeat/tile), no loop over frames or fibres.
 """
@@ -184,24 +185,41 @@ def result_long_frame(result):
     return df.astype({"frame": np.int64, "fibre": np.int64, "value": float})
 
 
+def fibre_quality_table(result):
+    """One row per muscle: the rest-pose fibres' quality (`fibres.quality.FibreQuality`)."""
+    import pandas as pd
+
+    rows = [dict(muscle=m.name, **(m.quality or {})) for m in result.muscles]
+    return pd.DataFrame(rows)
+
+
 TABLES.update({
     "fibre_lengths.csv": fibre_lengths_table,
     "fibre_moment_arms.csv": fibre_moment_arms_table,
     "action_lines.csv": action_lines_table,
     "action_line_moment_arms.csv": action_line_moment_arms_table,
     "summary.csv": summary_table,
+    "fibre_quality.csv": fibre_quality_table,
 })
 
 
-def write_tables(result, out_dir) -> list:
-    """Write the five CSV tables into ``out_dir`` atomically; return the paths written."""
+def write_tables(result, out_dir, *, parquet: bool = True) -> list:
+    """Write the five tables into ``out_dir`` atomically, as CSV and (``parquet=True``) as Parquet
+    beside it (``<name>.parquet``: the same columns, full float64 precision, pyarrow engine).
+    Returns the paths written."""
     from pathlib import Path
 
-    from .output_files import write_csv
+    from .output_files import atomic_path, write_csv
 
     written = []
     for name, build in TABLES.items():
         path = Path(out_dir) / name
-        write_csv(build(result), path)
+        table = build(result)
+        write_csv(table, path)
         written.append(path)
+        if parquet:
+            pq = path.with_suffix(".parquet")
+            with atomic_path(pq) as tmp:
+                table.to_parquet(tmp, index=False, engine="pyarrow")
+            written.append(pq)
     return written

@@ -3,13 +3,16 @@
 Never imports ``motion`` or ``analysis``.
 """
 from .bundle import FibreBundle
-from .decompose import decompose, make_plan
+from .decompose import DEFAULT_SLICING, SLICINGS, decompose, make_plan
 from .errors import InputError, MissingDependencyError
 from .mvc import mean_value_coordinates
 from .plan import DecompositionPlan
+from .harmonic_slicing import HarmonicPlan
+from .quality import FibreQuality, FibreQualityWarning
 from .sampling import sobol_rs
 from .surface import Surface, as_surface
 from .templates import TEMPLATES, get_template
 
 __all__ = ["InputError", "MissingDependencyError", "Surface", "as_surface", "sobol_rs", "get_template", "TEMPLATES",
-           "decompose", "FibreBundle", "DecompositionPlan", "make_plan", "mean_value_coordinates"]
+           "decompose", "FibreBundle", "DecompositionPlan", "make_plan", "mean_value_coordinates",
+           "HarmonicPlan", "FibreQuality", "FibreQualityWarning", "SLICINGS", "DEFAULT_SLICING"]

@@ -30,8 +30,10 @@ class FibreBundle:
         ``trimmed`` / ``reconstructed`` (attachment filtering, Kohout §3.4) and others.
     notes : tuple of str
         Decisions worth knowing (several loops in a slice, refined contours, repairs ...).
-    box : fibres.fitting.Box
-        The fitted template box of this surface.
+    box : fibres.fitting.Box or None
+        The fitted template box of this surface (planar slicing; None for harmonic).
+    surface : (vertices (V, 3), faces (T, 3)) or None
+        The surface the fibres were made in (what `quality` measures against).
     """
 
     points: np.ndarray
@@ -41,6 +43,7 @@ class FibreBundle:
     flags: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     notes: tuple = ()
     box: object = None
+    surface: tuple = None
 
     def __post_init__(self):
         pts = np.array(self.points, dtype=np.float64, copy=True)
@@ -66,7 +69,8 @@ class FibreBundle:
     def __reduce__(self):
         # mappingproxy fields (flags, the Template's params) are not picklable
         return (_unpickle_bundle, (self.points, self.rs, template_spec(self.template),
-                                   self.plan, dict(self.flags), self.notes, self.box))
+                                   self.plan, dict(self.flags), self.notes, self.box,
+                                   self.surface))
 
     @property
     def n_fibres(self) -> int:
@@ -78,11 +82,45 @@ class FibreBundle:
         """R, segments per fibre."""
         return int(self.points.shape[1] - 1)
 
+    @property
+    def quality(self):
+        """`fibres.quality.FibreQuality` of these fibres in their surface (computed once, on
+        first use: ~0.1 s for a real muscle). The attachment patches are the plan's
+        (harmonic slicing) or made from the plan's rest landmarks
+        (`fibres.attachment_patch`); None without a surface."""
+        cached = self.__dict__.get("_quality")
+        if cached is None and self.surface is not None:
+            from .quality import fibre_quality
+            v, f = self.surface
+            of, if_ = _patch_faces(self.plan, f)
+            cached = fibre_quality(self.points, v, f, of, if_)
+            object.__setattr__(self, "_quality", cached)
+        return cached
+
     def lengths(self) -> np.ndarray:
         """(N,) polyline length of every fibre, metres."""
         return np.linalg.norm(np.diff(self.points, axis=1), axis=2).sum(axis=1)
 
 
-def _unpickle_bundle(points, rs, spec, plan, flags, notes, box):
+def _patch_faces(plan, faces):
+    """(origin_faces, insertion_faces) of a plan: its own patches, or patches made from its
+    rest landmarks on its rest surface (cached on the plan object)."""
+    if hasattr(plan, "origin_faces"):
+        return tuple(fm if fm.any() else vm[faces].any(axis=1) for fm, vm in
+                     ((plan.origin_faces, plan.origin), (plan.insertion_faces, plan.insertion)))
+    cache = plan.__dict__.get("_patch_faces")
+    if cache is None:
+        from .attachment_patch import attachment_patches
+        from .harmonic_field import mesh_edges
+        v = plan.rest_vertices
+        edges, _ = mesh_edges(faces, len(v))
+        p = attachment_patches(v, faces, plan.rest_origin, plan.rest_insertion, edges)
+        cache = tuple(fm if fm.any() else vm[faces].any(axis=1) for fm, vm in
+                      ((p.origin_faces, p.origin), (p.insertion_faces, p.insertion)))
+        plan.__dict__["_patch_faces"] = cache
+    return cache
+
+
+def _unpickle_bundle(points, rs, spec, plan, flags, notes, box, surface=None):
     template = template_from_spec(spec) if isinstance(spec, tuple) else spec
-    return FibreBundle(points, rs, template, plan, flags, notes, box)
+    return FibreBundle(points, rs, template, plan, flags, notes, box, surface)

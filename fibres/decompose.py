@@ -33,17 +33,24 @@ from .errors import InputError
 from .filtering import apply_filter, filter_choices
 from . import fitting as _fitting
 from .fitting import fit_box, prepare, principal_frame, reference_frame
+from .harmonic_slicing import HarmonicPlan, harmonic_points, make_harmonic_plan
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
 from .slicing import _topology_kernel, mesh_topology, slice_mesh
-from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
+from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth, smooth_taubin
 from .surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .templates import Template, get_template
 
-__all__ = ["decompose", "make_plan"]
+__all__ = ["decompose", "make_plan", "SLICINGS", "DEFAULT_SLICING"]
 
 _AXES = ("auto", "attachments", "covariance")
+
+#: cross-section methods: isolines of a harmonic field (Modenese & Kohout 2020,
+#: `fibres.harmonic_slicing`) or parallel planes (Kohout et al. 2012)
+SLICINGS = ("harmonic", "planes")
+#: the default: fills real muscles better (README, "Slicing")
+DEFAULT_SLICING = "harmonic"
 
 
 def _inputs(mesh, origin, insertion, units, plan):
@@ -232,7 +239,7 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool,
 
 def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int = 19,
               units: str = "m", template_params=None, axis: str = "auto",
-              angle_step_deg: float = 5.0) -> DecompositionPlan:
+              angle_step_deg: float = 5.0, slicing: str = DEFAULT_SLICING):
     """Make every discrete choice of a decomposition once, on a rest-pose surface.
 
     Parameters
@@ -244,16 +251,28 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
     angle_step_deg : float, keyword-only
         Rotation step of the OBB search (5 degrees in Kohout 2012).
 
+    slicing : {"harmonic", "planes"}, keyword-only
+        As for `decompose`.
+
     Returns
     -------
-    DecompositionPlan
+    HarmonicPlan or DecompositionPlan
         Reuse with ``decompose(deformed, o, i, plan=plan)`` for every frame.
     """
+    _check_slicing(slicing)
     v, faces, o, i, _, topology, _ = _inputs(mesh, origin, insertion, units, None)
+    if slicing == "harmonic":
+        return make_harmonic_plan(v, faces, o, i)
     tmpl = _template(template, template_params)
     plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, angle_step_deg, topology)
     *_, choice, _ = _sweep(plan, v, o, i, fresh=True)
     return _with_choice(plan, choice)
+
+
+def _check_slicing(slicing):
+    if slicing not in SLICINGS:
+        raise InputError(f"unknown slicing {slicing!r}", where="slicing",
+                         fix=f"Use one of: {', '.join(SLICINGS)}.")
 
 
 def _with_choice(plan, choice, filter_choice=None):
@@ -314,8 +333,8 @@ def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
 def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,
               resolution: int = 19, seed: int = 0, units: str = "m", template_params=None,
               smoothing_iterations: int = DEFAULT_ITERATIONS, filter_attachments: bool = True,
-              plan: DecompositionPlan | None = None, axis: str = "auto",
-              contain: bool = True) -> FibreBundle:
+              plan: DecompositionPlan | HarmonicPlan | None = None, axis: str = "auto",
+              contain: bool = True, slicing: str = DEFAULT_SLICING) -> FibreBundle:
     """Decompose a closed muscle surface into fibres (Kohout et al., GRAPP 2012).
 
     Parameters
@@ -338,7 +357,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     template_params : mapping, optional
         Parameters of the template (`fibres.get_template`).
     smoothing_iterations : int, keyword-only
-        Iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
+        Planes: iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
+        harmonic: twice as many lambda|mu pairs of `fibres.smoothing.smooth_taubin`;
         default `fibres.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Each point's
         smoothing shift is softly bounded by `fibres.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm)
         so that smoothing cannot pull fibres out through a concave wall.
@@ -364,19 +384,33 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         core, CPU): ~1.4 ms per call at 15K vertices x 100 fibres x 20 points, ~4.0 ms at
         60K vertices (`fibres.containment`); False skips it.
 
+    slicing : {"harmonic", "planes"}, keyword-only
+        Cross-sections: isolines of a harmonic field between the attachment patches
+        (default; Modenese & Kohout 2020, `fibres.harmonic_slicing`: the fibre ends cover
+        the patches, no attachment filter is needed and ``filter_attachments`` and ``axis``
+        do not apply) or the parallel planes of Kohout et al. 2012. A plan decides for
+        itself.
+
     Returns
     -------
     FibreBundle
-        ``flags`` holds ``trimmed`` and ``reconstructed`` (attachment filter) and
-        ``contained`` (a point was pulled in).
+        ``flags`` holds ``trimmed`` and ``reconstructed`` (attachment filter, planes) and
+        ``contained`` (a point was pulled in); ``quality`` measures the result
+        (`fibres.quality`).
     """
     if isinstance(n_fibres, bool) or not isinstance(n_fibres, (int, np.integer)) or n_fibres < 1:
         raise ValueError(f"n_fibres must be a positive integer, got {n_fibres!r}")
     if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
             or resolution < 1:
         raise ValueError(f"resolution must be a positive integer, got {resolution!r}")
+    _check_slicing(slicing)
+    if plan is not None:
+        slicing = getattr(plan, "slicing", "planes")
     v, faces, o, i, notes, topology, mean_edge = _inputs(mesh, origin, insertion, units, plan)
     tmpl = _template(template, template_params)
+    if slicing == "harmonic":
+        return _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, int(n_fibres),
+                                   int(resolution), seed, smoothing_iterations, contain, plan)
     prepared = None
     if plan is None:
         # the transposed vertices, bounds, centroid: made once for the fit, filter, grid
@@ -417,4 +451,24 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
             bounds=None if prepared is None else (prepared.lo, prepared.hi))
     if fresh:  # the sweep's and the filter's choices recorded at once
         plan = _with_choice(plan, choice, fc)
-    return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box)
+    return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box, (v, faces))
+
+
+def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolution, seed,
+                        smoothing_iterations, contain, plan):
+    """`decompose` by harmonic-field slicing (`fibres.harmonic_slicing`), then Taubin's
+    non-shrinking smoothing (2 x ``smoothing_iterations`` lambda|mu pairs,
+    `fibres.smoothing.smooth_taubin`) and the containment pull of the planar method."""
+    if plan is None:
+        plan = make_harmonic_plan(v, faces, o, i)
+        notes.extend(plan.notes)
+    else:
+        plan.check_mesh(v, faces)
+    pts, rs, slice_notes = harmonic_points(plan, v, tmpl, n_fibres, resolution, seed)
+    notes.extend(slice_notes)
+    flags = {}
+    if smoothing_iterations:
+        pts = smooth_taubin(pts, iterations=2 * int(smoothing_iterations))
+    if contain:
+        pts, flags["contained"] = contain_points(pts, v, faces, mean_edge=mean_edge)
+    return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))

@@ -335,6 +335,10 @@ def _in_degrees(header, path) -> bool:
     return word in _YES
 
 
+_SPELLING = {"nrows": "nRows", "ncolumns": "nColumns", "datarows": "datarows",
+             "datacolumns": "datacolumns"}
+
+
 def _check_counts(header, shape, path):
     """ONE warning if nRows/datarows or nColumns/datacolumns disagree with the data read."""
     found = []
@@ -347,11 +351,11 @@ def _check_counts(header, shape, path):
             try:
                 declared = int(value.strip())
             except ValueError:
-                found.append(f"line {number}: {key}={value!r} is not a whole number")
+                found.append(f"line {number}: {_SPELLING[key]}={value!r} is not a whole number")
                 continue
             if declared != actual:
-                found.append(f"line {number}: the header says {key}={declared} but the file holds "
-                             f"{actual} {what}")
+                found.append(f"line {number}: the header says {_SPELLING[key]}={declared} but the "
+                             f"file holds {actual} {what}")
     if found:
         warnings.warn(f"{path}: {'; '.join(found)}; the rows and columns present are used (as "
                       "OpenSim does) -- is the file truncated?", MotionFileWarning, stacklevel=3)

@@ -26,7 +26,7 @@ from .osim_paths import read_paths, read_wrap_objects
 from .errors import InputError
 from .osim_xml import Node, function_child, parse_function, read_document
 
-__all__ = ["load_model"]
+__all__ = ["load_model", "ModelFileWarning"]
 
 _UNSUPPORTED_JOINTS = ("ScapulothoracicJoint", "ConstantCurvatureJoint")
 
@@ -72,6 +72,7 @@ def _load_model(path) -> Model:
     model_node = doc.child("Model")
     if model_node is None:
         raise doc.error("the document holds no <Model>", "give an OpenSim model file, not another OpenSim document")
+    version = _content_version(model_node, version, file)
     if version >= 40000:
         bodies, joints, coords, frames = _read_4x(model_node)
     else:
@@ -86,6 +87,36 @@ def _load_model(path) -> Model:
     return Model(name=model_node.name or os.path.splitext(os.path.basename(file))[0], file=file,
                  version=version, bodies=bodies, joints=joints, coordinates=ordered,
                  couplers=couplers, welds=welds, paths=paths, wrap_objects=wraps)
+
+
+class ModelFileWarning(UserWarning):
+    """The model file is read, but not quite as it says (e.g. its version header)."""
+
+
+#: elements only OpenSim 4.x writes (3.x keeps joints inside bodies and names a point's <body>)
+_MARKERS_4X = ("JointSet", "Ground")
+_SOCKETS_4X = ("socket_parent_frame", "socket_parent", "socket_child_frame")
+
+
+def _content_version(model_node, version: int, file) -> int:
+    """The format to read by, decided by the elements present: a file whose header says 3.x (or
+    2.x) but whose content is 4.x (a ``<JointSet>`` or ``<Ground>`` under ``<Model>``, or
+    ``socket_*`` elements, as some Rajagopal-family files) is read as 4.x with one
+    `ModelFileWarning`, as OpenSim 4.6 loads it."""
+    if version >= 40000:
+        return version
+    found = [t for t in _MARKERS_4X if model_node.child(t) is not None]
+    if not found:
+        found = sorted({el.tag for el in model_node.el.iter() if el.tag in _SOCKETS_4X})[:2]
+    if not found:
+        return version
+    import warnings
+
+    warnings.warn(f"{file}: the header says Version=\"{version}\" (OpenSim {version // 10000}.x) but the "
+                  f"content is OpenSim 4.x ({', '.join('<' + t + '>' for t in found)}): read as 4.x, as "
+                  "OpenSim 4.6 does. Save the model from OpenSim 4 to fix the header.",
+                  ModelFileWarning, stacklevel=3)
+    return 40000
 
 
 # --------------------------------------------------------------------------- coordinates

@@ -16,6 +16,7 @@ EXPECTED = {
         "InputError", "MissingDependencyError",
         "Surface", "as_surface", "sobol_rs", "get_template", "TEMPLATES",
         "decompose", "FibreBundle", "DecompositionPlan", "make_plan", "mean_value_coordinates",
+        "HarmonicPlan", "FibreQuality", "FibreQualityWarning", "SLICINGS", "DEFAULT_SLICING",
     },
     "analysis": {
         "InputError", "MissingDependencyError",

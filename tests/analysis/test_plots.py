@@ -47,10 +47,10 @@ def test_plot_muscle_writes_three_pngs(synthetic, tmp_path):
     paths = plots.plot_muscle(tmp_path, "biceps", **synthetic)
     assert [p.name for p in paths] == ["biceps_lengths.png", "biceps_moment_arms.png",
                                        "biceps_length_histogram.png"]
-    for p in paths:
+    for p, width in zip(paths, (7.0, 7.0, 7.0)):
         w, h = _png_size(p)
-        # figure size (7 x 4.2 in) at 110 dpi, give or take a pixel of rounding
-        assert abs(w - 770) <= 1 and abs(h - 462) <= 1
+        # figure size (width x 4.2 in) at 110 dpi, give or take a pixel of rounding
+        assert abs(w - width * 110) <= 1 and abs(h - 462) <= 1
         assert 10_000 < p.stat().st_size < 500_000
     assert sorted(x.name for x in tmp_path.iterdir()) == sorted(p.name for p in paths)
 
@@ -134,3 +134,32 @@ def test_import_does_not_load_matplotlib():
     code = "import sys, analysis.plots; print('matplotlib' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_coordinate_axis_fits_the_motion():
+    t = np.linspace(0, 1, 101)
+    assert plots.coordinate_axis(np.radians(130) * t) == "sweep"
+    assert plots.coordinate_axis(np.radians(130) * (1 - t)) == "sweep"            # downwards too
+    assert plots.coordinate_axis(np.radians(30) * np.sin(2 * np.pi * t)) == "time"   # gait-like
+    assert plots.coordinate_axis(np.full(101, 0.3)) == "constant"
+    assert plots.coordinate_axis(0.3 + 1e-5 * t) == "constant"
+    assert plots.coordinate_axis(0.02 * t, rotational=False) == "sweep"
+    noisy = np.radians(100) * t + 1e-6 * np.sin(50 * t)       # float noise on a sweep
+    assert plots.coordinate_axis(noisy) == "sweep"
+
+
+def test_constant_coordinates_get_no_panel(synthetic, tmp_path):
+    """Gait-like: one oscillating coordinate (against time), one constant (skipped)."""
+    t = synthetic["times"]
+    q = np.stack([np.radians(30) * np.sin(2 * np.pi * t / t[-1]), np.full(F, 0.2)], axis=1)
+    fm = np.stack([synthetic["fibre_moment_arms"]] * 2, axis=2)
+    lm = np.stack([synthetic["line_moment_arms"]] * 2, axis=2)
+    p = plots.plot_moment_arms(tmp_path / "m.png", q, fm, lm, ["A", "B"], muscle="x",
+                               coordinate_names=["hip", "fixed"], times=t)
+    w, _ = _png_size(p)
+    assert abs(w - 770) <= 1                                   # one 7-inch panel, not two
+    # all constant: drawn against time rather than not at all
+    p = plots.plot_moment_arms(tmp_path / "c.png", np.full(F, 0.2), synthetic["fibre_moment_arms"],
+                               synthetic["line_moment_arms"], ["A", "B"], muscle="x", coordinate_names=["c"],
+                               times=t)
+    assert _png_size(p)[0] > 0

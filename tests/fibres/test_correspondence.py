@@ -577,7 +577,8 @@ def test_split_smoothing_straightens_the_lhdl_gluteus_medius(lhdl_dir, monkeypat
         surface = as_surface(lhdl_dir / "muscles" / "glut_med_r.vtk", units="mm")
 
     def turning_p95():
-        p = decompose(surface, o, i, units="mm", template="fanned", n_fibres=100).points
+        p = decompose(surface, o, i, units="mm", template="fanned", n_fibres=100,
+                          slicing="planes").points
         d = np.diff(p, axis=1)
         d /= np.linalg.norm(d, axis=2, keepdims=True)
         cos = np.clip(np.einsum("nkd,nkd->nk", d[:, 1:], d[:, :-1]), -1.0, 1.0)

@@ -1,10 +1,16 @@
 """DecompositionPlan: reapplying the choices to the same and to deformed copies of a mesh."""
+import functools
+
 import numpy as np
 import pytest
 import trimesh
 
 from fibres import DecompositionPlan, decompose, make_plan
 from fibres.plan import kabsch_rotation
+
+# the decomposition plan of the planar method (Kohout et al. 2012)
+decompose = functools.partial(decompose, slicing="planes")
+make_plan = functools.partial(make_plan, slicing="planes")
 
 
 @pytest.fixture(scope="module")

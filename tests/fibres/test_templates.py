@@ -144,20 +144,20 @@ def _unit_cube_mesh():
 
 @pytest.mark.parametrize("name", TEMPLATES)
 def test_each_template_reproduces_itself_in_the_unit_cube(name):
-    # decompose the unit cube with the template's own attachment areas: the fitted box IS the
+    # (the planar method) decompose the unit cube with the template's own attachment areas: the fitted box IS the
     # cube, every slice is the unit square and the morph is the identity, so the fibres must
     # be the template's own curves (up to round-off of the MVC weights, 1e-9)
     decompose = pytest.importorskip("fibres.decompose").decompose
     tm = get_template(name)
     bundle = decompose(_unit_cube_mesh(), tm.origin_area, tm.insertion_area, template=name,
                        n_fibres=40, resolution=19, smoothing_iterations=0,
-                       filter_attachments=False)
+                       filter_attachments=False, slicing="planes")
     ref = tm.fibre_points(bundle.rs, np.linspace(0, 1, 20))
     np.testing.assert_allclose(bundle.points, ref, atol=1e-9)
     np.testing.assert_array_equal(bundle.rs, sobol_rs(40, seed=0))
     # with the attachment filter on nothing lies beyond the planes through the face landmarks
     filtered = decompose(_unit_cube_mesh(), tm.origin_area, tm.insertion_area, template=name,
-                         n_fibres=40, resolution=19, smoothing_iterations=0)
+                         n_fibres=40, resolution=19, smoothing_iterations=0, slicing="planes")
     assert not filtered.flags["trimmed"].any()
     np.testing.assert_allclose(filtered.points, ref, atol=1e-9)
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import warnings
 
 import numpy as np
@@ -125,9 +126,18 @@ def test_spreadsheet_export_trailing_tabs_and_wrong_nrows(tmp_path, toy):
     text = (f"m{pad}\nversion=1{pad}\nnRows=51{pad}\nnColumns=3{pad}\ninDegrees=no{pad}\n{pad}\n"
             f"\"Units are S.I. units (second, meters, Newtons, ...)\"{pad}\nendheader{pad}\n"
             "time\trot\ttx\n0\t1\t2\n0.01\t3\t4\n\n")
-    motion, _ = _load(_write(tmp_path, text), toy)
+    motion, caught = _load(_write(tmp_path, text), toy)
     assert motion.n_frames == 2
     np.testing.assert_array_equal(motion.column("rot"), [1, 3])
+    # the disagreement is reported once, with both numbers
+    msgs = [str(w.message) for w in caught if "nRows" in str(w.message)]
+    assert len(msgs) == 1 and "nRows=51" in msgs[0] and "2 data rows" in msgs[0]
+
+
+def test_agreeing_nrows_does_not_warn(tmp_path, toy):
+    text = "m\nversion=1\nnRows=2\nnColumns=3\ninDegrees=no\nendheader\ntime\trot\ttx\n0\t1\t2\n0.01\t3\t4\n"
+    _, caught = _load(_write(tmp_path, text), toy)
+    assert not [w for w in caught if "nRows" in str(w.message)]
 
 
 def test_crlf_line_ends(tmp_path, toy):
@@ -372,10 +382,10 @@ def test_every_shared_motion_parses_as_opensim_does(shared_dir, osim, tmp_path):
         model = _model([dataclasses.replace(_coordinate(n, "translational"), range=(-1e6, 1e6))
                         for n in names[1:]])
         motion, caught = _load(path, model)
-        # the only warning: a header row count that disagrees with the rows (LHDL hip_flexion
-        # says nRows=51 over 36 rows; OpenSim reads the 36 silently, we say so once)
-        assert all("nrows=" in str(w.message) for w in caught), path
-        assert len(caught) == (path.name == "hip_flexion.mot"), path
+        # the only warning allowed: a header nRows that the rows disagree with (LHDL: 51 vs 36)
+        assert all("nRows=" in str(w.message) for w in caught) and len(caught) <= 1, path
+        declared = re.search(r"^nRows=(\d+)", path.read_text(), re.M)
+        assert len(caught) == (declared is not None and int(declared.group(1)) != len(expected)), path
         assert motion.in_degrees == in_degrees, path
         np.testing.assert_array_equal(np.column_stack([motion.time, motion.q]), expected,
                                       err_msg=str(path))
@@ -432,10 +442,11 @@ def test_lhdl_motion_warns_once_per_kind(lhdl_dir):
                               "yTranslation", "zTranslation")
     assert motion.missing == ("pelvis_tilt", "pelvis_list", "pelvis_rotation", "pelvis_tx",
                               "pelvis_ty", "pelvis_tz")
-    assert len(caught) == 3
+    assert len(caught) == 3      # unknown columns, missing coordinates, nRows=51 for 36 rows
+    assert sum("nRows=51" in str(w.message) for w in caught) == 1
     assert sum("xRotation" in str(w.message) for w in caught) == 1
     assert sum("pelvis_tilt" in str(w.message) for w in caught) == 1
-    assert sum("nrows=51 but the file holds 36 data rows" in str(w.message) for w in caught) == 1
+    assert sum("nRows=51 but the file holds 36 data rows" in str(w.message) for w in caught) == 1
     assert motion.n_frames == 36  # the header says nRows=51; OpenSim also reads 36 rows
     np.testing.assert_allclose(motion.column("hip_flexion_r")[[0, -1]], np.radians([-10, 60]),
                                rtol=1e-15)
@@ -489,7 +500,7 @@ def test_row_count_disagreeing_with_the_rows_warns_once(tmp_path, toy):
     path.write_text(_ELBOW.format(n=27, deg="yes"))
     motion, caught = _load(path, toy)
     assert motion.n_frames == 13                     # the rows present are used, as OpenSim does
-    counts = [w for w in caught if "nrows=27 but the file holds 13 data rows" in str(w.message)]
+    counts = [w for w in caught if "nRows=27 but the file holds 13 data rows" in str(w.message)]
     assert len(counts) == 1 and "line 3" in str(counts[0].message)
     path.write_text(_ELBOW.format(n="thirteen", deg="yes"))
     _, caught = _load(path, toy)

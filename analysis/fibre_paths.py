@@ -1,0 +1,239 @@
+"""Fibre path functions for an OpenSim model: per fibre, a polynomial of the muscle's spanned
+coordinates fitted to our fibre lengths and moment arms over sampled poses, and the fibre's
+muscle parameters.
+
+Method (`fit_fibre_paths`), per muscle of a finished run:
+
+1. Poses: ``n`` samples around the run's own frames (`analysis.path_fit.sample_poses`: the frames
+   plus Latin-hypercube offsets within +-10 degrees / 2 cm on each spanned coordinate, as OpenSim's
+   PolynomialPathFitter samples), plus the run's frames themselves; a separate validation set of
+   ``n // 2`` samples drawn the same way with another random stream.
+2. Fibre lengths and moment arms at those poses: the same chain as the run (`analysis.run` with the
+   run's template, fibres, resolution and transport, the poses as a motion, in chunks of
+   ``CHUNK`` poses). The rest decomposition is deterministic, so fibre k is the run's fibre k
+   (checked: the rest lengths must agree).
+3. Fit: `analysis.path_fit.select_orders` picks per fibre the lowest order 1..``max_order`` whose
+   worst validation errors are within ``length_tol`` (0.1 mm) and ``moment_arm_tol`` (0.5 mm). If
+   a fibre has no such order, the training samples double (up to ``max_samples``) and the fit is
+   repeated; the order and sample count used are reported per fibre with the measured errors.
+
+Muscle parameters of fibre k of a muscle whose action lines i have OpenSim max isometric forces
+F_i, optimal fibre lengths l_i, tendon slack lengths s_i and path lengths L_i at the fibre
+model's rest pose (the pose the mesh was acquired in; fibre rest length l_k there):
+
+- max isometric force: sum_i F_i / N, an equal share. The templates place the fibres by Sobol
+  (quasi-uniform) sampling of the muscle cross-section, so each fibre stands for an equal part of
+  the physiological cross-sectional area, to which OpenSim's F_max is proportional.
+- optimal fibre length and tendon slack length: the action lines' ratios l_i / L_i and s_i / L_i
+  (force-weighted mean over the lines) times the fibre's rest length l_k, so each fibre keeps the
+  original fibre/tendon proportions of the muscle-tendon unit along its own length.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import path_fit
+from .errors import InputError
+
+__all__ = ["MuscleFit", "fit_fibre_paths", "muscle_parameters", "CHUNK", "LENGTH_TOL", "MOMENT_ARM_TOL"]
+
+#: sampled poses per call of `analysis.run` (bounds the memory of the stacked frames)
+CHUNK = 64
+#: fit tolerances on the validation poses (metres; metres per radian for moment arms)
+LENGTH_TOL = 1e-4
+MOMENT_ARM_TOL = 5e-4
+
+
+@dataclasses.dataclass(frozen=True)
+class MuscleFit:
+    """The fitted path functions of one muscle's fibres.
+
+    Attributes
+    ----------
+    muscle : str
+    coordinates : tuple of str, (D,)
+        Arguments of every polynomial, in order.
+    orders : (N,) int
+    coefficients : list of (T_k,) float, OpenSim term order
+    n_samples : int
+        Training poses used (sampled + the run's frames).
+    validation : dict of (N,) arrays
+        ``length_max``, ``length_rms``, ``moment_arm_max`` on the validation poses.
+    motion : dict of (N,) arrays
+        ``length_max``, ``moment_arm_max``: the polynomial against the run's own fibre lengths and
+        moment arms over the run's frames.
+    rest_lengths : (N,) float
+    """
+
+    muscle: str
+    coordinates: tuple
+    orders: np.ndarray
+    coefficients: list
+    n_samples: int
+    validation: dict
+    motion: dict
+    rest_lengths: np.ndarray
+    ok: np.ndarray
+
+    def report(self) -> dict:
+        """JSON-ready per-fibre record (for run.json)."""
+        def r(a):
+            return [float(f"{v:.4g}") for v in np.asarray(a, dtype=float)]
+
+        return {"coordinates": list(self.coordinates), "n_samples": int(self.n_samples),
+                "within_tolerance": bool(np.all(self.ok)),
+                "order": [int(o) for o in self.orders],
+                "validation_length_max_m": r(self.validation["length_max"]),
+                "validation_length_rms_m": r(self.validation["length_rms"]),
+                "validation_moment_arm_max_m": r(self.validation["moment_arm_max"]),
+                "motion_length_max_m": r(self.motion["length_max"]),
+                "motion_moment_arm_max_m": r(self.motion["moment_arm_max"])}
+
+
+def _measure(spec, model, q, name, msettings, transport):
+    """Fibre lengths (S, N), moment arms (S, N, D) and rest lengths of muscle ``name`` at poses q."""
+    import motion as motion_pkg
+
+    from .run import run
+
+    lengths, arms, rest = [], [], None
+    for start in range(0, len(q), CHUNK):
+        block = q[start:start + CHUNK]
+        mot = motion_pkg.Motion.from_array(model, np.arange(len(block), dtype=float), block)
+        res = run(spec, mot, muscles=[name], fibres=msettings["fibres"], resolution=msettings["resolution"],
+                  template=msettings["template"], quiet=True, keep_points=False, transport=transport)
+        m = res.muscles[0]
+        lengths.append(m.fibre_lengths)
+        arms.append(m.fibre_moment_arms)
+        rest = m.rest_lengths
+    return np.vstack(lengths), np.vstack(arms), rest
+
+
+def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples: int | None = None,
+                    max_samples: int = 1024, length_tol: float = LENGTH_TOL,
+                    moment_arm_tol: float = MOMENT_ARM_TOL, seed: int = 0, announce=None) -> dict:
+    """Fit a polynomial path function to every fibre of the run's muscles (module docstring).
+
+    Parameters
+    ----------
+    spec : FibreModelSpec
+        The fibre model the run was made from.
+    result : RunResult
+        The run (its frames fix the sampled range; its fibres are the ones fitted).
+    muscles : sequence of str, optional
+        Muscles to fit (default: every muscle of the run).
+    max_order : int
+        Highest total degree tried.
+    n_samples : int, optional
+        First number of sampled training poses (default 64 per spanned coordinate).
+    max_samples : int
+        Most sampled training poses.
+    length_tol, moment_arm_tol : float
+        Validation tolerances (m).
+    seed : int
+        Random stream of the sampling.
+    announce : callable(str), optional
+        Called with a one-line progress message per muscle.
+
+    Returns
+    -------
+    dict muscle name -> MuscleFit
+    """
+    model = spec.model
+    transport = result.settings.get("transport", "bind")
+    names = list(muscles) if muscles else list(result.muscle_names)
+    out = {}
+    for name in names:
+        m = result.muscle(name)
+        if not m.coordinates:
+            raise InputError(f"muscle {name!r} spans no free coordinate, so it has no path function to fit",
+                             where=f"muscle {name!r}", fix="Leave it out of the export with --muscle.")
+        msettings = result.settings["muscles"][name]
+        coord_idx = np.array([model.coordinate_index(c) for c in m.coordinates])
+        kinds = [model.coordinates[c].motion_type for c in coord_idx]
+        rng = np.random.default_rng([seed, 1])
+        rng_v = np.random.default_rng([seed, 2])
+        d = len(coord_idx)
+        n = int(n_samples or 64 * d)
+        q_val = path_fit.sample_poses(result.q, coord_idx, kinds, max(n // 2, 16), rng_v)
+        if announce:
+            announce(f"fitting path functions of {name} ({m.n_fibres} fibres, {d} coordinates)")
+        l_val, r_val, rest = _measure(spec, model, q_val, name, msettings, transport)
+        if not np.allclose(rest, m.rest_lengths, rtol=0, atol=1e-9):
+            raise RuntimeError(f"muscle {name!r}: the sampled fibres are not the run's fibres "
+                               "(rest lengths differ)")
+        q_tr = np.empty((0, result.q.shape[1]))
+        l_tr = np.empty((0, m.n_fibres))
+        r_tr = np.empty((0, m.n_fibres, d))
+        while True:
+            q_new = path_fit.sample_poses(result.q, coord_idx, kinds, n - len(q_tr), rng)
+            l_new, r_new, _ = _measure(spec, model, q_new, name, msettings, transport)
+            q_tr, l_tr, r_tr = np.vstack([q_tr, q_new]), np.vstack([l_tr, l_new]), np.vstack([r_tr, r_new])
+            train = (np.vstack([q_tr, result.q])[:, coord_idx], np.vstack([l_tr, m.fibre_lengths]),
+                     np.vstack([r_tr, m.fibre_moment_arms]))
+            choice = path_fit.select_orders(train, (q_val[:, coord_idx], l_val, r_val), max_order=max_order,
+                                            length_tol=length_tol, moment_arm_tol=moment_arm_tol)
+            if choice.ok.all() or 2 * n > max_samples:
+                break
+            n *= 2
+        l_m, r_m = _evaluate_each(choice, d, result.q[:, coord_idx])
+        out[name] = MuscleFit(
+            muscle=name, coordinates=tuple(m.coordinates), orders=choice.orders,
+            coefficients=choice.coefficients, n_samples=len(train[0]),
+            validation={"length_max": choice.length_max, "length_rms": choice.length_rms,
+                        "moment_arm_max": choice.moment_arm_max},
+            motion={"length_max": np.abs(l_m - m.fibre_lengths).max(axis=0),
+                    "moment_arm_max": np.abs(r_m - m.fibre_moment_arms).max(axis=(0, 2))},
+            rest_lengths=m.rest_lengths, ok=choice.ok)
+    return out
+
+
+def _evaluate_each(choice, d, q):
+    """Lengths (S, N) and moment arms (S, N, D) of fibres with their own orders."""
+    n = len(choice.orders)
+    lengths = np.empty((len(q), n))
+    arms = np.empty((len(q), n, d))
+    for order in np.unique(choice.orders):        # loop over the few distinct orders
+        sel = np.flatnonzero(choice.orders == order)
+        coef = np.array([choice.coefficients[k] for k in sel])
+        lengths[:, sel], arms[:, sel] = path_fit.evaluate(coef, path_fit.monomial_exponents(d, int(order)), q)
+    return lengths, arms
+
+
+def muscle_parameters(model, mspec, properties, rest_lengths) -> dict:
+    """Per-fibre OpenSim muscle parameters (module docstring).
+
+    Parameters
+    ----------
+    model : motion.Model
+    mspec : MuscleSpec
+        The fibre-model muscle (its action lines and rest pose).
+    properties : dict action line -> dict
+        The action lines' ``max_isometric_force``, ``optimal_fiber_length``,
+        ``tendon_slack_length`` (floats; missing keys take OpenSim's defaults).
+    rest_lengths : (N,) float
+
+    Returns
+    -------
+    dict with ``max_isometric_force`` (float, per fibre), ``optimal_fiber_length`` and
+    ``tendon_slack_length`` ((N,) float), ``line_rest_lengths`` (L,) float.
+    """
+    import motion as motion_pkg
+    from motion.surface_rest import rest_pose
+
+    from .run import _surface_spec
+
+    q_rest = rest_pose(model, _surface_spec(mspec)).q
+    lines = motion_pkg.action_lines(model, np.asarray(q_rest, dtype=float)[None], muscles=list(mspec.action_lines))
+    line_len = np.asarray(lines.lengths)[0]
+    force = np.array([properties[n].get("max_isometric_force", 1000.0) for n in mspec.action_lines])
+    l_opt = np.array([properties[n].get("optimal_fiber_length", 0.1) for n in mspec.action_lines])
+    l_ts = np.array([properties[n].get("tendon_slack_length", 0.2) for n in mspec.action_lines])
+    w = force / force.sum() if force.sum() > 0 else np.full(len(force), 1.0 / len(force))
+    rest = np.asarray(rest_lengths, dtype=float)
+    return {"max_isometric_force": float(force.sum() / len(rest)),
+            "optimal_fiber_length": float(w @ (l_opt / line_len)) * rest,
+            "tendon_slack_length": float(w @ (l_ts / line_len)) * rest,
+            "line_rest_lengths": line_len}

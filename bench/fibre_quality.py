@@ -1,0 +1,158 @@
+"""Fibre quality and moment arms of the LHDL hip muscles, harmonic against planar slicing.
+
+    python bench/fibre_quality.py [--quality] [--moment-arms] [--speed] [--repeats N]
+
+``--quality``: `fibres.quality` of the four muscles (100 fibres x 15 segments), with the
+templates of tests/data/lhdl_hip.toml and with ``parallel``, psoas with its own four lumbar
+origin clouds, for both slicings. ``--moment-arms``: `analysis.run` of the TOML over the
+dataset's flexion, adduction and rotation motions for both slicings; p5..p95 of the fibre
+moment arms over all fibres and frames, and the overlap (intersection over union) of the
+flexion ranges with Modenese & Kohout 2020, Table 2. ``--speed``: medians of the rest-pose
+decomposition (incl. patches and the harmonic solve) and of a frame with the plan, one
+thread, warm process. Default: all three.
+"""
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+LHDL = ROOT.parent / "shared" / "muscles" / "LHDL_hip_r"
+TOML = ROOT / "tests" / "data" / "lhdl_hip.toml"
+MUSCLES = ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
+TOML_TEMPLATES = {"glut_max_r": "parallel", "glut_med_r": "fanned", "iliacus_r": "fanned",
+                  "psoas_r": "parallel"}
+#: Modenese & Kohout 2020, Table 2: hip-flexion moment-arm ranges over the fibres (cm)
+PAPER_FLEXION_CM = {"psoas_r": (0.9, 2.6), "iliacus_r": (1.3, 4.6), "glut_max_r": (-9.2, -1.9),
+                    "glut_med_r": (-3.5, 1.5)}
+TASKS = {"flexion": ("hip_flexion.mot", "hip_flexion_r"),
+         "adduction": ("hip_adduction.mot", "hip_adduction_r"),
+         "rotation": ("hip_rotation.mot", "hip_rotation_r")}
+
+
+def landmarks(muscle, *, own_origin=True):
+    import pandas as pd
+
+    tab = pd.read_csv(LHDL / "attachments" / "attachment_landmarks.csv")
+    src = muscle if (own_origin or muscle != "psoas_r") else "iliacus_r"
+    o = tab[(tab.muscle == src) & (tab.type == "origin")]
+    i = tab[(tab.muscle == muscle) & (tab.type == "insertion")]
+    if muscle == "glut_max_r":
+        i = i[i.cloud == 1]
+    cols = ["x_mm", "y_mm", "z_mm"]
+    return o[cols].to_numpy(float) * 1e-3, i[cols].to_numpy(float) * 1e-3
+
+
+def surface(muscle):
+    from fibres import as_surface
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return as_surface(LHDL / "muscles_clean" / f"{muscle}.vtk", units="mm")
+
+
+def quality():
+    from fibres import decompose
+
+    print("| muscle | template | slicing | empty > 5 mm | empty > spacing | turn max | turn p95 |"
+          " origin covered | insertion covered | outside |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for muscle in MUSCLES:
+        s = surface(muscle)
+        o, i = landmarks(muscle)
+        for template in dict.fromkeys((TOML_TEMPLATES[muscle], "parallel")):
+            for slicing in ("harmonic", "planes"):
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    b = decompose(s, o, i, template=template, n_fibres=100, resolution=15,
+                                  slicing=slicing)
+                q = b.quality
+                print(f"| {muscle} | {template} | {slicing} | {q.empty_5mm:.1%} | "
+                      f"{q.empty_spacing:.1%} | {q.turn_max:.0f} | {q.turn_p95:.0f} | "
+                      f"{q.origin_covered:.0%} | {q.insertion_covered:.0%} | {q.outside} |")
+
+
+def _iou(a, b):
+    inter = max(0.0, min(a[1], b[1]) - max(a[0], b[0]))
+    union = max(a[1], b[1]) - min(a[0], b[0])
+    return inter / union if union > 0 else 0.0
+
+
+def moment_arms():
+    from analysis import run
+
+    for slicing in ("harmonic", "planes"):
+        print(f"\nslicing = {slicing}: fibre moment arms p5..p95 over fibres and frames (cm); "
+              "action lines' range")
+        for task, (mot, coord) in TASKS.items():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                res = run(TOML, LHDL / "model" / "motions" / mot, slicing=slicing,
+                          keep_points=False)
+            for m in res.muscles:
+                c = list(m.coordinates).index(coord)
+                r = m.fibre_moment_arms[:, :, c] * 100
+                lo, hi = np.percentile(r, [5, 95])
+                al = m.action_line_moment_arms[:, :, c] * 100
+                line = f"  {task:9s} {m.name:11s} {lo:6.2f} .. {hi:6.2f}   lines {al.min():6.2f} .. {al.max():6.2f}"
+                if task == "flexion":
+                    paper = PAPER_FLEXION_CM[m.name]
+                    line += f"   paper {paper[0]:.1f} .. {paper[1]:.1f}  IoU {_iou((lo, hi), paper):.2f}"
+                print(line)
+
+
+def speed(repeats):
+    from fibres import decompose
+
+    print("\n| muscle | vertices | rest decomposition (ms) | frame with the plan (ms) |")
+    print("|---|---|---|---|")
+    for muscle in MUSCLES:
+        s = surface(muscle)
+        o, i = landmarks(muscle)
+        v, f = s.vertices, s.faces
+        opts = dict(template=TOML_TEMPLATES[muscle], n_fibres=100, resolution=15)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            b = decompose((v, f), o, i, **opts)
+            rest, frame = [], []
+            rng = np.random.default_rng(0)
+            for _ in range(repeats):
+                t = time.perf_counter()
+                decompose((v, f), o, i, **opts)
+                rest.append(time.perf_counter() - t)
+                w = v + 1e-4 * rng.standard_normal(v.shape)   # a deformed copy
+                t = time.perf_counter()
+                decompose((w, f), o, i, plan=b.plan, **opts)
+                frame.append(time.perf_counter() - t)
+        print(f"| {muscle} | {len(v)} | {np.median(rest) * 1e3:.1f} | {np.median(frame) * 1e3:.1f} |")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quality", action="store_true")
+    parser.add_argument("--moment-arms", action="store_true")
+    parser.add_argument("--speed", action="store_true")
+    parser.add_argument("--repeats", type=int, default=11)
+    args = parser.parse_args()
+    every = not (args.quality or args.moment_arms or args.speed)
+    if not LHDL.is_dir():
+        raise SystemExit(f"needs the LHDL data at {LHDL}")
+    if every or args.quality:
+        quality()
+    if every or args.speed:
+        speed(args.repeats)
+    if every or args.moment_arms:
+        moment_arms()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,151 @@
+"""Fibre ends on an attachment patch: the unit square onto the patch, by area, in order.
+
+`fibres.harmonic_slicing` spreads the fibres' ends over the whole origin and insertion
+patches: template end coordinates ``(X, Y)`` in [0, 1]^2 go onto the patch by the
+Knothe-Rosenblatt rearrangement of the uniform square onto the patch's area measure
+(`area_points`). The result is a face and barycentric weights: a material point that rides
+a deformed copy of the surface.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["area_points", "knothe_rosenblatt", "locate", "WINDOW", "SAMPLES"]
+
+
+#: nearest triangles tried first when locating a point (`locate`)
+CANDIDATES = 12
+#: about this many samples of a patch's area measure (each triangle split into n^2 equal parts)
+SAMPLES = 4000
+
+
+def _sub_centroids(n: int) -> np.ndarray:
+    """(n^2, 3) barycentric weights of the centroids of a triangle's regular split into n^2
+    equal sub-triangles."""
+    out = []
+    for i in range(n):
+        for j in range(n - i):
+            out.append(((i + 1 / 3) / n, (j + 1 / 3) / n))
+            if i + j <= n - 2:
+                out.append(((i + 2 / 3) / n, (j + 2 / 3) / n))
+    uv = np.array(out)
+    return np.c_[1.0 - uv.sum(axis=1), uv]
+#: conditional window width of `area_points`, as a share of the patch's extent along e1
+WINDOW = 0.08
+
+
+def _quantile(values, weights, q):
+    """Weighted quantiles (piecewise linear in the mid-point cumulative weights)."""
+    order = np.argsort(values, kind="stable")
+    v, w = values[order], weights[order]
+    cum = np.cumsum(w)
+    mid = (cum - 0.5 * w) / cum[-1]
+    return np.interp(q, mid, v)
+
+
+def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
+    """Planar targets ``(x*, y*)`` of unit-square coordinates ``(X, Y)`` under the
+    Knothe-Rosenblatt map onto the area measure of triangles with projected corners ``px``,
+    ``py`` (T, 3) and areas ``area`` (T,): ``x* = F1^-1(X)`` (the area quantile along x),
+    ``y* = F2^-1(Y | x*)`` (along y among the triangles near x*, a Gaussian window of
+    `WINDOW` of the extent along x). The measure is sampled at the centroids of each
+    triangle's split into n^2 equal parts (n so that there are about ``samples``, at least
+    one per triangle)."""
+    n = int(np.clip(np.sqrt(samples / max(len(px), 1)), 1, 8))
+    sub = _sub_centroids(n)
+    sx = (px @ sub.T).reshape(-1)
+    sy = (py @ sub.T).reshape(-1)
+    sw = np.repeat(np.asarray(area, dtype=np.float64) / len(sub), len(sub))
+    xs = _quantile(sx, sw, np.clip(X, 0.0, 1.0))
+    h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
+    order = np.argsort(sy, kind="stable")
+    sy, sx, sw = sy[order], sx[order], sw[order]
+    w = sw[None] * np.exp(-0.5 * ((sx[None] - xs[:, None]) / h) ** 2)   # (N, S)
+    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    q = np.clip(Y, 0.0, 1.0)[:, None]
+    k = np.clip((mid < q).sum(axis=1), 1, len(sy) - 1)
+    rows = np.arange(len(xs))
+    m0, m1 = mid[rows, k - 1], mid[rows, k]
+    f = np.clip((q[:, 0] - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
+    ys = sy[k - 1] + f * (sy[k] - sy[k - 1])
+    below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
+    ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
+    return xs, ys
+
+
+def locate(px, py, xs, ys):
+    """The triangle (T, 3 projected corners ``px``, ``py``) under each planar point, or the
+    nearest by centroid, and the point's barycentric weights there (clipped, normalised).
+    Candidates: the `CANDIDATES` triangles with the nearest centroids (all triangles for a
+    point none of them holds)."""
+    from scipy.spatial import cKDTree
+
+    cx, cy = px.mean(axis=1), py.mean(axis=1)
+    k = min(CANDIDATES, len(px))
+    near = cKDTree(np.c_[cx, cy]).query(np.c_[xs, ys], k=k)[1].reshape(len(xs), k)
+    pick, bary, ok = _barycentric(px, py, xs, ys, near)
+    if not ok.all():
+        miss = np.flatnonzero(~ok)
+        every = np.broadcast_to(np.arange(len(px)), (miss.size, len(px)))
+        p2, b2, ok2 = _barycentric(px, py, xs[miss], ys[miss], every)
+        pick[miss[ok2]], bary[miss[ok2]] = p2[ok2], b2[ok2]
+    return pick, bary
+
+
+def _barycentric(px, py, xs, ys, cand):
+    """Among candidate triangles ``cand`` (N, k) of each point: the first holding it (else the
+    first candidate, the nearest), its clipped barycentrics, and whether one held it."""
+    ax, ay = px[cand, 0], py[cand, 0]
+    bx, by = px[cand, 1] - ax, py[cand, 1] - ay
+    cx, cy = px[cand, 2] - ax, py[cand, 2] - ay
+    det = bx * cy - by * cx
+    det = np.where(np.abs(det) < 1e-30, 1e-30, det)
+    qx, qy = xs[:, None] - ax, ys[:, None] - ay
+    l1 = (qx * cy - qy * cx) / det
+    l2 = (bx * qy - by * qx) / det
+    l0 = 1.0 - l1 - l2
+    inside = np.minimum(np.minimum(l0, l1), l2) >= -1e-9
+    ok = inside.any(axis=1)
+    col = np.where(ok, np.argmax(inside, axis=1), 0)
+    rows = np.arange(len(xs))
+    bary = np.clip(np.stack([l0[rows, col], l1[rows, col], l2[rows, col]], axis=1), 0.0, None)
+    bary /= np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
+    return cand[rows, col].copy(), bary, ok
+
+
+def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
+    """Template end coordinates ``(X, Y)`` in [0, 1]^2 onto a patch, by area and order-preserving.
+
+    The Knothe-Rosenblatt rearrangement (Rosenblatt, Ann. Math. Stat. 23(3):470-472, 1952;
+    Villani, "Optimal transport", 2009, ch. 1) of the uniform square onto the patch's area,
+    in the frame ``(e1, e2)`` (`knothe_rosenblatt`), then the patch point whose projection is
+    the target (`locate`). Equal areas of the square go to about equal areas of the patch,
+    and fibres keep their order across it.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+    faces : (T, 3) int
+    face_mask : (T,) bool
+        The patch's faces (at least one).
+    centre, e1, e2 : (3,) float
+        The frame: origin and two orthonormal axes.
+    X, Y : (N,) float in [0, 1]
+
+    Returns
+    -------
+    face : (N,) int64
+        Index into ``faces``.
+    bary : (N, 3) float
+        Barycentric weights of the face's corners (non-negative, summing to 1).
+    """
+    idx = np.flatnonzero(face_mask)
+    tri = vertices[faces[idx]]                                     # (Tp, 3, 3)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    px = (tri - centre) @ e1
+    py = (tri - centre) @ e2
+    xs, ys = knothe_rosenblatt(px, py, area, X, Y)
+    pick, bary = locate(px, py, xs, ys)
+    return idx[pick], bary

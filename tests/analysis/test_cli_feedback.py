@@ -1,0 +1,99 @@
+"""Feedback of the command line away from a terminal: one progress line per muscle, warnings as
+one line without Python source lines, no empty output folder after a failed run, the bundled
+example found as package data."""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+from analysis import cli, cli_run
+from analysis.progress import progress
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_progress_lines_per_muscle_when_not_a_terminal(capsys, monkeypatch):
+    monkeypatch.delenv("FIBRES_PROGRESS", raising=False)
+    for _ in progress(["a", "b", "c"], desc="plots", unit="muscle"):
+        pass
+    err = capsys.readouterr().err.splitlines()      # pytest's stderr is not a terminal
+    assert len(err) == 3 and err[0].startswith("fibres: plots: 1/3 muscles (") and "3/3" in err[2]
+    bar = progress(total=2, desc="wrap + fibres", unit="muscle")
+    bar.update(1)
+    assert "wrap + fibres: 1/2 muscles" in capsys.readouterr().err
+    for _ in progress(range(50), desc="frames", unit="frame"):   # per-frame counters stay silent
+        pass
+    assert capsys.readouterr().err == ""
+    for _ in progress(["a"], desc="plots", unit="muscle", quiet=True):
+        pass
+    assert capsys.readouterr().err == ""
+
+
+def test_warnings_are_one_line_without_source(capsys, monkeypatch):
+    class Loud:
+        @staticmethod
+        def execute(args):
+            warnings.warn("first   problem\nsecond line", UserWarning)
+            warnings.warn("first   problem\nsecond line", UserWarning)   # once only
+            return 0
+
+    parser = cli.build_parser()
+    args = parser.parse_args(["lines", "m.osim", "x.mot"])
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    monkeypatch.setattr(parser, "parse_args", lambda argv=None: args)
+    args._module = Loud
+    saved = warnings.showwarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert cli.main([]) == 0
+    err = capsys.readouterr().err
+    assert err == "fibres lines: warning: first problem second line\n"
+    assert warnings.showwarning is saved            # restored after the command
+
+
+def test_failed_run_leaves_no_empty_output_folder(tmp_path, capsys):
+    out = tmp_path / "new-out"
+    code = cli.main(["run", str(ROOT / "models" / "arm_example.toml"), "--out", str(out), "--quiet",
+                     "--frames", "500:600"])
+    assert code == 2 and "frame" in capsys.readouterr().err
+    assert not out.exists()
+    # a folder that existed before is left as it was
+    out.mkdir()
+    (out / "keep.txt").write_text("x")
+    assert cli.main(["run", str(ROOT / "models" / "arm_example.toml"), "--out", str(out), "--quiet",
+                     "--frames", "500:600"]) == 2
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+def test_default_spec_falls_back_to_the_package_data(tmp_path, monkeypatch):
+    """An installed (non-editable) package has no models/ beside it: the example is found in
+    analysis/example/, where pyproject.toml installs it."""
+    import analysis
+
+    fake = tmp_path / "site" / "analysis"
+    (fake / "example").mkdir(parents=True)
+    (fake / "example" / "arm_example.toml").write_text("")
+    monkeypatch.setattr(analysis, "__file__", str(fake / "__init__.py"))
+    assert cli_run.default_spec() == fake / "example" / "arm_example.toml"
+    (fake / "example" / "arm_example.toml").unlink()
+    with pytest.raises(Exception, match="bundled example"):
+        cli_run.default_spec()
+    text = (ROOT / "pyproject.toml").read_text()
+    assert '"analysis.example" = "models"' in text
+
+
+def test_first_run_notice(tmp_path, monkeypatch, capsys):
+    import fibres
+
+    from analysis.progress import first_run_notice
+
+    fake = tmp_path / "fibres"
+    (fake / "__pycache__").mkdir(parents=True)
+    monkeypatch.setattr(fibres, "__file__", str(fake / "__init__.py"))
+    assert first_run_notice() is True
+    assert "compiling" in capsys.readouterr().err
+    (fake / "__pycache__" / "x.nbi").write_text("")
+    assert first_run_notice() is False and capsys.readouterr().err == ""
+    assert first_run_notice(quiet=True) is False

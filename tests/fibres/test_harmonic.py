@@ -1,0 +1,228 @@
+"""Harmonic-field slicing (`fibres.harmonic_slicing`) and the fibre quality numbers.
+
+Expected values are analytic (a cylinder's linear field, straight fibres, areas of disks),
+properties (single isoline loops, points inside), or the LHDL muscles' measured quality with
+a margin stated next to each assertion.
+"""
+import warnings
+
+import numpy as np
+import pytest
+from test_decompose_analytic import arc, cap_ring, rotation, straight, tube
+
+from fibres import HarmonicPlan, decompose, make_plan
+from fibres.harmonic_field import harmonic_field, mesh_edges
+from fibres.inside import inside, inside_grid
+from fibres.isolines import isoline_loops
+from fibres.quality import fibre_quality
+
+RHO, L = 0.01, 0.1
+
+
+def _disk(z, n=5):
+    g = np.linspace(-0.8 * RHO, 0.8 * RHO, n)
+    x, y = np.meshgrid(g, g)
+    keep = np.hypot(x, y) < 0.85 * RHO
+    return np.c_[x[keep], y[keep], np.full(keep.sum(), z)]
+
+
+def _circle(th):
+    return np.c_[RHO * np.cos(th), RHO * np.sin(th)]
+
+
+def test_field_is_linear_along_a_straight_cylinder():
+    """Caps fixed at 0 and 1: the harmonic function of the side is (z - z0) / L exactly (a
+    linear function of the unrolled side, and the cotangent Laplacian reproduces linear
+    functions on a flat mesh; the structured tube has right triangles, no clipped weights)."""
+    v, f = tube(_circle, *straight(L), n_sect=48, n_path=41)
+    zero = v[:, 2] <= 1e-12
+    one = v[:, 2] >= L - 1e-12
+    u = harmonic_field(v, f, zero, one)
+    np.testing.assert_allclose(u, v[:, 2] / L, atol=1e-9)
+
+
+def test_isolines_of_the_cylinder_are_circles():
+    v, f = tube(_circle, *straight(L), n_sect=48, n_path=41)
+    u = harmonic_field(v, f, v[:, 2] <= 1e-12, v[:, 2] >= L - 1e-12)
+    edges, face_edges = mesh_edges(f, len(v))
+    for t in (0.13, 0.5, 0.91):
+        loops = isoline_loops(u, f, t, edges, face_edges, v)
+        assert len(loops) == 1
+        p = loops[0].points(v)
+        np.testing.assert_allclose(p[:, 2], t * L, atol=1e-12)
+        # the chords of a circle's inscribed 48-gon lie within rho (1 - cos(pi / 48)) of it
+        r = np.hypot(p[:, 0], p[:, 1])
+        assert np.all(r <= RHO + 1e-12) and np.all(r >= RHO * np.cos(np.pi / 48) - 1e-12)
+
+
+def test_straight_cylinder_gives_straight_axial_fibres():
+    """Landmarks on both caps: every fibre is a straight segment along the axis, from cap to
+    cap (the loops are equal circles, the membranes and their area maps equal)."""
+    v, f = tube(_circle, *straight(L), n_sect=64, n_path=41)
+    b = decompose((v, f), _disk(0.0), _disk(L), n_fibres=50, resolution=10)
+    p = b.points
+    # the fibres' xy stays put along each fibre: every section and both caps are spread by
+    # the same area map (Knothe-Rosenblatt on a disk), up to the sampling of the measures
+    # (caps: the mesh's fan triangles; sections: a 16 x 16 membrane grid, cells ~1.3 mm) and
+    # the containment pull of points within 0.2 mm of the wall: 0.5 mm on a 10 mm radius
+    assert np.abs(p[:, :, :2] - p[:, :1, :2]).max() < 5e-4
+    np.testing.assert_allclose(p[:, 0, 2], 0.0, atol=1e-9)
+    np.testing.assert_allclose(p[:, -1, 2], L, atol=1e-9)
+    assert b.quality.turn_max < 2.0
+    assert b.quality.outside == 0
+    assert isinstance(b.plan, HarmonicPlan)
+
+
+def test_plan_reuse_follows_a_rigid_motion_exactly():
+    """The plan's fibres are a fixed linear map of the vertices: a rotated and shifted copy of
+    the mesh gives the rotated and shifted fibres (to round-off; smoothing and the
+    containment pull commute with rigid motions)."""
+    v, f = tube(_circle, *arc(0.08, np.pi / 2), n_sect=48, n_path=40)
+    e1, e2 = np.array([0, 0, 1.0]), np.array([1.0, 0, 0])
+    o = cap_ring(v[:-2][:48].mean(axis=0), e1, e2, 0.6 * RHO)
+    end = v[:-2][-48:].mean(axis=0)
+    i = cap_ring(end, e1, np.array([0, 1.0, 0]), 0.6 * RHO)
+    b0 = decompose((v, f), o, i, n_fibres=30, resolution=12)
+    rot = rotation([1, 2, 3], 0.7)
+    shift = np.array([0.3, -0.1, 0.2])
+    b1 = decompose((v @ rot.T + shift, f), o @ rot.T + shift, i @ rot.T + shift,
+                   n_fibres=30, resolution=12, plan=b0.plan)
+    np.testing.assert_allclose(b1.points, b0.points @ rot.T + shift, atol=1e-9)
+
+
+def test_bent_tube_fibres_stay_inside_and_fill_it():
+    """A quarter torus (tube radius 10 mm on an 80 mm bend): no fibre point outside, the
+    sharpest turn is the bend's own (90 degrees over 12 segments: 7.5 per joint, 15 with
+    the ends' bending), and at most 5 % of the volume farther than 5 mm from a fibre (the
+    tube's 10 mm radius: fibres spaced ~2.3 mm)."""
+    v, f = tube(_circle, *arc(0.08, np.pi / 2), n_sect=48, n_path=40)
+    c0, c1 = v[-2], v[-1]
+    o = c0 + np.c_[0.6 * RHO * np.cos(np.linspace(0, 6, 12)), np.zeros(12),
+                   0.6 * RHO * np.sin(np.linspace(0, 6, 12))]
+    i = c1 + np.c_[np.zeros(12), 0.6 * RHO * np.cos(np.linspace(0, 6, 12)),
+                   0.6 * RHO * np.sin(np.linspace(0, 6, 12))]
+    b = decompose((v, f), o, i, n_fibres=100, resolution=12)
+    q = b.quality
+    assert q.outside == 0
+    assert q.turn_max < 15.0
+    assert q.empty_5mm <= 0.05
+    assert inside(b.points[:, 1:-1].reshape(-1, 3), v, f).all()
+
+
+def test_box_fibres_stay_inside():
+    import trimesh
+
+    m = trimesh.creation.box(extents=[0.04, 0.02, 0.1])
+    m = m.subdivide_to_size(0.004)
+    v, f = np.array(m.vertices), np.array(m.faces)
+    gx, gy = np.meshgrid(np.linspace(-0.02, 0.02, 5), np.linspace(-0.01, 0.01, 5))
+    o = np.c_[gx.ravel(), gy.ravel(), np.full(25, -0.05)]     # the whole end faces
+    i = o + [0, 0, 0.1]
+    b = decompose((v, f), o, i, n_fibres=60, resolution=10)
+    assert b.quality.outside == 0
+    # parallel template in a box between its end faces: straight fibres (the loops are equal
+    # rectangles), up to the containment pull near the edges (0.2 mm band)
+    assert b.quality.turn_max < 5.0
+
+
+# -- quality numbers on known cases -------------------------------------------------------
+
+def test_quality_of_one_axial_fibre_in_a_cylinder():
+    """One fibre on the axis of a cylinder of radius 10 mm: the volume farther than 5 mm is the
+    annulus, 1 - (5/10)^2 = 0.75 of it; the fibre's end at the centre of a cap covers the disk
+    of radius 5 mm, 0.25 of the cap; a straight fibre turns by 0; no point outside."""
+    v, f = tube(_circle, *straight(L), n_sect=96, n_path=21)
+    fibre = np.c_[np.zeros(11), np.zeros(11), np.linspace(0, L, 11)][None]
+    caps0 = (v[f][:, :, 2] <= 1e-12).all(axis=1)
+    caps1 = (v[f][:, :, 2] >= L - 1e-12).all(axis=1)
+    q = fibre_quality(fibre, v, f, caps0, caps1)
+    # the inscribed 96-gon's area is 0.9993 of the circle's; the volume grid has ~40 000 cells
+    assert q.empty_5mm == pytest.approx(0.75, abs=0.01)
+    assert q.origin_covered == pytest.approx(0.25, abs=0.01)
+    assert q.insertion_covered == pytest.approx(0.25, abs=0.01)
+    assert q.turn_max == pytest.approx(0.0, abs=1e-6)
+    assert q.outside == 0
+    bent = fibre.copy()
+    bent[0, 5] = [0.02, 0.0, L / 2]                       # one point 10 mm outside the wall
+    q2 = fibre_quality(bent, v, f, caps0, caps1)
+    assert q2.outside == 1
+    # the kink: atan(20 / 10) on each side of the moved point, 2 atan(2) at it
+    assert q2.turn_max == pytest.approx(np.degrees(2 * np.arctan(2.0)), abs=1e-6)
+    assert q2.problems()
+
+
+def test_inside_grid_measures_the_volume():
+    v, f = tube(_circle, *straight(L), n_sect=96, n_path=21)
+    cells = inside_grid(v, f, 1e-3)
+    polygon = 0.5 * 96 * RHO ** 2 * np.sin(2 * np.pi / 96)
+    assert len(cells) * 1e-9 == pytest.approx(polygon * L, rel=0.01)
+
+
+# -- LHDL ------------------------------------------------------------------------------------
+
+MUSCLES = ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
+TEMPLATES = {"glut_max_r": "parallel", "glut_med_r": "fanned", "iliacus_r": "fanned",
+             "psoas_r": "parallel"}
+
+
+def _lhdl(lhdl_dir, muscle):
+    import pandas as pd
+
+    from fibres import as_surface
+
+    tab = pd.read_csv(lhdl_dir / "attachments" / "attachment_landmarks.csv")
+    rows = tab[tab.muscle == muscle]
+    o = rows[rows.type == "origin"][["x_mm", "y_mm", "z_mm"]].to_numpy(float)
+    ins = rows[rows.type == "insertion"]
+    if muscle == "glut_max_r":   # cloud 2 lies on the tibia, ~310 mm from the mesh
+        ins = ins[ins.cloud == 1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = as_surface(lhdl_dir / "muscles_clean" / f"{muscle}.vtk", units="mm")
+    return s, o, ins[["x_mm", "y_mm", "z_mm"]].to_numpy(float)
+
+
+@pytest.mark.shared
+@pytest.mark.slow
+@pytest.mark.parametrize("muscle", MUSCLES)
+def test_lhdl_isolines_are_single_loops(lhdl_dir, muscle):
+    """Every inner slice level of the LHDL muscles (resolution 15) is one closed loop when the
+    origin is one patch (psoas: its four lumbar origin clouds are four pieces, whose saddles
+    give several loops near the origin; tested with the iliacus-area origin of Modenese &
+    Kohout 2020, as tests/data/lhdl_hip.toml does)."""
+    from fibres.harmonic_slicing import _levels
+
+    s, o, i = _lhdl(lhdl_dir, muscle)
+    if muscle == "psoas_r":
+        o = _lhdl(lhdl_dir, "iliacus_r")[1]
+    plan = make_plan(s, o * 1e-3, i * 1e-3)
+    for t in _levels(plan, 15)[1:-1]:
+        loops = isoline_loops(plan.field, plan.faces, t, plan.edges, plan.face_edges)
+        assert len(loops) == 1, t
+
+
+# measured (this code, resolution 15, 100 fibres, the TOML's templates; psoas with its own
+# lumbar origins): volume farther than 5 mm 7.9 / 2.9 / 0.6 / 3.3 %, sharpest turn p95
+# 39 / 31 / 29 / 42 degrees, origin covered 99 / 86 / 85 / 99 %, insertion 100 % each;
+# the bounds below are those numbers with a margin (they guard against regressions; the
+# acceptance targets of issue 11 are not all met, see docs/decisions.md)
+BOUNDS = {"glut_max_r": (0.10, 45, 0.92, 0.95), "glut_med_r": (0.05, 38, 0.80, 0.95),
+          "iliacus_r": (0.03, 36, 0.80, 0.95), "psoas_r": (0.05, 48, 0.92, 0.95)}
+
+
+@pytest.mark.shared
+@pytest.mark.slow
+@pytest.mark.parametrize("muscle", MUSCLES)
+def test_lhdl_fibre_quality(lhdl_dir, muscle):
+    s, o, i = _lhdl(lhdl_dir, muscle)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        b = decompose(s, o, i, units="mm", template=TEMPLATES[muscle], n_fibres=100,
+                      resolution=15)
+    q = b.quality
+    empty, turn, cov_o, cov_i = BOUNDS[muscle]
+    assert q.outside == 0
+    assert q.empty_5mm <= empty
+    assert q.turn_p95 <= turn
+    assert q.origin_covered >= cov_o
+    assert q.insertion_covered >= cov_i
