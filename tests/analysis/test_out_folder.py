@@ -126,7 +126,7 @@ def test_smaller_rerun_leaves_nothing_of_the_old_run(example, tmp_path, capsys):
     assert "fibres/triceps_0002.vtp" in first["files"] and "plots/biceps_lengths.png" in first["files"]
     (out / "notes.txt").write_text("mine")                       # the user's own file
     (out / "plots" / "my_figure.png").write_bytes(b"mine")
-    assert _run(example, out, "--frames", "0:2", "--muscle", "brachialis") == 0
+    assert _run(example, out, "--frames", "0:2", "--muscle", "brachialis", "--no-sto") == 0
     second = json.loads((out / "run.json").read_text())
     left = set(_files(out)) - {"notes.txt", "plots/my_figure.png"}
     assert left == set(second["files"])                           # no file of the old run survives
