@@ -340,14 +340,13 @@ def _surface_spec(mspec):
 
 
 def _with_points(att, p_ground, pose0, model, tf_data_ground):
-    """``att`` (a `motion.SurfaceAttachment`) with the rest-pose points ``p_ground`` (K, 3) added,
-    expressed in the attachment's own frame (the mesh frame or its body's frame)."""
+    """``att`` (a `motion.SurfaceAttachment`) with its points replaced by the rest-pose points
+    ``p_ground`` (K, 3), expressed in the attachment's own frame (the mesh frame or its body's)."""
     if att.in_body_frame:
         tf = np.linalg.inv(pose0.tf_ground_body[model.body_index(att.body)])
     else:
         tf = tf_data_ground
-    extra = p_ground @ tf[:3, :3].T + tf[:3, 3]
-    return dataclasses.replace(att, points=np.vstack([att.points, extra]))
+    return dataclasses.replace(att, points=p_ground @ tf[:3, :3].T + tf[:3, 3])
 
 
 def _subdivided(points, m: int) -> np.ndarray:
@@ -465,8 +464,11 @@ def _run_muscle(ctx, mspec):
         both = both @ tf_data_ground[:3, :3].T + tf_data_ground[:3, 3]
         # the fibre end points lie in the attachment areas by construction (Kohout 2012 §3.4):
         # bind them as attachment points too, so they ride their bones exactly
-        ends = {"origin": bundle0.points[:, 0], "insertion": bundle0.points[:, -1]}
-        bound = dataclasses.replace(sspec, vertices=both, faces=faces, riders=both.shape[0] - n_v, **{
+        # (a generated muscle with tendons: the landmarks are the belly's ends and ride the belly)
+        ends = {"origin": np.vstack([rest.rest_origin, bundle0.points[:, 0]]),
+                "insertion": np.vstack([rest.rest_insertion, bundle0.points[:, -1]])}
+        bound = dataclasses.replace(sspec, vertices=both, faces=faces, riders=both.shape[0] - n_v,
+                                    tendon_slack=getattr(rest, "tendon_slack", None) or None, **{
             end: _with_points(getattr(sspec, end), p_ground, pose0, ctx.model, tf_data_ground)
             for end, p_ground in ends.items()})
         with _timed(timings, "wrap"):

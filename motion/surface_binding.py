@@ -274,7 +274,7 @@ class SurfaceBinding:
         rounds = 1 if len(obstacles) < 2 else 2
 
         def pusher(pp, qq, obs):
-            squeezers = [o.squeezer(pp) for o in obs if hasattr(o, "squeezer")]
+            squeezers = [o.squeezer(pp) for o in obs if getattr(o, "squeezes", hasattr(o, "squeezer"))]
 
             def pushed(kk):
                 w = kk[:, None, None] * qq

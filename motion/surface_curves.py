@@ -203,3 +203,50 @@ def twist_angle(n_have: np.ndarray, n_want: np.ndarray, tangent: np.ndarray) -> 
     sin = np.sum(np.cross(n_have, n_want) * tangent, axis=-1)
     cos = np.sum(n_have * n_want, axis=-1)
     return np.arctan2(sin, cos)
+
+
+def point_at_arc_length(points, arc) -> np.ndarray:
+    """Points (F, 3) at arc length ``arc`` (F,) along polylines (F, P, 3) (NaN padding ignored;
+    clamped to the ends)."""
+    pts = _fill_nan_forward(np.asarray(points, dtype=float))
+    seg = np.linalg.norm(np.diff(pts, axis=1), axis=-1)
+    cum = np.concatenate([np.zeros((pts.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+    target = np.clip(np.asarray(arc, dtype=float), 0.0, cum[:, -1])
+    j = np.sum(cum[:, 1:-1] <= target[:, None], axis=-1)                      # (F,) in [0, P-2]
+    s0 = np.take_along_axis(cum, j[:, None], axis=1)[:, 0]
+    length = np.take_along_axis(seg, j[:, None], axis=1)[:, 0]
+    t = np.clip(np.where(length > _TINY, (target - s0) / np.where(length > _TINY, length, 1.0), 0.0), 0.0, 1.0)
+    rows = np.arange(pts.shape[0])
+    return pts[rows, j] + t[:, None] * (pts[rows, j + 1] - pts[rows, j])
+
+
+def trim_polylines(points, start, stop) -> np.ndarray:
+    """The pieces of polylines between arc lengths ``start`` and ``stop``.
+
+    Parameters
+    ----------
+    points : (F, P, 3) float
+        Polylines, trailing NaN rows are padding.
+    start, stop : (F,) float
+        Arc lengths from the first point, ``0 <= start < stop <= length``.
+
+    Returns
+    -------
+    (F, P + 2, 3) float
+        Per frame the point at ``start``, the original vertices strictly between, the point at
+        ``stop``, then NaN padding: the piece keeps the polyline's corners (path points).
+    """
+    pts = np.asarray(points, dtype=float)
+    start = np.asarray(start, dtype=float)
+    stop = np.asarray(stop, dtype=float)
+    valid = np.isfinite(pts).all(axis=-1)
+    filled = _fill_nan_forward(pts)
+    seg = np.linalg.norm(np.diff(filled, axis=1), axis=-1)
+    cum = np.concatenate([np.zeros((pts.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+    inner = valid & (cum > start[:, None]) & (cum < stop[:, None])
+    both = np.concatenate([point_at_arc_length(filled, start)[:, None],
+                           np.where(inner[..., None], filled, np.nan),
+                           point_at_arc_length(filled, stop)[:, None]], axis=1)
+    keep = np.isfinite(both).all(axis=-1)
+    perm = np.argsort(~keep, axis=1, kind="stable")
+    return np.take_along_axis(both, perm[..., None], axis=1)
