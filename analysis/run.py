@@ -363,15 +363,30 @@ def _subdivided(points, m: int) -> np.ndarray:
     return np.concatenate([inner.reshape(p.shape[0], -1, 3), p[:, -1:]], axis=1)
 
 
-def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends):
+def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None):
     """Fibres carried by the belly deformation (F, N, P, 3), corrected so that their ends are
     ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the residuals
-    spread linearly in each rest fibre's (N, P, 3) arc-length fraction (module docstring)."""
+    spread linearly in each rest fibre's (N, P, 3) arc-length fraction (module docstring).
+
+    ``frames`` (F, N, P, 3, 3), the belly's line frames at the fibre points (columns normal,
+    binormal, tangent; `motion.WrappedSurface.rider_frames`): each end residual is then held in
+    the frame at its end and carried along the fibre with the frames, so over a pulley a
+    residual across the muscle stays across it instead of a fixed ground vector (where the
+    frames are constant, on a straight line, it is the same correction)."""
     seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, P-1)
     u = np.concatenate([np.zeros((rest.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
     u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, P)
     e0 = origin_ends - carried[:, :, 0]
     e1 = insertion_ends - carried[:, :, -1]
+    if frames is not None:
+        local0 = np.einsum("fnji,fnj->fni", frames[:, :, 0], e0)       # e0 in the frame at the end
+        local1 = np.einsum("fnji,fnj->fni", frames[:, :, -1], e1)
+        mix = (1.0 - u)[None, :, :, None] * local0[:, :, None] + u[None, :, :, None] * local1[:, :, None]
+        out = carried + np.einsum("fnpij,fnpj->fnpi", frames, mix)
+        # the ends exactly (the interpolated frames there are those used for local0/local1)
+        out[:, :, 0] = origin_ends
+        out[:, :, -1] = insertion_ends
+        return out
     out = carried + e0[:, :, None]                       # = ... + (1 - u) e0 + u e1, two temporaries
     out += u[None, :, :, None] * (e1 - e0)[:, :, None]
     return out
@@ -475,8 +490,10 @@ def _run_muscle(ctx, mspec):
             (wrapped,) = wrap_surfaces(ctx.model, stacked, [bound])
         n_all = wrapped.vertices.shape[0]
         surfaces = wrapped.vertices[:, :n_v]
+        frames = getattr(wrapped, "rider_frames", None)
         fine = _ends_ride_their_bodies(wrapped.vertices[:, n_v:].reshape((n_all,) + fine.shape), fine,
-                                       wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:])
+                                       wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:],
+                                       None if frames is None else frames.reshape((n_all,) + fine.shape[:2] + (3, 3)))
         points = fine[:, :, ::LENGTH_SUBDIVISION]
     else:
         with _timed(timings, "wrap"):

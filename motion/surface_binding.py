@@ -99,6 +99,32 @@ def _closest_on_polyline(points: np.ndarray, curve: np.ndarray):
     return best_j, best_t, best_d
 
 
+def _centre_weights(j: np.ndarray, t: np.ndarray, n: int):
+    """Sample indices (V, 4) and weights (V, 4) of the line point at fraction ``t`` of segment
+    ``j`` of a line of ``n`` samples: the uniform Catmull-Rom spline through the samples
+    (Catmull & Rom 1974), the missing neighbour at an end extrapolated linearly
+    (``c_-1 = 2 c_0 - c_1``). The weights sum to 1 and reproduce straight lines exactly, so a
+    straight line is the chord; on an arc the spline's sag between samples is O(dphi^4) instead
+    of the chord's ``R (1 - cos(dphi / 2))`` (0.3 mm on a 20 mm pulley with 7 mm samples)."""
+    t2, t3 = t * t, t * t * t
+    w = np.stack([0.5 * (-t + 2.0 * t2 - t3), 0.5 * (2.0 - 5.0 * t2 + 3.0 * t3),
+                  0.5 * (t + 4.0 * t2 - 3.0 * t3), 0.5 * (-t2 + t3)], axis=1)
+    idx = np.stack([j - 1, j, j + 1, j + 2], axis=1)
+    if n < 3:
+        return np.stack([j, j + 1], axis=1), np.stack([1.0 - t, t], axis=1)
+    low = idx[:, 0] < 0                       # c_-1 = 2 c_0 - c_1
+    w[low, 1] += 2.0 * w[low, 0]
+    w[low, 2] -= w[low, 0]
+    w[low, 0] = 0.0
+    idx[low, 0] = 0
+    high = idx[:, 3] > n - 1                  # c_n = 2 c_(n-1) - c_(n-2)
+    w[high, 2] += 2.0 * w[high, 3]
+    w[high, 1] -= w[high, 3]
+    w[high, 3] = 0.0
+    idx[high, 3] = n - 1
+    return idx, w
+
+
 @dataclass(frozen=True, eq=False)
 class SurfaceFrames:
     """A deformed surface over a motion.
@@ -112,14 +138,20 @@ class SurfaceFrames:
     volume : (F,) float
         Enclosed volume of the final surface in each frame.
     rest_volume : float
+    rider_frames : (F, R, 3, 3) float or None
+        With ``deform(..., rider_frames=R)``: the line frames (columns normal, binormal,
+        tangent) interpolated at the last ``R`` vertices (the riders), as the belly carries them.
     """
 
     vertices: np.ndarray
     radial_scale: np.ndarray
     volume: np.ndarray
     rest_volume: float
+    rider_frames: np.ndarray | None = None
 
     def __post_init__(self):
+        if self.rider_frames is not None:
+            object.__setattr__(self, "rider_frames", _ro(self.rider_frames))
         for name in ("vertices", "radial_scale", "volume"):
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.flags.writeable and arr.flags.owndata:
@@ -156,6 +188,7 @@ class SurfaceBinding:
     rest_lengths: np.ndarray         # (L,)
     arc_fraction: np.ndarray         # (n,)
     anchor_fractions: tuple = ()     # per line: (K,) rest arc fractions of the anchors, or None
+    frame_matrix: sp.csr_matrix | None = None   # (V, n L): belly weights of the line frames
 
     @property
     def n_lines(self) -> int:
@@ -200,14 +233,26 @@ class SurfaceBinding:
         return np.stack(centres, axis=1), np.stack(frames, axis=1)
 
     # ------------------------------------------------------------------------- deform
-    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None):
+    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None, *, riders: int = 0):
         """The two parts of ``v(k) = P + k Q`` for every frame, vertex-major.
 
         Returns
         -------
         p, q : (V, F, 3) float
+        rider_frames : (F, R, 3, 3) float, only with ``riders = R > 0``
+            The line frames interpolated at the last R vertices (`SurfaceFrames.rider_frames`).
         """
         centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
+        if riders:
+            f_n = frames.shape[0]
+            feat = np.ascontiguousarray(frames.reshape(f_n, -1, 9).transpose(1, 0, 2)).reshape(-1, f_n * 9)
+            at = np.asarray(self.frame_matrix[-int(riders):] @ feat).reshape(int(riders), f_n, 3, 3)
+            return self._affine(centres, frames, tf_origin, tf_insertion) + (
+                np.ascontiguousarray(at.transpose(1, 0, 2, 3)),)
+        return self._affine(centres, frames, tf_origin, tf_insertion)
+
+    def _affine(self, centres, frames, tf_origin, tf_insertion):
+        """`affine_parts` from the resampled lines and their frames."""
         f_count = centres.shape[0]
         n_v = self.rest_vertices.shape[0]
         tf_o = np.broadcast_to(_check_tf(tf_origin, "tf_origin", f_count), (f_count, 4, 4))
@@ -226,7 +271,7 @@ class SurfaceBinding:
         return p, q
 
     def deform(self, curves, tf_origin, tf_insertion, *, anchors=None, obstacles=(), preserve_volume: bool = True,
-               push_iterations: int = 5) -> SurfaceFrames:
+               push_iterations: int = 5, rider_frames: int = 0) -> SurfaceFrames:
         """Deform the rest surface for every frame of a motion.
 
         Parameters
@@ -247,6 +292,8 @@ class SurfaceBinding:
             Solve the radial scale so the volume stays the rest volume (else ``k = 1``).
         push_iterations : int, keyword-only
             Secant updates of ``k`` after the obstacles pushed vertices out.
+        rider_frames : int, keyword-only
+            Also return the line frames at the last this many vertices (`SurfaceFrames`).
 
         Returns
         -------
@@ -254,7 +301,11 @@ class SurfaceBinding:
         """
         if len(curves) != self.n_lines:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
-        p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
+        at = None
+        if rider_frames:
+            p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames)
+        else:
+            p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
         target = self.rest_volume
         if preserve_volume:
             coeffs = volume_cubic_vf(p, q, self.faces)
@@ -267,7 +318,7 @@ class SurfaceBinding:
                 volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
             else:
                 volume = mesh_volume(vertices, self.faces)
-            return SurfaceFrames(vertices, k, volume, target)
+            return SurfaceFrames(vertices, k, volume, target, at)
         p = np.ascontiguousarray(p.transpose(1, 0, 2))
         q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
@@ -315,7 +366,7 @@ class SurfaceBinding:
                 k_prev, g_prev = k, g
                 k = np.clip(k_next, 0.25, 4.0)
             vertices, volume = (pusher(p, q, obstacles) if split else pushed)(k)
-        return SurfaceFrames(vertices, k, volume, target)
+        return SurfaceFrames(vertices, k, volume, target, at)
 
 
 def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,
@@ -417,26 +468,34 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         fr = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
         rest_frames.append(_ro(fr))
         j, t, d = _closest_on_polyline(verts, c)
-        centre = c[j] + t[:, None] * (c[j + 1] - c[j])
+        c_idx, c_w = _centre_weights(j, t, len(c))
+        centre = np.einsum("vk,vkj->vj", c_w, c[c_idx])
         basis = (1.0 - t)[:, None, None] * fr[j] + t[:, None, None] * fr[j + 1]  # (V, 3, 3)
         local = np.linalg.solve(basis, (verts - centre)[..., None])[..., 0]       # (V, 3)
         dists.append(d)
-        per_line.append((j, t, local))
+        per_line.append((j, t, local, c_idx, c_w))
     d = np.stack(dists, axis=1)  # (V, L)
     w_line = 1.0 / (d * d + delta * delta) ** 2
     w_line /= np.sum(w_line, axis=1, keepdims=True)
     n_v = len(verts)
-    for l, (j, t, local) in enumerate(per_line):
+    rows_c, cols_c, vals_f = [], [], []
+    for l, (j, t, local, c_idx, c_w) in enumerate(per_line):
         w = w_b * w_line[:, l]
         for offset, share in ((0, 1.0 - t), (1, t)):
             rows.append(np.arange(n_v))
             cols.append(l * n + j + offset)
-            vals_c.append(w * share)
+            vals_f.append(w * share)
             vals_n.append(w * share * local[:, 0])
             vals_b.append(w * share * local[:, 1])
             vals_t.append(w * share * local[:, 2])
+        for k in range(c_idx.shape[1]):   # the centre: spline weights on up to 4 samples
+            rows_c.append(np.arange(n_v))
+            cols_c.append(l * n + c_idx[:, k])
+            vals_c.append(w * c_w[:, k])
     rows = np.concatenate(rows)
     cols = np.concatenate(cols)
+    rows_c = np.concatenate(rows_c)
+    cols_c = np.concatenate(cols_c)
     # rigid parts: w * (R local + t) = sum_j (w local_j) R[:, j] + w t, on 8 extra feature rows
     rig_rows, rig_cols, rig_vals = [], [], []
     for slot, (w, tf) in enumerate(((w_o, tf_o), (w_i, tf_i))):
@@ -448,8 +507,9 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
             rig_cols.append(np.full(len(sel), 2 * n * n_l + 4 * slot + j))
             rig_vals.append(w[sel] * val)
     fixed = sp.csr_matrix((np.concatenate(vals_c + vals_t + rig_vals),
-                           (np.concatenate([rows, rows] + rig_rows),
-                            np.concatenate([cols, cols + n * n_l] + rig_cols))), shape=(n_v, 2 * n * n_l + 8))
+                           (np.concatenate([rows_c, rows] + rig_rows),
+                            np.concatenate([cols_c, cols + n * n_l] + rig_cols))), shape=(n_v, 2 * n * n_l + 8))
+    frame_matrix = sp.csr_matrix((np.concatenate(vals_f), (rows, cols)), shape=(n_v, n * n_l))
     radial = sp.csr_matrix((np.concatenate(vals_n + vals_b),
                             (np.concatenate([rows, rows]), np.concatenate([cols, cols + n * n_l]))),
                            shape=(n_v, 2 * n * n_l))
@@ -461,4 +521,5 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         rest_frames=tuple(rest_frames), tf_rest_origin=_ro(tf_o), tf_rest_insertion=_ro(tf_i),
         weight_origin=_ro(w_o), weight_insertion=_ro(w_i), weight_belly=_ro(w_b),
         fixed_matrix=fixed, radial_matrix=radial, rest_volume=float(volume),
-        rest_lengths=_ro(lengths), arc_fraction=_ro(arc), anchor_fractions=tuple(fractions))
+        rest_lengths=_ro(lengths), arc_fraction=_ro(arc), anchor_fractions=tuple(fractions),
+        frame_matrix=frame_matrix)
