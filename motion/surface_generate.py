@@ -30,6 +30,9 @@ from .surface_volume import mesh_volume, solve_radial_scale, volume_cubic
 
 __all__ = ["fusiform_surface", "fusiform_radius", "belly_surface", "SPECIFIC_TENSION"]
 
+#: A generated belly's radius is at most this fraction of its rest length (`belly_surface`).
+BELLY_MAX_ASPECT = 0.1
+
 #: Specific tension used to turn max isometric force into PCSA (Pa), Arnold et al. 2010.
 SPECIFIC_TENSION = 0.61e6
 
@@ -121,7 +124,7 @@ def fusiform_surface(curve, *, max_radius: float | None = None, volume: float | 
 
 
 def belly_surface(curve, *, volume: float | None = None, max_radius: float | None = None,
-                  n_rings: int = 40, n_around: int = 24, landmark_fraction: float = 0.6):
+                  n_rings: int = 40, n_around: int = 24, landmark_fraction: float = 0.9):
     """A closed tube around the belly piece of an action line, flat caps where the tendons join.
 
     The belly of a tendon-aware generated muscle (`motion.muscle_parameters`): a tube of
@@ -165,6 +168,9 @@ def belly_surface(curve, *, volume: float | None = None, max_radius: float | Non
         r = math.sqrt(float(volume) / (math.pi * length))
     else:
         r = 0.1 * length
+    slender = max_radius is None and r > BELLY_MAX_ASPECT * length
+    if slender:
+        r = BELLY_MAX_ASPECT * length
     tan = curve_tangents(c[None])
     frames = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
     phi = 2.0 * np.pi * np.arange(int(n_around)) / int(n_around)
@@ -183,7 +189,7 @@ def belly_surface(curve, *, volume: float | None = None, max_radius: float | Non
     if mesh_volume(vertices, faces) < 0:
         faces = faces[:, ::-1].copy()
     centre = np.concatenate([np.repeat(c, n_a, axis=0), c[:1], c[-1:]], axis=0)
-    if max_radius is None and volume is not None:
+    if max_radius is None and volume is not None and not slender:
         coeffs = volume_cubic(centre[None], (vertices - centre)[None], faces)
         k = solve_radial_scale(coeffs, float(volume))[0]
         vertices = centre + k * (vertices - centre)
@@ -192,7 +198,8 @@ def belly_surface(curve, *, volume: float | None = None, max_radius: float | Non
 
     def landmarks(i):
         n, bn = frames[i, :, 0], frames[i, :, 1]
-        ring8 = c[i] + landmark_fraction * r * (np.cos(psi)[:, None] * n + np.sin(psi)[:, None] * bn)
-        return np.vstack([c[i][None], ring8])
+        rings = [c[i] + f * landmark_fraction * r * (np.cos(psi)[:, None] * n + np.sin(psi)[:, None] * bn)
+                 for f in (1.0 / 3.0, 2.0 / 3.0, 1.0)]
+        return np.vstack([c[i][None]] + rings)
 
     return vertices, faces, landmarks(0), landmarks(-1)
