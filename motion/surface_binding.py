@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .surface_curves import (any_perpendicular, arc_fractions, curve_tangents, resample_polylines,
+from .surface_curves import (any_perpendicular, arc_fractions, curve_tangents, resample_polylines, smoothed_tangents,
                              rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
 from .surface_volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
@@ -189,6 +189,7 @@ class SurfaceBinding:
     arc_fraction: np.ndarray         # (n,)
     anchor_fractions: tuple = ()     # per line: (K,) rest arc fractions of the anchors, or None
     frame_matrix: sp.csr_matrix | None = None   # (V, n L): belly weights of the line frames
+    tangent_sigma: float = 0.0       # Gaussian smoothing of the line tangents, in samples
 
     @property
     def n_lines(self) -> int:
@@ -217,7 +218,7 @@ class SurfaceBinding:
             c = resample_polylines(c if c.ndim == 3 else c[None], self.n_samples, anchors=idx,
                                    anchor_fractions=None if idx is None else fractions)
             c = np.broadcast_to(c, (max(f_count, c.shape[0]),) + c.shape[1:])
-            tan = curve_tangents(c)
+            tan = smoothed_tangents(c, self.tangent_sigma)
             carried_t0 = np.einsum("fij,j->fi", rot_o, rest[0, :, 2])
             carried_n0 = np.einsum("fij,j->fi", rot_o, rest[0, :, 0])
             r0 = transport_vector(carried_n0, carried_t0, tan[:, 0])
@@ -372,7 +373,8 @@ class SurfaceBinding:
 def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,
                  origin_points, insertion_points, *, n_samples: int = 40,
                  rigid_radius: float | None = None, blend_radius: float | None = None,
-                 line_blend: float | None = None, rest_anchors=None, free_vertices=None) -> SurfaceBinding:
+                 line_blend: float | None = None, rest_anchors=None, free_vertices=None,
+                 tangent_smoothing: float = 0.0) -> SurfaceBinding:
     """Bind a rest surface to its action lines and attachment bodies.
 
     Parameters
@@ -400,6 +402,9 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         line, first and last included; `SurfaceBinding.deform` then matches arc length piece by
         piece between anchors, so a piece fixed on one body does not slide over that body as
         the free pieces stretch. None: one piece (global arc length).
+    tangent_smoothing : float, keyword-only
+        Arc length (m, at rest) over which the line tangents that orient the cross-sections
+        are averaged (`motion.surface_curves.smoothed_tangents`, standard deviation); 0: none.
     free_vertices : (V,) bool or index array or None, keyword-only
         Vertices that get no rigid attachment zone (``w_o = w_i = 0``, all belly): points
         carried with the surface that are not part of it, e.g. fibre points, whose ends the
@@ -436,6 +441,7 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
     if blend <= rigid:
         raise ValueError("blend_radius must exceed rigid_radius")
     delta = 0.02 * mean_len if line_blend is None else float(line_blend)
+    sigma = float(tangent_smoothing) / (mean_len / (n - 1)) if tangent_smoothing else 0.0
 
     # rigid weights from the distance to the attachment landmarks
     from scipy.spatial import cKDTree
@@ -464,7 +470,7 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
     vals_c, vals_t, vals_n, vals_b = [], [], [], []
     dists, per_line = [], []
     for l, c in enumerate(curves):  # loop over action lines (few)
-        tan = curve_tangents(c[None])
+        tan = smoothed_tangents(c[None], sigma)
         fr = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
         rest_frames.append(_ro(fr))
         j, t, d = _closest_on_polyline(verts, c)
@@ -522,4 +528,4 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         weight_origin=_ro(w_o), weight_insertion=_ro(w_i), weight_belly=_ro(w_b),
         fixed_matrix=fixed, radial_matrix=radial, rest_volume=float(volume),
         rest_lengths=_ro(lengths), arc_fraction=_ro(arc), anchor_fractions=tuple(fractions),
-        frame_matrix=frame_matrix)
+        frame_matrix=frame_matrix, tangent_sigma=sigma)

@@ -250,3 +250,28 @@ def trim_polylines(points, start, stop) -> np.ndarray:
     keep = np.isfinite(both).all(axis=-1)
     perm = np.argsort(~keep, axis=1, kind="stable")
     return np.take_along_axis(both, perm[..., None], axis=1)
+
+
+def smoothed_tangents(curve, sigma: float) -> np.ndarray:
+    """Unit tangents (F, n, 3) of sampled curves (F, n, 3), averaged with a Gaussian of standard
+    deviation ``sigma`` samples (ends: the nearest tangent repeated); ``sigma <= 0``: plain
+    `curve_tangents`.
+
+    Why: a belly whose line turns at a via point (a corner of the OpenSim path) would turn its
+    cross-sections within one sample, and the tissue on the inner side of the corner would fold
+    over itself. With tangents averaged over about the belly's thickness the cross-sections turn
+    gradually, so offset curves do not fold; the centre line itself keeps its corner (its length,
+    hence the moment arm, is the path's), and a straight line or a circular arc keeps its
+    tangents (the average of a symmetric window), except within ~2 sigma of the arc's ends.
+    """
+    tan = curve_tangents(np.asarray(curve, dtype=float))
+    s = float(sigma)
+    if s <= 0:
+        return tan
+    half = int(np.ceil(3.0 * s))
+    offsets = np.arange(-half, half + 1)
+    weights = np.exp(-0.5 * (offsets / s) ** 2)
+    n = tan.shape[1]
+    idx = np.clip(np.arange(n)[:, None] + offsets[None, :], 0, n - 1)          # (n, W)
+    avg = np.einsum("fnwk,w->fnk", tan[:, idx], weights)
+    return _unit(avg)

@@ -426,6 +426,9 @@ def _obstacles(model, spec, tf, rest, vertices, rest_curves, n_surface, *, n_sam
     return obstacles
 
 
+#: Generated bellies: standard deviation of the tangent smoothing, in belly half-thicknesses.
+TANGENT_SMOOTHING = 1.0
+
 #: Line samples are at most this angle (rad) apart on the smallest wrap object of the muscle.
 WRAP_SAMPLE_ANGLE = 0.25
 
@@ -509,9 +512,13 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     else:
         ends = (origin_rest, insertion_rest)
         free = np.arange(n_v - spec.riders, n_v)
+    # a generated belly turns its cross-sections over about its thickness where the path has a
+    # corner (`motion.surface_curves.smoothed_tangents`), so its inner side does not fold
+    smoothing = TANGENT_SMOOTHING * float(np.max(local_half_thickness(
+        vertices, n_v - spec.riders, rest_curves, n_samples=n_samples))) if spec.generated or tendons else 0.0
     binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
                            *ends, n_samples=n_samples, rigid_radius=rigid_radius, blend_radius=blend_radius,
-                           rest_anchors=rest_anchors, free_vertices=free)
+                           rest_anchors=rest_anchors, free_vertices=free, tangent_smoothing=smoothing)
     obstacles = _obstacles(model, spec, tf, rest, vertices, rest_curves, n_v - spec.riders,
                            n_samples=n_samples, margin=margin, bone_spacing=bone_spacing)
     tf_o_body = tf[:, b_o].copy()
