@@ -21,9 +21,10 @@ import shutil
 import sys
 import tempfile
 import time as _time
+import warnings
 from pathlib import Path
 
-from .errors import InputError
+from .errors import FibreWarning, InputError
 
 __all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
 
@@ -80,9 +81,15 @@ def execute(args) -> int:
     loaded = load_spec(spec)
     _select_muscles(loaded, args.muscle, fibres=args.fibres, resolution=args.resolution, template=args.template)
     out = prepare_out_dir(args.out)
-    result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
-                 template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
-                 transport=args.transport)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
+        result = run(loaded, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,
+                     template=args.template, frames=args.frames, quiet=args.quiet, jobs=args.jobs,
+                     transport=args.transport)
+    for m in result.muscles:
+        for note in m.notes:
+            if note.startswith("warning: "):
+                print(f"fibres run: warning: muscle {m.name!r}: {note[len('warning: '):]}", file=sys.stderr)
     command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
     write_outputs(result, out, plots=not args.no_plots, sto=args.sto, quiet=args.quiet, command=command)
     if not args.quiet:
@@ -150,20 +157,23 @@ def _write_plots(result, folder: Path, *, quiet, progress):
                           line_lengths=m.action_line_lengths, line_names=m.action_lines,
                           coordinate_values=result.q[:, cols], fibre_moment_arms=m.fibre_moment_arms,
                           line_moment_arms=m.action_line_moment_arms, coordinate_names=m.coordinates,
-                          rest_lengths=m.rest_lengths,
+                          rest_lengths=m.rest_lengths, normalized_lengths=m.normalized_lengths,
+                          line_normalized=m.line_normalized_lengths,
                           rotational=[motion_types.get(c, "rotational") != "translational"
                                       for c in m.coordinates])
 
 
 def _write_vtk(result, folder: Path, *, quiet, progress):
-    """``fibres/<muscle>.pvd`` + ``<muscle>_<frame>.vtp`` (cell data ``fibre``, ``length``)."""
+    """``fibres/<muscle>.pvd`` + ``<muscle>_<frame>.vtp`` (cell data ``fibre``, ``length``,
+    ``normalized_length``)."""
     from . import vtk_files
 
     folder.mkdir(parents=True, exist_ok=True)
     for m in progress(result.muscles, desc="3D files", quiet=quiet, unit="muscle"):
         if m.fibre_points is not None:
             vtk_files.write_fibre_frames(folder, m.name, m.fibre_points, times=result.time,
-                                         cell_data={"length": m.fibre_lengths})
+                                         cell_data={"length": m.fibre_lengths,
+                                                    "normalized_length": m.normalized_lengths})
         if m.surface_vertices is not None:
             vtk_files.write_surface_frames(folder, m.name, m.surface_vertices, m.surface_faces,
                                            times=result.time)

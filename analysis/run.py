@@ -66,11 +66,13 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import time as _time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import FibreWarning, InputError
+from .fibre_checks import line_normalized_lengths, moment_arm_notes, optimal_lengths
 from .progress import progress
 from .result import MuscleResult, RunResult
 from .spec import FibreModelSpec, load_spec
@@ -525,11 +527,17 @@ def _run_muscle(ctx, mspec):
     notes = tuple(getattr(bundle0, "notes", ()) or ())
     if getattr(rest, "rest_residual", 0.0):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)
+    rest_lengths = fibre_lengths(bundle0.points)
+    warned = tuple(f"warning: {n}" for n in getattr(wrapped, "notes", ())) + moment_arm_notes(names, r, al_r)
+    for note in warned:
+        warnings.warn(f"muscle {mspec.name!r}: {note[len('warning: '):]}", FibreWarning, stacklevel=3)
     result = MuscleResult(
         name=mspec.name, coordinates=names, fibre_lengths=base, fibre_moment_arms=r,
         action_lines=mspec.action_lines, action_line_lengths=al_len, action_line_moment_arms=al_r,
-        rest_lengths=fibre_lengths(bundle0.points),
+        rest_lengths=rest_lengths,
         fibre_points=points[:n_f] if ctx.keep_points else None,
         surface_vertices=surfaces[:n_f] if ctx.keep_surfaces else None,
-        surface_faces=faces if ctx.keep_surfaces else None, notes=notes)
+        surface_faces=faces if ctx.keep_surfaces else None, notes=notes + warned,
+        optimal_lengths=optimal_lengths(ctx.model, mspec.action_lines, rest_lengths, generated=mspec.mesh is None),
+        line_normalized_lengths=line_normalized_lengths(ctx.model, mspec.action_lines, al_len))
     return result, timings
