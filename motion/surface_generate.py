@@ -33,6 +33,9 @@ __all__ = ["fusiform_surface", "fusiform_radius", "belly_surface", "SPECIFIC_TEN
 #: A generated belly's radius is at most this fraction of its rest length (`belly_surface`).
 BELLY_MAX_ASPECT = 0.1
 
+#: A generated belly's flat caps are cut into this many rings (the inner ones are its landmarks).
+CAP_RINGS = 3
+
 #: Specific tension used to turn max isometric force into PCSA (Pa), Arnold et al. 2010.
 SPECIFIC_TENSION = 0.61e6
 
@@ -177,29 +180,37 @@ def belly_surface(curve, *, volume: float | None = None, max_radius: float | Non
     around = (np.cos(phi)[None, :, None] * frames[:, None, :, 0] + np.sin(phi)[None, :, None] * frames[:, None, :, 1])
     ring = c[:, None, :] + r * around                                                  # (R, A, 3)
     n_r, n_a = ring.shape[0], ring.shape[1]
-    vertices = np.concatenate([ring.reshape(-1, 3), c[:1], c[-1:]], axis=0)
+    fractions = np.arange(1, CAP_RINGS) / CAP_RINGS                                    # inner cap rings
+    caps = [c[i][None, None, :] + r * fractions[:, None, None] * around[i][None] for i in (0, -1)]
+    n_c = len(fractions) * n_a
+    vertices = np.concatenate([ring.reshape(-1, 3), caps[0].reshape(-1, 3), caps[1].reshape(-1, 3),
+                               c[:1], c[-1:]], axis=0)
     idx = np.arange(n_r * n_a).reshape(n_r, n_a)
     nxt = np.roll(idx, -1, axis=1)
-    first, last = n_r * n_a, n_r * n_a + 1
+    first, last = n_r * n_a + 2 * n_c, n_r * n_a + 2 * n_c + 1
     a, b, cc, d = idx[:-1], nxt[:-1], nxt[1:], idx[1:]
-    faces = np.concatenate([np.stack([np.full(n_a, first), nxt[0], idx[0]], axis=1),
-                            np.stack([a, b, cc], axis=-1).reshape(-1, 3),
-                            np.stack([a, cc, d], axis=-1).reshape(-1, 3),
-                            np.stack([np.full(n_a, last), idx[-1], nxt[-1]], axis=1)]).astype(np.int64)
+    tris = [np.stack([a, b, cc], axis=-1).reshape(-1, 3), np.stack([a, cc, d], axis=-1).reshape(-1, 3)]
+    for k, (centre_v, rim) in enumerate(((first, idx[0]), (last, idx[-1]))):   # the two flat caps
+        inner = n_r * n_a + k * n_c + np.arange(n_c).reshape(len(fractions), n_a)
+        rings_k = list(inner) + [rim]
+        cap = [np.stack([np.full(n_a, centre_v), np.roll(rings_k[0], -1), rings_k[0]], axis=1)]
+        for lo, hi in zip(rings_k[:-1], rings_k[1:]):
+            cap += [np.stack([lo, np.roll(hi, -1), hi], axis=1), np.stack([lo, np.roll(lo, -1), np.roll(hi, -1)], axis=1)]
+        cap = np.concatenate(cap)
+        tris.append(cap if k == 0 else cap[:, ::-1])
+    faces = np.concatenate(tris).astype(np.int64)
     if mesh_volume(vertices, faces) < 0:
         faces = faces[:, ::-1].copy()
-    centre = np.concatenate([np.repeat(c, n_a, axis=0), c[:1], c[-1:]], axis=0)
+    centre = np.concatenate([np.repeat(c, n_a, axis=0), np.repeat(c[:1], n_c, axis=0), np.repeat(c[-1:], n_c, axis=0),
+                             c[:1], c[-1:]], axis=0)
     if max_radius is None and volume is not None and not slender:
         coeffs = volume_cubic(centre[None], (vertices - centre)[None], faces)
         k = solve_radial_scale(coeffs, float(volume))[0]
         vertices = centre + k * (vertices - centre)
         r *= k
-    psi = 2.0 * np.pi * np.arange(8) / 8
 
-    def landmarks(i):
-        n, bn = frames[i, :, 0], frames[i, :, 1]
-        rings = [c[i] + f * landmark_fraction * r * (np.cos(psi)[:, None] * n + np.sin(psi)[:, None] * bn)
-                 for f in (1.0 / 3.0, 2.0 / 3.0, 1.0)]
-        return np.vstack([c[i][None]] + rings)
+    def landmarks(i):   # the cap centre and its inner rings: the tendon's footprint
+        sel = slice(n_r * n_a, n_r * n_a + n_c) if i == 0 else slice(n_r * n_a + n_c, n_r * n_a + 2 * n_c)
+        return np.vstack([vertices[first if i == 0 else last][None], vertices[sel]])
 
     return vertices, faces, landmarks(0), landmarks(-1)

@@ -7,6 +7,13 @@ the arc-length span ``[t, L - t]`` of `motion.muscle_parameters.belly_span` and 
 bound to that piece, so it slides along the whole path as a rigid-tendon muscle does: its
 length is ``L - l_ts`` and its fibres change length with the path, ``dl/dq = dL/dq``.
 
+The rest belly is straight: the rest piece of the line is replaced by the straight segment of
+the same arc length from its start towards its end (`straight_belly`), the belly surface is
+generated around it and bound to it, and every frame (the rest frame included) bends it onto
+the current piece of the line. Fibres are decomposed in that straight belly, where the parallel
+template's fibres are exact (Kohout et al.'s plane slicing follows a straight muscle, not a bent
+one), and carried onto the path by the deformation.
+
 Attachments on MovingPathPoints: a landmark near a path end that is a MovingPathPoint (the
 patellar insertions of the Gait2392 quadriceps) does not stay fixed in its body: it is carried
 by the body and translated by the end point's own motion in the body since the rest pose
@@ -19,7 +26,7 @@ import numpy as np
 from .muscle_parameters import belly_span, muscle_parameters
 from .surface_curves import trim_polylines
 
-__all__ = ["tendon_slacks", "belly_polylines", "end_point_offsets", "polyline_lengths"]
+__all__ = ["tendon_slacks", "belly_polylines", "end_point_offsets", "polyline_lengths", "straight_belly"]
 
 
 def tendon_slacks(model, spec) -> tuple:
@@ -89,3 +96,14 @@ def end_point_offsets(model, path_name: str, curve, rest_curve, tf_ground_body, 
         carried = np.einsum("fij,j->fi", tf[:, :3, :3], rest[end]) + tf[:, :3, 3]
         out[end] = (b, now[end] - carried)
     return out
+
+
+def straight_belly(piece, n_points: int = 8) -> np.ndarray:
+    """A straight polyline (n_points, 3) from ``piece[0]`` towards ``piece[-1]`` with the arc
+    length of the polyline ``piece`` (P, 3)."""
+    p = np.asarray(piece, dtype=float)
+    length = float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=-1)))
+    chord = p[-1] - p[0]
+    norm = float(np.linalg.norm(chord))
+    direction = chord / norm if norm > 1e-12 else np.array([0.0, 0.0, 1.0])
+    return p[0] + np.linspace(0.0, length, int(n_points))[:, None] * direction

@@ -40,7 +40,7 @@ from .muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
 from .surface_collision import BoneDistance, BoneObstacle, wrap_obstacle
 from .surface_generate import belly_surface, fusiform_surface
 from .surface_rest import rest_pose
-from .surface_tendons import belly_polylines, end_point_offsets, tendon_slacks
+from .surface_tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
 from .surface_thickness import INSET_MAX_FRACTION, local_half_thickness
 from .surface_volume import mesh_volume
 
@@ -468,7 +468,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     if tendons:
         for k, (name, slack) in enumerate(zip(spec.action_lines, slacks)):  # loop over lines (few)
             belly, short_rest = belly_polylines(rest_curves[k][None], slack)
-            rest_curves[k] = belly[0][np.isfinite(belly[0]).all(axis=1)]
+            rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
             curves[k], short = belly_polylines(curves[k], slack)
             if short_rest.any() or short.any():
                 n_short = int(short.sum())

@@ -205,7 +205,7 @@ def test_muscle_without_mesh_gets_a_generated_surface(example):
 
     toml = example / "arm_example.toml"
     toml.write_text(toml.read_text().replace('mesh = "meshes/brachialis.ply"\n', "", 1))
-    res = run(toml, frames="0:27:13", muscles=["brachialis"], fibres=12, resolution=8)
+    res = run(toml, frames="0:27:13", muscles=["brachialis"], fibres=12, resolution=8, template="parallel")
     m = res.muscle("brachialis")
     assert np.isfinite(m.fibre_moment_arms).all()
     from motion import load_model
