@@ -21,30 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .surface_curves import resample_polylines
+from .surface_curves import closest_on_polyline, resample_polylines
 
 __all__ = ["local_half_thickness", "INSET_MAX_FRACTION"]
 
 #: The derived bone is never smaller than (1 - this) times the wrap object's smallest radius.
 INSET_MAX_FRACTION = 0.5
-
-
-def _nearest_station(points: np.ndarray, curve: np.ndarray):
-    """Nearest segment (V,) and distance (V,) of points (V, 3) to a polyline (n, 3)."""
-    a, b = curve[:-1], curve[1:]
-    ab = b - a
-    denom = np.maximum(np.sum(ab * ab, axis=-1), 1e-30)
-    best_j = np.empty(len(points), dtype=np.int64)
-    best_d = np.empty(len(points))
-    step = max(1, 2_000_000 // max(1, len(a)))
-    for s in range(0, len(points), step):  # chunks of vertices
-        p = points[s:s + step]
-        t = np.clip(np.einsum("vsk,sk->vs", p[:, None, :] - a[None], ab) / denom, 0.0, 1.0)
-        d2 = np.sum((a[None] + t[..., None] * ab[None] - p[:, None, :]) ** 2, axis=-1)
-        j = np.argmin(d2, axis=1)
-        best_j[s:s + step] = j
-        best_d[s:s + step] = np.sqrt(d2[np.arange(len(p)), j])
-    return best_j, best_d
 
 
 def local_half_thickness(vertices, n_surface: int, rest_curves, *, n_samples: int = 40) -> np.ndarray:
@@ -70,7 +52,7 @@ def local_half_thickness(vertices, n_surface: int, rest_curves, *, n_samples: in
     out = np.zeros(len(verts))
     for curve in rest_curves:  # loop over action lines (few)
         c = resample_polylines(np.asarray(curve, dtype=float), int(n_samples))
-        j, d = _nearest_station(verts, c)
+        j, _, d = closest_on_polyline(verts, c)
         profile = np.zeros(len(c) - 1)
         np.maximum.at(profile, j[:n_surface], d[:n_surface])
         widened = profile.copy()

@@ -37,17 +37,16 @@ import numpy as np
 from .errors import InputError
 from .surface_binding import bind_surface
 from .muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
-from .surface_collision import BoneDistance, BoneObstacle, wrap_obstacle
 from .surface_generate import belly_surface, fusiform_surface
 from .surface_rest import rest_pose
 from .surface_tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
-from .surface_thickness import INSET_MAX_FRACTION, local_half_thickness
+from .surface_obstacles import TANGENT_SMOOTHING, line_samples, muscle_obstacles
+from .surface_thickness import local_half_thickness
 from .surface_volume import mesh_volume
 
 __all__ = ["WrappedSurface", "wrap_surfaces", "path_polylines"]
 
 _ARC_POINTS = 24
-_BONE_CACHE: dict = {}
 
 
 @dataclass(frozen=True, eq=False)
@@ -311,20 +310,6 @@ def _check_units(spec, vertices: np.ndarray, curves: list) -> None:
                          fix="set units = \"mm\" if the mesh is in millimetres, and check frame/rest_pose")
 
 
-def _bone_distance(bone, vertices_body: np.ndarray, spacing: float) -> BoneDistance:
-    """Signed distance grid of a bone in its body frame, cached per bone object and placement."""
-    import hashlib
-
-    digest = hashlib.sha1(np.ascontiguousarray(vertices_body).tobytes()
-                          + np.ascontiguousarray(bone.faces).tobytes()).hexdigest()
-    key = (digest, float(spacing))
-    if key not in _BONE_CACHE:
-        if len(_BONE_CACHE) >= 16:  # a few bones per model; bound the memory
-            _BONE_CACHE.pop(next(iter(_BONE_CACHE)))
-        _BONE_CACHE[key] = BoneDistance.from_mesh(vertices_body, bone.faces, spacing=spacing)
-    return _BONE_CACHE[key]
-
-
 def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: int = 40,
                   margin: float = 5e-4, bone_spacing: float = 2e-3, rigid_radius: float | None = None,
                   blend_radius: float | None = None) -> tuple:
@@ -387,71 +372,6 @@ def _rest_lines(model, spec, tf_rest_actual, rest_motion):
     return curves, anchors
 
 
-def _obstacles(model, spec, tf, rest, vertices, rest_curves, n_surface, *, n_samples, margin, bone_spacing):
-    """Bone meshes where the muscle has them; else a bone derived from every active wrap object
-    of its action lines (`motion.surface_thickness`)."""
-    names = list(model.body_names)
-    obstacles = []
-    for k, bone in enumerate(spec.bones):
-        if bone.body not in names:
-            raise InputError(f"bone body {bone.body!r} is not a body of the model",
-                             file=getattr(model, "file", None), where=f"muscle {spec.name!r}: bones[{k}]",
-                             fix=f"use one of: {', '.join(names)}")
-        b = names.index(bone.body)
-        if bone.in_body_frame:
-            local = np.asarray(bone.vertices)
-        else:
-            local = _apply(np.linalg.inv(rest.tf_ground_body[b]) @ rest.tf_ground_data, bone.vertices)
-        dist = _bone_distance(bone, local, bone_spacing)
-        obstacles.append(BoneObstacle.bind(dist, tf[:, b], vertices, rest.tf_ground_body[b], margin=margin))
-    if obstacles:
-        return obstacles
-    half = None
-    seen = set()
-    for name in spec.action_lines:
-        for pw in model.path(name).wraps:
-            if pw.wrap_object in seen:
-                continue
-            seen.add(pw.wrap_object)
-            wo = model.wrap_object(pw.wrap_object)
-            if not wo.active or wo.kind == "torus":
-                continue
-            if half is None:
-                half = local_half_thickness(vertices, n_surface, rest_curves, n_samples=n_samples)
-            radii = (wo.radius,) if wo.kind in ("cylinder", "sphere") else tuple(wo.dimensions)
-            inset = np.minimum(half, INSET_MAX_FRACTION * float(np.min(radii)))
-            obs = wrap_obstacle(wo, tf[:, model.body_index(wo.body)], margin=margin, inset=inset, knee=None)
-            if obs is not None:
-                obstacles.append(obs)
-    return obstacles
-
-
-#: Generated bellies: standard deviation of the tangent smoothing, in belly half-thicknesses.
-TANGENT_SMOOTHING = 1.0
-
-#: Line samples are at most this angle (rad) apart on the smallest wrap object of the muscle.
-WRAP_SAMPLE_ANGLE = 0.25
-
-
-def _line_samples(model, spec, rest_curves, n_samples: int) -> int:
-    """``n_samples``, raised so that the samples are at most WRAP_SAMPLE_ANGLE x the smallest
-    radius of the muscle's wrap objects apart (longest rest line + 30 % for stretch; at most 240):
-    the belly's centre line between samples (a Catmull-Rom spline) then stays within ~1e-4 R of
-    a wrap arc."""
-    radii = []
-    for name in spec.action_lines:
-        for pw in model.path(name).wraps:
-            wo = model.wrap_object(pw.wrap_object)
-            r = [wo.radius] if wo.kind in ("cylinder", "sphere") else (
-                list(wo.dimensions) if wo.kind == "ellipsoid" else [wo.inner_radius])
-            radii += [x for x in r if np.isfinite(x) and x > 0]
-    if not radii:
-        return int(n_samples)
-    longest = max(float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1))) for c in rest_curves)
-    need = int(np.ceil(1.3 * longest / (WRAP_SAMPLE_ANGLE * min(radii)))) + 1
-    return int(min(max(int(n_samples), need), 240))
-
-
 def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigid_radius, blend_radius):
     from .kinematics import body_poses, motion_from_array
 
@@ -479,7 +399,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
                              "of the path long there, the tendons take the rest")
         rest_anchors = [None] * len(rest_curves)
         anchors = None
-    n_samples = _line_samples(model, spec, full_rest, n_samples)
+    n_samples = line_samples(model, spec, full_rest, n_samples)
     first_path = model.path(spec.action_lines[0])
     if spec.generated:
         params = muscle_parameters(model, spec.action_lines[0])
@@ -519,7 +439,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
                            *ends, n_samples=n_samples, rigid_radius=rigid_radius, blend_radius=blend_radius,
                            rest_anchors=rest_anchors, free_vertices=free, tangent_smoothing=smoothing)
-    obstacles = _obstacles(model, spec, tf, rest, vertices, rest_curves, n_v - spec.riders,
+    obstacles = muscle_obstacles(model, spec, tf, rest, vertices, rest_curves, n_v - spec.riders,
                            n_samples=n_samples, margin=margin, bone_spacing=bone_spacing)
     tf_o_body = tf[:, b_o].copy()
     tf_i_body = tf[:, b_i].copy()
