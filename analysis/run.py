@@ -21,7 +21,12 @@ The chain (DESIGN.md), per muscle:
 
          p'(u) = b(p(u)) + (1 - u) [T_o p(0) - b(p(0))] + u [T_i p(1) - b(p(1))],
 
-     with ``b`` the belly deformation and ``T_o``, ``T_i`` the origin and insertion body motions.
+     with ``b`` the belly deformation and ``T_o``, ``T_i`` the origin and insertion body motions
+     (each residual held in the belly's line frame at its end and carried along the fibre with
+     those frames, `motion.WrappedSurface.rider_frames`: over a pulley a fibre keeps its offset
+     from the line, so its moment arm is its own radius; on a straight line the frames are
+     constant and this is the plain linear spread). A generated, tendon-aware surface
+     (`motion.surface_tendons`) has its fibre ends on the belly's caps, riding the belly.
      Why not the surface's own rigid attachment zones: a zone turns the fibre's end piece with
      its body while the belly turns with the action line, which kinks every fibre next to its
      ends (a straight cylinder across a pin joint measured 0.33 % too long at 60 degrees). With

@@ -18,15 +18,22 @@ Per muscle (one muscle = its action lines, loops over muscles only):
 1. Rest pose (`motion.surface_rest`): coordinates and body transforms; mesh, landmarks and bones
    to ground. A mesh farther from its action line than 0.25 m + 3 x its own size is refused as a
    likely unit mistake (InputError naming the muscle and the ``units`` key).
-2. No mesh: a fusiform surface around the first action line at the rest pose
-   (`motion.surface_generate`; volume from ``spec.volume`` or the muscle's max isometric force
-   and optimal fibre length).
+2. No mesh: a generated surface. With the model's tendon slack length (`motion.surface_tendons`,
+   `motion.muscle_parameters`) it is the belly only: a straight flat-capped tube of the rest
+   belly length ``L - l_ts`` (`motion.surface_generate.belly_surface`), bound to the straightened
+   rest belly line and bent onto the belly piece ``[l_ts / 2, L - l_ts / 2]`` of the current line
+   in every frame; its landmarks (the caps) ride the belly. Without one, a fusiform surface around
+   the first action line (`motion.surface_generate.fusiform_surface`). Volume from ``spec.volume``
+   or the muscle's max isometric force and optimal fibre length.
 3. Current action lines per frame, including the arc over every wrap object between its two
    tangent points (cylinder: the helix, i.e. the geodesic; sphere: the great circle in the
    direction the path arrives; ellipsoid: the great circle of the scaled unit sphere mapped
    back; torus: the chord).
-4. `motion.surface_binding`: bind at rest, deform for all frames at once, with the wrap objects
-   of the muscle's action lines and its bones as obstacles (`motion.surface_collision`).
+4. `motion.surface_binding`: bind at rest, deform for all frames at once, with the muscle's bone
+   meshes as obstacles or, where it has none, bones derived from its wrap objects (the wrap
+   surface moved inwards by the local half-thickness: the wrap object guides the centre line,
+   tissue may lie inside it; `motion.surface_obstacles`, `motion.surface_thickness`). Landmarks
+   at a MovingPathPoint end of the first line follow that point (`motion.surface_tendons`).
 """
 from __future__ import annotations
 
