@@ -388,8 +388,8 @@ def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=N
     if frames is not None:
         local0 = np.einsum("fnji,fnj->fni", frames[:, :, 0], e0)       # e0 in the frame at the end
         local1 = np.einsum("fnji,fnj->fni", frames[:, :, -1], e1)
-        mix = (1.0 - u)[None, :, :, None] * local0[:, :, None] + u[None, :, :, None] * local1[:, :, None]
-        out = carried + np.einsum("fnpij,fnpj->fnpi", frames, mix)
+        mix = local0[:, :, None] + u[None, :, :, None] * (local1 - local0)[:, :, None]   # (F, N, P, 3)
+        out = carried + np.matmul(frames, mix[..., None])[..., 0]
         # the ends exactly (the interpolated frames there are those used for local0/local1)
         out[:, :, 0] = origin_ends
         out[:, :, -1] = insertion_ends

@@ -104,7 +104,12 @@ class SurfaceFrames:
 
     def __post_init__(self):
         if self.rider_frames is not None:
-            object.__setattr__(self, "rider_frames", _ro(self.rider_frames))
+            arr = np.asarray(self.rider_frames, dtype=float)
+            if arr.flags.writeable and arr.flags.owndata:
+                arr.setflags(write=False)   # built here: freeze without copying
+            else:
+                arr = _ro(arr)
+            object.__setattr__(self, "rider_frames", arr)
         for name in ("vertices", "radial_scale", "volume"):
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.flags.writeable and arr.flags.owndata:
