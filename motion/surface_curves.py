@@ -14,7 +14,7 @@ import numpy as np
 
 __all__ = ["resample_polylines", "arc_fractions", "curve_tangents", "rotation_minimizing_frames",
            "transport_vector", "any_perpendicular", "smoothed_tangents", "trim_polylines", "point_at_arc_length",
-           "closest_on_polyline", "catmull_rom_weights"]
+           "closest_on_polyline", "catmull_rom_weights", "round_corners"]
 
 _TINY = 1e-15
 
@@ -324,3 +324,46 @@ def catmull_rom_weights(j: np.ndarray, t: np.ndarray, n: int):
     w[high, 3] = 0.0
     idx[high, 3] = n - 1
     return idx, w
+
+
+def round_corners(points, radius: float, *, n_arc: int = 8) -> np.ndarray:
+    """Polylines (F, P, 3) (trailing NaN padding) with every interior corner replaced by a
+    quadratic Bezier arc of ``n_arc`` points from ``V - d u_in`` over ``V`` to ``V + d u_out``,
+    ``d = min(radius tan(a / 2), 0.45 min(adjacent segment lengths))`` (a: the turn angle).
+
+    Why: a belly that slides along its path (rigid tendon, `motion.surface_tendons`) carries its
+    line samples past the path's corners; a sampled curve cuts each corner by an amount that
+    depends on where the corner falls between two samples, so its length ripples as the corner
+    passes and its derivative -- a moment arm -- by up to several mm. Rounded over a few sample
+    spacings the corner is resolved by the samples, the ripple goes; the rounding itself shortens
+    the line by ``~2 d - radius a`` per corner (continuous in the poses; ``d`` shrinks to 0
+    with the turn angle). Returns (F, 2 + (P - 2) n_arc, 3), NaN-padded.
+    """
+    pts = np.asarray(points, dtype=float)
+    f_n, p_n = pts.shape[:2]
+    if p_n < 3:
+        return pts
+    valid = np.isfinite(pts).all(axis=-1)
+    prev, here, nxt = pts[:, :-2], pts[:, 1:-1], pts[:, 2:]
+    inner = valid[:, :-2] & valid[:, 1:-1] & valid[:, 2:]
+    a_in, a_out = here - prev, nxt - here
+    l_in = np.linalg.norm(a_in, axis=-1)
+    l_out = np.linalg.norm(a_out, axis=-1)
+    u_in = a_in / np.maximum(l_in, _TINY)[..., None]
+    u_out = a_out / np.maximum(l_out, _TINY)[..., None]
+    cos = np.clip(np.sum(u_in * u_out, axis=-1), -1.0, 1.0)
+    half = 0.5 * np.arccos(cos)                                             # a / 2
+    d = np.minimum(float(radius) * np.tan(np.minimum(half, 1.4)), 0.45 * np.minimum(l_in, l_out))
+    d = np.where(inner, d, 0.0)
+    start = here - d[..., None] * u_in
+    stop = here + d[..., None] * u_out
+    t = np.linspace(0.0, 1.0, int(n_arc))[None, None, :, None]
+    arc = ((1 - t) ** 2 * start[:, :, None] + 2 * t * (1 - t) * here[:, :, None] + t * t * stop[:, :, None])
+    arc = np.where(inner[..., None, None], arc, np.nan)                     # (F, P-2, n_arc, 3)
+    both = np.concatenate([pts[:, :1], arc.reshape(f_n, -1, 3), pts[:, -1:]], axis=1)
+    # the last valid point: a NaN-padded polyline's end is before the padding
+    last = np.maximum(valid.sum(axis=1) - 1, 0)
+    both[:, -1] = pts[np.arange(f_n), last]
+    keep = np.isfinite(both).all(axis=-1)
+    perm = np.argsort(~keep, axis=1, kind="stable")
+    return np.take_along_axis(both, perm[..., None], axis=1)

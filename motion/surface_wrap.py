@@ -47,6 +47,7 @@ from .muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
 from .surface_generate import belly_surface, fusiform_surface
 from .surface_rest import rest_pose
 from .surface_tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
+from .surface_curves import round_corners
 from .surface_obstacles import TANGENT_SMOOTHING, line_samples, muscle_obstacles
 from .surface_thickness import local_half_thickness
 from .surface_volume import mesh_volume
@@ -283,6 +284,10 @@ def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC
 
 
 # ----------------------------------------------------------------------------- muscles
+#: Tendon-aware bellies: path corners under the belly are rounded over this many line sample
+#: spacings (`motion.surface_curves.round_corners`).
+CORNER_SAMPLES = 1.5
+
 def _apply(tf: np.ndarray, p: np.ndarray) -> np.ndarray:
     """tf (..., 4, 4) applied to points (K, 3) -> (..., K, 3)."""
     return np.einsum("...ij,kj->...ki", tf[..., :3, :3], p) + tf[..., None, :3, 3]
@@ -392,11 +397,15 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     notes = []
     curves = [current[name][0] for name in spec.action_lines]
     anchors = [current[name][1] for name in spec.action_lines]
+    n_samples = line_samples(model, spec, full_rest, n_samples)
     if tendons:
         for k, (name, slack) in enumerate(zip(spec.action_lines, slacks)):  # loop over lines (few)
             belly, short_rest = belly_polylines(rest_curves[k][None], slack)
             rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
             curves[k], short = belly_polylines(curves[k], slack)
+            # the belly slides past the path's corners: round them over a few sample spacings
+            spacing = float(np.linalg.norm(rest_curves[k][-1] - rest_curves[k][0])) / (n_samples - 1)
+            curves[k] = round_corners(curves[k], CORNER_SAMPLES * spacing)
             if short_rest.any() or short.any():
                 n_short = int(short.sum())
                 notes.append(f"action line {name}: the path is shorter than its tendon slack length "
@@ -406,7 +415,6 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
                              "of the path long there, the tendons take the rest")
         rest_anchors = [None] * len(rest_curves)
         anchors = None
-    n_samples = line_samples(model, spec, full_rest, n_samples)
     first_path = model.path(spec.action_lines[0])
     if spec.generated:
         params = muscle_parameters(model, spec.action_lines[0])
