@@ -255,8 +255,9 @@ def trim_polylines(points, start, stop) -> np.ndarray:
 
 def smoothed_tangents(curve, sigma: float) -> np.ndarray:
     """Unit tangents (F, n, 3) of sampled curves (F, n, 3), averaged with a Gaussian of standard
-    deviation ``sigma`` samples (ends: the nearest tangent repeated); ``sigma <= 0``: plain
-    `curve_tangents`.
+    deviation ``sigma`` samples (the window cut at the curve's ends, so an end's tangent is the
+    mean over its last ~2 sigma and turns gradually as a corner slides out of the curve);
+    ``sigma <= 0``: plain `curve_tangents`.
 
     Why: a belly whose line turns at a via point (a corner of the OpenSim path) would turn its
     cross-sections within one sample, and the tissue on the inner side of the corner would fold
@@ -273,8 +274,10 @@ def smoothed_tangents(curve, sigma: float) -> np.ndarray:
     offsets = np.arange(-half, half + 1)
     weights = np.exp(-0.5 * (offsets / s) ** 2)
     n = tan.shape[1]
-    idx = np.clip(np.arange(n)[:, None] + offsets[None, :], 0, n - 1)          # (n, W)
-    avg = np.einsum("fnwk,w->fnk", tan[:, idx], weights)
+    raw = np.arange(n)[:, None] + offsets[None, :]                              # (n, W)
+    inside = (raw >= 0) & (raw <= n - 1)        # the window is cut at the ends, not padded: an
+    idx = np.clip(raw, 0, n - 1)                # end's tangent is the mean over the last ~2 sigma
+    avg = np.einsum("fnwk,nw->fnk", tan[:, idx], np.where(inside, weights[None, :], 0.0))
     return _unit(avg)
 
 

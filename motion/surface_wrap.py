@@ -402,10 +402,10 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         for k, (name, slack) in enumerate(zip(spec.action_lines, slacks)):  # loop over lines (few)
             belly, short_rest = belly_polylines(rest_curves[k][None], slack)
             rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
-            curves[k], short = belly_polylines(curves[k], slack)
             # the belly slides past the path's corners: round them over a few sample spacings
+            # (on the whole path, so a corner at the belly's end is rounded like any other)
             spacing = float(np.linalg.norm(rest_curves[k][-1] - rest_curves[k][0])) / (n_samples - 1)
-            curves[k] = round_corners(curves[k], CORNER_SAMPLES * spacing)
+            curves[k], short = belly_polylines(round_corners(curves[k], CORNER_SAMPLES * spacing), slack)
             if short_rest.any() or short.any():
                 n_short = int(short.sum())
                 notes.append(f"action line {name}: the path is shorter than its tendon slack length "
