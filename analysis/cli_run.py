@@ -23,9 +23,10 @@ import shutil
 import sys
 import tempfile
 import time as _time
+import warnings
 from pathlib import Path
 
-from .errors import InputError
+from .errors import FibreWarning, InputError
 from .sto_files import write_sto_files
 
 __all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
@@ -127,9 +128,17 @@ def execute(args) -> int:
         from .progress import first_run_notice
 
         first_run_notice(args.quiet)
-        result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres, resolution=args.resolution,
-                     template=args.template, frames=frames_arg, quiet=args.quiet, jobs=args.jobs,
-                     transport=args.transport, keep_surfaces=not args.no_scene, slicing=args.slicing)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
+            result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,
+                         resolution=args.resolution, template=args.template, frames=frames_arg,
+                         quiet=args.quiet, jobs=args.jobs, transport=args.transport,
+                         keep_surfaces=not args.no_scene, slicing=args.slicing)
+        for m in result.muscles:
+            for note in m.notes:
+                if note.startswith("warning: "):
+                    print(f"fibres run: warning: muscle {m.name!r}: {note[len('warning: '):]}",
+                          file=sys.stderr)
         if getattr(args, "setup", None):     # run.json names (and hashes) the setup file too
             import dataclasses
 
@@ -237,20 +246,23 @@ def _write_plots(result, folder: Path, *, quiet, progress):
                           line_lengths=m.action_line_lengths, line_names=m.action_lines,
                           coordinate_values=result.q[:, cols], fibre_moment_arms=m.fibre_moment_arms,
                           line_moment_arms=m.action_line_moment_arms, coordinate_names=m.coordinates,
-                          rest_lengths=m.rest_lengths,
+                          rest_lengths=m.rest_lengths, normalized_lengths=m.normalized_lengths,
+                          line_normalized=m.line_normalized_lengths,
                           rotational=[motion_types.get(c, "rotational") != "translational"
                                       for c in m.coordinates])
 
 
 def _write_vtk(result, folder: Path, *, quiet, progress):
-    """``fibres/<muscle>.pvd`` + ``<muscle>_<frame>.vtp`` (cell data ``fibre``, ``length``)."""
+    """``fibres/<muscle>.pvd`` + ``<muscle>_<frame>.vtp`` (cell data ``fibre``, ``length``,
+    ``normalized_length``)."""
     from . import vtk_files
 
     folder.mkdir(parents=True, exist_ok=True)
     for m in progress(result.muscles, desc="3D files", quiet=quiet, unit="muscle"):
         if m.fibre_points is not None:
             vtk_files.write_fibre_frames(folder, m.name, m.fibre_points, times=result.time,
-                                         cell_data={"length": m.fibre_lengths})
+                                         cell_data={"length": m.fibre_lengths,
+                                                    "normalized_length": m.normalized_lengths})
         if m.surface_vertices is not None:
             vtk_files.write_surface_frames(folder, m.name, m.surface_vertices, m.surface_faces,
                                            times=result.time)
