@@ -30,9 +30,10 @@ import shutil
 import sys
 import tempfile
 import time as _time
+import warnings
 from pathlib import Path
 
-from .errors import InputError
+from .errors import FibreWarning, InputError
 from .sto_files import write_sto_files
 
 __all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
@@ -161,10 +162,18 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
         from .progress import first_run_notice
 
         first_run_notice(args.quiet)
-        result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres, resolution=args.resolution,
-                     template=args.template, frames=frames_arg, quiet=args.quiet, jobs=args.jobs,
-                     transport=args.transport, keep_surfaces=not args.no_scene, slicing=args.slicing,
-                     max_memory=max_memory, out_dir=out)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
+            result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,
+                         resolution=args.resolution, template=args.template, frames=frames_arg,
+                         quiet=args.quiet, jobs=args.jobs, transport=args.transport,
+                         keep_surfaces=not args.no_scene, slicing=args.slicing,
+                         max_memory=max_memory, out_dir=out)
+        for m in result.muscles:
+            for note in m.notes:
+                if note.startswith("warning: "):
+                    print(f"fibres run: warning: muscle {m.name!r}: {note[len('warning: '):]}",
+                          file=sys.stderr)
         if getattr(args, "setup", None):     # run.json names (and hashes) the setup file too
             import dataclasses
 
@@ -281,13 +290,15 @@ def _write_plots(result, folder: Path, stems, *, quiet, progress):
                           line_lengths=m.action_line_lengths, line_names=m.action_lines,
                           coordinate_values=result.q[:, cols], fibre_moment_arms=m.fibre_moment_arms,
                           line_moment_arms=m.action_line_moment_arms, coordinate_names=m.coordinates,
-                          rest_lengths=m.rest_lengths, stem=stems[m.name],
+                          rest_lengths=m.rest_lengths, normalized_lengths=m.normalized_lengths,
+                          line_normalized=m.line_normalized_lengths, stem=stems[m.name],
                           rotational=[motion_types.get(c, "rotational") != "translational"
                                       for c in m.coordinates])
 
 
 def _write_vtk(result, folder: Path, stems, *, quiet, progress):
-    """``fibres/<stem>.pvd`` + ``<stem>_<frame>.vtp`` (cell data ``fibre``, ``length``)."""
+    """``fibres/<stem>.pvd`` + ``<stem>_<frame>.vtp`` (cell data ``fibre``, ``length``,
+    ``normalized_length``)."""
     from . import interrupts, vtk_files
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -295,7 +306,8 @@ def _write_vtk(result, folder: Path, stems, *, quiet, progress):
         interrupts.check()
         if m.fibre_points is not None:
             vtk_files.write_fibre_frames(folder, stems[m.name], m.fibre_points, times=result.time,
-                                         cell_data={"length": m.fibre_lengths})
+                                         cell_data={"length": m.fibre_lengths,
+                                                    "normalized_length": m.normalized_lengths})
         if m.surface_vertices is not None:
             vtk_files.write_surface_frames(folder, stems[m.name], m.surface_vertices, m.surface_faces,
                                            times=result.time)

@@ -8,11 +8,12 @@ One hierarchy for the whole package:
 - `MissingDependencyError(ImportError)`: an optional dependency is not installed; the
   message names the extra to install.
 
-Anything else escaping the package is an internal failure (exit status 1).
+Anything else escaping the package is an internal failure (exit status 1). `FibreWarning`
+(a UserWarning) flags a result to look at; ``fibres run`` prints it on stderr.
 """
 from __future__ import annotations
 
-__all__ = ["InputError", "MissingDependencyError"]
+__all__ = ["InputError", "MissingDependencyError", "FibreWarning"]
 
 
 class InputError(ValueError):
@@ -47,3 +48,8 @@ class InputError(ValueError):
 
 class MissingDependencyError(ImportError):
     """An optional dependency is missing; the message names the extra to install."""
+
+
+class FibreWarning(UserWarning):
+    """A result the user should look at (fibres far from their action lines, a path shorter than
+    its tendon slack length); also written as a ``warning:`` note of the muscle in run.json."""

@@ -20,7 +20,8 @@ import numpy as np
 
 from .output_files import atomic_path
 
-__all__ = ["plot_fibre_lengths", "plot_moment_arms", "plot_length_histogram", "plot_muscle"]
+__all__ = ["plot_fibre_lengths", "plot_normalized_lengths", "plot_moment_arms", "plot_length_histogram",
+           "plot_muscle"]
 
 _BANDS = ((5.0, 95.0, 0.25, "fibres 5–95 %"), (25.0, 75.0, 0.45, "fibres 25–75 %"))
 _FIBRE_COLOUR = "tab:blue"
@@ -146,6 +147,44 @@ def plot_fibre_lengths(path, times, fibre_lengths, line_lengths, line_names, *, 
 
 #: a coordinate whose range over the frames is below this is constant: not drawn (rad; m)
 CONSTANT_RANGE = {True: np.radians(0.05), False: 5e-5}
+
+
+def plot_normalized_lengths(path, times, normalized_lengths, line_normalized, line_names, *, muscle: str,
+                            title: str | None = None) -> Path:
+    """Normalized fibre lengths l / l_opt over time (fibre band), with the action lines' rigid-tendon
+    values (L_path - tendon_slack_length) / optimal_fiber_length where known.
+
+    Parameters
+    ----------
+    path : str or Path
+    times : (F,) float
+    normalized_lengths : (F, N) float
+    line_normalized : (F, L) float
+        NaN columns are not drawn.
+    line_names : sequence of L str
+    muscle : str
+
+    Returns
+    -------
+    Path
+    """
+    t = _array(times, "times", 1)
+    nl = _array(normalized_lengths, "normalized_lengths", 2)
+    ln = _array(line_normalized, "line_normalized", 2)
+    _check_rows(nl, "normalized_lengths", len(t), "times")
+    _check_rows(ln, "line_normalized", len(t), "times")
+    names = _names(line_names, ln.shape[1], "line_names")
+    fig, (ax,) = _figure()
+    _band(ax, t, nl, 1.0)
+    keep = [j for j in range(ln.shape[1]) if np.isfinite(ln[:, j]).any()]
+    _lines(ax, t, ln[:, keep], [names[j] for j in keep], 1.0)
+    ax.axhline(1.0, color="0.4", linewidth=0.8, linestyle=":")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("normalized length l / l_opt")
+    ax.set_title(title or f"{muscle}: normalized fibre lengths ({nl.shape[1]} fibres)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    return _save(fig, path)
 
 
 def coordinate_axis(values, rotational=True) -> str:
@@ -318,13 +357,15 @@ def plot_length_histogram(path, fibre_lengths, rest_lengths, *, muscle: str, tim
 
 def plot_muscle(out_dir, muscle: str, *, times, fibre_lengths, line_lengths, line_names,
                 coordinate_values, fibre_moment_arms, line_moment_arms, coordinate_names,
-                rest_lengths=None, rotational=None, stem=None) -> list:
+                rest_lengths=None, rotational=None, normalized_lengths=None, line_normalized=None,
+                stem=None) -> list:
     """All plots of one muscle into ``out_dir``; returns the written paths.
 
-    Files: ``<stem>_lengths.png``, ``<stem>_moment_arms.png`` and, when ``rest_lengths`` is
-    given, ``<stem>_length_histogram.png``. ``stem`` (default: the muscle name) is the safe file
-    stem of the muscle (`analysis.file_names`); the titles show the muscle name itself. Shapes as
-    in the individual functions.
+    Files: ``<stem>_lengths.png``, ``<stem>_moment_arms.png``, when ``rest_lengths`` is
+    given ``<stem>_length_histogram.png``, and when ``normalized_lengths`` (F, N) has values
+    ``<stem>_normalized_lengths.png``. ``stem`` (default: the muscle name) is the safe file stem of
+    the muscle (`analysis.file_names`); the titles show the muscle name itself. Shapes as in the
+    individual functions.
     """
     out = Path(out_dir)
     stem = muscle if stem is None else stem
@@ -336,4 +377,8 @@ def plot_muscle(out_dir, muscle: str, *, times, fibre_lengths, line_lengths, lin
     if rest_lengths is not None:
         paths.append(plot_length_histogram(out / f"{stem}_length_histogram.png", fibre_lengths,
                                            rest_lengths, muscle=muscle, times=times))
+    if normalized_lengths is not None and np.isfinite(np.asarray(normalized_lengths, dtype=float)).any():
+        line_norm = (np.full(np.shape(line_lengths), np.nan) if line_normalized is None else line_normalized)
+        paths.append(plot_normalized_lengths(out / f"{stem}_normalized_lengths.png", times, normalized_lengths,
+                                             line_norm, line_names, muscle=muscle))
     return paths

@@ -47,6 +47,13 @@ class MuscleResult:
     notes : tuple of str
     quality : dict or None
         `fibres.quality.FibreQuality` of the rest-pose fibres, as a dict.
+    optimal_lengths : (N,) float or None
+        Each fibre's optimal length l_opt (m) for ``normalized_lengths``, NaN where unknown
+        (`analysis.run`: the OpenSim muscle's optimal_fiber_length; with a user mesh scaled by
+        the fibre's rest length over the median rest length).
+    line_normalized_lengths : (F, L) float or None
+        Per action line, the rigid-tendon normalized fibre length (L_path - tendon_slack_length)
+        / optimal_fiber_length of its OpenSim muscle (NaN where the model has no parameters).
     """
 
     name: str
@@ -62,6 +69,8 @@ class MuscleResult:
     surface_faces: np.ndarray | None = None
     notes: tuple = ()
     quality: dict | None = None
+    optimal_lengths: np.ndarray | None = None
+    line_normalized_lengths: np.ndarray | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "coordinates", tuple(self.coordinates))
@@ -86,6 +95,16 @@ class MuscleResult:
         for key, val in (("fibre_lengths", fl), ("fibre_moment_arms", fr), ("action_line_lengths", al),
                          ("action_line_moment_arms", ar), ("rest_lengths", rest)):
             object.__setattr__(self, key, val)
+        if self.optimal_lengths is not None:
+            opt = _ro(self.optimal_lengths, 1, "optimal_lengths")
+            if opt.shape != (n_n,):
+                raise ValueError(f"optimal_lengths must be ({n_n},), got {opt.shape}")
+            object.__setattr__(self, "optimal_lengths", opt)
+        if self.line_normalized_lengths is not None:
+            ln = _ro(self.line_normalized_lengths, 2, "line_normalized_lengths")
+            if ln.shape != al.shape:
+                raise ValueError(f"line_normalized_lengths must be {al.shape}, got {ln.shape}")
+            object.__setattr__(self, "line_normalized_lengths", ln)
         if self.fibre_points is not None:
             pts = _ro(self.fibre_points, 4, "fibre_points")
             if pts.shape[:2] != (n_f, n_n) or pts.shape[3] != 3:
@@ -100,6 +119,13 @@ class MuscleResult:
     @property
     def n_fibres(self) -> int:
         return self.fibre_lengths.shape[1]
+
+    @property
+    def normalized_lengths(self) -> np.ndarray:
+        """(F, N) float: fibre length over its optimal length, l / l_opt (NaN where unknown)."""
+        if self.optimal_lengths is None:
+            return np.full(self.fibre_lengths.shape, np.nan)
+        return self.fibre_lengths / self.optimal_lengths[None, :]
 
 
 @dataclass(frozen=True, eq=False)

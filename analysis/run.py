@@ -21,7 +21,12 @@ The chain (DESIGN.md), per muscle:
 
          p'(u) = b(p(u)) + (1 - u) [T_o p(0) - b(p(0))] + u [T_i p(1) - b(p(1))],
 
-     with ``b`` the belly deformation and ``T_o``, ``T_i`` the origin and insertion body motions.
+     with ``b`` the belly deformation and ``T_o``, ``T_i`` the origin and insertion body motions
+     (each residual held in the belly's line frame at its end and carried along the fibre with
+     those frames, `motion.WrappedSurface.rider_frames`: over a pulley a fibre keeps its offset
+     from the line, so its moment arm is its own radius; on a straight line the frames are
+     constant and this is the plain linear spread). A generated, tendon-aware surface
+     (`motion.surface_tendons`) has its fibre ends on the belly's caps, riding the belly.
      Why not the surface's own rigid attachment zones: a zone turns the fibre's end piece with
      its body while the belly turns with the action line, which kinks every fibre next to its
      ends (a straight cylinder across a pin joint measured 0.33 % too long at 60 degrees). With
@@ -73,7 +78,8 @@ from pathlib import Path
 import numpy as np
 
 from . import budget, interrupts
-from .errors import InputError
+from .errors import FibreWarning, InputError
+from .fibre_checks import line_normalized_lengths, moment_arm_notes, optimal_lengths
 from .progress import progress
 from .result import MuscleResult, RunResult
 from .spec import FibreModelSpec, load_spec
@@ -409,14 +415,13 @@ def _surface_spec(mspec):
 
 
 def _with_points(att, p_ground, pose0, model, tf_data_ground):
-    """``att`` (a `motion.SurfaceAttachment`) with the rest-pose points ``p_ground`` (K, 3) added,
-    expressed in the attachment's own frame (the mesh frame or its body's frame)."""
+    """``att`` (a `motion.SurfaceAttachment`) with its points replaced by the rest-pose points
+    ``p_ground`` (K, 3), expressed in the attachment's own frame (the mesh frame or its body's)."""
     if att.in_body_frame:
         tf = np.linalg.inv(pose0.tf_ground_body[model.body_index(att.body)])
     else:
         tf = tf_data_ground
-    extra = p_ground @ tf[:3, :3].T + tf[:3, 3]
-    return dataclasses.replace(att, points=np.vstack([att.points, extra]))
+    return dataclasses.replace(att, points=p_ground @ tf[:3, :3].T + tf[:3, 3])
 
 
 def _subdivided(points, m: int) -> np.ndarray:
@@ -433,15 +438,30 @@ def _subdivided(points, m: int) -> np.ndarray:
     return np.concatenate([inner.reshape(p.shape[0], -1, 3), p[:, -1:]], axis=1)
 
 
-def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends):
+def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None):
     """Fibres carried by the belly deformation (F, N, P, 3), corrected so that their ends are
     ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the residuals
-    spread linearly in each rest fibre's (N, P, 3) arc-length fraction (module docstring)."""
+    spread linearly in each rest fibre's (N, P, 3) arc-length fraction (module docstring).
+
+    ``frames`` (F, N, P, 3, 3), the belly's line frames at the fibre points (columns normal,
+    binormal, tangent; `motion.WrappedSurface.rider_frames`): each end residual is then held in
+    the frame at its end and carried along the fibre with the frames, so over a pulley a
+    residual across the muscle stays across it instead of a fixed ground vector (where the
+    frames are constant, on a straight line, it is the same correction)."""
     seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, P-1)
     u = np.concatenate([np.zeros((rest.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
     u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, P)
     e0 = origin_ends - carried[:, :, 0]
     e1 = insertion_ends - carried[:, :, -1]
+    if frames is not None:
+        local0 = np.einsum("fnji,fnj->fni", frames[:, :, 0], e0)       # e0 in the frame at the end
+        local1 = np.einsum("fnji,fnj->fni", frames[:, :, -1], e1)
+        mix = local0[:, :, None] + u[None, :, :, None] * (local1 - local0)[:, :, None]   # (F, N, P, 3)
+        out = carried + np.matmul(frames, mix[..., None])[..., 0]
+        # the ends exactly (the interpolated frames there are those used for local0/local1)
+        out[:, :, 0] = origin_ends
+        out[:, :, -1] = insertion_ends
+        return out
     out = carried + e0[:, :, None]                       # = ... + (1 - u) e0 + u e1, two temporaries
     out += u[None, :, :, None] * (e1 - e0)[:, :, None]
     return out
@@ -539,16 +559,21 @@ def _run_muscle(ctx, mspec):
         both = both @ tf_data_ground[:3, :3].T + tf_data_ground[:3, 3]
         # the fibre end points lie in the attachment areas by construction (Kohout 2012 §3.4):
         # bind them as attachment points too, so they ride their bones exactly
-        ends = {"origin": bundle0.points[:, 0], "insertion": bundle0.points[:, -1]}
-        bound = dataclasses.replace(sspec, vertices=both, faces=faces, riders=both.shape[0] - n_v, **{
+        # (a generated muscle with tendons: the landmarks are the belly's ends and ride the belly)
+        ends = {"origin": np.vstack([rest.rest_origin, bundle0.points[:, 0]]),
+                "insertion": np.vstack([rest.rest_insertion, bundle0.points[:, -1]])}
+        bound = dataclasses.replace(sspec, vertices=both, faces=faces, riders=both.shape[0] - n_v,
+                                    tendon_slack=getattr(rest, "tendon_slack", None) or None, **{
             end: _with_points(getattr(sspec, end), p_ground, pose0, ctx.model, tf_data_ground)
             for end, p_ground in ends.items()})
         with _timed(timings, "wrap"):
             (wrapped,) = wrap_surfaces(ctx.model, stacked, [bound])
         n_all = wrapped.vertices.shape[0]
         surfaces = wrapped.vertices[:, :n_v]
+        frames = getattr(wrapped, "rider_frames", None)
         fine = _ends_ride_their_bodies(wrapped.vertices[:, n_v:].reshape((n_all,) + fine.shape), fine,
-                                       wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:])
+                                       wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:],
+                                       None if frames is None else frames.reshape((n_all,) + fine.shape[:2] + (3, 3)))
         points = fine[:, :, ::LENGTH_SUBDIVISION]
     else:
         with _timed(timings, "wrap"):
@@ -591,12 +616,18 @@ def _run_muscle(ctx, mspec):
                       FibreQualityWarning, stacklevel=2)
     if getattr(rest, "rest_residual", 0.0):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)
+    rest_lengths = fibre_lengths(bundle0.points)
+    warned = tuple(f"warning: {n}" for n in getattr(wrapped, "notes", ())) + moment_arm_notes(names, r, al_r)
+    for note in warned:
+        warnings.warn(f"muscle {mspec.name!r}: {note[len('warning: '):]}", FibreWarning, stacklevel=3)
     result = MuscleResult(
         name=mspec.name, coordinates=names, fibre_lengths=base, fibre_moment_arms=r,
         action_lines=mspec.action_lines, action_line_lengths=al_len, action_line_moment_arms=al_r,
-        rest_lengths=fibre_lengths(bundle0.points),
+        rest_lengths=rest_lengths,
         fibre_points=points[:n_f] if ctx.keep_points else None,
         surface_vertices=surfaces[:n_f] if ctx.keep_surfaces else None,
-        surface_faces=faces if ctx.keep_surfaces else None, notes=notes,
-        quality=None if quality is None else quality.as_dict())
+        surface_faces=faces if ctx.keep_surfaces else None, notes=notes + warned,
+        quality=None if quality is None else quality.as_dict(),
+        optimal_lengths=optimal_lengths(ctx.model, mspec.action_lines, rest_lengths, generated=mspec.mesh is None),
+        line_normalized_lengths=line_normalized_lengths(ctx.model, mspec.action_lines, al_len))
     return result, timings

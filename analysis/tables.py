@@ -1,12 +1,12 @@
 """The tables of `fibres run` (INTERFACE.md): long/tidy pandas DataFrames built from a RunResult.
 
-- ``fibre_lengths.csv``: frame, time, muscle, fibre, length
+- ``fibre_lengths.csv``: frame, time, muscle, fibre, length, normalized_length (l / l_opt)
 - ``fibre_moment_arms.csv``: frame, time, muscle, fibre, coordinate, moment_arm
 - ``action_lines.csv``: frame, time, muscle, action_line, length
 - ``action_line_moment_arms.csv``: frame, time, muscle, action_line, coordinate, moment_arm
-- ``summary.csv``: one row per frame x muscle for the length, and per frame x muscle x coordinate
-  for the moment arm: frame, time, muscle, quantity ("length" | "moment_arm"), coordinate ("" for
-  the length), n_fibres, mean, std, min, p5, median, p95, max of the fibres, then the action
+- ``summary.csv``: one row per frame x muscle for the length and the normalized length, and per
+  frame x muscle x coordinate for the moment arm: frame, time, muscle, quantity ("length" |
+  "normalized_length" | "moment_arm"), coordinate ("" for the lengths), n_fibres, mean, std, min, p5, median, p95, max of the fibres, then the action
   lines: n_action_lines, action_line_mean, action_line_min, action_line_max and
   action_line_values ("name=value;name=value", values with 12 significant digits).
 
@@ -41,18 +41,31 @@ def _concat(frames, columns):
     return pd.concat(frames, ignore_index=True)[columns]
 
 
+def _normalized(m):
+    """(F, N) l / l_opt of a MuscleResult (NaN where unknown or not provided)."""
+    value = getattr(m, "normalized_lengths", None)
+    return np.full(m.fibre_lengths.shape, np.nan) if value is None else np.asarray(value, dtype=float)
+
+
+def _line_normalized(m):
+    """(F, L) (L_path - l_ts) / l_opt of the action lines (NaN where unknown)."""
+    value = getattr(m, "line_normalized_lengths", None)
+    return np.full(m.action_line_lengths.shape, np.nan) if value is None else np.asarray(value, dtype=float)
+
+
 def fibre_lengths_table(result):
     """(frame, time, muscle, fibre, length) for every muscle, frame and fibre."""
     import pandas as pd
 
-    cols = ["frame", "time", "muscle", "fibre", "length"]
+    cols = ["frame", "time", "muscle", "fibre", "length", "normalized_length"]
     out = []
     for m in result.muscles:
         n_f, n_n = m.fibre_lengths.shape
         frame, time = _grid(n_f, result.time, n_n)
         out.append(pd.DataFrame({"frame": frame, "time": time, "muscle": m.name,
                                  "fibre": np.tile(np.arange(n_n), n_f),
-                                 "length": m.fibre_lengths.ravel()}))
+                                 "length": m.fibre_lengths.ravel(),
+                                 "normalized_length": _normalized(m).ravel()}))
     return _concat(out, cols)
 
 
@@ -144,6 +157,14 @@ def summary_table(result):
             "coordinate": "", "n_fibres": n_n, **st, "n_action_lines": n_l,
             "action_line_mean": al.mean(-1), "action_line_min": al.min(-1), "action_line_max": al.max(-1),
             "action_line_values": _line_values(m.action_lines, al)}))
+        norm, line_norm = _normalized(m), _line_normalized(m)
+        with np.errstate(invalid="ignore"):
+            st = _stats(norm)
+            out.append(pd.DataFrame({
+                "frame": np.arange(n_f), "time": result.time, "muscle": m.name, "quantity": "normalized_length",
+                "coordinate": "", "n_fibres": n_n, **st, "n_action_lines": n_l,
+                "action_line_mean": line_norm.mean(-1), "action_line_min": line_norm.min(-1),
+                "action_line_max": line_norm.max(-1), "action_line_values": _line_values(m.action_lines, line_norm)}))
         n_c = len(m.coordinates)
         if n_c == 0:
             continue
@@ -157,7 +178,7 @@ def summary_table(result):
             "action_line_max": ar.max(-1), "action_line_values": _line_values(m.action_lines, ar)}))
     df = _concat(out, cols)
     if len(df):
-        order = {"length": 0, "moment_arm": 1}
+        order = {"length": 0, "normalized_length": 1, "moment_arm": 2}
         df = df.assign(_q=df["quantity"].map(order)).sort_values(
             ["frame", "muscle", "_q", "coordinate"], kind="stable").drop(columns="_q").reset_index(drop=True)
     return df
@@ -170,8 +191,10 @@ def result_long_frame(result):
     cols = ["frame", "time", "muscle", "kind", "fibre", "action_line", "quantity", "coordinate", "value"]
     parts = []
     fl = fibre_lengths_table(result)
-    parts.append(fl.rename(columns={"length": "value"}).assign(kind="fibre", action_line="", quantity="length",
-                                                               coordinate=""))
+    parts.append(fl.drop(columns="normalized_length").rename(columns={"length": "value"}).assign(
+        kind="fibre", action_line="", quantity="length", coordinate=""))
+    parts.append(fl.drop(columns="length").rename(columns={"normalized_length": "value"}).assign(
+        kind="fibre", action_line="", quantity="normalized_length", coordinate=""))
     fr = fibre_moment_arms_table(result)
     parts.append(fr.rename(columns={"moment_arm": "value"}).assign(kind="fibre", action_line="",
                                                                    quantity="moment_arm"))

@@ -47,7 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .surface_curves import (any_perpendicular, arc_fractions, curve_tangents, resample_polylines,
+from .surface_curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline,
+                             resample_polylines, smoothed_tangents,
                              rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
 from .surface_volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
@@ -77,28 +78,6 @@ def _check_tf(tf, name: str, n_frames: int | None = None) -> np.ndarray:
     return tf
 
 
-def _closest_on_polyline(points: np.ndarray, curve: np.ndarray):
-    """Nearest point of a polyline (n, 3) to each point (V, 3): segment index, fraction, distance."""
-    a, b = curve[:-1], curve[1:]
-    ab = b - a
-    denom = np.maximum(np.sum(ab * ab, axis=-1), 1e-30)
-    # (V, n-1) projections, chunked over vertices to bound memory
-    best_j = np.empty(points.shape[0], dtype=np.int64)
-    best_t = np.empty(points.shape[0])
-    best_d = np.empty(points.shape[0])
-    step = max(1, 2_000_000 // max(1, len(a)))
-    for s in range(0, points.shape[0], step):  # chunks of vertices, not single vertices
-        p = points[s:s + step]
-        t = np.clip(np.einsum("vsk,sk->vs", p[:, None, :] - a[None], ab) / denom, 0.0, 1.0)
-        d2 = np.sum((a[None] + t[..., None] * ab[None] - p[:, None, :]) ** 2, axis=-1)
-        j = np.argmin(d2, axis=1)
-        rows = np.arange(p.shape[0])
-        best_j[s:s + step] = j
-        best_t[s:s + step] = t[rows, j]
-        best_d[s:s + step] = np.sqrt(d2[rows, j])
-    return best_j, best_t, best_d
-
-
 @dataclass(frozen=True, eq=False)
 class SurfaceFrames:
     """A deformed surface over a motion.
@@ -112,14 +91,25 @@ class SurfaceFrames:
     volume : (F,) float
         Enclosed volume of the final surface in each frame.
     rest_volume : float
+    rider_frames : (F, R, 3, 3) float or None
+        With ``deform(..., rider_frames=R)``: the line frames (columns normal, binormal,
+        tangent) interpolated at the last ``R`` vertices (the riders), as the belly carries them.
     """
 
     vertices: np.ndarray
     radial_scale: np.ndarray
     volume: np.ndarray
     rest_volume: float
+    rider_frames: np.ndarray | None = None
 
     def __post_init__(self):
+        if self.rider_frames is not None:
+            arr = np.asarray(self.rider_frames, dtype=float)
+            if arr.flags.writeable and arr.flags.owndata:
+                arr.setflags(write=False)   # built here: freeze without copying
+            else:
+                arr = _ro(arr)
+            object.__setattr__(self, "rider_frames", arr)
         for name in ("vertices", "radial_scale", "volume"):
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.flags.writeable and arr.flags.owndata:
@@ -156,6 +146,8 @@ class SurfaceBinding:
     rest_lengths: np.ndarray         # (L,)
     arc_fraction: np.ndarray         # (n,)
     anchor_fractions: tuple = ()     # per line: (K,) rest arc fractions of the anchors, or None
+    frame_matrix: sp.csr_matrix | None = None   # (V, n L): belly weights of the line frames
+    tangent_sigma: float = 0.0       # Gaussian smoothing of the line tangents, in samples
 
     @property
     def n_lines(self) -> int:
@@ -184,7 +176,7 @@ class SurfaceBinding:
             c = resample_polylines(c if c.ndim == 3 else c[None], self.n_samples, anchors=idx,
                                    anchor_fractions=None if idx is None else fractions)
             c = np.broadcast_to(c, (max(f_count, c.shape[0]),) + c.shape[1:])
-            tan = curve_tangents(c)
+            tan = smoothed_tangents(c, self.tangent_sigma)
             carried_t0 = np.einsum("fij,j->fi", rot_o, rest[0, :, 2])
             carried_n0 = np.einsum("fij,j->fi", rot_o, rest[0, :, 0])
             r0 = transport_vector(carried_n0, carried_t0, tan[:, 0])
@@ -200,14 +192,26 @@ class SurfaceBinding:
         return np.stack(centres, axis=1), np.stack(frames, axis=1)
 
     # ------------------------------------------------------------------------- deform
-    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None):
+    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None, *, riders: int = 0):
         """The two parts of ``v(k) = P + k Q`` for every frame, vertex-major.
 
         Returns
         -------
         p, q : (V, F, 3) float
+        rider_frames : (F, R, 3, 3) float, only with ``riders = R > 0``
+            The line frames interpolated at the last R vertices (`SurfaceFrames.rider_frames`).
         """
         centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
+        if riders:
+            f_n = frames.shape[0]
+            feat = np.ascontiguousarray(frames.reshape(f_n, -1, 9).transpose(1, 0, 2)).reshape(-1, f_n * 9)
+            at = np.asarray(self.frame_matrix[-int(riders):] @ feat).reshape(int(riders), f_n, 3, 3)
+            return self._affine(centres, frames, tf_origin, tf_insertion) + (
+                np.ascontiguousarray(at.transpose(1, 0, 2, 3)),)
+        return self._affine(centres, frames, tf_origin, tf_insertion)
+
+    def _affine(self, centres, frames, tf_origin, tf_insertion):
+        """`affine_parts` from the resampled lines and their frames."""
         f_count = centres.shape[0]
         n_v = self.rest_vertices.shape[0]
         tf_o = np.broadcast_to(_check_tf(tf_origin, "tf_origin", f_count), (f_count, 4, 4))
@@ -226,7 +230,7 @@ class SurfaceBinding:
         return p, q
 
     def deform(self, curves, tf_origin, tf_insertion, *, anchors=None, obstacles=(), preserve_volume: bool = True,
-               push_iterations: int = 5) -> SurfaceFrames:
+               push_iterations: int = 5, rider_frames: int = 0) -> SurfaceFrames:
         """Deform the rest surface for every frame of a motion.
 
         Parameters
@@ -247,6 +251,8 @@ class SurfaceBinding:
             Solve the radial scale so the volume stays the rest volume (else ``k = 1``).
         push_iterations : int, keyword-only
             Secant updates of ``k`` after the obstacles pushed vertices out.
+        rider_frames : int, keyword-only
+            Also return the line frames at the last this many vertices (`SurfaceFrames`).
 
         Returns
         -------
@@ -254,7 +260,11 @@ class SurfaceBinding:
         """
         if len(curves) != self.n_lines:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
-        p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
+        at = None
+        if rider_frames:
+            p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames)
+        else:
+            p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
         target = self.rest_volume
         if preserve_volume:
             coeffs = volume_cubic_vf(p, q, self.faces)
@@ -267,14 +277,14 @@ class SurfaceBinding:
                 volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
             else:
                 volume = mesh_volume(vertices, self.faces)
-            return SurfaceFrames(vertices, k, volume, target)
+            return SurfaceFrames(vertices, k, volume, target, at)
         p = np.ascontiguousarray(p.transpose(1, 0, 2))
         q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
         rounds = 1 if len(obstacles) < 2 else 2
 
         def pusher(pp, qq, obs):
-            squeezers = [o.squeezer(pp) for o in obs if hasattr(o, "squeezer")]
+            squeezers = [o.squeezer(pp) for o in obs if getattr(o, "squeezes", hasattr(o, "squeezer"))]
 
             def pushed(kk):
                 w = kk[:, None, None] * qq
@@ -315,13 +325,14 @@ class SurfaceBinding:
                 k_prev, g_prev = k, g
                 k = np.clip(k_next, 0.25, 4.0)
             vertices, volume = (pusher(p, q, obstacles) if split else pushed)(k)
-        return SurfaceFrames(vertices, k, volume, target)
+        return SurfaceFrames(vertices, k, volume, target, at)
 
 
 def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,
                  origin_points, insertion_points, *, n_samples: int = 40,
                  rigid_radius: float | None = None, blend_radius: float | None = None,
-                 line_blend: float | None = None, rest_anchors=None, free_vertices=None) -> SurfaceBinding:
+                 line_blend: float | None = None, rest_anchors=None, free_vertices=None,
+                 tangent_smoothing: float = 0.0) -> SurfaceBinding:
     """Bind a rest surface to its action lines and attachment bodies.
 
     Parameters
@@ -349,6 +360,9 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         line, first and last included; `SurfaceBinding.deform` then matches arc length piece by
         piece between anchors, so a piece fixed on one body does not slide over that body as
         the free pieces stretch. None: one piece (global arc length).
+    tangent_smoothing : float, keyword-only
+        Arc length (m, at rest) over which the line tangents that orient the cross-sections
+        are averaged (`motion.surface_curves.smoothed_tangents`, standard deviation); 0: none.
     free_vertices : (V,) bool or index array or None, keyword-only
         Vertices that get no rigid attachment zone (``w_o = w_i = 0``, all belly): points
         carried with the surface that are not part of it, e.g. fibre points, whose ends the
@@ -385,6 +399,7 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
     if blend <= rigid:
         raise ValueError("blend_radius must exceed rigid_radius")
     delta = 0.02 * mean_len if line_blend is None else float(line_blend)
+    sigma = float(tangent_smoothing) / (mean_len / (n - 1)) if tangent_smoothing else 0.0
 
     # rigid weights from the distance to the attachment landmarks
     from scipy.spatial import cKDTree
@@ -413,30 +428,38 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
     vals_c, vals_t, vals_n, vals_b = [], [], [], []
     dists, per_line = [], []
     for l, c in enumerate(curves):  # loop over action lines (few)
-        tan = curve_tangents(c[None])
+        tan = smoothed_tangents(c[None], sigma)
         fr = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
         rest_frames.append(_ro(fr))
-        j, t, d = _closest_on_polyline(verts, c)
-        centre = c[j] + t[:, None] * (c[j + 1] - c[j])
+        j, t, d = closest_on_polyline(verts, c)
+        c_idx, c_w = catmull_rom_weights(j, t, len(c))
+        centre = np.einsum("vk,vkj->vj", c_w, c[c_idx])
         basis = (1.0 - t)[:, None, None] * fr[j] + t[:, None, None] * fr[j + 1]  # (V, 3, 3)
         local = np.linalg.solve(basis, (verts - centre)[..., None])[..., 0]       # (V, 3)
         dists.append(d)
-        per_line.append((j, t, local))
+        per_line.append((j, t, local, c_idx, c_w))
     d = np.stack(dists, axis=1)  # (V, L)
     w_line = 1.0 / (d * d + delta * delta) ** 2
     w_line /= np.sum(w_line, axis=1, keepdims=True)
     n_v = len(verts)
-    for l, (j, t, local) in enumerate(per_line):
+    rows_c, cols_c, vals_f = [], [], []
+    for l, (j, t, local, c_idx, c_w) in enumerate(per_line):
         w = w_b * w_line[:, l]
         for offset, share in ((0, 1.0 - t), (1, t)):
             rows.append(np.arange(n_v))
             cols.append(l * n + j + offset)
-            vals_c.append(w * share)
+            vals_f.append(w * share)
             vals_n.append(w * share * local[:, 0])
             vals_b.append(w * share * local[:, 1])
             vals_t.append(w * share * local[:, 2])
+        for k in range(c_idx.shape[1]):   # the centre: spline weights on up to 4 samples
+            rows_c.append(np.arange(n_v))
+            cols_c.append(l * n + c_idx[:, k])
+            vals_c.append(w * c_w[:, k])
     rows = np.concatenate(rows)
     cols = np.concatenate(cols)
+    rows_c = np.concatenate(rows_c)
+    cols_c = np.concatenate(cols_c)
     # rigid parts: w * (R local + t) = sum_j (w local_j) R[:, j] + w t, on 8 extra feature rows
     rig_rows, rig_cols, rig_vals = [], [], []
     for slot, (w, tf) in enumerate(((w_o, tf_o), (w_i, tf_i))):
@@ -448,8 +471,9 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
             rig_cols.append(np.full(len(sel), 2 * n * n_l + 4 * slot + j))
             rig_vals.append(w[sel] * val)
     fixed = sp.csr_matrix((np.concatenate(vals_c + vals_t + rig_vals),
-                           (np.concatenate([rows, rows] + rig_rows),
-                            np.concatenate([cols, cols + n * n_l] + rig_cols))), shape=(n_v, 2 * n * n_l + 8))
+                           (np.concatenate([rows_c, rows] + rig_rows),
+                            np.concatenate([cols_c, cols + n * n_l] + rig_cols))), shape=(n_v, 2 * n * n_l + 8))
+    frame_matrix = sp.csr_matrix((np.concatenate(vals_f), (rows, cols)), shape=(n_v, n * n_l))
     radial = sp.csr_matrix((np.concatenate(vals_n + vals_b),
                             (np.concatenate([rows, rows]), np.concatenate([cols, cols + n * n_l]))),
                            shape=(n_v, 2 * n * n_l))
@@ -461,4 +485,5 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         rest_frames=tuple(rest_frames), tf_rest_origin=_ro(tf_o), tf_rest_insertion=_ro(tf_i),
         weight_origin=_ro(w_o), weight_insertion=_ro(w_i), weight_belly=_ro(w_b),
         fixed_matrix=fixed, radial_matrix=radial, rest_volume=float(volume),
-        rest_lengths=_ro(lengths), arc_fraction=_ro(arc), anchor_fractions=tuple(fractions))
+        rest_lengths=_ro(lengths), arc_fraction=_ro(arc), anchor_fractions=tuple(fractions),
+        frame_matrix=frame_matrix, tangent_sigma=sigma)

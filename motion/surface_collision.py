@@ -136,21 +136,48 @@ class WrapObstacle:
         Cylinder: (radius, radius, length); sphere: (r, r, r); ellipsoid: its dimensions.
     margin : float
         Push-out shell thickness ``m`` in metres.
+    inset : float or (V,) float
+        Depth (m) by which each vertex may enter the object: the obstacle a vertex meets is the
+        object's surface moved inwards by its inset (0: the wrap surface itself). `motion.wrap_surfaces`
+        sets the muscle's local half-thickness (`motion.surface_thickness`), so that the wrap
+        object guides the centre line while the tissue around it may lie inside the wrap radius.
+    knee : float or None
+        Knee of the through-thickness squeeze (`squeezer`); None: no squeeze, push-out only.
     """
 
     kind: str
     tf_ground_obstacle: np.ndarray
     radii: np.ndarray
     margin: float = 5e-4
+    inset: object = 0.0
+    knee: float | None = SQUEEZE_KNEE
 
     def __post_init__(self):
         if self.kind not in ("cylinder", "sphere", "ellipsoid"):
             raise ValueError(f"kind must be cylinder, sphere or ellipsoid, got {self.kind!r}")
         object.__setattr__(self, "tf_ground_obstacle", np.asarray(self.tf_ground_obstacle, dtype=float))
         object.__setattr__(self, "radii", np.asarray(self.radii, dtype=float).reshape(3))
+        inset = np.asarray(self.inset, dtype=float)
+        if inset.ndim > 1 or np.any(inset < 0) or not np.all(np.isfinite(inset)):
+            raise ValueError("inset must be a non-negative number or a (V,) array")
+        object.__setattr__(self, "inset", inset)
+
+    @property
+    def squeezes(self) -> bool:
+        """True when the object squeezes the cross-section before the push-out (``knee`` set)."""
+        return self.knee is not None
+
+    def _inset_for(self, n_vertices: int) -> np.ndarray:
+        """(V,) insets for a surface of ``n_vertices`` vertices."""
+        if self.inset.ndim == 0:
+            return np.full(n_vertices, float(self.inset))
+        if self.inset.shape[0] != n_vertices:
+            raise ValueError(f"inset has {self.inset.shape[0]} values for {n_vertices} vertices")
+        return self.inset
 
     def signed_distance(self, vertices) -> np.ndarray:
-        """(F, V) signed distance of ground vertices (F, V, 3); negative inside."""
+        """(F, V) signed distance of ground vertices (F, V, 3) to the object; negative inside
+        (the inset is not subtracted)."""
         return self._distance_direction(_to_local(self.tf_ground_obstacle, np.asarray(vertices, float)))[0]
 
     def _distance_direction(self, p):
@@ -173,8 +200,8 @@ class WrapObstacle:
         return d, n, np.ones_like(rad)
 
     def leading(self, n: int) -> "WrapObstacle":
-        """The obstacle for the first ``n`` vertices of its surface (itself: nothing per vertex)."""
-        return self
+        """The obstacle for the first ``n`` vertices of its surface (per-vertex insets cut)."""
+        return self if self.inset.ndim == 0 else replace(self, inset=self.inset[:n])
 
     def squeezer(self, centres):
         """The through-thickness squeeze of offsets from ``centres`` (F, V, 3): a function of offsets.
@@ -223,8 +250,9 @@ class WrapObstacle:
             d, n, window = self._distance_direction(_to_local(self.tf_ground_obstacle, c))
             inward = _to_ground_dir(self.tf_ground_obstacle, -n) * window[..., None]   # windowed -n
             h = d - self.margin
+        h = h + self._inset_for(c.shape[-2])
         inv_h = 1.0 / np.maximum(h, 1e-300)
-        a = float(SQUEEZE_KNEE)
+        a = float(SQUEEZE_KNEE if self.knee is None else self.knee)
         kernel = None if kernels is None else kernels[1]
 
         def squeeze(offsets) -> np.ndarray:
@@ -250,11 +278,13 @@ class WrapObstacle:
             tf = np.ascontiguousarray(np.broadcast_to(tf, (v.shape[0], 4, 4)))
             out = np.empty_like(v)
             kind = ("cylinder", "sphere", "ellipsoid").index(self.kind)
-            kernel(kind, np.ascontiguousarray(v), tf, np.ascontiguousarray(self.radii), float(self.margin), out)
+            kernel(kind, np.ascontiguousarray(v), tf, np.ascontiguousarray(self.radii), float(self.margin),
+                   np.ascontiguousarray(self._inset_for(v.shape[1])), out)
             return out
         p = _to_local(self.tf_ground_obstacle, v)
         d, n, window = self._distance_direction(p)
-        move = (soft_floor(d, self.margin) - d) * window
+        inset = self._inset_for(v.shape[-2])
+        move = (soft_floor(d + inset, self.margin) - d - inset) * window
         if not np.any(move):
             return v
         if self.kind == "ellipsoid":
@@ -359,7 +389,7 @@ def _push_kernel():
         return None
 
     @numba.njit(cache=False)
-    def kernel(kind, v, tf, radii, m, out):  # pragma: no cover - compiled
+    def kernel(kind, v, tf, radii, m, inset, out):  # pragma: no cover - compiled
         r_min = min(radii[0], min(radii[1], radii[2]))
         for f in range(v.shape[0]):
             for i in range(v.shape[1]):
@@ -382,6 +412,7 @@ def _push_kernel():
                     sx, sy, sz = x / radii[0], y / radii[1], z / radii[2]
                     rad = math.sqrt(sx * sx + sy * sy + sz * sz)
                     d = (rad - 1.0) * r_min
+                d += inset[i]
                 if d >= m:
                     continue
                 window = 1.0
@@ -398,7 +429,7 @@ def _push_kernel():
                 elif kind == 1:
                     lx, ly, lz = move * x / rad, move * y / rad, move * z / rad
                 else:
-                    scale = ((d + move) / r_min + 1.0) / rad - 1.0
+                    scale = ((d - inset[i] + move) / r_min + 1.0) / rad - 1.0
                     lx, ly, lz = x * scale, y * scale, z * scale
                 out[f, i, 0] += tf[f, 0, 0] * lx + tf[f, 0, 1] * ly + tf[f, 0, 2] * lz
                 out[f, i, 1] += tf[f, 1, 0] * lx + tf[f, 1, 1] * ly + tf[f, 1, 2] * lz
@@ -408,10 +439,12 @@ def _push_kernel():
     return kernel
 
 
-def wrap_obstacle(wrap, tf_ground_body, *, margin: float = 5e-4) -> WrapObstacle | None:
+def wrap_obstacle(wrap, tf_ground_body, *, margin: float = 5e-4, inset=0.0,
+                  knee: float | None = SQUEEZE_KNEE) -> WrapObstacle | None:
     """A `WrapObstacle` for a `motion.model.WrapObject` on a body with pose (F, 4, 4).
 
-    Returns None for a torus (not pushed; documented limitation).
+    ``inset`` (scalar or (V,)) and ``knee``: see `WrapObstacle`. Returns None for a torus (not
+    pushed; documented limitation).
     """
     tf = np.asarray(tf_ground_body, dtype=float) @ np.asarray(wrap.tf_body_wrap, dtype=float)
     if wrap.kind == "cylinder":
@@ -422,7 +455,7 @@ def wrap_obstacle(wrap, tf_ground_body, *, margin: float = 5e-4) -> WrapObstacle
         radii = tuple(wrap.dimensions)
     else:
         return None
-    return WrapObstacle(wrap.kind, tf, np.asarray(radii, dtype=float), margin)
+    return WrapObstacle(wrap.kind, tf, np.asarray(radii, dtype=float), margin, inset, knee)
 
 
 # ------------------------------------------------------------------------------- bones

@@ -28,7 +28,13 @@ import numpy as np
 from .surface_curves import any_perpendicular, curve_tangents, resample_polylines, rotation_minimizing_frames
 from .surface_volume import mesh_volume, solve_radial_scale, volume_cubic
 
-__all__ = ["fusiform_surface", "fusiform_radius", "SPECIFIC_TENSION"]
+__all__ = ["fusiform_surface", "fusiform_radius", "belly_surface", "SPECIFIC_TENSION"]
+
+#: A generated belly's radius is at most this fraction of its rest length (`belly_surface`).
+BELLY_MAX_ASPECT = 0.1
+
+#: A generated belly's flat caps are cut into this many rings (the inner ones are its landmarks).
+CAP_RINGS = 3
 
 #: Specific tension used to turn max isometric force into PCSA (Pa), Arnold et al. 2010.
 SPECIFIC_TENSION = 0.61e6
@@ -118,3 +124,93 @@ def fusiform_surface(curve, *, max_radius: float | None = None, volume: float | 
         k = solve_radial_scale(coeffs, float(volume))[0]
         vertices = centre + k * (vertices - centre)
     return vertices, faces
+
+
+def belly_surface(curve, *, volume: float | None = None, max_radius: float | None = None,
+                  n_rings: int = 40, n_around: int = 24, landmark_fraction: float = 0.9):
+    """A closed tube around the belly piece of an action line, flat caps where the tendons join.
+
+    The belly of a tendon-aware generated muscle (`motion.muscle_parameters`): a tube of
+    constant radius ``r`` about the line (rings on its rotation-minimising frames, Wang et al.
+    2008), closed at each end by a flat disc perpendicular to the line, the tendon's footprint.
+    Fibres of the parallel template then run from cap to cap, so their lengths are the belly
+    length ``L - l_ts`` (rigid tendon). ``r``: ``max_radius``; else ``volume = pi r^2 b`` (the
+    triangulated volume made exact, as in `fusiform_surface`); else ``0.1 b``.
+
+    Parameters
+    ----------
+    curve : (P, 3) float
+        The belly piece of the line at the rest pose, origin side first (metres).
+    volume, max_radius : float, keyword-only
+    n_rings, n_around : int, keyword-only
+        Rings along the tube (both cap rims included) and vertices per ring.
+    landmark_fraction : float, keyword-only
+        The attachment landmarks: each cap's centre and a ring of 8 points at this fraction of
+        the radius.
+
+    Returns
+    -------
+    vertices : (V, 3) float
+        ``V = n_rings * n_around + 2``: the rings, then the origin and insertion cap centres.
+    faces : (T, 3) int
+        Outward oriented.
+    origin, insertion : (9, 3) float
+        Attachment landmarks on the two caps.
+    """
+    c = resample_polylines(np.asarray(curve, dtype=float), int(n_rings))
+    length = float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)))
+    if length <= 0:
+        raise ValueError("the belly has zero length")
+    if n_rings < 2 or n_around < 3:
+        raise ValueError("need n_rings >= 2 and n_around >= 3")
+    if max_radius is not None:
+        r = float(max_radius)
+    elif volume is not None:
+        if not volume > 0:
+            raise ValueError("volume must be positive")
+        r = math.sqrt(float(volume) / (math.pi * length))
+    else:
+        r = 0.1 * length
+    slender = max_radius is None and r > BELLY_MAX_ASPECT * length
+    if slender:
+        r = BELLY_MAX_ASPECT * length
+    tan = curve_tangents(c[None])
+    frames = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
+    phi = 2.0 * np.pi * np.arange(int(n_around)) / int(n_around)
+    around = (np.cos(phi)[None, :, None] * frames[:, None, :, 0] + np.sin(phi)[None, :, None] * frames[:, None, :, 1])
+    ring = c[:, None, :] + r * around                                                  # (R, A, 3)
+    n_r, n_a = ring.shape[0], ring.shape[1]
+    fractions = np.arange(1, CAP_RINGS) / CAP_RINGS                                    # inner cap rings
+    caps = [c[i][None, None, :] + r * fractions[:, None, None] * around[i][None] for i in (0, -1)]
+    n_c = len(fractions) * n_a
+    vertices = np.concatenate([ring.reshape(-1, 3), caps[0].reshape(-1, 3), caps[1].reshape(-1, 3),
+                               c[:1], c[-1:]], axis=0)
+    idx = np.arange(n_r * n_a).reshape(n_r, n_a)
+    nxt = np.roll(idx, -1, axis=1)
+    first, last = n_r * n_a + 2 * n_c, n_r * n_a + 2 * n_c + 1
+    a, b, cc, d = idx[:-1], nxt[:-1], nxt[1:], idx[1:]
+    tris = [np.stack([a, b, cc], axis=-1).reshape(-1, 3), np.stack([a, cc, d], axis=-1).reshape(-1, 3)]
+    for k, (centre_v, rim) in enumerate(((first, idx[0]), (last, idx[-1]))):   # the two flat caps
+        inner = n_r * n_a + k * n_c + np.arange(n_c).reshape(len(fractions), n_a)
+        rings_k = list(inner) + [rim]
+        cap = [np.stack([np.full(n_a, centre_v), np.roll(rings_k[0], -1), rings_k[0]], axis=1)]
+        for lo, hi in zip(rings_k[:-1], rings_k[1:]):
+            cap += [np.stack([lo, np.roll(hi, -1), hi], axis=1), np.stack([lo, np.roll(lo, -1), np.roll(hi, -1)], axis=1)]
+        cap = np.concatenate(cap)
+        tris.append(cap if k == 0 else cap[:, ::-1])
+    faces = np.concatenate(tris).astype(np.int64)
+    if mesh_volume(vertices, faces) < 0:
+        faces = faces[:, ::-1].copy()
+    centre = np.concatenate([np.repeat(c, n_a, axis=0), np.repeat(c[:1], n_c, axis=0), np.repeat(c[-1:], n_c, axis=0),
+                             c[:1], c[-1:]], axis=0)
+    if max_radius is None and volume is not None and not slender:
+        coeffs = volume_cubic(centre[None], (vertices - centre)[None], faces)
+        k = solve_radial_scale(coeffs, float(volume))[0]
+        vertices = centre + k * (vertices - centre)
+        r *= k
+
+    def landmarks(i):   # the cap centre and its inner rings: the tendon's footprint
+        sel = slice(n_r * n_a, n_r * n_a + n_c) if i == 0 else slice(n_r * n_a + n_c, n_r * n_a + 2 * n_c)
+        return np.vstack([vertices[first if i == 0 else last][None], vertices[sel]])
+
+    return vertices, faces, landmarks(0), landmarks(-1)

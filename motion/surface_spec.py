@@ -109,6 +109,12 @@ class MuscleSurfaceSpec:
         The last ``riders`` vertices are not part of the surface (no face may use them) but
         points carried with it, e.g. fibre points: they follow the belly deformation only,
         without the rigid attachment zones (`motion.bind_surface` ``free_vertices``).
+    tendon_slack : tuple of float or None
+        Tendon slack length (m) per action line. None: a generated surface takes the model's
+        ``tendon_slack_length`` of each line (its belly then spans the fibre part of the path,
+        `motion.muscle_parameters`), a mesh none (0). With a positive value the surface is the
+        belly between the two tendons: it slides along the line and its attachment landmarks
+        ride the belly, not the bones.
     """
 
     name: str
@@ -122,6 +128,7 @@ class MuscleSurfaceSpec:
     bones: tuple = ()
     volume: float | None = None
     riders: int = 0
+    tendon_slack: tuple | None = None
 
     def __post_init__(self):
         lines = (self.action_lines,) if isinstance(self.action_lines, str) else tuple(self.action_lines)
@@ -139,6 +146,12 @@ class MuscleSurfaceSpec:
             raise ValueError(f"muscle {self.name!r}: riders={self.riders} must count trailing vertices "
                              "that no face uses")
         object.__setattr__(self, "riders", riders)
+        if self.tendon_slack is not None:
+            slack = tuple(float(x) for x in np.broadcast_to(np.asarray(self.tendon_slack, dtype=float),
+                                                           (len(lines),)))
+            if not all(np.isfinite(x) and x >= 0 for x in slack):
+                raise ValueError(f"muscle {self.name!r}: tendon_slack must be >= 0 per action line")
+            object.__setattr__(self, "tendon_slack", slack)
         object.__setattr__(self, "rest_pose",
                            MappingProxyType({str(k): float(v) for k, v in dict(self.rest_pose).items()}))
         object.__setattr__(self, "bones", tuple(self.bones))

@@ -18,15 +18,22 @@ Per muscle (one muscle = its action lines, loops over muscles only):
 1. Rest pose (`motion.surface_rest`): coordinates and body transforms; mesh, landmarks and bones
    to ground. A mesh farther from its action line than 0.25 m + 3 x its own size is refused as a
    likely unit mistake (InputError naming the muscle and the ``units`` key).
-2. No mesh: a fusiform surface around the first action line at the rest pose
-   (`motion.surface_generate`; volume from ``spec.volume`` or the muscle's max isometric force
-   and optimal fibre length).
+2. No mesh: a generated surface. With the model's tendon slack length (`motion.surface_tendons`,
+   `motion.muscle_parameters`) it is the belly only: a straight flat-capped tube of the rest
+   belly length ``L - l_ts`` (`motion.surface_generate.belly_surface`), bound to the straightened
+   rest belly line and bent onto the belly piece ``[l_ts / 2, L - l_ts / 2]`` of the current line
+   in every frame; its landmarks (the caps) ride the belly. Without one, a fusiform surface around
+   the first action line (`motion.surface_generate.fusiform_surface`). Volume from ``spec.volume``
+   or the muscle's max isometric force and optimal fibre length.
 3. Current action lines per frame, including the arc over every wrap object between its two
    tangent points (cylinder: the helix, i.e. the geodesic; sphere: the great circle in the
    direction the path arrives; ellipsoid: the great circle of the scaled unit sphere mapped
    back; torus: the chord).
-4. `motion.surface_binding`: bind at rest, deform for all frames at once, with the wrap objects
-   of the muscle's action lines and its bones as obstacles (`motion.surface_collision`).
+4. `motion.surface_binding`: bind at rest, deform for all frames at once, with the muscle's bone
+   meshes as obstacles or, where it has none, bones derived from its wrap objects (the wrap
+   surface moved inwards by the local half-thickness: the wrap object guides the centre line,
+   tissue may lie inside it; `motion.surface_obstacles`, `motion.surface_thickness`). Landmarks
+   at a MovingPathPoint end of the first line follow that point (`motion.surface_tendons`).
 """
 from __future__ import annotations
 
@@ -36,15 +43,18 @@ import numpy as np
 
 from .errors import InputError
 from .surface_binding import bind_surface
-from .surface_collision import BoneDistance, BoneObstacle, wrap_obstacle
-from .surface_generate import fusiform_surface
+from .muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
+from .surface_generate import belly_surface, fusiform_surface
 from .surface_rest import rest_pose
+from .surface_tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
+from .surface_curves import round_corners
+from .surface_obstacles import TANGENT_SMOOTHING, line_samples, muscle_obstacles
+from .surface_thickness import local_half_thickness
 from .surface_volume import mesh_volume
 
 __all__ = ["WrappedSurface", "wrap_surfaces", "path_polylines"]
 
 _ARC_POINTS = 24
-_BONE_CACHE: dict = {}
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,6 +83,15 @@ class WrappedSurface:
         True when the surface was generated (no mesh given).
     rest_residual : float
         ``frame = "bodies"``: residual of the solved all-frames-coincide pose.
+    tendon_slack : tuple of float
+        Tendon slack length per action line (0: no tendons; `motion.surface_tendons`). With
+        tendons the surface is the belly and ``origin`` / ``insertion`` ride it.
+    notes : tuple of str
+        Warnings for the user (a path shorter than its tendon slack length).
+    rider_frames : (F, R, 3, 3) float or None
+        For a mesh with riders (``spec.riders = R``, no tendons): the belly's line frames
+        (columns normal, binormal, tangent) at each rider, so a caller that moves rider ends
+        (fibre ends riding their bones) can carry the correction along the bent belly.
     """
 
     name: str
@@ -89,8 +108,13 @@ class WrappedSurface:
     rest_volume: float
     generated: bool = False
     rest_residual: float = 0.0
+    tendon_slack: tuple = ()
+    notes: tuple = ()
+    rider_frames: np.ndarray | None = None
 
     def __post_init__(self):
+        object.__setattr__(self, "tendon_slack", tuple(float(x) for x in self.tendon_slack))
+        object.__setattr__(self, "notes", tuple(str(x) for x in self.notes))
         for key in ("vertices", "faces", "origin", "insertion", "rest_vertices", "rest_origin",
                     "rest_insertion", "rest_q", "radial_scale", "volume"):
             arr = np.array(getattr(self, key), copy=True)
@@ -260,36 +284,9 @@ def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC
 
 
 # ----------------------------------------------------------------------------- muscles
-def _muscle_parameters(model, name: str) -> tuple:
-    """(max_isometric_force, optimal_fiber_length) of a muscle from the model file, or (None, None)."""
-    file = getattr(model, "file", None)
-    if not file:
-        return None, None
-    key = (str(file), name)
-    if key not in _PARAM_CACHE:
-        try:
-            from defusedxml import ElementTree
-
-            root = ElementTree.parse(str(file)).getroot()
-        except Exception:  # noqa: BLE001 - no file or not XML: fall back to the 1:5 rule
-            _PARAM_CACHE[key] = (None, None)
-            return _PARAM_CACHE[key]
-        found = (None, None)
-        for el in root.iter():
-            if el.get("name") == name and el.find("max_isometric_force") is not None:
-                try:
-                    fmax = float(el.findtext("max_isometric_force"))
-                    lopt = float(el.findtext("optimal_fiber_length"))
-                except (TypeError, ValueError):
-                    break
-                found = (fmax, lopt)
-                break
-        _PARAM_CACHE[key] = found
-    return _PARAM_CACHE[key]
-
-
-_PARAM_CACHE: dict = {}
-
+#: Tendon-aware bellies: path corners under the belly are rounded over this many line sample
+#: spacings (`motion.surface_curves.round_corners`).
+CORNER_SAMPLES = 1.5
 
 def _apply(tf: np.ndarray, p: np.ndarray) -> np.ndarray:
     """tf (..., 4, 4) applied to points (K, 3) -> (..., K, 3)."""
@@ -323,20 +320,6 @@ def _check_units(spec, vertices: np.ndarray, curves: list) -> None:
         raise InputError(f"the mesh lies {gap:.3g} m from its action lines and is {size:.3g} m across: "
                          "likely a unit or frame mistake", where=f"muscle {spec.name!r}: mesh",
                          fix="set units = \"mm\" if the mesh is in millimetres, and check frame/rest_pose")
-
-
-def _bone_distance(bone, vertices_body: np.ndarray, spacing: float) -> BoneDistance:
-    """Signed distance grid of a bone in its body frame, cached per bone object and placement."""
-    import hashlib
-
-    digest = hashlib.sha1(np.ascontiguousarray(vertices_body).tobytes()
-                          + np.ascontiguousarray(bone.faces).tobytes()).hexdigest()
-    key = (digest, float(spacing))
-    if key not in _BONE_CACHE:
-        if len(_BONE_CACHE) >= 16:  # a few bones per model; bound the memory
-            _BONE_CACHE.pop(next(iter(_BONE_CACHE)))
-        _BONE_CACHE[key] = BoneDistance.from_mesh(vertices_body, bone.faces, spacing=spacing)
-    return _BONE_CACHE[key]
 
 
 def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: int = 40,
@@ -389,28 +372,62 @@ def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: 
     return tuple(out)
 
 
+def _rest_lines(model, spec, tf_rest_actual, rest_motion):
+    """Rest polylines (one (P, 3) per action line) and their anchor positions (or None)."""
+    rest_lines = _current_polylines(model, rest_motion, spec.action_lines, None, tf_rest_actual)
+    curves, anchors = [], []
+    for name in spec.action_lines:
+        c = rest_lines[name][0][0]
+        curves.append(c[np.isfinite(c).all(axis=1)])
+        a = rest_lines[name][1]
+        anchors.append(None if a is None else a[0])
+    return curves, anchors
+
+
 def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigid_radius, blend_radius):
     from .kinematics import body_poses, motion_from_array
 
     rest = rest_pose(model, spec)
     rest_motion = motion_from_array(model, rest.q[None])
     tf_rest_actual = np.asarray(body_poses(model, rest_motion).tf_ground_body, dtype=float)
-    rest_lines = _current_polylines(model, rest_motion, spec.action_lines, None, tf_rest_actual)
-    rest_curves, rest_anchors = [], []
-    for name in spec.action_lines:
-        c = rest_lines[name][0][0]
-        rest_curves.append(c[np.isfinite(c).all(axis=1)])
-        anchors = rest_lines[name][1]
-        rest_anchors.append(None if anchors is None else anchors[0])
+    rest_curves, rest_anchors = _rest_lines(model, spec, tf_rest_actual, rest_motion)
+    full_rest = list(rest_curves)
+    slacks = tendon_slacks(model, spec)
+    tendons = any(x > 0 for x in slacks)
+    notes = []
+    curves = [current[name][0] for name in spec.action_lines]
+    anchors = [current[name][1] for name in spec.action_lines]
+    n_samples = line_samples(model, spec, full_rest, n_samples)
+    if tendons:
+        for k, (name, slack) in enumerate(zip(spec.action_lines, slacks)):  # loop over lines (few)
+            belly, short_rest = belly_polylines(rest_curves[k][None], slack)
+            rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
+            # the belly slides past the path's corners: round them over a few sample spacings
+            # (on the whole path, so a corner at the belly's end is rounded like any other)
+            spacing = float(np.linalg.norm(rest_curves[k][-1] - rest_curves[k][0])) / (n_samples - 1)
+            curves[k], short = belly_polylines(round_corners(curves[k], CORNER_SAMPLES * spacing), slack)
+            if short_rest.any() or short.any():
+                n_short = int(short.sum())
+                notes.append(f"action line {name}: the path is shorter than its tendon slack length "
+                             f"{slack:.4g} m + {BELLY_MIN_FRACTION:.0%} of the path "
+                             f"({'at the rest pose and ' if short_rest.any() else ''}in {n_short} of "
+                             f"{len(short)} frames): the belly is kept at least {BELLY_MIN_FRACTION:.0%} "
+                             "of the path long there, the tendons take the rest")
+        rest_anchors = [None] * len(rest_curves)
+        anchors = None
     first_path = model.path(spec.action_lines[0])
     if spec.generated:
-        fmax, lopt = _muscle_parameters(model, spec.action_lines[0])
+        params = muscle_parameters(model, spec.action_lines[0])
+        fmax, lopt = params.max_isometric_force, params.optimal_fiber_length
         volume = spec.volume
         if volume is None and fmax and lopt and fmax > 0 and lopt > 0:
             from .surface_generate import SPECIFIC_TENSION
 
             volume = fmax / SPECIFIC_TENSION * lopt
-        vertices, faces = fusiform_surface(rest_curves[0], volume=volume)
+        if tendons:
+            vertices, faces, belly_origin, belly_insertion = belly_surface(rest_curves[0], volume=volume)
+        else:
+            vertices, faces = fusiform_surface(rest_curves[0], volume=volume)
     else:
         vertices = _apply(rest.tf_ground_data, spec.vertices)
         faces = np.asarray(spec.faces, dtype=np.int64)
@@ -419,43 +436,51 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         _check_units(spec, vertices, rest_curves)
     b_o, origin_rest = _attachment(model, spec, "origin", rest, first_path)
     b_i, insertion_rest = _attachment(model, spec, "insertion", rest, first_path)
+    n_v = len(vertices)
+    if tendons:
+        if spec.generated:   # the belly's end caps, where the tendons join it
+            origin_rest, insertion_rest = belly_origin, belly_insertion
+        # the landmarks ride the belly: carried as extra face-less points
+        vertices = np.vstack([vertices, origin_rest, insertion_rest])
+        ends = (np.zeros((0, 3)), np.zeros((0, 3)))
+        free = np.arange(n_v - spec.riders, len(vertices))
+    else:
+        ends = (origin_rest, insertion_rest)
+        free = np.arange(n_v - spec.riders, n_v)
+    # a generated belly turns its cross-sections over about its thickness where the path has a
+    # corner (`motion.surface_curves.smoothed_tangents`), so its inner side does not fold
+    smoothing = TANGENT_SMOOTHING * float(np.max(local_half_thickness(
+        vertices, n_v - spec.riders, rest_curves, n_samples=n_samples))) if spec.generated or tendons else 0.0
     binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
-                           origin_rest, insertion_rest, n_samples=n_samples,
-                           rigid_radius=rigid_radius, blend_radius=blend_radius, rest_anchors=rest_anchors,
-                           free_vertices=np.arange(len(vertices) - spec.riders, len(vertices)))
-    obstacles = []
-    seen = set()
-    for name in spec.action_lines:
-        for pw in model.path(name).wraps:
-            if pw.wrap_object in seen:
-                continue
-            seen.add(pw.wrap_object)
-            wo = model.wrap_object(pw.wrap_object)
-            if not wo.active:
-                continue
-            obs = wrap_obstacle(wo, tf[:, model.body_index(wo.body)], margin=margin)
-            if obs is not None:
-                obstacles.append(obs)
-    names = list(model.body_names)
-    for k, bone in enumerate(spec.bones):
-        if bone.body not in names:
-            raise InputError(f"bone body {bone.body!r} is not a body of the model",
-                             file=getattr(model, "file", None), where=f"muscle {spec.name!r}: bones[{k}]",
-                             fix=f"use one of: {', '.join(names)}")
-        b = names.index(bone.body)
-        if bone.in_body_frame:
-            local = np.asarray(bone.vertices)
-        else:
-            local = _apply(np.linalg.inv(rest.tf_ground_body[b]) @ rest.tf_ground_data, bone.vertices)
-        dist = _bone_distance(bone, local, bone_spacing)
-        obstacles.append(BoneObstacle.bind(dist, tf[:, b], vertices, rest.tf_ground_body[b], margin=margin))
-    curves = [current[name][0] for name in spec.action_lines]
-    anchors = [current[name][1] for name in spec.action_lines]
-    res = binding.deform(curves, tf[:, b_o], tf[:, b_i], anchors=anchors, obstacles=obstacles)
-    tf_o = tf[:, b_o] @ np.linalg.inv(rest.tf_ground_body[b_o])
-    tf_i = tf[:, b_i] @ np.linalg.inv(rest.tf_ground_body[b_i])
+                           *ends, n_samples=n_samples, rigid_radius=rigid_radius, blend_radius=blend_radius,
+                           rest_anchors=rest_anchors, free_vertices=free, tangent_smoothing=smoothing)
+    obstacles = muscle_obstacles(model, spec, tf, rest, vertices, rest_curves, n_v - spec.riders,
+                           n_samples=n_samples, margin=margin, bone_spacing=bone_spacing)
+    tf_o_body = tf[:, b_o].copy()
+    tf_i_body = tf[:, b_i].copy()
+    tf_o = tf_o_body @ np.linalg.inv(rest.tf_ground_body[b_o])
+    tf_i = tf_i_body @ np.linalg.inv(rest.tf_ground_body[b_i])
+    if not tendons:
+        # landmarks at a MovingPathPoint end of the first line follow that point's own motion
+        moved = end_point_offsets(model, spec.action_lines[0], curves[0], full_rest[0], tf, tf_rest_actual[0])
+        for end, (b, offset) in moved.items():
+            if b == (b_o if end == "origin" else b_i):
+                for t in ((tf_o_body, tf_o) if end == "origin" else (tf_i_body, tf_i)):
+                    t[:, :3, 3] += offset
+    res = binding.deform(curves, tf_o_body, tf_i_body, anchors=anchors, obstacles=obstacles,
+                         rider_frames=0 if tendons else spec.riders)
+    if tendons:
+        out_v = res.vertices[:, :n_v]
+        k_o = len(origin_rest)
+        origin_now = res.vertices[:, n_v:n_v + k_o]
+        insertion_now = res.vertices[:, n_v + k_o:]
+        vertices = vertices[:n_v]
+    else:
+        out_v = res.vertices
+        origin_now, insertion_now = _apply(tf_o, origin_rest), _apply(tf_i, insertion_rest)
     return WrappedSurface(
-        name=spec.name, vertices=res.vertices, faces=binding.faces, origin=_apply(tf_o, origin_rest),
-        insertion=_apply(tf_i, insertion_rest), rest_vertices=vertices, rest_origin=origin_rest,
+        name=spec.name, vertices=out_v, faces=binding.faces, origin=origin_now,
+        insertion=insertion_now, rest_vertices=vertices, rest_origin=origin_rest,
         rest_insertion=insertion_rest, rest_q=rest.q, radial_scale=res.radial_scale, volume=res.volume,
-        rest_volume=res.rest_volume, generated=spec.generated, rest_residual=rest.residual)
+        rest_volume=res.rest_volume, generated=spec.generated, rest_residual=rest.residual,
+        tendon_slack=slacks, notes=tuple(notes), rider_frames=res.rider_frames)

@@ -147,8 +147,10 @@ def test_full_example_run_writes_the_contract(example, tmp_path, capsys):
                      "--fibres", "12", "--resolution", "8", "--sto"])
     assert code == 0, capsys.readouterr().err
     fl = pd.read_csv(out / "fibre_lengths.csv")
-    assert list(fl.columns) == ["frame", "time", "muscle", "fibre", "length"]
+    assert list(fl.columns) == ["frame", "time", "muscle", "fibre", "length", "normalized_length"]
     assert len(fl) == 3 * 3 * 12 and set(fl.frame) == {0, 1, 2}
+    # the example's muscles have OpenSim parameters: l / l_opt is finite, and the plots show it
+    assert fl.normalized_length.notna().all() and (fl.normalized_length > 0).all()
     fr = pd.read_csv(out / "fibre_moment_arms.csv")
     assert list(fr.columns) == ["frame", "time", "muscle", "fibre", "coordinate", "moment_arm"]
     assert set(fr.coordinate) == {"elbow_flexion"} and len(fr) == len(fl)
@@ -159,6 +161,10 @@ def test_full_example_run_writes_the_contract(example, tmp_path, capsys):
     assert set(record["inputs"]) >= {"spec", "model", "motion", "mesh:biceps"}
     assert {"wrap", "decompose_rest", "moment_arms"} <= set(record["timings_s"])
     assert (out / "fibres" / "biceps.pvd").is_file() and (out / "plots" / "biceps_lengths.png").is_file()
+    assert (out / "plots" / "biceps_normalized_lengths.png").is_file()
+    norm = s[(s.frame == 1) & (s.muscle == "biceps") & (s.quantity == "normalized_length")].iloc[0]
+    fb = fl[(fl.frame == 1) & (fl.muscle == "biceps")]
+    assert norm["median"] == pytest.approx(fb.normalized_length.median(), rel=1e-9)
     assert (out / "MuscleAnalysis_Length.sto").is_file()
 
 
@@ -188,18 +194,26 @@ def test_unknown_muscle_option(example, tmp_path, capsys):
 
 
 def test_muscle_without_mesh_gets_a_generated_surface(example):
-    """No `mesh`: a fusiform surface is generated around the action line; its fibres span the
-    line, so at the rest pose (frame 0) their median length is the line's within 10 %."""
+    """No `mesh`: a belly is generated around the fibre part of the action line (tendons of the
+    model's tendon slack length join it to the attachments), so at the rest pose (frame 0) the
+    median fibre length is L_path - tendon_slack_length within 5 %, and l / l_opt uses the
+    model's optimal fibre length."""
     import numpy as np
 
     from analysis import run
+    from motion.muscle_parameters import muscle_parameters
 
     toml = example / "arm_example.toml"
     toml.write_text(toml.read_text().replace('mesh = "meshes/brachialis.ply"\n', "", 1))
-    res = run(toml, frames="0:27:13", muscles=["brachialis"], fibres=12, resolution=8)
+    res = run(toml, frames="0:27:13", muscles=["brachialis"], fibres=12, resolution=8, template="parallel")
     m = res.muscle("brachialis")
     assert np.isfinite(m.fibre_moment_arms).all()
-    assert np.median(m.fibre_lengths[0]) == pytest.approx(m.action_line_lengths[0, 0], rel=0.1)
+    from motion import load_model
+
+    p = muscle_parameters(load_model(example / "arm_example.osim"), m.action_lines[0])
+    belly = m.action_line_lengths[0, 0] - p.tendon_slack_length
+    assert np.median(m.fibre_lengths[0]) == pytest.approx(belly, rel=0.05)
+    np.testing.assert_allclose(m.normalized_lengths, m.fibre_lengths / p.optimal_fiber_length, rtol=1e-12)
 
 
 def test_bones_are_handed_to_the_wrapping(example, tmp_path):

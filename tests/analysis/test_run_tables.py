@@ -35,7 +35,7 @@ def _result(tmp_path=None):
 def test_columns_and_rows_are_the_contract():
     res = _result()
     want = {
-        "fibre_lengths.csv": ["frame", "time", "muscle", "fibre", "length"],
+        "fibre_lengths.csv": ["frame", "time", "muscle", "fibre", "length", "normalized_length"],
         "fibre_moment_arms.csv": ["frame", "time", "muscle", "fibre", "coordinate", "moment_arm"],
         "action_lines.csv": ["frame", "time", "muscle", "action_line", "length"],
         "action_line_moment_arms.csv": ["frame", "time", "muscle", "action_line", "coordinate", "moment_arm"],
@@ -62,8 +62,8 @@ def test_summary_statistics_match_numpy():
     res = _result()
     s = summary_table(res)
     a = res.muscle("a")
-    # rows: per frame: a length, a q1, a q2, b length, b q2
-    assert len(s) == 4 * 5
+    # rows: per frame: a length, a normalized_length, a q1, a q2, b length, b normalized_length, b q2
+    assert len(s) == 4 * 7
     row = s[(s.frame == 2) & (s.muscle == "a") & (s.quantity == "moment_arm") & (s.coordinate == "q1")].iloc[0]
     v = a.fibre_moment_arms[2, :, 0]
     assert row["mean"] == pytest.approx(v.mean()) and row["std"] == pytest.approx(v.std())
@@ -80,12 +80,32 @@ def test_summary_statistics_match_numpy():
 def test_to_frame_holds_every_number():
     res = _result()
     df = res.to_frame()
-    n = sum(m.fibre_lengths.size + m.fibre_moment_arms.size + m.action_line_lengths.size
-            + m.action_line_moment_arms.size for m in res.muscles)
+    n = sum(2 * m.fibre_lengths.size + m.fibre_moment_arms.size + m.action_line_lengths.size
+            + m.action_line_moment_arms.size for m in res.muscles)     # lengths and normalized lengths
     assert len(df) == n
     total = sum(m.fibre_lengths.sum() + m.fibre_moment_arms.sum() + m.action_line_lengths.sum()
                 + m.action_line_moment_arms.sum() for m in res.muscles)
-    assert df.value.sum() == pytest.approx(total, rel=1e-12)
+    assert df.value.sum() == pytest.approx(total, rel=1e-12)     # no l_opt here: normalized are NaN
+
+
+def test_normalized_length_is_length_over_optimal_length():
+    res = _result()
+    a = res.muscle("a")
+    opt = np.linspace(0.1, 0.2, a.n_fibres)
+    line_norm = np.full(a.action_line_lengths.shape, 0.9)
+    a2 = MuscleResult(a.name, a.coordinates, a.fibre_lengths, a.fibre_moment_arms, a.action_lines,
+                      a.action_line_lengths, a.action_line_moment_arms, a.rest_lengths,
+                      optimal_lengths=opt, line_normalized_lengths=line_norm)
+    res2 = RunResult(time=res.time, frames=res.frames, coordinate_names=res.coordinate_names, q=res.q,
+                     muscles=(a2, res.muscle("b")), timings={}, settings={}, inputs={})
+    fl = TABLES["fibre_lengths.csv"](res2)
+    piv = fl[fl.muscle == "a"].pivot(index="frame", columns="fibre", values="normalized_length").to_numpy()
+    np.testing.assert_allclose(piv, a.fibre_lengths / opt[None], rtol=1e-15)
+    assert fl[fl.muscle == "b"].normalized_length.isna().all()
+    s = summary_table(res2)
+    row = s[(s.frame == 1) & (s.muscle == "a") & (s.quantity == "normalized_length")].iloc[0]
+    assert row["median"] == pytest.approx(np.median(a.fibre_lengths[1] / opt))
+    assert row["action_line_mean"] == pytest.approx(0.9)
 
 
 def test_fibre_lengths_is_polyline_arc_length():

@@ -26,22 +26,48 @@ def test_arm26_generated_surfaces(opensim_dir):
     tf = np.asarray(body_poses(model, mot).tf_ground_body)
     cyl = model.wrap_object("TRI")
     tf_cyl = tf[:, model.body_index(cyl.body)] @ np.asarray(cyl.tf_body_wrap)
+    from motion.muscle_parameters import muscle_parameters
+    from motion.surface_generate import BELLY_MAX_ASPECT, SPECIFIC_TENSION
+
     for surf, path in zip(out, model.paths):
         mesh = trimesh.Trimesh(surf.rest_vertices, surf.faces, process=False)
         assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
-        # volume rule: F_max / 61 N/cm^2 * optimal fibre length; Arm26 muscles: 50-250 cm^3
-        # (upper-arm muscle volumes of adults, Holzbaur et al. 2007: ~50-370 cm^3)
-        assert 50e-6 < surf.rest_volume < 250e-6, (surf.name, surf.rest_volume)
+        # the belly (tendons: the model's tendon slack lengths) is a straight tube between its cap
+        # centres (the first origin / insertion landmarks), of length b and radius r
+        assert surf.tendon_slack[0] == pytest.approx(muscle_parameters(model, path.name).tendon_slack_length)
+        a, e = surf.rest_origin[0], surf.rest_insertion[0]
+        b = np.linalg.norm(e - a)
+        u = (e - a) / b
+        rel = surf.rest_vertices - a
+        r = np.linalg.norm(rel - np.outer(rel @ u, u), axis=1).max()
+        # volume rule: F_max / 61 N/cm^2 * optimal fibre length (Arm26 muscles: 50-250 cm^3, upper-arm
+        # muscle volumes of adults, Holzbaur et al. 2007: ~50-370 cm^3), unless that belly would
+        # be fatter than BELLY_MAX_ASPECT of its length: then r = 0.1 b
+        p = muscle_parameters(model, path.name)
+        rule = p.max_isometric_force / SPECIFIC_TENSION * p.optimal_fiber_length
+        assert 50e-6 < rule < 250e-6
+        if surf.rest_volume < rule * (1 - 1e-6):
+            assert r == pytest.approx(BELLY_MAX_ASPECT * b, rel=1e-6), surf.name
+        else:
+            assert surf.rest_volume == pytest.approx(rule, rel=1e-6), surf.name
         assert np.abs(surf.volume_error).max() < 5e-3
         if any(w.wrap_object == "TRI" for w in path.wraps):
+            # no bone mesh: the obstacle is the wrap cylinder moved inwards by the belly's
+            # half-thickness, at most half its radius (motion.surface_thickness)
             loc = np.matmul(surf.vertices - tf_cyl[:, None, :3, 3], tf_cyl[:, :3, :3])
             within = np.abs(loc[..., 2]) < 0.5 * cyl.length
             rad = np.hypot(loc[..., 0], loc[..., 1])[within]
-            assert rad.min() > cyl.radius - 1e-4, surf.name
-    # triceps lateral head: wraps the elbow cylinder once flexed (its action line touches it)
+            assert rad.min() > max(cyl.radius - r, 0.5 * cyl.radius) - 1e-4, surf.name
+    # triceps lateral head: its action line wraps the elbow cylinder once flexed, but that part
+    # is tendon; the belly's cap centres ride the line, L - tendon slack apart along it (the
+    # chord between them is at most that)
+    from motion import action_lines
+
+    lines = action_lines(model, mot, muscles=["TRIlat"])
     tri = out[model.path_names.index("TRIlat")]
-    loc = np.matmul(tri.vertices[-1] - tf_cyl[-1, :3, 3], tf_cyl[-1, :3, :3])
-    assert np.hypot(loc[:, 0], loc[:, 1]).min() < cyl.radius + 1e-3
+    chord = np.linalg.norm(tri.insertion[:, 0] - tri.origin[:, 0], axis=-1)
+    belly = np.asarray(lines.lengths)[:, 0] - tri.tendon_slack[0]
+    assert (chord <= belly + 1e-9).all() and (chord > 0.9 * belly).all()
 
 
 LHDL_LINES = {"iliacus_r": ["iliacus_r"], "psoas_r": ["psoas_r"],

@@ -1,0 +1,109 @@
+"""Tendons of generated muscles and attachments on moving path points, for `motion.wrap_surfaces`.
+
+Tendon-aware muscles (`motion.muscle_parameters` states the rule): a surface with a positive
+tendon slack length is the *belly*, the fibre part of its action line. In every frame the
+current line (moving and conditional points, wrap arcs, all as OpenSim places them) is cut to
+the arc-length span ``[t, L - t]`` of `motion.muscle_parameters.belly_span` and the belly is
+bound to that piece, so it slides along the whole path as a rigid-tendon muscle does: its
+length is ``L - l_ts`` and its fibres change length with the path, ``dl/dq = dL/dq``.
+
+The rest belly is straight: the rest piece of the line is replaced by the straight segment of
+the same arc length from its start towards its end (`straight_belly`), the belly surface is
+generated around it and bound to it, and every frame (the rest frame included) bends it onto
+the current piece of the line. Fibres are decomposed in that straight belly, where the parallel
+template's fibres are exact (Kohout et al.'s plane slicing follows a straight muscle, not a bent
+one), and carried onto the path by the deformation.
+
+Attachments on MovingPathPoints: a landmark near a path end that is a MovingPathPoint (the
+patellar insertions of the Gait2392 quadriceps) does not stay fixed in its body: it is carried
+by the body and translated by the end point's own motion in the body since the rest pose
+(`end_point_offsets`), so the fibres' ends follow the insertion OpenSim moves.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .muscle_parameters import belly_span, muscle_parameters
+from .surface_curves import trim_polylines
+
+__all__ = ["tendon_slacks", "belly_polylines", "end_point_offsets", "polyline_lengths", "straight_belly"]
+
+
+def tendon_slacks(model, spec) -> tuple:
+    """Tendon slack length (m) per action line of ``spec`` (`motion.MuscleSurfaceSpec`).
+
+    ``spec.tendon_slack`` when given; else the model's ``tendon_slack_length`` for a generated
+    surface (0 where the path force has none) and 0 for a mesh.
+    """
+    if spec.tendon_slack is not None:
+        return tuple(spec.tendon_slack)
+    if not spec.generated:
+        return (0.0,) * len(spec.action_lines)
+    out = []
+    for name in spec.action_lines:
+        slack = muscle_parameters(model, name).tendon_slack_length
+        out.append(float(slack) if slack and slack > 0 else 0.0)
+    return tuple(out)
+
+
+def polyline_lengths(points) -> np.ndarray:
+    """Arc lengths (F,) of NaN-padded polylines (F, P, 3)."""
+    pts = np.asarray(points, dtype=float)
+    seg = np.linalg.norm(np.diff(pts, axis=1), axis=-1)
+    return np.nansum(seg, axis=1)
+
+
+def belly_polylines(points, slack: float):
+    """The belly pieces (F, P + 2, 3) of polylines (F, P, 3) with tendon slack ``slack`` (m),
+    and the (F,) frames in which the path is too short to hold its tendon."""
+    pts = np.asarray(points, dtype=float)
+    start, stop, short = belly_span(polyline_lengths(pts), slack)
+    return trim_polylines(pts, start, stop), short
+
+
+def end_point_offsets(model, path_name: str, curve, rest_curve, tf_ground_body, tf_rest_ground_body):
+    """How far each end point of a path has moved in its body since the rest pose, in ground.
+
+    Parameters
+    ----------
+    model : motion.Model
+    path_name : str
+    curve : (F, P, 3) float
+        The current polylines of the path (NaN-padded).
+    rest_curve : (P', 3) float
+        The rest polyline.
+    tf_ground_body : (F, B, 4, 4) float
+    tf_rest_ground_body : (B, 4, 4) float
+
+    Returns
+    -------
+    dict
+        ``{"origin": (body index, (F, 3) offset), "insertion": (...)}`` for the ends that are
+        MovingPathPoints; other ends are left out (their offset is zero).
+    """
+    path = model.path(path_name)
+    c = np.asarray(curve, dtype=float)
+    valid = np.isfinite(c).all(axis=-1)
+    last = np.maximum(valid.sum(axis=1) - 1, 0)
+    now = {"origin": c[:, 0], "insertion": c[np.arange(len(c)), last]}
+    rest = {"origin": np.asarray(rest_curve[0], dtype=float), "insertion": np.asarray(rest_curve[-1], dtype=float)}
+    out = {}
+    for end, point in (("origin", path.points[0]), ("insertion", path.points[-1])):
+        if point.kind != "moving":
+            continue
+        b = model.body_index(point.body)
+        tf = np.asarray(tf_ground_body)[:, b] @ np.linalg.inv(np.asarray(tf_rest_ground_body)[b])
+        carried = np.einsum("fij,j->fi", tf[:, :3, :3], rest[end]) + tf[:, :3, 3]
+        out[end] = (b, now[end] - carried)
+    return out
+
+
+def straight_belly(piece, n_points: int = 8) -> np.ndarray:
+    """A straight polyline (n_points, 3) from ``piece[0]`` towards ``piece[-1]`` with the arc
+    length of the polyline ``piece`` (P, 3)."""
+    p = np.asarray(piece, dtype=float)
+    length = float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=-1)))
+    chord = p[-1] - p[0]
+    norm = float(np.linalg.norm(chord))
+    direction = chord / norm if norm > 1e-12 else np.array([0.0, 0.0, 1.0])
+    return p[0] + np.linspace(0.0, length, int(n_points))[:, None] * direction
