@@ -16,7 +16,8 @@ patches, `fibres.attachment_patch`):
   5 mm of a fibre end.
 - ``outside``: inner fibre points outside the surface (by ray parity, `fibres.inside`).
 
-`LIMITS` are the sensible bounds a warning checks (`FibreQuality.problems`).
+`LIMITS` are the sensible bounds a warning checks (`FibreQuality.problems`; the volume's limit
+applies to both shares, so few fibres in a big muscle are not flagged for their spacing).
 """
 from __future__ import annotations
 
@@ -65,8 +66,12 @@ class FibreQuality:
     def problems(self) -> list:
         """Human-readable list of the limits (`LIMITS`) this muscle's fibres break."""
         out = []
-        if self.empty_5mm > LIMITS["empty_5mm"]:
-            out.append(f"{self.empty_5mm:.0%} of the volume is more than 5 mm from a fibre")
+        # empty both in absolute terms and for this many fibres (a run with few fibres leaves
+        # volume more than 5 mm from them, but not more than their own spacing)
+        if self.empty_5mm > LIMITS["empty_5mm"] and self.empty_spacing > LIMITS["empty_5mm"]:
+            out.append(f"{self.empty_5mm:.0%} of the volume is more than 5 mm from a fibre "
+                       f"({self.empty_spacing:.0%} more than their spacing, "
+                       f"{self.spacing_mm:.1f} mm)")
         if self.turn_max > LIMITS["turn_max"]:
             out.append(f"a fibre turns by {self.turn_max:.0f} degrees")
         if self.turn_p95 > LIMITS["turn_p95"]:
