@@ -2,10 +2,15 @@
 
 May import ``motion`` and ``fibres``.
 """
-from .errors import InputError, MissingDependencyError
-from .result import MuscleResult, RunResult
-from .run import run
-from .spec import AttachmentSpec, FibreModelSpec, MuscleSpec, load_spec
+from . import interrupts as _interrupts
+
+if _interrupts.is_the_command():   # Ctrl-C while the packages load: exit 130, no traceback
+    _interrupts.install_early()
+
+from .errors import InputError, MissingDependencyError  # noqa: E402
+from .result import MuscleResult, RunResult  # noqa: E402
+from .run import run  # noqa: E402
+from .spec import AttachmentSpec, FibreModelSpec, MuscleSpec, load_spec  # noqa: E402
 
 __all__ = ["InputError", "MissingDependencyError", "run", "RunResult", "MuscleResult", "load_spec",
            "FibreModelSpec", "MuscleSpec", "AttachmentSpec"]

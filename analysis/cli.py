@@ -5,12 +5,19 @@ functions: ``add_arguments(parser)`` and ``execute(args) -> int``.
 
 Exit status: 0 success, 2 bad usage or bad input (one line on stderr naming the file, the element
 and the fix), 1 internal failure, 130 interrupted. No traceback unless ``--debug``.
+
+Ctrl-C: `main` settles, before any work, the error classes it will catch and the modules the
+command imports later (`SETTLE`), so that an interrupt cannot land in a half-imported package
+(it used to give "module 'motion' has no attribute 'errors'") or be swallowed by a third-party
+``except BaseException`` inside a lazy import; SIGINT is handled by `analysis.interrupts`, whose
+flag makes the command return 130 even if a library swallowed the KeyboardInterrupt.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+import warnings
 
 __all__ = ["main", "build_parser"]
 
@@ -51,6 +58,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: modules imported lazily during a command, imported up front instead (module docstring)
+SETTLE = {
+    "run": ("numpy", "scipy.spatial", "scipy.stats", "scipy.sparse.csgraph", "pandas", "trimesh",
+            "matplotlib", "matplotlib.figure", "matplotlib.backends.backend_agg", "numba", "tqdm",
+            "motion", "fibres", "analysis.run", "analysis.tables", "analysis.plots",
+            "analysis.vtk_files", "analysis.run_record", "analysis.out_folder", "analysis.budget",
+            "motion.surface_rest", "fibres.decompose"),
+    "lines": ("numpy", "pandas", "motion", "analysis.lines_tables"),
+    "decompose": ("numpy", "trimesh", "fibres", "fibres.decompose", "fibres.fitting"),
+}
+
+
+def _settle(command: str) -> None:
+    """Import the command's modules now (optional ones may be missing)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name in SETTLE.get(command, ()):
+            try:
+                importlib.import_module(name)
+            except ImportError:
+                pass
+
+
 def _input_error_types():
     import fibres.errors
     import motion.errors
@@ -79,6 +109,34 @@ def _one_line_warnings(prefix: str) -> None:
 
 
 def main(argv=None) -> int:
+    """Run the command line (``argv`` default: ``sys.argv[1:]``); return the exit status."""
+    from . import interrupts
+
+    try:
+        with interrupts.honoured():
+            try:
+                code = _main(argv)
+            except KeyboardInterrupt:
+                code = 130
+            if interrupts.requested():
+                code = 130
+    except KeyboardInterrupt:   # a second Ctrl-C while leaving
+        code = 130
+    if code == 130:
+        command = _command_name(argv)
+        print(f"fibres {command}: interrupted; no partial output was left.", file=sys.stderr)
+    if argv is None and interrupts.is_the_command():
+        interrupts.exit_now(code)       # no slow finalization with SIGINT at its default
+    return code
+
+
+def _command_name(argv) -> str:
+    words = list(sys.argv[1:] if argv is None else argv)
+    return next((w for w in words if w in COMMANDS), "run")
+
+
+def _main(argv) -> int:
+    errors = _input_error_types()           # settled before any work (module docstring)
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -96,22 +154,25 @@ def main(argv=None) -> int:
     if not debug:
         _one_line_warnings(f"fibres {args.command}")
     try:
-        return _execute(module, args, debug)
+        return _execute(module, args, debug, errors)
     finally:
         warnings.showwarning = saved
 
 
-def _execute(module, args, debug) -> int:
+def _execute(module, args, debug, errors) -> int:
+    from . import interrupts
+
     try:
+        _settle(args.command)
+        interrupts.check()
         return int(module.execute(args) or 0)
-    except _input_error_types() as exc:
+    except KeyboardInterrupt:
+        raise
+    except errors as exc:
         if debug:
             raise
         print(f"fibres {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"fibres {args.command}: interrupted; no partial output was left.", file=sys.stderr)
-        return 130
     except Exception as exc:  # internal failure: one line, exit 1
         if debug:
             raise

@@ -161,6 +161,10 @@ def execute(args) -> int:
     from fibres.fitting import check_landmarks
     from fibres.surface import SurfaceRepairWarning, as_points, check_muscle_scale
 
+    from .spec import check_count
+
+    for key in ("fibres", "resolution", "seed"):
+        check_count(key, getattr(args, key), where=f"--{key}")
     mesh = Path(args.mesh)
     out = Path(args.out) if args.out else Path(f"{mesh.stem}_fibres.vtp")
     _check_out(out)

@@ -42,6 +42,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("motion", metavar="MOTION.mot", help="motion (.mot or .sto)")
     parser.add_argument("--out", default="fibres-out", metavar="DIR",
                         help="output folder (default: fibres-out)")
+    parser.add_argument("--force", action="store_true",
+                        help="write into DIR even if it is /, the home folder, or holds a git "
+                             "repository or a Python package")
     parser.add_argument("--muscle", action="append", default=None, metavar="NAME",
                         help="only this path force (repeatable; default: every path in the model)")
     add_frames_argument(parser)
@@ -149,8 +152,11 @@ def execute(args) -> int:
     from motion.motion_file import load_motion
     from motion.osim_reader import load_model
 
+    from .out_folder import OutFolderLock, check_out_folder
+
     out = Path(args.out)
     _check_out_dir(out)
+    check_out_folder(out, force=args.force)
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         warnings.showwarning = _show_warning
@@ -173,7 +179,7 @@ def execute(args) -> int:
     existed = out.exists()
     prepare_out_dir(out)
     try:
-        with contextlib.ExitStack() as stack:
+        with OutFolderLock(out), contextlib.ExitStack() as stack:
             # All three go to temporary names first; they are renamed only if all were written.
             for name, table in tables.items():
                 tmp = stack.enter_context(atomic_path(out / name))

@@ -14,11 +14,18 @@ moved into place (``os.replace``, one file at a time, atomic each) only after ev
 written; on any failure or Ctrl-C the staging folder is removed, so DIR holds either the
 previous run's files or this run's, and a rerun works. The output folder is checked before the
 long computation starts.
+
+The run owns DIR while it works (`analysis.out_folder`): it refuses ``/``, the home folder and
+folders holding a git repository or a Python package unless ``--force``; it locks DIR against a
+second run; it removes the files of the previous run (listed in its ``run.json``) that it does not
+write again; it cleans staging folders of killed runs. Names from the input files become file
+names only through `analysis.file_names` (mapping in ``run.json``), and every path written is
+checked to stay inside the staging folder. Memory is estimated before the long computation
+(`analysis.budget`, ``--max-memory``).
 """
 from __future__ import annotations
 
 import contextlib
-import os
 import shutil
 import sys
 import tempfile
@@ -92,18 +99,42 @@ def add_arguments(parser) -> None:
 
     add_export_options(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument("--force", action="store_true",
+                        help="write into DIR even if it is /, the home folder, or holds a git "
+                             "repository or a Python package")
+    parser.add_argument("--max-memory", default=None, metavar="SIZE",
+                        help="refuse a run estimated to need more memory than SIZE (e.g. 8G, 500M; "
+                             "default: 80%% of the physical memory)")
 
 
 def execute(args) -> int:
-    from .output_files import prepare_out_dir
-    from .run import _select_muscles, run
-    from .spec import load_spec
+    """Run ``fibres run``; returns the exit status (errors are raised as InputError)."""
+    from .budget import parse_size
+    from .out_folder import OutFolderLock, check_out_folder
 
     spec = Path(args.spec) if args.spec is not None else default_spec()
     for key, val in (("--fibres", args.fibres), ("--resolution", args.resolution), ("--jobs", args.jobs),
                      ("--scene-step", args.scene_step)):
         if val is not None and val < 1:
             raise InputError(f"{key} must be >= 1, got {val}", where=key, fix=f"Give {key} a whole number >= 1.")
+    max_memory = parse_size(args.max_memory, where="--max-memory")
+    check_out_folder(args.out, force=args.force)
+    lock = OutFolderLock(args.out)
+    existed = Path(args.out).exists()
+    if Path(args.out).is_dir():   # a second run into a busy folder refuses before any work
+        lock.acquire()
+    try:
+        return _execute(args, spec, lock, existed, max_memory)
+    finally:
+        lock.release()
+
+
+def _execute(args, spec, lock, existed, max_memory) -> int:
+    from .out_folder import clean_stale
+    from .output_files import prepare_out_dir
+    from .run import _select_muscles, check_mesh_files, run
+    from .spec import load_spec
+
     # bad input is reported before the output folder is created
     loaded = load_spec(spec)
     if args.osim:
@@ -120,11 +151,14 @@ def execute(args) -> int:
         plan = apply_setup(read_setup(args.setup), loaded)
         motion_arg, frames_arg = plan["motion"], plan["frames"]
         muscles_arg = args.muscle or plan["muscles"]
-    _select_muscles(loaded, muscles_arg, fibres=args.fibres, resolution=args.resolution, template=args.template,
-                    slicing=args.slicing)
-    existed = Path(args.out).exists()
+    chosen = _select_muscles(loaded, muscles_arg, fibres=args.fibres, resolution=args.resolution,
+                             template=args.template, slicing=args.slicing)
+    check_mesh_files(chosen)
     out = prepare_out_dir(args.out)
     try:
+        if lock.fd is None:
+            lock.acquire()
+        clean_stale(out)
         from .progress import first_run_notice
 
         first_run_notice(args.quiet)
@@ -133,7 +167,8 @@ def execute(args) -> int:
             result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,
                          resolution=args.resolution, template=args.template, frames=frames_arg,
                          quiet=args.quiet, jobs=args.jobs, transport=args.transport,
-                         keep_surfaces=not args.no_scene, slicing=args.slicing)
+                         keep_surfaces=not args.no_scene, slicing=args.slicing,
+                         max_memory=max_memory, out_dir=out)
         for m in result.muscles:
             for note in m.notes:
                 if note.startswith("warning: "):
@@ -154,6 +189,7 @@ def execute(args) -> int:
         write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
                       quiet=args.quiet, command=command, osim=osim, scene=scene)
     except BaseException:
+        lock.release()
         if not existed:    # a failed run leaves no empty output folder behind
             with contextlib.suppress(OSError):
                 out.rmdir()
@@ -173,96 +209,105 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     ``osim``: None, or the keyword arguments of `analysis.osim_export.export_osim` (with ``spec``)
     to also write ``<model>_fibres.osim``; its record goes into run.json under ``osim_export``.
 
+    Muscle and coordinate names become file names only through `analysis.file_names.file_stems`
+    (the mapping is ``file_names`` in run.json); every path is checked to stay inside the staging
+    folder (`output_files.confined_to`). Files of the previous run in ``out_dir`` that this run
+    does not write are removed (`out_folder.publish`; the list is ``files`` in run.json).
     Returns the final paths written.
     """
+    from . import interrupts
+    from .file_names import file_stems
+    from .out_folder import STAGING_PREFIX, publish, staged_files
+    from .output_files import confined_to
     from .progress import progress
     from .run_record import write_run_json
     from .tables import write_tables
 
     out = Path(out_dir)
-    staging = Path(tempfile.mkdtemp(prefix=".fibres-run-", dir=out))
+    stems = file_stems(m.name for m in result.muscles)
+    coord_stems = file_stems(c for m in result.muscles for c in m.coordinates)
+    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
     timings = {}
     try:
-        t0 = _time.perf_counter()
-        write_tables(result, staging)
-        timings["write_tables"] = _time.perf_counter() - t0
-        if sto:
+        with confined_to(staging):
             t0 = _time.perf_counter()
-            write_sto_files(result, staging, per_fibre=sto_fibres)
-            timings["write_sto"] = _time.perf_counter() - t0
-        if plots:
-            t0 = _time.perf_counter()
-            _write_plots(result, staging / "plots", quiet=quiet, progress=progress)
-            timings["plots"] = _time.perf_counter() - t0
-        if vtk and any(m.fibre_points is not None for m in result.muscles):
-            t0 = _time.perf_counter()
-            _write_vtk(result, staging / "fibres", quiet=quiet, progress=progress)
-            timings["vtk_files"] = _time.perf_counter() - t0
-        if scene is not None:
-            from .scene import write_scene
+            write_tables(result, staging)
+            timings["write_tables"] = _time.perf_counter() - t0
+            interrupts.check()
+            if sto:
+                t0 = _time.perf_counter()
+                write_sto_files(result, staging, per_fibre=sto_fibres, muscle_stems=stems,
+                                coordinate_stems=coord_stems)
+                timings["write_sto"] = _time.perf_counter() - t0
+            if plots:
+                t0 = _time.perf_counter()
+                _write_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
+                timings["plots"] = _time.perf_counter() - t0
+            interrupts.check()
+            if vtk and any(m.fibre_points is not None for m in result.muscles):
+                t0 = _time.perf_counter()
+                _write_vtk(result, staging / "fibres", stems, quiet=quiet, progress=progress)
+                timings["vtk_files"] = _time.perf_counter() - t0
+            interrupts.check()
+            if scene is not None:
+                from .scene import write_scene
 
-            t0 = _time.perf_counter()
-            write_scene(staging / "scene", result, scene["spec"], step=scene.get("step"))
-            timings["scene"] = _time.perf_counter() - t0
-        extra = None
-        if osim is not None:
-            from .osim_export import export_osim
+                t0 = _time.perf_counter()
+                write_scene(staging / "scene", result, scene["spec"], step=scene.get("step"))
+                timings["scene"] = _time.perf_counter() - t0
+            extra = {}
+            if osim is not None:
+                from .osim_export import export_osim
 
-            t0 = _time.perf_counter()
-            kw = dict(osim)
-            spec = kw.pop("spec")
-            name = f"{Path(spec.model_path).stem}_fibres.osim"
-            extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
-            extra["osim_export"]["file"] = name
-            timings["osim_export"] = _time.perf_counter() - t0
-        write_run_json(result, staging / "run.json", command=command, extra_timings=timings, extra=extra)
-        return _publish(staging, out)
+                interrupts.check()
+                t0 = _time.perf_counter()
+                kw = dict(osim)
+                spec = kw.pop("spec")
+                name = f"{Path(spec.model_path).stem}_fibres.osim"
+                extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
+                extra["osim_export"]["file"] = name
+                timings["osim_export"] = _time.perf_counter() - t0
+            extra["files"] = [f for f in staged_files(staging) if f != "run.json"] + ["run.json"]
+            extra["file_names"] = {"muscles": stems, "coordinates": coord_stems}
+            write_run_json(result, staging / "run.json", command=command, extra_timings=timings, extra=extra)
+        interrupts.check()
+        return publish(staging, out)
     finally:
         with contextlib.suppress(FileNotFoundError):
             shutil.rmtree(staging)
 
 
-def _publish(staging: Path, out: Path) -> list:
-    """Move every staged file to the same relative place in ``out`` (run.json last)."""
-    files = sorted((p for p in staging.rglob("*") if p.is_file()), key=lambda p: p.name == "run.json")
-    written = []
-    for src in files:
-        dst = out / src.relative_to(staging)
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        os.replace(src, dst)
-        written.append(dst)
-    return written
-
-
-def _write_plots(result, folder: Path, *, quiet, progress):
+def _write_plots(result, folder: Path, stems, *, quiet, progress):
     """Per muscle: fibre-length band over time, moment arm vs coordinate, L/L_rest histogram."""
-    from . import plots
+    from . import interrupts, plots
 
     folder.mkdir(parents=True, exist_ok=True)
     motion_types = result.settings.get("motion_types", {})
     for m in progress(result.muscles, desc="plots", quiet=quiet, unit="muscle"):
+        interrupts.check()
         cols = [result.coordinate_names.index(c) for c in m.coordinates]
         plots.plot_muscle(folder, m.name, times=result.time, fibre_lengths=m.fibre_lengths,
                           line_lengths=m.action_line_lengths, line_names=m.action_lines,
                           coordinate_values=result.q[:, cols], fibre_moment_arms=m.fibre_moment_arms,
                           line_moment_arms=m.action_line_moment_arms, coordinate_names=m.coordinates,
                           rest_lengths=m.rest_lengths, normalized_lengths=m.normalized_lengths,
-                          line_normalized=m.line_normalized_lengths,
+                          line_normalized=m.line_normalized_lengths, stem=stems[m.name],
                           rotational=[motion_types.get(c, "rotational") != "translational"
                                       for c in m.coordinates])
 
 
-def _write_vtk(result, folder: Path, *, quiet, progress):
-    """``fibres/<muscle>.pvd`` + ``<muscle>_<frame>.vtp`` (cell data ``fibre``, ``length``,
+def _write_vtk(result, folder: Path, stems, *, quiet, progress):
+    """``fibres/<stem>.pvd`` + ``<stem>_<frame>.vtp`` (cell data ``fibre``, ``length``,
     ``normalized_length``)."""
-    from . import vtk_files
+    from . import interrupts, vtk_files
 
     folder.mkdir(parents=True, exist_ok=True)
     for m in progress(result.muscles, desc="3D files", quiet=quiet, unit="muscle"):
+        interrupts.check()
         if m.fibre_points is not None:
-            vtk_files.write_fibre_frames(folder, m.name, m.fibre_points, times=result.time,
+            vtk_files.write_fibre_frames(folder, stems[m.name], m.fibre_points, times=result.time,
                                          cell_data={"length": m.fibre_lengths,
                                                     "normalized_length": m.normalized_lengths})
         if m.surface_vertices is not None:
-            vtk_files.write_surface_frames(folder, m.name, m.surface_vertices, m.surface_faces,
+            vtk_files.write_surface_frames(folder, stems[m.name], m.surface_vertices, m.surface_faces,
                                            times=result.time)

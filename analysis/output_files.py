@@ -2,17 +2,57 @@
 
 Every file is written to a temporary name in the destination folder and renamed into place
 (``os.replace`` is atomic on POSIX and Windows within one file system).
+
+Inside `confined_to(folder)` (the staging folder of `fibres run`) every path handed to
+`atomic_path` is checked first: it must lie inside that folder once resolved (no ``..``, no
+symlink out), and no two outputs of the run may land on the same file. A violation is an
+InputError, raised before anything is written. File names built from names in the input files
+are made safe beforehand (`analysis.file_names`); this check is the second line of defence.
 """
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 import tempfile
 from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["atomic_path", "write_csv", "write_text", "prepare_out_dir"]
+__all__ = ["atomic_path", "write_csv", "write_text", "prepare_out_dir", "confined_to", "checked_path"]
+
+#: (resolved root folder, set of paths written) while inside `confined_to`
+_CONFINED = contextvars.ContextVar("analysis_output_root", default=None)
+
+
+@contextlib.contextmanager
+def confined_to(folder):
+    """Within the block, `atomic_path` refuses any path outside ``folder`` (module docstring)."""
+    token = _CONFINED.set((Path(folder).resolve(), set()))
+    try:
+        yield
+    finally:
+        _CONFINED.reset(token)
+
+
+def checked_path(path) -> Path:
+    """``path``, after checking it against the `confined_to` folder (if any); InputError if it
+    would leave that folder or was already written by this run."""
+    path = Path(path)
+    state = _CONFINED.get()
+    if state is None:
+        return path
+    root, seen = state
+    full = path.parent.resolve() / path.name
+    if path.name in ("", ".", "..") or full == root or not full.is_relative_to(root):
+        raise InputError("refused to write a file outside the output folder", file=path,
+                         fix="Report this: a name in the input files was not made safe.")
+    if full in seen:
+        raise InputError("two outputs of this run would be written to the same file", file=path,
+                         fix="Give the muscles (and coordinates) names that differ in more than "
+                             "upper/lower case.")
+    seen.add(full)
+    return path
 
 
 @contextlib.contextmanager
@@ -24,7 +64,7 @@ def atomic_path(path):
     >>> with atomic_path("out/table.csv") as tmp:   # doctest: +SKIP
     ...     frame.to_csv(tmp, index=False)
     """
-    path = Path(path)
+    path = checked_path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     os.close(fd)
     try:

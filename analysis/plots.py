@@ -357,24 +357,28 @@ def plot_length_histogram(path, fibre_lengths, rest_lengths, *, muscle: str, tim
 
 def plot_muscle(out_dir, muscle: str, *, times, fibre_lengths, line_lengths, line_names,
                 coordinate_values, fibre_moment_arms, line_moment_arms, coordinate_names,
-                rest_lengths=None, rotational=None, normalized_lengths=None, line_normalized=None) -> list:
+                rest_lengths=None, rotational=None, normalized_lengths=None, line_normalized=None,
+                stem=None) -> list:
     """All plots of one muscle into ``out_dir``; returns the written paths.
 
-    Files: ``<muscle>_lengths.png``, ``<muscle>_moment_arms.png``, when ``rest_lengths`` is
-    given ``<muscle>_length_histogram.png``, and when ``normalized_lengths`` (F, N) has values
-    ``<muscle>_normalized_lengths.png``. Shapes as in the individual functions.
+    Files: ``<stem>_lengths.png``, ``<stem>_moment_arms.png``, when ``rest_lengths`` is
+    given ``<stem>_length_histogram.png``, and when ``normalized_lengths`` (F, N) has values
+    ``<stem>_normalized_lengths.png``. ``stem`` (default: the muscle name) is the safe file stem of
+    the muscle (`analysis.file_names`); the titles show the muscle name itself. Shapes as in the
+    individual functions.
     """
     out = Path(out_dir)
-    paths = [plot_fibre_lengths(out / f"{muscle}_lengths.png", times, fibre_lengths,
+    stem = muscle if stem is None else stem
+    paths = [plot_fibre_lengths(out / f"{stem}_lengths.png", times, fibre_lengths,
                                 line_lengths, line_names, muscle=muscle),
-             plot_moment_arms(out / f"{muscle}_moment_arms.png", coordinate_values,
+             plot_moment_arms(out / f"{stem}_moment_arms.png", coordinate_values,
                               fibre_moment_arms, line_moment_arms, line_names, muscle=muscle,
                               coordinate_names=coordinate_names, rotational=rotational, times=times)]
     if rest_lengths is not None:
-        paths.append(plot_length_histogram(out / f"{muscle}_length_histogram.png", fibre_lengths,
+        paths.append(plot_length_histogram(out / f"{stem}_length_histogram.png", fibre_lengths,
                                            rest_lengths, muscle=muscle, times=times))
     if normalized_lengths is not None and np.isfinite(np.asarray(normalized_lengths, dtype=float)).any():
         line_norm = (np.full(np.shape(line_lengths), np.nan) if line_normalized is None else line_normalized)
-        paths.append(plot_normalized_lengths(out / f"{muscle}_normalized_lengths.png", times, normalized_lengths,
+        paths.append(plot_normalized_lengths(out / f"{stem}_normalized_lengths.png", times, normalized_lengths,
                                              line_norm, line_names, muscle=muscle))
     return paths

@@ -69,6 +69,7 @@ the side that keeps the frame's own path (error ~ h/2 * L'' instead of a spike o
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import dataclasses
 import time as _time
 import warnings
@@ -76,6 +77,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import budget, interrupts
 from .errors import FibreWarning, InputError
 from .fibre_checks import line_normalized_lengths, moment_arm_notes, optimal_lengths
 from .progress import progress
@@ -161,7 +163,7 @@ def _timed(timings, stage):
 
 def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, template=None,
         frames=None, quiet=True, jobs=1, step=None, keep_points=True, keep_surfaces=False,
-        transport="bind", slicing=None) -> RunResult:
+        transport="bind", slicing=None, max_memory=None, out_dir=None) -> RunResult:
     """Run the fibre study of a fibre model over a motion.
 
     Parameters
@@ -192,6 +194,12 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         How the rest fibres reach each frame (module docstring).
     slicing : {"harmonic", "planes"}, optional, keyword-only
         Override the cross-section method for every muscle (`fibres.decompose`).
+    max_memory : int, optional, keyword-only
+        Memory budget in bytes (default: `analysis.budget.default_budget`, 80 % of the physical
+        memory). The run is refused with an InputError, before the long computation, when its
+        estimate (`analysis.budget`) exceeds it; the estimate is ``settings["estimate"]``.
+    out_dir : str or os.PathLike, optional, keyword-only
+        Where the files will be written: the disk estimate is checked against its free space.
 
     Returns
     -------
@@ -203,6 +211,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         raise ValueError(f"transport must be one of {TRANSPORTS}, got {transport!r}")
     timings = {}
     t_start = _time.perf_counter()
+    limit = budget.default_budget() if max_memory is None else int(max_memory)
     with _timed(timings, "load"):
         spec = spec_path if isinstance(spec_path, FibreModelSpec) else load_spec(spec_path)
         model = spec.model
@@ -212,6 +221,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
             if mot_path is None:
                 raise InputError("no motion given and the fibre model has no 'motion' key", file=spec.file,
                                  where="motion", fix="Pass --motion FILE or add motion = \"<file>.mot\".")
+            budget.check_motion_file(mot_path, limit)
             full = motion_pkg.load_motion(mot_path, model)
         else:
             full = motion
@@ -220,14 +230,22 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         mspecs = _select_muscles(spec, muscles, fibres=fibres, resolution=resolution, template=template,
                                  slicing=slicing)
     names = tuple(dict.fromkeys(n for m in mspecs for n in m.action_lines))
+    budget.check_lines(len(rows), len(names), len(model.coordinates), limit)
+    interrupts.check()
     with _timed(timings, "action_lines"):
         lines = _action_lines()(model, mot, muscles=names)
+    interrupts.check()
     ctx = _Ctx(spec=spec, model=model, motion=mot, lines=lines, quiet=quiet, keep_points=keep_points,
                keep_surfaces=keep_surfaces, step=dict(FD_STEP, **(step or {})), transport=transport)
+    costs = [budget.muscle_costs(m, len(rows), len(_spanned_coordinates(ctx, m)[0]), transport)
+             for m in mspecs]
+    estimate = budget.check_budget(costs, budget=limit, jobs=jobs, out_dir=out_dir)
     results, muscle_timings = [None] * len(mspecs), []
     bar = progress(total=len(mspecs), desc="wrap + fibres", quiet=quiet, unit="muscle")
     try:
         if jobs > 1 and len(mspecs) > 1:
+            _warm_kernels(mspecs)
+            interrupts.check()
             pool = concurrent.futures.ThreadPoolExecutor(max_workers=jobs)
             futures = [pool.submit(_run_muscle, ctx, m) for m in mspecs]
             try:
@@ -241,6 +259,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
             pool.shutdown(wait=True)
         else:
             for i, m in enumerate(mspecs):
+                interrupts.check()
                 results[i], t = _run_muscle(ctx, m)
                 muscle_timings.append(t)
                 bar.update(1)
@@ -264,6 +283,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
                 inputs[f"{end}:{m.name}"] = Path(src)
     settings = {
         "motion_rows": rows.tolist(), "jobs": int(jobs), "fd_step": ctx.step, "transport": transport,
+        "estimate": estimate,
         "motion_types": {c.name: c.motion_type for c in model.coordinates},
         "muscles": {m.name: {"action_lines": list(m.action_lines), "template": m.template,
                              "fibres": m.n_fibres, "resolution": m.resolution, "seed": m.seed,
@@ -284,13 +304,14 @@ def _select_muscles(spec, muscles, *, fibres, resolution, template, slicing=None
         chosen = [spec.muscle(m) for m in dict.fromkeys(muscles)]
     else:
         chosen = list(spec.muscles)
+    from .spec import check_count
+
     over = {}
-    for key, val, lo in (("n_fibres", fibres, 1), ("resolution", resolution, 1)):
+    for key, val in (("fibres", fibres), ("resolution", resolution)):
         if val is not None:
-            if int(val) != val or val < lo:
-                raise InputError(f"--{'fibres' if key == 'n_fibres' else key} must be an integer >= {lo}",
-                                 fix="Give a whole number.")
-            over[key] = int(val)
+            if isinstance(val, float) and val.is_integer():
+                val = int(val)
+            over["n_fibres" if key == "fibres" else key] = check_count(key, val, where=f"--{key}")
     if template is not None:
         from .spec import _template_names
 
@@ -306,6 +327,42 @@ def _select_muscles(spec, muscles, *, fibres, resolution, template, slicing=None
                              fix=f"Use one of: {', '.join(SLICINGS)}.")
         over["slicing"] = slicing
     return [dataclasses.replace(m, **over) for m in chosen]
+
+
+def _warm_kernels(mspecs) -> None:
+    """Decompose a small generated surface with each template of the run, in this thread,
+    before muscles run in threads (``--jobs``).
+
+    Why: `fibres` compiles its numba kernels lazily, on first use, into module-level caches
+    that are not guarded by a lock; two threads reaching a kernel first at the same time made
+    numba raise "A jit decorator was called on an already jitted function" (exit 1, about one
+    fresh ``--jobs 2`` process in ten on the example). Here they are compiled (or loaded from
+    numba's cache) once, in one thread; it costs one small decomposition per template.
+    """
+    from fibres import as_surface
+    from motion import fusiform_surface
+
+    decompose = _api("fibres", "decompose", "decompose")
+    axis = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.05], [0.0, 0.0, 0.1]])
+    v, f = fusiform_surface(axis, max_radius=0.01, n_rings=12, n_around=10)
+    surface = as_surface((v, f))
+    for template, slicing in dict.fromkeys((m.template, getattr(m, "slicing", None)) for m in mspecs):
+        opts = {} if slicing is None else {"slicing": slicing}
+        # only the compilation matters: a warning or failure on this small surface is not the run's
+        with warnings.catch_warnings(), contextlib.suppress(Exception):
+            warnings.simplefilter("ignore")
+            decompose(surface, v[:1] + [0.0, 0.0, 0.002], v[-1:] - [0.0, 0.0, 0.002], template=template,
+                      n_fibres=4, resolution=4, **opts)
+
+
+def check_mesh_files(mspecs) -> None:
+    """Read every mesh and bone file of the muscles once (`fibres.surface.read_mesh`), so that a
+    damaged file is reported before any work or output folder (the run reads them again)."""
+    from fibres.surface import read_mesh
+
+    for m in mspecs:
+        for path in ([m.mesh] if m.mesh is not None else []) + [p for _, p in m.bones]:
+            read_mesh(path)
 
 
 def _spanned_coordinates(ctx, mspec):
@@ -470,6 +527,7 @@ def _run_muscle(ctx, mspec):
     import motion as motion_pkg
     from motion.surface_rest import rest_pose
 
+    interrupts.check()
     decompose = _api("fibres", "decompose", "decompose")
     wrap_surfaces = _wrap_surfaces()
     timings = {}
@@ -487,6 +545,7 @@ def _run_muscle(ctx, mspec):
     if mspec.template_params:
         opts["template_params"] = dict(mspec.template_params)
     faces = rest.faces
+    interrupts.check()
     with _timed(timings, "decompose_rest"):
         bundle0 = decompose((rest.rest_vertices, faces), rest.rest_origin, rest.rest_insertion, **opts)
     shape = bundle0.points.shape                                  # (N, P, 3)
@@ -526,12 +585,14 @@ def _run_muscle(ctx, mspec):
         with _timed(timings, "decompose"):
             try:
                 for f in range(n_all):  # one decomposition per (perturbed) frame, the plan frozen
+                    interrupts.check()
                     b = decompose((wrapped.vertices[f], faces), wrapped.origin[f], wrapped.insertion[f],
                                   plan=bundle0.plan, **opts)
                     points[f] = b.points
                     bar.update(1)
             finally:
                 bar.close()
+    interrupts.check()
     with _timed(timings, "lengths"):
         lengths = fibre_lengths(fine if ctx.transport == "bind" else points)   # (F * (1 + 2K), N)
     with _timed(timings, "moment_arms"):

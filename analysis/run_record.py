@@ -9,11 +9,18 @@ Layout::
       "command": ["fibres", "run", ...] | null,
       "inputs": {"<role>": {"path": "...", "sha256": "..."}, ...},
       "versions": {"python": "3.11.7", "numpy": "...", ...},
-      "settings": {...},
+      "settings": {..., "estimate": {"memory_bytes": ..., "disk_bytes": ..., "max_memory_bytes": ...}},
       "timings_s": {"<stage>": seconds, ...},
       "frames": {"count": F, "motion_rows": [first, last], "time": [t0, t1]},
-      "muscles": {"<name>": {"n_fibres": N, "coordinates": [...], "action_lines": [...]}}
+      "muscles": {"<name>": {"n_fibres": N, "coordinates": [...], "action_lines": [...]}},
+      "files": ["fibre_lengths.csv", ..., "run.json"],          # fibres run: what it wrote
+      "file_names": {"muscles": {"<name>": "<file stem>"}, "coordinates": {...}}
     }
+
+``files`` is the manifest of the run (paths relative to the output folder; the next run into
+the folder removes those it does not write again, `analysis.out_folder`); ``file_names`` maps
+every muscle and coordinate name to the stem its files are named with (`analysis.file_names`:
+the name itself unless it is unsafe as a file name).
 """
 from __future__ import annotations
 
@@ -94,7 +101,7 @@ def run_record(result, *, command=None) -> dict:
 
 def write_run_json(result, path, *, command=None, extra_timings=None, extra=None) -> dict:
     """Write ``run.json`` atomically; ``extra_timings`` adds stages timed after the run (writing),
-    ``extra`` adds top-level sections (e.g. ``osim_export``)."""
+    ``extra`` adds top-level sections (e.g. ``osim_export``; `fibres run`: ``files``, ``file_names``)."""
     from .output_files import write_text
 
     record = run_record(result, command=command)

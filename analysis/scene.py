@@ -54,15 +54,13 @@ def _find_geometry(model_file, name):
 
 
 def _read_mesh(path):
-    """(V, 3) vertices, (T, 3) faces of a mesh file (pyvista: .vtp, .stl, .obj, .ply, .vtk)."""
-    import pyvista as pv
+    """(V, 3) vertices, (T, 3) faces of a mesh file (.vtp, .vtk, .stl, .obj, .ply): read with
+    `fibres.surface.read_mesh`, which validates the file before use (model geometry is untrusted
+    input; VTK's own readers crash the process on damaged cell arrays)."""
+    from fibres.surface import read_mesh
 
-    mesh = pv.read(str(path))
-    if not isinstance(mesh, pv.PolyData):
-        mesh = mesh.extract_surface()
-    mesh = mesh.triangulate()
-    faces = np.asarray(mesh.faces).reshape(-1, 4)[:, 1:] if mesh.n_cells else np.zeros((0, 3), int)
-    return np.asarray(mesh.points, dtype=float), faces.astype(np.int64)
+    v, f = read_mesh(path)
+    return np.asarray(v, dtype=float), np.asarray(f, dtype=np.int64)
 
 
 def _apply(tf, p):

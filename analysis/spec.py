@@ -81,6 +81,39 @@ _DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resoluti
 
 #: cross-section methods of the decomposition (``fibres.SLICINGS``)
 SLICINGS = ("harmonic", "planes")
+#: Most fibres per muscle. Every fibre is sampled, morphed, filtered, carried through every frame
+#: and every perturbed pose, and written per frame; Kohout et al. (2012) use hundreds. Above this a
+#: run needs tens of GB (see `analysis.budget`), so the value is almost surely a typo.
+MAX_FIBRES = 100_000
+#: Most segments per fibre. The surface is cut by one plane per fibre point (Kohout 2012: "the
+#: minimal number of slices used is equal to the specified resolution"); beyond 1000 planes the
+#: slices are finer than the triangles of any muscle mesh, and at 10,000 they would pass the end
+#: planes, which sit 1e-4 of the box height inside its ends (`fibres.morph.END_INSET`).
+MAX_RESOLUTION = 1000
+#: Largest seed (the Sobol scrambling seed is a 32-bit unsigned integer in many tools)
+MAX_SEED = 2**32 - 1
+_LIMITS = {"fibres": (1, MAX_FIBRES), "resolution": (1, MAX_RESOLUTION), "seed": (0, MAX_SEED)}
+_LIMIT_WHY = {"fibres": "more fibres than any muscle study needs; the run would need tens of GB",
+              "resolution": "finer than the triangles of any muscle mesh (one slice per fibre point)",
+              "seed": "seeds are 32-bit unsigned integers"}
+
+
+def _is_unit(value) -> bool:
+    return isinstance(value, str) and value in _UNITS
+
+
+def check_count(key: str, value, *, where=None, file=None):
+    """An integer option of the fibre model (``fibres``, ``resolution``, ``seed``) within its
+    limits (`MAX_FIBRES`, `MAX_RESOLUTION`, `MAX_SEED`), or InputError saying why."""
+    lo, hi = _LIMITS[key]
+    where = where or key
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise InputError(f"expected an integer >= {lo}, got {value!r}", file=file, where=where,
+                         fix=f"Set {key} to a whole number >= {lo}.")
+    if value > hi:
+        raise InputError(f"{value} is above the limit of {hi} ({_LIMIT_WHY[key]})", file=file,
+                         where=where, fix=f"Set {key} to at most {hi}.")
+    return int(value)
 
 
 def _template_names():
@@ -254,15 +287,45 @@ class _Ctx:
         if not isinstance(value, str) or not value:
             self.fail(where, f"expected a file name (string), got {value!r}",
                       f"Write the path of the {what} relative to the TOML file.")
-        p = (self.file.parent / value).resolve()
-        if not p.is_file():
+        if any(ord(ch) < 32 for ch in value):
+            self.fail(where, f"the path {value!r} holds a control character (NUL, newline ...)",
+                      f"Write the path of the {what} without control characters.")
+        try:
+            p = (self.file.parent / value).resolve()
+            found = p.is_file()
+        except (OSError, ValueError) as exc:
+            self.fail(where, f"cannot use the path {value!r} ({exc})",
+                      f"Write the path of the {what} relative to the TOML file.")
+        if not found:
             self.fail(where, f"the {what} '{value}' does not exist (looked for {p})",
                       "Fix the path; paths are relative to the TOML file.")
         return p
 
 
+def _check_template_params(ctx, template, params, where):
+    """The template's own checks (`fibres.get_template`), any failure as one InputError here."""
+    try:
+        from fibres import get_template
+    except ImportError:  # pragma: no cover - a checkout without fibres.get_template
+        return
+    try:
+        get_template(template, **params)
+    except Exception as exc:  # noqa: BLE001 - a wrong value of any type is bad input
+        problem = getattr(exc, "problem", None) or f"{type(exc).__name__}: {exc}"
+        ctx.fail(where, f"not accepted by the {template} template ({problem})",
+                 "Give the template's documented parameters as numbers (docs/INTERFACE.md).")
+
+
+def _our_input_errors():
+    import fibres.errors
+    import motion.errors
+
+    return (InputError, motion.errors.InputError, fibres.errors.InputError)
+
+
 def load_spec(path, *, model=None) -> FibreModelSpec:
-    """Load and validate a fibre-model TOML file.
+    """Load and validate a fibre-model TOML file (`_load_spec`); anything unexpected that goes
+    wrong while reading it becomes one `InputError` naming the file (never a Python error).
 
     Parameters
     ----------
@@ -277,9 +340,21 @@ def load_spec(path, *, model=None) -> FibreModelSpec:
 
     Raises
     ------
-    analysis.errors.InputError
+    analysis.errors.InputError (or motion's, for the .osim)
         One line naming the file, the key and the fix, for any mistake.
     """
+    try:
+        return _load_spec(path, model=model)
+    except _our_input_errors():
+        raise
+    except Exception as exc:  # noqa: BLE001 - bad input must not crash (RecursionError included)
+        raise InputError(f"cannot use this fibre model ({type(exc).__name__}: {exc})", file=path,
+                         fix="Check the file against docs/INTERFACE.md; every value must have the "
+                             "documented type.") from None
+
+
+def _load_spec(path, *, model=None) -> FibreModelSpec:
+    """`load_spec` without the safety net: every rule of the module docstring, checked in order."""
     file = Path(path)
     ctx = _Ctx(file)
     if not file.is_file():
@@ -298,7 +373,7 @@ def load_spec(path, *, model=None) -> FibreModelSpec:
     model_path = ctx.file_path(data["model"], "model", "OpenSim model")
     motion_path = ctx.file_path(data["motion"], "motion", "motion") if "motion" in data else None
     units = data.get("units", "m")
-    if units not in _UNITS:
+    if not _is_unit(units):
         ctx.fail("units", f"unknown units {units!r}", "Use units = \"m\" or units = \"mm\".")
     defaults = data.get("defaults", {})
     if not isinstance(defaults, dict):
@@ -316,6 +391,9 @@ def load_spec(path, *, model=None) -> FibreModelSpec:
     specs = []
     for name, table in muscles.items():
         where = f"muscles.{name}"
+        if not name.strip() or any(ord(ch) < 32 or ord(ch) == 127 for ch in name):
+            ctx.fail(where, f"the muscle name {name!r} is empty or holds control characters "
+                            "(tab, newline ...)", "Rename the muscle (letters, digits, _ and -).")
         if not isinstance(table, dict):
             ctx.fail(where, "expected a table", f"Write [muscles.{name}] with its keys.")
         ctx.check_keys(table, _MUSCLE_KEYS, where)
@@ -341,13 +419,16 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
         ctx.fail(src["action_lines"], "expected a non-empty list of OpenSim muscle names",
                  "Write action_lines = [\"<muscle in the .osim>\", ...].")
     for i, ln in enumerate(lines):
+        if not isinstance(ln, str):
+            ctx.fail(f"{src['action_lines']}[{i}]", f"expected a muscle name (string), got {ln!r}",
+                     "Write action_lines = [\"<muscle in the .osim>\", ...].")
         if ln not in paths:
             ctx.fail(f"{src['action_lines']}[{i}]", f"'{ln}' is not a muscle of the model",
                      f"Use one of: {', '.join(sorted(paths)[:12])}{' ...' if len(paths) > 12 else ''}.")
     if len(set(lines)) != len(lines):
         ctx.fail(src["action_lines"], "an action line is listed twice", "List each one once.")
     unit = d["units"]
-    if unit not in _UNITS:
+    if not _is_unit(unit):
         ctx.fail(src["units"], f"unknown units {unit!r}", "Use \"m\" or \"mm\".")
     mesh = ctx.file_path(d["mesh"], src["mesh"], "mesh") if "mesh" in d else None
     frame = d["frame"]
@@ -376,12 +457,8 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
     if slicing not in SLICINGS:
         ctx.fail(src.get("slicing", f"{where}.slicing"), f"unknown slicing {slicing!r}",
                  f"Use one of: {', '.join(SLICINGS)}.")
-    ints = {}
-    for key, lo in (("fibres", 1), ("resolution", 1), ("seed", 0)):
-        v = d[key]
-        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-            ctx.fail(src[key], f"expected an integer >= {lo}, got {v!r}", f"Set {key} to a whole number >= {lo}.")
-        ints[key] = v
+    ints = {key: check_count(key, d[key], where=src[key], file=ctx.file)
+            for key in ("fibres", "resolution", "seed")}
     bones = []
     raw_bones = d.get("bones", [])
     if not isinstance(raw_bones, list):
@@ -392,16 +469,18 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
         if not isinstance(bone, dict) or "body" not in bone or "mesh" not in bone:
             ctx.fail(key, "expected { body = ..., mesh = ... }", "Give the bone's body and mesh file.")
         ctx.check_keys(bone, _BONE_KEYS, key)
-        if bone["body"] not in bodies:
+        if not isinstance(bone["body"], str) or bone["body"] not in bodies:
             ctx.fail(f"{key}.body", f"'{bone['body']}' is not a body of the model", f"Use one of: {', '.join(bodies)}.")
         bones.append((bone["body"], ctx.file_path(bone["mesh"], f"{key}.mesh", "bone mesh")))
     volume = d.get("volume")
-    if volume is not None and (isinstance(volume, bool) or not isinstance(volume, (int, float)) or not volume > 0):
+    if volume is not None and (isinstance(volume, bool) or not isinstance(volume, (int, float))
+                               or not 0 < volume < float("inf")):
         ctx.fail(src["volume"], f"expected a positive number (m^3), got {volume!r}",
                  "Give the generated surface's volume in cubic metres, or remove the key.")
     params = d.get("template_params", {})
     if not isinstance(params, dict):
         ctx.fail(src["template_params"], "expected a table", "Write template_params = { name = value }.")
+    _check_template_params(ctx, template, params, src.get("template_params", f"{where}.template_params"))
     ends = {}
     for end in ("origin", "insertion"):
         ends[end] = _attachment(ctx, d.get(end), src.get(end, f"{where}.{end}"), end, unit, bodies,
@@ -423,7 +502,7 @@ def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
         ctx.fail(where, "expected a table", f"Write {end} = {{ body = \"...\", points = [[x, y, z]] }}.")
     ctx.check_keys(table, _ATTACH_KEYS, where)
     body = table.get("body", default_body)
-    if body not in bodies:
+    if not isinstance(body, str) or body not in bodies:
         ctx.fail(f"{where}.body", f"'{body}' is not a body of the model", f"Use one of: {', '.join(bodies)}.")
     own = table.get("frame", "muscle")
     if own == body:
@@ -447,7 +526,7 @@ def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.isfinite(pts).all():
             ctx.fail(f"{where}.points", "expected a list of [x, y, z] triples of numbers",
                      "Write points = [[x, y, z], ...].")
-        scale = _UNITS.get(table.get("units", unit))
+        scale = _UNITS.get(table.get("units", unit)) if _is_unit(table.get("units", unit)) else None
         if scale is None:
             ctx.fail(f"{where}.units", f"unknown units {table['units']!r}", "Use \"m\" or \"mm\".")
         return AttachmentSpec(body=body, points=pts * scale, in_body_frame=in_body, source=f"{where}.points")
@@ -458,18 +537,19 @@ def _attachment(ctx, table, where, end, unit, bodies, path) -> AttachmentSpec:
 
 def _read_points(ctx, file, table, where, unit):
     """(K, 3) points and metres-per-unit from a CSV (with row selection) or a point-cloud file."""
-    if "units" in table and table["units"] not in _UNITS:
+    if "units" in table and not _is_unit(table["units"]):
         ctx.fail(f"{where}.units", f"unknown units {table['units']!r}", "Use \"m\" or \"mm\".")
     if file.suffix.lower() not in (".csv", ".txt"):
         for k in ("where", "columns"):
             if k in table:
                 ctx.fail(f"{where}.{k}", "only allowed with a CSV file", f"Remove {k}.")
-        try:
-            import pyvista
+        from fibres.errors import InputError as MeshError
+        from fibres.surface import read_mesh
 
-            pts = np.asarray(pyvista.read(str(file)).points, dtype=float)
-        except Exception as exc:  # noqa: BLE001 - any reader failure is bad input
-            ctx.fail(f"{where}.file", f"cannot read the point cloud {file.name} ({exc})",
+        try:
+            pts, _ = read_mesh(file)
+        except MeshError as exc:   # untrusted file: read without VTK (fibres.vtk_reader)
+            ctx.fail(f"{where}.file", f"cannot read the point cloud {file.name} ({exc.problem})",
                      "Give a CSV with x,y,z columns or a VTK/VTP/PLY point cloud.")
         if pts.ndim != 2 or len(pts) == 0:
             ctx.fail(f"{where}.file", f"no points in {file.name}", "Give a file with at least one point.")

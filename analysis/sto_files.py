@@ -30,10 +30,21 @@ def _fibre_names(muscle, n):
     return [f"{muscle}_fibre{k:0{width}d}" for k in range(n)]
 
 
-def write_sto_files(result, folder, *, per_fibre: bool = False) -> list:
-    """Write the ``.sto`` files of the module docstring into ``folder``; return their paths."""
+def write_sto_files(result, folder, *, per_fibre: bool = False, muscle_stems=None,
+                    coordinate_stems=None) -> list:
+    """Write the ``.sto`` files of the module docstring into ``folder``; return their paths.
+
+    ``<muscle>`` and ``<coord>`` in the file names are the safe file stems of the names
+    (`analysis.file_names`; default: computed here), never the names themselves."""
     from motion import write_sto
 
+    from .file_names import file_stems
+    from .output_files import checked_path
+
+    if muscle_stems is None:
+        muscle_stems = file_stems(m.name for m in result.muscles)
+    if coordinate_stems is None:
+        coordinate_stems = file_stems(c for m in result.muscles for c in m.coordinates)
     folder = Path(folder)
     written = []
     lengths, fibre_len = {}, {}
@@ -52,16 +63,17 @@ def write_sto_files(result, folder, *, per_fibre: bool = False) -> list:
                 fibre_arms.setdefault(coord, {})[f"{m.name}_{q}"] = v
         if per_fibre:
             names = _fibre_names(m.name, m.n_fibres)
-            tables[f"FibreAnalysis_{m.name}_Length"] = dict(zip(names, m.fibre_lengths.T))
+            stem = muscle_stems[m.name]
+            tables[f"FibreAnalysis_{stem}_Length"] = dict(zip(names, m.fibre_lengths.T))
             for c, coord in enumerate(m.coordinates):
-                tables[f"FibreAnalysis_{m.name}_MomentArm_{coord}"] = dict(
+                tables[f"FibreAnalysis_{stem}_MomentArm_{coordinate_stems[coord]}"] = dict(
                     zip(names, np.nan_to_num(m.fibre_moment_arms[:, :, c]).T))
     tables.update({"MuscleAnalysis_Length": lengths, "FibreAnalysis_Length": fibre_len})
-    tables.update({f"MuscleAnalysis_MomentArm_{c}": v for c, v in arms.items()})
-    tables.update({f"FibreAnalysis_MomentArm_{c}": v for c, v in fibre_arms.items()})
+    tables.update({f"MuscleAnalysis_MomentArm_{coordinate_stems[c]}": v for c, v in arms.items()})
+    tables.update({f"FibreAnalysis_MomentArm_{coordinate_stems[c]}": v for c, v in fibre_arms.items()})
     for name, cols in tables.items():
         if cols:
-            path = folder / f"{name}.sto"
+            path = checked_path(folder / f"{name}.sto")
             write_sto(path, result.time, cols, name=name)
             written.append(path)
     return written

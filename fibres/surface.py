@@ -5,8 +5,10 @@ non-manifold edges and unreferenced points). `as_surface` repairs what is safe t
 says so in ONE warning -- and refuses, with an `InputError` naming the file and the fix, what
 cannot be repaired without guessing (open surfaces, point clouds, NaN coordinates).
 
-I/O goes through trimesh (STL, OBJ, PLY, OFF) and pyvista/VTK (legacy ``.vtk``, ``.vtp``,
-``.vtu``); nothing here parses a file format by hand.
+I/O goes through trimesh (STL, OBJ, PLY, OFF) and `fibres.vtk_reader` (legacy ``.vtk``, ``.vtp``,
+``.vtu``: a numpy reader that checks every count, offset and index before use, because VTK's own
+readers crash the process on damaged cell arrays). Mesh files are untrusted input: whatever goes
+wrong while reading one is an `InputError` naming the file, never another exception.
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ import numpy as np
 from .errors import InputError
 from .clean_check import clean_mesh_geometry, clean_topology  # noqa: F401 - re-exported
 
-__all__ = ["Surface", "as_surface", "as_points", "SurfaceRepairWarning", "UNITS",
+__all__ = ["Surface", "as_surface", "as_points", "read_mesh", "SurfaceRepairWarning", "UNITS",
            "check_muscle_scale"]
 
 #: accepted length units -> factor to metres
@@ -99,16 +101,6 @@ def _unit_factor(units, file=None) -> float:
     return UNITS[units]
 
 
-def _read_pyvista(path: Path):
-    import pyvista as pv
-
-    try:
-        return pv.read(str(path))
-    except Exception as exc:  # VTK reader failures come in many types
-        raise InputError(f"cannot read the file ({type(exc).__name__}: {exc})", file=path,
-                         fix="Check that it is a valid VTK file.") from None
-
-
 def _pyvista_arrays(mesh):
     """(points (V,3), triangles (T,3)) of any pyvista dataset; polygons are triangulated."""
     import pyvista as pv
@@ -145,12 +137,45 @@ def _read_trimesh(path: Path):
     return points, faces
 
 
+def read_mesh(path):
+    """Vertices and triangles of a mesh file, never trusting its content.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        STL, OBJ, PLY, OFF, GLB/GLTF (trimesh) or legacy VTK, VTP, VTU (`fibres.vtk_reader`).
+
+    Returns
+    -------
+    vertices : (V, 3) float64
+    faces : (T, 3) int64
+        Not validated beyond the format (see `as_surface`); (0, 3) for a point cloud.
+
+    Raises
+    ------
+    InputError
+        Missing, unsupported or unreadable file; any failure inside a reader (a truncated OBJ
+        used to raise ``ValueError: cannot reshape ...``) becomes one line naming the file.
+    """
+    path = Path(path)
+    try:
+        return _read_mesh_file(path)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - untrusted file: any reader failure is bad input
+        raise InputError(f"cannot read the mesh ({type(exc).__name__}: {exc})", file=path,
+                         fix="The file is damaged or not a mesh; re-export it (STL, PLY, OBJ, VTK, "
+                             "VTP).") from None
+
+
 def _read_mesh_file(path: Path):
     if not path.is_file():
         raise InputError("file not found", file=path, fix="Check the path.")
     suffix = path.suffix.lower()
     if suffix in _VTK_SUFFIXES:
-        return _pyvista_arrays(_read_pyvista(path))
+        from .vtk_reader import read_vtk_file
+
+        return read_vtk_file(path)
     if suffix in _TRIMESH_SUFFIXES:
         return _read_trimesh(path)
     raise InputError(f"unsupported mesh file type {suffix!r}", file=path,
@@ -161,7 +186,7 @@ def _raw_arrays(mesh):
     """(vertices, faces, label for messages) from any accepted mesh input."""
     if isinstance(mesh, (str, os.PathLike)):
         path = Path(mesh)
-        v, f = _read_mesh_file(path)
+        v, f = read_mesh(path)
         return v, f, str(path)
     if isinstance(mesh, Surface):
         return np.array(mesh.vertices), np.array(mesh.faces), None
@@ -401,7 +426,7 @@ def as_points(points, *, units: str = "m", name: str = "points") -> np.ndarray:
                              fix="Pass a CSV with x,y,z columns, a point-cloud mesh file or "
                                  "'x,y,z;x,y,z'.")
         if path.suffix.lower() in _MESH_SUFFIXES:
-            arr, _ = _read_mesh_file(path)
+            arr, _ = read_mesh(path)
         else:
             arr = _read_points_csv(path, units)
     else:

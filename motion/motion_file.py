@@ -15,8 +15,15 @@ dialects occur in real files and are all accepted:
   ``inDegrees`` means radians, as in OpenSim.
 
 Like OpenSim, ``nRows``/``nColumns``/``datarows`` are not trusted: the rows and labels actually
-present are read (the LHDL hip motions say ``nRows=51`` and hold 36 rows; OpenSim reads 36), and
-a disagreement is reported with one `MotionFileWarning`.
+present are read (the LHDL hip motions say ``nRows=51`` and hold 36 rows; OpenSim reads 36). Unlike
+OpenSim, a count that disagrees with the data (or is not a whole number) gives ONE
+`MotionFileWarning`: the file may be truncated or edited by hand.
+
+``inDegrees`` must be ``yes``/``no`` (also ``true``/``false``, ``1``/``0``, any case). Any other
+value is an `InputError`: OpenSim silently reads ``inDegrees=Yes please`` as radians, which turned
+an elbow flexion of 130 degrees into 7,448 degrees. After the conversion, values far outside a
+coordinate's range (beyond the range widened by its own width, and by at least 90 degrees or
+1 m) give ONE `MotionFileWarning` naming the coordinates: typically degrees read as radians.
 Labels are tab-separated (whitespace-separated when a label line has no tab); numbers are
 separated by any whitespace.
 
@@ -176,7 +183,8 @@ class Motion:
 
 
 def load_motion(path, model) -> Motion:
-    """Read an OpenSim .mot or .sto file as the coordinates of ``model``.
+    """Read an OpenSim .mot or .sto file as the coordinates of ``model``; anything unexpected
+    that goes wrong while reading it becomes one `InputError` naming the file.
 
     Parameters
     ----------
@@ -198,19 +206,33 @@ def load_motion(path, model) -> Motion:
     Warns
     -----
     MotionFileWarning
-        Once for the unknown columns, once for the missing coordinates (see module docstring).
+        Once for the unknown columns, once for the missing coordinates, once for header counts
+        that disagree with the data, once for values far outside coordinate ranges (see module
+        docstring).
     """
+    try:
+        return _load_motion(path, model)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - bad input must not crash (MemoryError included)
+        raise InputError(f"cannot read the motion file ({type(exc).__name__}: {exc})", file=path,
+                         fix="Export the motion again from OpenSim (a header, 'endheader', labels, "
+                             "rows of numbers).") from None
+
+
+def _load_motion(path, model) -> Motion:
     path = Path(path)
     text = _read_text(path)
     lines = text.splitlines()
     header, end_line = _read_header(lines, path)
+    in_degrees = _in_degrees(header, path)
     labels, label_line = _read_labels(lines, end_line, path)
     data, row_lines = _read_numbers(lines, label_line, labels, path)
     time = data[:, 0]
     _check_time(time, row_lines, path)
+    _check_counts(header, data.shape, path)
 
     columns, unknown = _match_columns(labels, model, label_line, path)
-    in_degrees = _in_degrees(header)
     names = tuple(model.coordinate_names)
     coords = model.coordinates
     q = np.tile(np.array([c.default_value for c in coords], dtype=float), (time.shape[0], 1))
@@ -220,27 +242,18 @@ def load_motion(path, model) -> Motion:
             values = np.deg2rad(values)
         q[:, index] = values
     missing = tuple(n for i, n in enumerate(names) if i not in columns)
+    _check_ranges(q, columns, coords, in_degrees, path)
 
     if unknown:
         warnings.warn(f"{path}: line {label_line}: ignored {len(unknown)} column(s) that are not "
                       f"coordinates of model '{_model_name(model)}': {', '.join(unknown)}",
-                      MotionFileWarning, stacklevel=2)
-    declared = header.get("nrows", header.get("datarows"))
-    if declared is not None:
-        try:
-            n_declared = int(float(declared))
-        except ValueError:
-            n_declared = None
-        if n_declared is not None and n_declared != time.shape[0]:
-            warnings.warn(f"{path}: the header says nRows={n_declared} but the file holds {time.shape[0]} "
-                          f"data rows; using the {time.shape[0]} rows present (as OpenSim does)",
-                          MotionFileWarning, stacklevel=2)
+                      MotionFileWarning, stacklevel=3)
     silent = _locked_or_dependent(model)
     loud = [n for n in missing if n not in silent]
     if loud:
         warnings.warn(f"{path}: {len(loud)} coordinate(s) of model '{_model_name(model)}' are not "
                       f"in the file and keep their default value: {', '.join(loud)}",
-                      MotionFileWarning, stacklevel=2)
+                      MotionFileWarning, stacklevel=3)
     return Motion(time=time, q=q, coordinate_names=names, source=str(path), in_degrees=in_degrees,
                   missing=missing, unknown=tuple(unknown))
 
@@ -283,7 +296,8 @@ def _read_text(path: Path) -> str:
 
 
 def _read_header(lines, path):
-    """Parse header lines up to ``endheader``: dict of lower-case keys, and the 1-based end line."""
+    """Parse header lines up to ``endheader``: dict of lower-case keys -> (value, 1-based line),
+    and the 1-based end line."""
     header = {}
     for number, line in enumerate(lines, start=1):
         stripped = line.strip()
@@ -291,22 +305,86 @@ def _read_header(lines, path):
             return header, number
         if "=" in stripped:
             key, _, value = stripped.partition("=")
-            header[key.strip().lower()] = value.strip()
+            header[key.strip().lower()] = (value.strip(), number)
         else:
             words = stripped.split()
             if len(words) >= 2 and words[0].lower() in ("datacolumns", "datarows", "range"):
-                header[words[0].lower()] = " ".join(words[1:])
+                header[words[0].lower()] = (" ".join(words[1:]), number)
     raise InputError(f"the header never ends: no 'endheader' line in {len(lines)} lines",
                      file=path, where=f"line {len(lines)}",
                      fix="Add a line 'endheader' between the header and the column labels.")
 
 
-def _in_degrees(header) -> bool:
-    value = header.get("indegrees")
-    if value is None:
+_YES = ("yes", "true", "1")
+_NO = ("no", "false", "0")
+#: "far outside the range": beyond the range widened by its width, and at least by this (SI)
+_RANGE_SLACK = {"rotational": np.pi / 2, "translational": 1.0}
+
+
+def _in_degrees(header, path) -> bool:
+    entry = header.get("indegrees")
+    if entry is None:
         # OpenSim's Storage: old SIMM files (no 'version=') are assumed to be in degrees.
         return "version" not in header
-    return value.strip().lower() in ("yes", "true", "1")
+    value, number = entry
+    word = value.strip().lower()
+    if word not in _YES + _NO:
+        raise InputError(f"inDegrees={value!r} is neither yes nor no, so the angle unit is unknown",
+                         file=path, where=f"line {number}",
+                         fix="Write inDegrees=yes (angles in degrees) or inDegrees=no (radians).")
+    return word in _YES
+
+
+_SPELLING = {"nrows": "nRows", "ncolumns": "nColumns", "datarows": "datarows",
+             "datacolumns": "datacolumns"}
+
+
+def _check_counts(header, shape, path):
+    """ONE warning if nRows/datarows or nColumns/datacolumns disagree with the data read."""
+    found = []
+    for keys, actual, what in ((("nrows", "datarows"), shape[0], "data rows"),
+                               (("ncolumns", "datacolumns"), shape[1], "columns")):
+        for key in keys:
+            if key not in header:
+                continue
+            value, number = header[key]
+            try:
+                declared = int(value.strip())
+            except ValueError:
+                found.append(f"line {number}: {_SPELLING[key]}={value!r} is not a whole number")
+                continue
+            if declared != actual:
+                found.append(f"line {number}: the header says {_SPELLING[key]}={declared} but the "
+                             f"file holds {actual} {what}")
+    if found:
+        warnings.warn(f"{path}: {'; '.join(found)}; the rows and columns present are used (as "
+                      "OpenSim does) -- is the file truncated?", MotionFileWarning, stacklevel=3)
+
+
+def _check_ranges(q, columns, coords, in_degrees, path):
+    """ONE warning naming the coordinates whose values lie far outside their range."""
+    far = []
+    for index in sorted(columns):
+        c = coords[index]
+        slack = _RANGE_SLACK.get(c.motion_type)
+        lo, hi = (float(x) for x in c.range)
+        if slack is None or not (np.isfinite(lo) and np.isfinite(hi)) or hi < lo:
+            continue
+        margin = max(hi - lo, slack)
+        values = q[:, index]
+        worst = float(np.max(np.maximum(lo - values, values - hi)))
+        if worst > margin:
+            value = values[int(np.argmax(np.maximum(lo - values, values - hi)))]
+            if c.motion_type == "rotational":
+                far.append(f"{c.name} reaches {np.degrees(value):.6g} deg (range "
+                           f"{np.degrees(lo):.4g} to {np.degrees(hi):.4g} deg)")
+            else:
+                far.append(f"{c.name} reaches {value:.6g} (range {lo:.4g} to {hi:.4g})")
+    if far:
+        unit = "degrees" if in_degrees else "radians"
+        warnings.warn(f"{path}: values far outside the coordinate ranges: {'; '.join(far[:5])}"
+                      f"{' ...' if len(far) > 5 else ''}; the file was read in {unit} -- check "
+                      "inDegrees and the columns", MotionFileWarning, stacklevel=3)
 
 
 def _split_labels(line: str):

@@ -23,6 +23,7 @@ from .model import (Body, Coordinate, CouplerConstraint, Geometry, Joint, Model,
                     frame_transform)
 from .osim_joints import JOINT_TYPES, coordinate_order, custom_joint_axes, joint_axes, motion_types
 from .osim_paths import read_paths, read_wrap_objects
+from .errors import InputError
 from .osim_xml import Node, function_child, parse_function, read_document
 
 __all__ = ["load_model", "ModelFileWarning"]
@@ -48,7 +49,20 @@ def load_model(path) -> Model:
     InputError
         The file is missing, empty, binary, malformed, not an OpenSim model, or uses an
         element that is unsupported or inconsistent (the message names the XML element).
+        Anything unexpected that goes wrong while reading the file (a value of a type the
+        reader did not foresee) is also reported as one InputError naming the file.
     """
+    try:
+        return _load_model(path)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - bad input must not crash (RecursionError included)
+        raise InputError(f"cannot read the model ({type(exc).__name__}: {exc})", file=path,
+                         fix="check the file against an OpenSim 4.x/3.x model, or re-export it "
+                             "from OpenSim") from None
+
+
+def _load_model(path) -> Model:
     doc = read_document(path)
     file = doc.file
     try:

@@ -1,6 +1,7 @@
 """motion.motion_file: reading .mot/.sto as OpenSim 4.6 does, writing .sto that OpenSim reads."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import warnings
@@ -377,8 +378,9 @@ def test_every_shared_motion_parses_as_opensim_does(shared_dir, osim, tmp_path):
     for path in files:
         names, expected, in_degrees = _storage_table(osim, path)
         # A model whose coordinates are the file's columns, all translational: no conversion,
-        # so the raw numbers must be exactly OpenSim's.
-        model = _model([_coordinate(n, "translational") for n in names[1:]])
+        # so the raw numbers must be exactly OpenSim's (ranges wide enough for degrees as metres).
+        model = _model([dataclasses.replace(_coordinate(n, "translational"), range=(-1e6, 1e6))
+                        for n in names[1:]])
         motion, caught = _load(path, model)
         # the only warning allowed: a header nRows that the rows disagree with (LHDL: 51 vs 36)
         assert all("nRows=" in str(w.message) for w in caught) and len(caught) <= 1, path
@@ -444,6 +446,7 @@ def test_lhdl_motion_warns_once_per_kind(lhdl_dir):
     assert sum("nRows=51" in str(w.message) for w in caught) == 1
     assert sum("xRotation" in str(w.message) for w in caught) == 1
     assert sum("pelvis_tilt" in str(w.message) for w in caught) == 1
+    assert sum("nRows=51 but the file holds 36 data rows" in str(w.message) for w in caught) == 1
     assert motion.n_frames == 36  # the header says nRows=51; OpenSim also reads 36 rows
     np.testing.assert_allclose(motion.column("hip_flexion_r")[[0, -1]], np.radians([-10, 60]),
                                rtol=1e-15)
@@ -466,3 +469,59 @@ def test_reads_what_opensim_sto_adapter_writes(tmp_path, toy, osim):
     np.testing.assert_array_equal(motion.time, time)
     np.testing.assert_allclose(motion.column("rot"), np.radians([10.0, 20.0, 30.0]), rtol=1e-15)
     np.testing.assert_array_equal(motion.column("tx"), [0.1, 0.2, 0.3])
+
+
+# ------------------------------------------------------------------ untrusted headers (issue 16)
+_ELBOW = ("elbow\nversion=1\nnRows={n}\nnColumns=2\ninDegrees={deg}\nendheader\n"
+          "time\trot\n" + "".join(f"{0.1 * i:.1f}\t{10 * i}\n" for i in range(13)))
+
+
+@pytest.mark.parametrize("word", ["Yes please", "maybe", "degrees", "2", ""])
+def test_unknown_in_degrees_value_is_an_error(tmp_path, toy, word):
+    """OpenSim reads any inDegrees value but 'yes' as radians (130 deg became 7,448 deg)."""
+    path = tmp_path / "elbow.mot"
+    path.write_text(_ELBOW.format(n=13, deg=word))
+    with pytest.raises(InputError, match=r"line 5: inDegrees=.* is neither yes nor no") as err:
+        load_motion(path, toy)
+    assert "\n" not in str(err.value) and str(path) in str(err.value)
+
+
+@pytest.mark.parametrize("word,expected", [("YES", True), ("True", True), ("1", True), ("No", False),
+                                           ("false", False), ("0", False)])
+def test_in_degrees_spellings(tmp_path, toy, word, expected):
+    path = tmp_path / "elbow.mot"
+    path.write_text(_ELBOW.format(n=13, deg=word))
+    motion, _ = _load(path, toy)
+    assert motion.in_degrees is expected
+
+
+def test_row_count_disagreeing_with_the_rows_warns_once(tmp_path, toy):
+    path = tmp_path / "elbow.mot"
+    path.write_text(_ELBOW.format(n=27, deg="yes"))
+    motion, caught = _load(path, toy)
+    assert motion.n_frames == 13                     # the rows present are used, as OpenSim does
+    counts = [w for w in caught if "nRows=27 but the file holds 13 data rows" in str(w.message)]
+    assert len(counts) == 1 and "line 3" in str(counts[0].message)
+    path.write_text(_ELBOW.format(n="thirteen", deg="yes"))
+    _, caught = _load(path, toy)
+    assert sum("not a whole number" in str(w.message) for w in caught) == 1
+
+
+def test_angles_far_outside_the_range_warn_once(tmp_path):
+    """Degrees declared as radians: 0..120 'rad' for a coordinate of range 0..130 deg."""
+    model = _model([Coordinate(name="rot", motion_type="rotational", default_value=0.0,
+                               range=(0.0, np.radians(130)), clamped=False, locked=False, joint="j"),
+                    Coordinate(name="rot2", motion_type="rotational", default_value=0.0,
+                               range=(0.0, np.radians(130)), clamped=False, locked=False, joint="j")])
+    path = tmp_path / "elbow.mot"
+    rows = "".join(f"{0.1 * i:.1f}\t{10 * i}\t0\n" for i in range(13))
+    path.write_text("elbow\nversion=1\nnRows=13\nnColumns=3\ninDegrees=no\nendheader\n"
+                    "time\trot\trot2\n" + rows)
+    motion, caught = _load(path, model)
+    far = [w for w in caught if "far outside" in str(w.message)]
+    assert len(far) == 1
+    assert "rot reaches 6875.49 deg" in str(far[0].message)     # 120 rad
+    assert "rot2" not in str(far[0].message)
+    path.write_text(path.read_text().replace("inDegrees=no", "inDegrees=yes"))
+    _, caught = _load(path, model)
+    assert not [w for w in caught if "far outside" in str(w.message)]
