@@ -118,6 +118,9 @@ def honoured():
     finally:
         signal.signal(signal.SIGINT, previous)
         sys.unraisablehook = previous_hook
+        # the command has read the request (`requested`) by now: a stale flag would make the next
+        # `check` outside any command (the Python API, a test) raise
+        _FLAG.clear()
 
 
 def exit_now(code: int):
