@@ -226,3 +226,17 @@ def test_lhdl_fibre_quality(lhdl_dir, muscle):
     assert q.turn_p95 <= turn
     assert q.origin_covered >= cov_o
     assert q.insertion_covered >= cov_i
+
+
+def test_bundle_and_plan_pickle_and_the_plan_still_decomposes():
+    """A bundle (with its HarmonicPlan: field, patches; not its per-process cache or lock) goes
+    through pickle, as process pools and Dask workers need, and its plan gives the same fibres."""
+    import pickle
+
+    v, f = tube(_circle, *straight(L), n_sect=32, n_path=21)
+    b = decompose((v, f), _disk(0.0), _disk(L), n_fibres=20, resolution=8)
+    b2 = pickle.loads(pickle.dumps(b))
+    np.testing.assert_array_equal(b2.points, b.points)
+    again = decompose((v, f), _disk(0.0), _disk(L), n_fibres=20, resolution=8, plan=b2.plan)
+    np.testing.assert_allclose(again.points, b.points, atol=1e-12)
+    assert b2.quality.outside == 0
