@@ -27,6 +27,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .inside import inside as _inside, inside_grid
+from .patch_map import _sub_centroids
 
 __all__ = ["FibreQuality", "FibreQualityWarning", "fibre_quality", "LIMITS", "VOLUME_SAMPLES",
            "FIBRE_STEP"]
@@ -109,9 +110,9 @@ def _resampled(points, step):
 def _patch_samples(vertices, faces, face_mask):
     tri = vertices[faces[face_mask]]
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    w = np.array([[4, 1, 1], [1, 4, 1], [1, 1, 4], [2, 2, 2]], dtype=np.float64) / 6.0
+    w = _sub_centroids(2)               # the centroids of the 4 midpoint sub-triangles
     pts = np.einsum("sk,tkd->tsd", w, tri).reshape(-1, 3)
-    return pts, np.repeat(area / 4.0, 4)
+    return pts, np.repeat(area / len(w), len(w))
 
 
 def fibre_quality(points, vertices, faces, origin_faces, insertion_faces) -> FibreQuality:
