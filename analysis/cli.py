@@ -64,7 +64,7 @@ SETTLE = {
             "matplotlib", "matplotlib.figure", "matplotlib.backends.backend_agg", "numba", "tqdm",
             "motion", "fibres", "analysis.run", "analysis.tables", "analysis.plots",
             "analysis.vtk_files", "analysis.run_record", "analysis.out_folder", "analysis.budget",
-            "motion.surface_rest", "fibres.decompose"),
+            "motion.surface.rest", "fibres.decompose"),
     "lines": ("numpy", "pandas", "motion", "analysis.lines_tables"),
     "decompose": ("numpy", "trimesh", "fibres", "fibres.decompose", "fibres.fitting"),
 }

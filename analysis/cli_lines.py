@@ -109,8 +109,8 @@ def compute_lines(model, motion, *, muscles=None, quiet=True):
         ``moment_arms`` (F, M, C), ``spanned`` (M, C), ``muscle_names`` (M,),
         ``coordinate_names`` (C,).
     """
-    from motion.action_lines import action_lines
-    from motion.kinematics import body_poses
+    from motion.wrapping.action_lines import action_lines
+    from motion.osim.kinematics import body_poses
 
     starts = np.arange(0, motion.n_frames, BATCH_FRAMES)
     tfs, lengths, arms = [], [], []
@@ -149,8 +149,8 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def execute(args) -> int:
     """Run ``fibres lines``; returns the exit status (errors are raised as InputError)."""
-    from motion.motion_file import load_motion
-    from motion.osim_reader import load_model
+    from motion.osim.motion_file import load_motion
+    from motion.osim.reader import load_model
 
     from .out_folder import OutFolderLock, check_out_folder
 

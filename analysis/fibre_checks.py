@@ -4,7 +4,7 @@ Normalized length l / l_opt (``normalized_length`` in ``fibre_lengths.csv`` and 
 so fibre lengths can feed a force-length curve:
 
 - l_opt of a muscle is its OpenSim muscle's ``optimal_fiber_length`` (the mean over its action
-  lines that have one; `motion.muscle_parameters`); NaN when none has (a PathActuator).
+  lines that have one; `motion.osim.muscle_parameters`); NaN when none has (a PathActuator).
 - Generated surface (no mesh; its belly spans the fibre part of the path, L - tendon slack
   length): every fibre's l_opt is the muscle's, so l / l_opt is the Hill model's normalized
   fibre length (rigid tendon).
@@ -39,7 +39,7 @@ MIN_LINE_ARM = 5e-3
 
 
 def _parameters(model, names):
-    from motion.muscle_parameters import muscle_parameters
+    from motion.osim.muscle_parameters import muscle_parameters
 
     return [muscle_parameters(model, n) for n in names]
 

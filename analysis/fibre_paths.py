@@ -221,7 +221,7 @@ def muscle_parameters(model, mspec, properties, rest_lengths) -> dict:
     ``tendon_slack_length`` ((N,) float), ``line_rest_lengths`` (L,) float.
     """
     import motion as motion_pkg
-    from motion.surface_rest import rest_pose
+    from motion.surface.rest import rest_pose
 
     from .run import _surface_spec
 

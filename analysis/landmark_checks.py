@@ -37,7 +37,7 @@ def check_landmarks(model, mspec, sspec, rest) -> None:
     """Raise `InputError` if an attachment's landmarks lie far from the rest surface (module
     docstring). ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its rest-pose
     `motion.WrappedSurface`."""
-    from motion.surface_rest import rest_pose
+    from motion.surface.rest import rest_pose
 
     lo = rest.rest_vertices.min(axis=0)
     hi = rest.rest_vertices.max(axis=0)

@@ -59,7 +59,7 @@ def _num(x) -> str:
 
 def _source_tree(model_file):
     """(root element, document folder) of a model in 4.x form (older files upgraded by OpenSim)."""
-    from motion.osim_xml import read_document
+    from motion.osim.xml_document import read_document
 
     path = Path(model_file)
     root = read_document(path).el
@@ -68,7 +68,7 @@ def _source_tree(model_file):
         return root
     model = root.find("Model")
     if model is not None and (model.find("JointSet") is not None or model.find("Ground") is not None):
-        root.set("Version", "40000")    # 4.x content behind an older header (motion.osim_reader)
+        root.set("Version", "40000")    # 4.x content behind an older header (motion.osim.reader)
         return root
     try:
         import opensim

@@ -37,7 +37,7 @@ class MuscleResult:
     action_lines : tuple of str, (L,)
     action_line_lengths : (F, L) float
     action_line_moment_arms : (F, L, C) float
-        Exact -dL/dq of the OpenSim paths (``motion.action_lines``).
+        Exact -dL/dq of the OpenSim paths (``motion.wrapping.action_lines``).
     rest_lengths : (N,) float
         Fibre lengths at the rest pose (the pose the mesh was acquired in).
     fibre_points : (F, N, P, 3) float or None

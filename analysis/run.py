@@ -2,7 +2,7 @@
 
 The chain (DESIGN.md), per muscle:
 
-1. Poses and action lines for all frames (``motion.action_lines``: lengths and exact moment arms
+1. Poses and action lines for all frames (``motion.wrapping.action_lines``: lengths and exact moment arms
    r = -dL/dq of the OpenSim paths, and which coordinates each path spans).
 2. The muscle surface wrapped at every frame (``motion.wrap_surfaces``): same topology as the rest
    surface, attachments riding their bodies.
@@ -26,7 +26,7 @@ The chain (DESIGN.md), per muscle:
      those frames, `motion.WrappedSurface.rider_frames`: over a pulley a fibre keeps its offset
      from the line, so its moment arm is its own radius; on a straight line the frames are
      constant and this is the plain linear spread). A generated, tendon-aware surface
-     (`motion.surface_tendons`) has its fibre ends on the belly's caps, riding the belly.
+     (`motion.surface.tendons`) has its fibre ends on the belly's caps, riding the belly.
      Why not the surface's own rigid attachment zones: a zone turns the fibre's end piece with
      its body while the belly turns with the action line, which kinks every fibre next to its
      ends (a straight cylinder across a pin joint measured 0.33 % too long at 60 degrees). With
@@ -397,7 +397,7 @@ def _stacked_motion(ctx, coord_idx):
 def _surface_spec(mspec):
     """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres."""
     from fibres import as_surface
-    from motion.surface_spec import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment
+    from motion.surface.spec import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment
 
     vertices = faces = None
     if mspec.mesh is not None:
@@ -525,7 +525,7 @@ def _difference_quotients(base, plus, minus, steps, plus_switch, minus_switch):
 def _run_muscle(ctx, mspec):
     """Wrap, decompose, measure one muscle over all frames (+ perturbed frames)."""
     import motion as motion_pkg
-    from motion.surface_rest import rest_pose
+    from motion.surface.rest import rest_pose
 
     interrupts.check()
     decompose = _api("fibres", "decompose", "decompose")

@@ -90,7 +90,7 @@ def bone_meshes(model, spec=None, bodies=None) -> list:
             covered.add(body.name)
     if spec is not None:
         from fibres import as_surface
-        from motion.surface_rest import rest_pose
+        from motion.surface.rest import rest_pose
 
         from .run import _surface_spec
 

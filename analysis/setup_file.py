@@ -75,7 +75,7 @@ def _float(el, tag, default, file):
 
 def read_setup(path) -> AnalyzeSetup:
     """Read an AnalyzeTool setup file (module docstring); bad files raise `InputError`."""
-    from motion.osim_xml import read_document
+    from motion.osim.xml_document import read_document
 
     path = Path(path)
     if not path.is_file():

@@ -386,7 +386,7 @@ def _load_spec(path, *, model=None) -> FibreModelSpec:
         try:
             from motion import load_model
         except ImportError:  # not yet exported by this checkout's motion/__init__.py
-            from motion.osim_reader import load_model
+            from motion.osim.reader import load_model
         model = load_model(model_path)
     specs = []
     for name, table in muscles.items():

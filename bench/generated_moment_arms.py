@@ -78,7 +78,7 @@ def compare(result, tendon_slack):
 def run_model(key, *, frames=None, fibres=30, resolution=12, muscles=None, jobs=1):
     from analysis.run import run
     from motion import load_model
-    from motion.muscle_parameters import muscle_parameters
+    from motion.osim.muscle_parameters import muscle_parameters
 
     model_path, motion_path, default_frames = MODELS[key]
     model = load_model(model_path)

@@ -35,8 +35,8 @@ MOTION = GAIT / "subject01_walk1_ik.mot"
 
 def time_ours(model, mot, repeats):
     """Seconds per frame (list over repeats) for action_lines and for body_poses; the last result."""
-    from motion.action_lines import action_lines
-    from motion.kinematics import body_poses
+    from motion.wrapping.action_lines import action_lines
+    from motion.osim.kinematics import body_poses
 
     lines_s, poses_s, lines = [], [], None
     for _ in range(repeats):
@@ -102,9 +102,9 @@ def main(argv=None) -> int:
         print(f"bench/lines.py: the shared data folder is absent ({MODEL.parent} not found).")
         return 1
     sys.path.insert(0, str(ROOT))
-    from motion.action_lines import action_lines
-    from motion.motion_file import load_motion
-    from motion.osim_reader import load_model
+    from motion.wrapping.action_lines import action_lines
+    from motion.osim.motion_file import load_motion
+    from motion.osim.reader import load_model
 
     model = load_model(MODEL)
     with warnings.catch_warnings():

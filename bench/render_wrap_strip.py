@@ -31,8 +31,8 @@ def main(argv=None):
     import pyvista as pv
 
     from motion import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment, wrap_surfaces
-    from motion.kinematics import motion_from_array
-    from motion.osim_reader import load_model
+    from motion.osim.kinematics import motion_from_array
+    from motion.osim.reader import load_model
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--muscle", default="iliacus_r", choices=sorted(LINES))
@@ -63,7 +63,7 @@ def main(argv=None):
                                                                         1 if args.muscle == "glut_max_r" else None)),
                              bones=bone_specs)
     wrapped = wrap_surfaces(model, motion, [spec])[0]
-    from motion.kinematics import body_poses
+    from motion.osim.kinematics import body_poses
 
     tf = np.asarray(body_poses(model, motion).tf_ground_body)
     plotter = pv.Plotter(off_screen=True, shape=(1, len(args.angles)), window_size=(600 * len(args.angles), 700))

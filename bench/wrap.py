@@ -36,9 +36,9 @@ def _median_time(fn, repeat):
 
 
 def main(argv=None):
-    from motion.surface_binding import bind_surface
-    from motion.surface_collision import WrapObstacle
-    from motion.surface_generate import fusiform_surface
+    from motion.surface.binding import bind_surface
+    from motion.surface.collision import WrapObstacle
+    from motion.surface.generate import fusiform_surface
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, default=15000)

@@ -134,7 +134,7 @@ def _write_set(out, name, builder, *, top, bottom, rho, q_deg, me):
 
 
 def _pin_model(name, q_range):
-    from motion.osim_builder import ModelBuilder
+    from motion.osim.builder import ModelBuilder
 
     return (ModelBuilder(name)
             .add_body("proximal", mass=1.0)

@@ -51,7 +51,7 @@ def test_gait2392_landmarks_in_their_own_bodies_frames_run(tmp_path):
     toml = _gait_toml(tmp_path, model, ["add_long_r", "bifemsh_r"])
     spec = load_spec(toml)
     assert all(m.origin.in_body_frame and m.insertion.in_body_frame for m in spec.muscles)
-    from motion.muscle_parameters import muscle_parameters
+    from motion.osim.muscle_parameters import muscle_parameters
 
     res = analysis.run(spec, frames="0:211:50", keep_points=False)
     for m in res.muscles:

@@ -114,7 +114,7 @@ def test_ctrl_c_in_the_middle_leaves_nothing(example, tmp_path, capsys, monkeypa
     import motion
 
     if not hasattr(motion, "action_lines"):
-        pytest.skip("motion.action_lines is not in this checkout yet")
+        pytest.skip("motion.wrapping.action_lines is not in this checkout yet")
     out = tmp_path / "out"
 
     def interrupted(*args, **kwargs):
@@ -201,7 +201,7 @@ def test_muscle_without_mesh_gets_a_generated_surface(example):
     import numpy as np
 
     from analysis import run
-    from motion.muscle_parameters import muscle_parameters
+    from motion.osim.muscle_parameters import muscle_parameters
 
     toml = example / "arm_example.toml"
     toml.write_text(toml.read_text().replace('mesh = "meshes/brachialis.ply"\n', "", 1))

@@ -1,4 +1,4 @@
-"""`analysis.run` end to end on analytic models built here with `motion.osim_builder`:
+"""`analysis.run` end to end on analytic models built here with `motion.osim.builder`:
 
 (a) a straight cylinder muscle across a pin joint: every fibre is a straight segment whose end
     points ride their bodies rigidly, so its length is |p0 - Rz(q) p1| and its moment arm is
@@ -13,7 +13,7 @@ import textwrap
 import numpy as np
 import pytest
 
-pytest.importorskip("motion.surface_wrap", reason="motion.wrap_surfaces is not in this checkout yet")
+pytest.importorskip("motion.surface.wrap", reason="motion.wrap_surfaces is not in this checkout yet")
 pytest.importorskip("fibres.decompose", reason="fibres.decompose is not in this checkout yet")
 
 from analysis.run import run  # noqa: E402
@@ -68,7 +68,7 @@ def build_model(tmp_path, *, pulley: bool, q_deg, fibres=24, resolution=12):
     import trimesh
 
     from motion import write_sto
-    from motion.osim_builder import ModelBuilder
+    from motion.osim.builder import ModelBuilder
 
     x = -(R_PULLEY + RHO) if pulley else C
     o, i = (x, A, 0.0), (x, -B, 0.0)

@@ -3,7 +3,7 @@
 
 - Gait2392 walking, the four right quadriceps (the rectus femoris and vasti insert on patellar
   MovingPathPoints): in every frame where the line's moment arm exceeds 5 mm, the median fibre
-  moment arm is the action line's (exact, `motion.action_lines`) within max(5 %, 1 mm);
+  moment arm is the action line's (exact, `motion.wrapping.action_lines`) within max(5 %, 1 mm);
 - Arm26 elbow flexion sweep, biceps and brachialis: the same;
 - both: the median fibre length is the rigid-tendon belly length L_path - tendon_slack_length
   within 5 % in every frame (parallel template), and normalized_length = l / optimal_fiber_length;
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("motion.surface_tendons", reason="issue 12 not in this checkout")
+pytest.importorskip("motion.surface.tendons", reason="issue 12 not in this checkout")
 
 from analysis.run import run  # noqa: E402
 
@@ -40,7 +40,7 @@ def _toml(tmp_path, model, motion, muscles, fibres=24, resolution=12):
 
 
 def _check(res, model):
-    from motion.muscle_parameters import muscle_parameters
+    from motion.osim.muscle_parameters import muscle_parameters
 
     for m in res.muscles:
         p = muscle_parameters(model, m.name)
@@ -78,7 +78,7 @@ def test_arm26_elbow_flexors(tmp_path):
 
 def test_path_shorter_than_its_tendon_slack_length_warns_and_keeps_a_belly(tmp_path):
     from motion import write_sto
-    from motion.osim_builder import ModelBuilder
+    from motion.osim.builder import ModelBuilder
 
     mb = (ModelBuilder("short").add_body("a").add_weld_joint("fix", "ground", "a")
           .add_body("b").add_pin_joint("pin", "a", "b", "q", range=(-3.0, 3.0)))
@@ -101,5 +101,5 @@ def test_path_shorter_than_its_tendon_slack_length_warns_and_keeps_a_belly(tmp_p
     m = res.muscle("m")
     assert any("shorter than its tendon slack length" in n and n.startswith("warning:") for n in m.notes)
     assert (m.fibre_lengths > 0).all() and np.isfinite(m.fibre_moment_arms).all()
-    # the belly never drops below 2 % of the path (motion.muscle_parameters.BELLY_MIN_FRACTION)
+    # the belly never drops below 2 % of the path (motion.osim.muscle_parameters.BELLY_MIN_FRACTION)
     assert (np.median(m.fibre_lengths, axis=1) > 0.015 * m.action_line_lengths[:, 0]).all()

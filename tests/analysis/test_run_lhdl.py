@@ -39,7 +39,7 @@ def test_fd_moment_arms_agree_with_a_2_degree_quotient(sweep, muscle):
 
 
 def test_fibre_ends_ride_their_bones_and_moment_arms_are_plausible(sweep):
-    from motion.kinematics import body_poses
+    from motion.osim.kinematics import body_poses
 
     m = sweep.muscle("iliacus_r")
     assert set(m.coordinates) == {"hip_flexion_r", "hip_adduction_r", "hip_rotation_r"}

@@ -17,7 +17,7 @@ import textwrap
 import numpy as np
 import pytest
 
-pytest.importorskip("motion.surface_thickness", reason="issue 12 not in this checkout")
+pytest.importorskip("motion.surface.thickness", reason="issue 12 not in this checkout")
 
 from analysis.run import run  # noqa: E402
 
@@ -71,7 +71,7 @@ def build(tmp_path, thickness, q_deg, *, fibres=24, resolution=60):
     import trimesh
 
     from motion import write_sto
-    from motion.osim_builder import ModelBuilder
+    from motion.osim.builder import ModelBuilder
 
     x0 = -R                         # the rest line is tangent to the cylinder at (-R, 0, 0)
     mb = (ModelBuilder("belt").add_body("upper").add_weld_joint("fix", "ground", "upper")
@@ -114,7 +114,7 @@ def wrapped_sector_radius(points, q):
 @pytest.mark.filterwarnings("ignore:All-NaN slice")
 @pytest.mark.parametrize("ratio", [0.2, 0.4, 0.6])
 def test_thick_belt_fibres_follow_their_own_radius(tmp_path, ratio):
-    from motion.surface_volume import mesh_volume
+    from motion.surface.volume import mesh_volume
 
     thickness = ratio * R
     bone = R - 0.5 * thickness

@@ -1,13 +1,13 @@
 """A gastrocnemius-like muscle whose action line wraps a knee cylinder in flexion and leaves it in
 extension (issue 12), end to end with a generated, tendon-aware belly (no mesh).
 
-Model (`motion.osim_builder`): thigh fixed, shank on a pin (axis z) at the knee; a WrapCylinder
+Model (`motion.osim.builder`): thigh fixed, shank on a pin (axis z) at the knee; a WrapCylinder
 of radius R about the knee axis on the thigh, quadrant -x; the muscle runs from (X0, A) on the
 thigh to (X0, -B) on the shank, X0 = -(R + 50 mm): at full extension the line passes 50 mm clear
 of the cylinder, and it wraps once the knee flexes past 21 degrees. Properties checked on a
 1-degree sweep through the transition:
 
-- the median fibre moment arm tracks the action line's (exact, `motion.action_lines`) within
+- the median fibre moment arm tracks the action line's (exact, `motion.wrapping.action_lines`) within
   max(5 %, 1 mm) wherever the line's exceeds 5 mm -- before, during and after wrapping;
 - every fibre's moment arm is continuous relative to the line's: no jump over 1 mm between
   1-degree steps, except where the line meets the cylinder (a step of the fibre's offset,
@@ -21,7 +21,7 @@ import textwrap
 import numpy as np
 import pytest
 
-pytest.importorskip("motion.surface_tendons", reason="issue 12 not in this checkout")
+pytest.importorskip("motion.surface.tendons", reason="issue 12 not in this checkout")
 
 from analysis.run import run  # noqa: E402
 
@@ -33,7 +33,7 @@ SLACK, L_OPT = 0.3, 0.08
 
 def build(tmp_path, q_deg):
     from motion import write_sto
-    from motion.osim_builder import ModelBuilder
+    from motion.osim.builder import ModelBuilder
 
     mb = (ModelBuilder("knee").add_body("thigh").add_weld_joint("fix", "ground", "thigh")
           .add_body("shank").add_pin_joint("knee", "thigh", "shank", "knee_angle", range=(-3.0, 3.0)))

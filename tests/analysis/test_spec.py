@@ -9,7 +9,7 @@ import pytest
 
 from analysis.errors import InputError
 from analysis.spec import load_spec
-from motion.model import Body, Coordinate, Joint, Model, Path, PathPoint
+from motion.osim.model import Body, Coordinate, Joint, Model, Path, PathPoint
 
 
 def _model():
@@ -158,7 +158,7 @@ def test_lhdl_fibre_model_loads(lhdl_dir):
 
     import pandas as pd
 
-    from motion.osim_reader import load_model
+    from motion.osim.reader import load_model
 
     toml = Path(__file__).resolve().parents[1] / "data" / "lhdl_hip.toml"
     spec = load_spec(toml, model=load_model(lhdl_dir / "model" / "LHDL_hip_r.osim"))

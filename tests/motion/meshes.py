@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motion.surface_volume import mesh_volume
+from motion.surface.volume import mesh_volume
 
 
 def capped_tube(start, end, radius, *, n_around=48, n_rings=61, ref=None):

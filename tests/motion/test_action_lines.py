@@ -10,10 +10,10 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from motion.action_lines import action_lines, polyline_length, spanned_coordinates
-from motion.kinematics import body_poses, motion_from_array
-from motion.moment_arms import opensim_moment_arms
-from motion.osim_reader import load_model
+from motion.wrapping.action_lines import action_lines, polyline_length, spanned_coordinates
+from motion.osim.kinematics import body_poses, motion_from_array
+from motion.wrapping.moment_arms import opensim_moment_arms
+from motion.osim.reader import load_model
 
 from meshes import opensim_ground_transforms
 from reference import CASES, ReferenceCase, case_id
@@ -21,8 +21,8 @@ from reference import CASES, ReferenceCase, case_id
 
 def _have_wrapping() -> bool:
     try:
-        return importlib.util.find_spec("motion.path_wrapping") is not None and \
-            importlib.import_module("motion.path_wrapping") is not None
+        return importlib.util.find_spec("motion.wrapping.path") is not None and \
+            importlib.import_module("motion.wrapping.path") is not None
     except ImportError:
         return False
 
@@ -60,7 +60,7 @@ def test_unwrapped_paths_match_opensim(opensim_dir, case):
     # -dL/dq vs OpenSim's central differences (h = 1e-5, error ~h^2 |L'''| < 1e-6): all statuses
     np.testing.assert_allclose(mine, ma.neg_dLdq_fd.to_numpy(), rtol=0, atol=1e-5)
     # OpenSim's computeMomentArm equals -dL/dq for independent coordinates of unwrapped paths,
-    # except about BallJoint coordinates (angular-velocity mobilities, see motion.action_lines)
+    # except about BallJoint coordinates (angular-velocity mobilities, see motion.wrapping.action_lines)
     ball = {c for j in model.joints if j.kind == "BallJoint" for c in j.coordinates}
     sel = ((ma.coord_status == "independent") & ~ma.coordinate.isin(ball)).to_numpy()
     np.testing.assert_allclose(mine[sel], ma.moment_arm.to_numpy()[sel], rtol=0, atol=1e-6)
@@ -75,7 +75,7 @@ def test_unwrapped_paths_match_opensim(opensim_dir, case):
 WRAPPED = [c for c in CASES if c[0].startswith("Arm26") or "WrapPath" in c[0]]
 
 
-@pytest.mark.skipif(not _have_wrapping(), reason="motion.path_wrapping (the wrap helper's part) is not available yet")
+@pytest.mark.skipif(not _have_wrapping(), reason="motion.wrapping.path (the wrap helper's part) is not available yet")
 @pytest.mark.parametrize("case", WRAPPED, ids=[case_id(c) for c in WRAPPED])
 def test_wrapped_paths_match_opensim(opensim_dir, case):
     rc, model, lines = _compute(opensim_dir, case, wrapped=True)
@@ -99,7 +99,7 @@ def test_polyline_length_analytic():
 
 def test_single_pin_moment_arm_is_the_perpendicular_distance(tmp_path):
     """Analytic pulley-free case: a two-point path across a pin joint; r = d1 d2 sin(theta) / L."""
-    from motion.osim_builder import ModelBuilder
+    from motion.osim.builder import ModelBuilder
 
     xml = (ModelBuilder("pin")
            .add_body("upper").add_weld_joint("fix", "ground", "upper")
@@ -250,7 +250,7 @@ def test_live_opensim_models(osim, live_model):
 def test_frame_blocks_give_the_same_answer(opensim_dir, monkeypatch):
     import importlib
 
-    al_mod = importlib.import_module("motion.action_lines")   # the module (motion.action_lines is the function)
+    al_mod = importlib.import_module("motion.wrapping.action_lines")   # the module (motion.wrapping.action_lines is the function)
 
     rc = ReferenceCase(opensim_dir, *CASES[0])            # Arm26: wrapped and unwrapped paths
     model = load_model(rc.model_file)
@@ -271,7 +271,7 @@ def test_compiled_kernel_equals_numpy_path(opensim_dir, monkeypatch, case):
     they agree to rounding (1e-13 m: ~100 ulp of lengths of order 1 m) and the point data exactly."""
     import importlib
 
-    al_mod = importlib.import_module("motion.action_lines")
+    al_mod = importlib.import_module("motion.wrapping.action_lines")
     pytest.importorskip("numba")
     rc = ReferenceCase(opensim_dir, *case)
     model = load_model(rc.model_file)
@@ -294,9 +294,9 @@ def test_body_twists_from_the_chain_equal_those_from_d_tf(opensim_dir, case):
     rates); arm26 (pins), couplers + moving points, a ball joint, a constrained model."""
     import importlib
 
-    from motion.kinematics import _pose_twists, body_pose_derivatives
+    from motion.osim.kinematics import _pose_twists, body_pose_derivatives
 
-    al_mod = importlib.import_module("motion.action_lines")
+    al_mod = importlib.import_module("motion.wrapping.action_lines")
     rc = ReferenceCase(opensim_dir, *case)
     model = load_model(rc.model_file)
     q = rc.q_used(model)[:50]

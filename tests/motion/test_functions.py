@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from motion.functions import (Constant, LinearFunction, MultiplierFunction, PiecewiseLinearFunction,
+from motion.osim.functions import (Constant, LinearFunction, MultiplierFunction, PiecewiseLinearFunction,
                               PolynomialFunction, SimmSpline)
 
 # knots of the Gait2392 knee translation (a real SimmSpline) and random ones
@@ -138,7 +138,7 @@ def test_polynomial_matches_opensim(osim):
 
 def test_multiplier_function_xml_is_read(tmp_path):
     """The XML OpenSim 4.6 prints for a MultiplierFunction (checked with MultiplierFunction.printToXML)."""
-    from motion.osim_xml import Node, parse_function
+    from motion.osim.xml_document import Node, parse_function
     import xml.etree.ElementTree as ET
 
     el = ET.fromstring("<MultiplierFunction><function><SimmSpline><x> -2 -1 0</x><y> 0.01 0.03 0</y>"

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion.kinematics import body_pose_derivatives, body_poses, coordinate_values, motion_from_array
-from motion.osim_reader import load_model
+from motion.osim.kinematics import body_pose_derivatives, body_poses, coordinate_values, motion_from_array
+from motion.osim.reader import load_model
 
 from reference import CASES, ReferenceCase, case_id
 
@@ -65,9 +65,9 @@ def test_derivatives_match_finite_differences(opensim_dir):
 
 
 def test_couplers_locks_and_clamps():
-    from motion.functions import LinearFunction
-    from motion.model import Body, Coordinate, CouplerConstraint, Joint, Model
-    from motion.osim_joints import joint_axes
+    from motion.osim.functions import LinearFunction
+    from motion.osim.model import Body, Coordinate, CouplerConstraint, Joint, Model
+    from motion.osim.joints import joint_axes
 
     class _Node:  # joint_axes only needs .error for bad input
         def error(self, *a, **k):

@@ -6,7 +6,7 @@ import re
 import pytest
 
 from motion.errors import InputError
-from motion.osim_reader import load_model
+from motion.osim.reader import load_model
 
 MINIMAL = """<?xml version="1.0" encoding="UTF-8" ?>
 <OpenSimDocument Version="40000">

@@ -1,4 +1,4 @@
-"""motion.motion_file: reading .mot/.sto as OpenSim 4.6 does, writing .sto that OpenSim reads."""
+"""motion.osim.motion_file: reading .mot/.sto as OpenSim 4.6 does, writing .sto that OpenSim reads."""
 from __future__ import annotations
 
 import dataclasses
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from motion.errors import InputError
-from motion.model import Body, Coordinate, CouplerConstraint, Model
-from motion.motion_file import Motion, MotionFileWarning, load_motion, write_sto
+from motion.osim.model import Body, Coordinate, CouplerConstraint, Model
+from motion.osim.motion_file import Motion, MotionFileWarning, load_motion, write_sto
 
 # ------------------------------------------------------------------ a small model (no I/O)
 
@@ -412,7 +412,7 @@ def test_motions_match_opensim_reference_values(shared_dir):
     """q equals the reference's ``motion_value`` (OpenSim's own deg->rad rule) where the file has
     the column, and the model default where it has not (the reference keeps defaults too)."""
     pd = pytest.importorskip("pandas")
-    from motion.osim_reader import load_model
+    from motion.osim.reader import load_model
 
     cases = _reference_cases(shared_dir)
     assert len(cases) >= 14
@@ -434,7 +434,7 @@ def test_motions_match_opensim_reference_values(shared_dir):
 
 
 def test_lhdl_motion_warns_once_per_kind(lhdl_dir):
-    from motion.osim_reader import load_model
+    from motion.osim.reader import load_model
 
     model = load_model(lhdl_dir / "model" / "LHDL_hip_r.osim")
     motion, caught = _load(lhdl_dir / "model" / "motions" / "hip_flexion.mot", model)

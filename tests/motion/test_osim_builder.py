@@ -1,4 +1,4 @@
-"""motion.osim_builder: files that OpenSim 4.6 loads, with lengths that match hand geometry."""
+"""motion.osim.builder: files that OpenSim 4.6 loads, with lengths that match hand geometry."""
 from __future__ import annotations
 
 import math
@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from motion.osim_builder import ModelBuilder, TransformAxisSpec
+from motion.osim.builder import ModelBuilder, TransformAxisSpec
 
 R, D, A, B = 0.02, 0.01, 0.15, 0.12   # pulley radius, offset of the line, attachment distances
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion.functions import LinearFunction, SimmSpline
-from motion.model import euler_xyz_matrix
-from motion.osim_reader import load_model
+from motion.osim.functions import LinearFunction, SimmSpline
+from motion.osim.model import euler_xyz_matrix
+from motion.osim.reader import load_model
 
 from reference import CASES, ReferenceCase, case_id
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion.surface_binding import bind_surface, smoothstep
-from motion.surface_collision import WrapObstacle
-from motion.surface_curves import resample_polylines, rotation_minimizing_frames
-from motion.surface_generate import fusiform_surface
-from motion.surface_volume import mesh_volume, solve_radial_scale, volume_cubic
+from motion.surface.binding import bind_surface, smoothstep
+from motion.surface.collision import WrapObstacle
+from motion.surface.curves import resample_polylines, rotation_minimizing_frames
+from motion.surface.generate import fusiform_surface
+from motion.surface.volume import mesh_volume, solve_radial_scale, volume_cubic
 
 from meshes import capped_tube
 
@@ -223,8 +223,8 @@ def test_smoothstep_is_c2_at_the_ends():
 def test_numpy_fallbacks_match_compiled_kernels(monkeypatch):
     # numba is optional: the numpy paths must give the same surfaces (to round-off)
     pytest.importorskip("numba")
-    import motion.surface_collision as collision
-    import motion.surface_volume as volume
+    import motion.surface.collision as collision
+    import motion.surface.volume as volume
 
     verts, faces = capped_cylinder(n_around=16, n_rings=11)
     origin, insertion = np.zeros(3), np.array([LENGTH, 0.0, 0.0])
@@ -259,7 +259,7 @@ def _squeeze_on_cylinder(h, t, y=0.005, radius=0.02, margin=5e-4):
 
 
 def test_squeeze_flattens_layers_in_order_into_the_room_left():
-    from motion.surface_collision import SQUEEZE_KNEE
+    from motion.surface.collision import SQUEEZE_KNEE
 
     h, radius, margin = 0.004, 0.02, 5e-4
     room = h - margin                             # down to the push-out shell
@@ -291,7 +291,7 @@ def test_squeeze_flattens_layers_in_order_into_the_room_left():
 
 def test_squeeze_numpy_fallback_matches_compiled_kernel(monkeypatch):
     pytest.importorskip("numba")
-    import motion.surface_collision as collision
+    import motion.surface.collision as collision
 
     rng = np.random.default_rng(3)
     tf = np.tile(np.eye(4), (2, 1, 1))
@@ -311,7 +311,7 @@ def test_squeeze_numpy_fallback_matches_compiled_kernel(monkeypatch):
 
 
 def test_riders_must_be_trailing_face_less_vertices():
-    from motion.surface_spec import MuscleSurfaceSpec
+    from motion.surface.spec import MuscleSurfaceSpec
 
     verts, faces = capped_cylinder()
     both = np.vstack([verts, np.zeros((3, 3))])
@@ -364,7 +364,7 @@ def test_bone_obstacle_leading_is_the_first_vertices():
     """`BoneObstacle.leading(n)` pushes the first n vertices exactly as the whole obstacle does."""
     import trimesh
 
-    from motion.surface_collision import BoneDistance, BoneObstacle
+    from motion.surface.collision import BoneDistance, BoneObstacle
 
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.02)
     dist = BoneDistance.from_mesh(ball.vertices, ball.faces, spacing=2e-3)

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from motion import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment, wrap_surfaces
-from motion.kinematics import body_poses, motion_from_array
-from motion.motion_file import load_motion
-from motion.osim_reader import load_model
+from motion.osim.kinematics import body_poses, motion_from_array
+from motion.osim.motion_file import load_motion
+from motion.osim.reader import load_model
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
@@ -26,8 +26,8 @@ def test_arm26_generated_surfaces(opensim_dir):
     tf = np.asarray(body_poses(model, mot).tf_ground_body)
     cyl = model.wrap_object("TRI")
     tf_cyl = tf[:, model.body_index(cyl.body)] @ np.asarray(cyl.tf_body_wrap)
-    from motion.muscle_parameters import muscle_parameters
-    from motion.surface_generate import BELLY_MAX_ASPECT, SPECIFIC_TENSION
+    from motion.osim.muscle_parameters import muscle_parameters
+    from motion.surface.generate import BELLY_MAX_ASPECT, SPECIFIC_TENSION
 
     for surf, path in zip(out, model.paths):
         mesh = trimesh.Trimesh(surf.rest_vertices, surf.faces, process=False)
@@ -53,7 +53,7 @@ def test_arm26_generated_surfaces(opensim_dir):
         assert np.abs(surf.volume_error).max() < 5e-3
         if any(w.wrap_object == "TRI" for w in path.wraps):
             # no bone mesh: the obstacle is the wrap cylinder moved inwards by the belly's
-            # half-thickness, at most half its radius (motion.surface_thickness)
+            # half-thickness, at most half its radius (motion.surface.thickness)
             loc = np.matmul(surf.vertices - tf_cyl[:, None, :3, 3], tf_cyl[:, :3, :3])
             within = np.abs(loc[..., 2]) < 0.5 * cyl.length
             rad = np.hypot(loc[..., 0], loc[..., 1])[within]
@@ -193,7 +193,7 @@ def test_lhdl_bones_not_penetrated(lhdl_runs, motion_name, muscle):
 def test_lhdl_bodies_rest_pose(lhdl):
     """frame = "bodies": the solved pose makes the femur frame coincide with the pelvis frame, and
     wrapping at that pose gives back the rest mesh (in the scanner frame placed in ground)."""
-    from motion.surface_rest import rest_pose
+    from motion.surface.rest import rest_pose
 
     model, specs, _ = lhdl
     spec = specs[0]
@@ -203,7 +203,7 @@ def test_lhdl_bodies_rest_pose(lhdl):
     # hip joint centre given as 0.432670 / 0.432669 in parent / child: 1e-6 m is the model's own
     np.testing.assert_allclose(rel, np.eye(4), atol=2e-6)
     assert rest.residual < 2e-6
-    # the default pose is not that pose (documented in motion.surface_rest)
+    # the default pose is not that pose (documented in motion.surface.rest)
     q0 = np.array([c.default_value for c in model.coordinates])
     tf0 = np.asarray(body_poses(model, motion_from_array(model, q0[None])).tf_ground_body)[0]
     rel0 = np.linalg.inv(tf0[model.body_index("pelvis")]) @ tf0[model.body_index("femur_r")]

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from motion import InputError, MuscleSurfaceSpec, SurfaceAttachment, wrap_surfaces
-from motion.kinematics import motion_from_array
-from motion.osim_builder import ModelBuilder
-from motion.osim_reader import load_model
-from motion.surface_volume import mesh_volume
+from motion.osim.kinematics import motion_from_array
+from motion.osim.builder import ModelBuilder
+from motion.osim.reader import load_model
+from motion.surface.volume import mesh_volume
 
 from meshes import capped_tube
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import motion
-from motion.osim_reader import ModelFileWarning, load_model
+from motion.osim.reader import ModelFileWarning, load_model
 
 ARM = __import__("pathlib").Path(__file__).resolve().parents[2] / "models" / "arm_example.osim"
 

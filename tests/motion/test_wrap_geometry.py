@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion.wrap_cylinder import wrap_cylinder
-from motion.wrap_ellipsoid import closest_point_on_ellipsoid, wrap_ellipsoid
-from motion.wrap_sphere import wrap_sphere
-from motion.wrap_torus import wrap_torus
+from motion.wrapping.cylinder import wrap_cylinder
+from motion.wrapping.ellipsoid import closest_point_on_ellipsoid, wrap_ellipsoid
+from motion.wrapping.sphere import wrap_sphere
+from motion.wrapping.torus import wrap_torus
 
 R = 0.05
 
@@ -239,7 +239,7 @@ def test_cylinder_readjustment_ends_tangent_and_frame_by_frame(quadrant, monkeyp
     assert 10 <= res.wrapped.sum() < len(res.wrapped)
     # frames with a single 2 mm piece (n = 1) skip the loop in OpenSim too, and frames where
     # OpenSim's cap of 100 restarts stops it early (found by lifting the cap) are not tangent
-    monkeypatch.setattr("motion.wrap_cylinder._MAX_ITERATIONS", 100000)
+    monkeypatch.setattr("motion.wrapping.cylinder._MAX_ITERATIONS", 100000)
     uncapped = wrap_cylinder(p1, p2, radius=R, length=0.6, quadrant=quadrant, adjust_tangents=True)
     monkeypatch.undo()
     capped = np.nan_to_num(np.abs(uncapped.t1 - res.t1).max(axis=1)) > 0

@@ -14,11 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion.action_lines import action_lines
-from motion.kinematics import body_pose_derivatives
-from motion.osim_reader import load_model
-from motion.path_points import path_points
-from motion.path_wrapping import wrap_path
+from motion.wrapping.action_lines import action_lines
+from motion.osim.kinematics import body_pose_derivatives
+from motion.osim.reader import load_model
+from motion.wrapping.path_points import path_points
+from motion.wrapping.path import wrap_path
 
 from reference import ReferenceCase  # tests/motion/reference.py (rootdir-relative import)
 

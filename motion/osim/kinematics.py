@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .model import Model
 
 __all__ = ["BodyPoses", "body_poses", "body_pose_derivatives", "coordinate_values", "motion_coordinates",

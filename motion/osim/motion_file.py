@@ -56,7 +56,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["Motion", "MotionFileWarning", "load_motion", "write_sto"]
 

@@ -7,7 +7,7 @@ prints (``Model::print``): ``BodySet`` / ``JointSet`` with ``PhysicalOffsetFrame
 
 Example
 -------
->>> from motion.osim_builder import ModelBuilder
+>>> from motion.osim.builder import ModelBuilder
 >>> xml = (ModelBuilder("pin")
 ...        .add_body("upper", meshes=["upper.stl"])
 ...        .add_weld_joint("fix", "ground", "upper")

@@ -25,8 +25,8 @@ import math
 
 import numpy as np
 
-from .surface_curves import any_perpendicular, curve_tangents, resample_polylines, rotation_minimizing_frames
-from .surface_volume import mesh_volume, solve_radial_scale, volume_cubic
+from .curves import any_perpendicular, curve_tangents, resample_polylines, rotation_minimizing_frames
+from .volume import mesh_volume, solve_radial_scale, volume_cubic
 
 __all__ = ["fusiform_surface", "fusiform_radius", "belly_surface", "SPECIFIC_TENSION"]
 
@@ -130,7 +130,7 @@ def belly_surface(curve, *, volume: float | None = None, max_radius: float | Non
                   n_rings: int = 40, n_around: int = 24, landmark_fraction: float = 0.9):
     """A closed tube around the belly piece of an action line, flat caps where the tendons join.
 
-    The belly of a tendon-aware generated muscle (`motion.muscle_parameters`): a tube of
+    The belly of a tendon-aware generated muscle (`motion.osim.muscle_parameters`): a tube of
     constant radius ``r`` about the line (rings on its rotation-minimising frames, Wang et al.
     2008), closed at each end by a flat disc perpendicular to the line, the tendon's footprint.
     Fibres of the parallel template then run from cap to cap, so their lengths are the belly

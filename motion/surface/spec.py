@@ -8,7 +8,7 @@ metres by the caller:
 - ``frame = "<body name>"``: mesh and landmarks in that body's frame (the rest pose then only
   matters for the action lines and the other attachment body).
 - ``frame = "bodies"``: NMSBuilder/LHDL export, one scanner frame in which every body frame is
-  the identity; see `motion.surface_rest` for how the matching pose is found.
+  the identity; see `motion.surface.rest` for how the matching pose is found.
 """
 from __future__ import annotations
 
@@ -91,7 +91,7 @@ class MuscleSurfaceSpec:
         Names of the model's paths (OpenSim muscles) that drive the surface, at least one.
     vertices : (V, 3) float or None
         The rest surface in ``frame``, metres; None to generate a fusiform surface around the
-        first action line at the rest pose (`motion.surface_generate`).
+        first action line at the rest pose (`motion.surface.generate`).
     faces : (T, 3) int or None
         Closed surface, outward normals (flipped automatically if inward).
     frame : str
@@ -112,7 +112,7 @@ class MuscleSurfaceSpec:
     tendon_slack : tuple of float or None
         Tendon slack length (m) per action line. None: a generated surface takes the model's
         ``tendon_slack_length`` of each line (its belly then spans the fibre part of the path,
-        `motion.muscle_parameters`), a mesh none (0). With a positive value the surface is the
+        `motion.osim.muscle_parameters`), a mesh none (0). With a positive value the surface is the
         belly between the two tendons: it slides along the line and its attachment landmarks
         ride the belly, not the bones.
     """

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["RestPose", "rest_pose", "rest_coordinates"]
 
@@ -75,7 +75,7 @@ def rest_coordinates(model, rest: dict, *, muscle: str = "?") -> np.ndarray:
 
 
 def _poses(model, q: np.ndarray) -> np.ndarray:
-    from .kinematics import body_poses, motion_from_array
+    from ..osim.kinematics import body_poses, motion_from_array
 
     return np.asarray(body_poses(model, motion_from_array(model, np.atleast_2d(q))).tf_ground_body)
 
@@ -119,7 +119,7 @@ def _solve_bodies_pose(model, q0: np.ndarray, muscle: str):
 
 
 def rest_pose(model, spec) -> RestPose:
-    """The rest pose of ``spec`` (a `motion.surface_spec.MuscleSurfaceSpec`) on ``model``."""
+    """The rest pose of ``spec`` (a `motion.surface.spec.MuscleSurfaceSpec`) on ``model``."""
     q = rest_coordinates(model, spec.rest_pose, muscle=spec.name)
     frame = spec.frame
     if frame == "bodies":

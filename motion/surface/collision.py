@@ -11,11 +11,11 @@ distance is below ``allowed + margin`` is moved along ``n`` to the distance
 ``m`` do not move at all) and maps any penetration depth into the open shell (0, m], so a
 pushed vertex never ends inside and the result is a continuous, once-differentiable function
 of the poses -- as needed for finite-difference moment arms. Penetrating parts flatten against
-the obstacle like a muscle pressed on a pulley; `motion.surface_binding` then re-solves the
+the obstacle like a muscle pressed on a pulley; `motion.surface.binding` then re-solves the
 cross-section scale so the volume is kept.
 
 Before the push-out, wrap objects squeeze the muscle's cross-section through its thickness
-(`WrapObstacle.squeezer`, called by `motion.surface_binding`): the layers facing the object are
+(`WrapObstacle.squeezer`, called by `motion.surface.binding`): the layers facing the object are
 flattened in order into the room between the action line and the surface, so fibres bend
 smoothly onto a pulley instead of at the corner a pure projection leaves where they cross it.
 
@@ -139,7 +139,7 @@ class WrapObstacle:
     inset : float or (V,) float
         Depth (m) by which each vertex may enter the object: the obstacle a vertex meets is the
         object's surface moved inwards by its inset (0: the wrap surface itself). `motion.wrap_surfaces`
-        sets the muscle's local half-thickness (`motion.surface_thickness`), so that the wrap
+        sets the muscle's local half-thickness (`motion.surface.thickness`), so that the wrap
         object guides the centre line while the tissue around it may lie inside the wrap radius.
     knee : float or None
         Knee of the through-thickness squeeze (`squeezer`); None: no squeeze, push-out only.
@@ -441,7 +441,7 @@ def _push_kernel():
 
 def wrap_obstacle(wrap, tf_ground_body, *, margin: float = 5e-4, inset=0.0,
                   knee: float | None = SQUEEZE_KNEE) -> WrapObstacle | None:
-    """A `WrapObstacle` for a `motion.model.WrapObject` on a body with pose (F, 4, 4).
+    """A `WrapObstacle` for a `motion.osim.model.WrapObject` on a body with pose (F, 4, 4).
 
     ``inset`` (scalar or (V,)) and ``knee``: see `WrapObstacle`. Returns None for a torus (not
     pushed; documented limitation).

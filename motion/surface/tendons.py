@@ -1,9 +1,9 @@
 """Tendons of generated muscles and attachments on moving path points, for `motion.wrap_surfaces`.
 
-Tendon-aware muscles (`motion.muscle_parameters` states the rule): a surface with a positive
+Tendon-aware muscles (`motion.osim.muscle_parameters` states the rule): a surface with a positive
 tendon slack length is the *belly*, the fibre part of its action line. In every frame the
 current line (moving and conditional points, wrap arcs, all as OpenSim places them) is cut to
-the arc-length span ``[t, L - t]`` of `motion.muscle_parameters.belly_span` and the belly is
+the arc-length span ``[t, L - t]`` of `motion.osim.muscle_parameters.belly_span` and the belly is
 bound to that piece, so it slides along the whole path as a rigid-tendon muscle does: its
 length is ``L - l_ts`` and its fibres change length with the path, ``dl/dq = dL/dq``.
 
@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .muscle_parameters import belly_span, muscle_parameters
-from .surface_curves import trim_polylines
+from ..osim.muscle_parameters import belly_span, muscle_parameters
+from .curves import trim_polylines
 
 __all__ = ["tendon_slacks", "belly_polylines", "end_point_offsets", "polyline_lengths", "straight_belly"]
 

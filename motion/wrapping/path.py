@@ -30,7 +30,7 @@ PathWrap.cpp; reproduced here in numpy, not copied):
 
 Frames are processed together: each frame carries its own current path as an index array, and
 every wrap computation runs on all frames that need it, with masks. Values are
-`motion.wrap_autodiff.Dual` numbers seeded with the path points' derivatives with respect to
+`motion.wrapping.dual.Dual` numbers seeded with the path points' derivatives with respect to
 the coordinates, so dL/dq is exact for the algorithm OpenSim runs.
 """
 from __future__ import annotations
@@ -39,12 +39,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import wrap_autodiff as ad
-from .wrap_autodiff import Dual
-from .wrap_cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, cylinder_wrap_line
-from .wrap_ellipsoid import ellipsoid_wrap_line
-from .wrap_sphere import sphere_wrap_line
-from .wrap_torus import torus_wrap_line
+from . import dual as ad
+from .dual import Dual
+from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, cylinder_wrap_line
+from .ellipsoid import ellipsoid_wrap_line
+from .sphere import sphere_wrap_line
+from .torus import torus_wrap_line
 
 __all__ = ["WrappedPath", "wrap_path"]
 
@@ -237,9 +237,9 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
 
     Parameters
     ----------
-    path : motion.model.Path
+    path : motion.osim.model.Path
         The path (``path.wraps`` in PathWrapSet order).
-    model : motion.model.Model
+    model : motion.osim.model.Model
     points : (F, P, 3) float
         The defined path points in ground (inactive conditional points: any finite value).
     active : (F, P) bool

@@ -3,7 +3,7 @@
 An OpenSim wrap object (WrapCylinder, WrapSphere, WrapEllipsoid) stands for the path of the
 muscle's *centre line*, not for the bone: a thick muscle whose line wraps a cylinder of radius
 R has its inner half inside R. What tissue must not enter is bone. Where the fibre model gives
-bone meshes for a muscle, those are its obstacles (`motion.surface_collision.BoneObstacle`) and
+bone meshes for a muscle, those are its obstacles (`motion.surface.collision.BoneObstacle`) and
 its wrap objects only guide the line. Where it gives none, the tool assumes a bone derived from
 each wrap object: the wrap surface moved inwards by the muscle's local half-thickness, so the
 cross-section around the line fits between the line and that bone unchanged. Per surface
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .surface_curves import closest_on_polyline, resample_polylines
+from .curves import closest_on_polyline, resample_polylines
 
 __all__ = ["local_half_thickness", "INSET_MAX_FRACTION"]
 

@@ -31,7 +31,7 @@ OpenSim's own names; every frame transform is a (4, 4) homogeneous matrix named
   tf_parent_jointframe @ tf_F_M @ inv(tf_child_jointframe)``.
 - `TransformAxis`: ``name`` (rotation1..3, translation1..3), ``kind`` ("rotation" |
   "translation"), ``axis`` (3,) unit, ``coordinates`` (names; empty for a Constant),
-  ``function`` (a `motion.functions` object of one variable).
+  ``function`` (a `motion.osim.functions` object of one variable).
 - `Coordinate`: ``name``, ``motion_type`` ("rotational" | "translational" | "coupled"),
   ``default_value``, ``range`` (2,), ``clamped``, ``locked``, ``joint`` (its joint's name),
   ``free_to_satisfy_constraints`` (OpenSim's ``is_free_to_satisfy_constraints``: assembly may

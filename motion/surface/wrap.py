@@ -8,32 +8,32 @@ Signature (the analysis package calls this)::
 
 ``model`` is a `motion.Model`, ``motion`` a `motion.Motion` (or any object with ``q``
 (F, C) and ``coordinate_names``), ``muscles`` a sequence of `motion.MuscleSurfaceSpec`.
-``lines`` may pass the `motion.action_lines` result: its current points are reused for paths
+``lines`` may pass the `motion.wrapping.action_lines` result: its current points are reused for paths
 without wrap objects (wrapped paths are recomputed here, since the arcs need the tangent points
 in path order, which `ActionLines.points` does not keep). ``poses`` may pass the (F, B, 4, 4)
 body poses (or a `BodyPoses`); both are computed when absent.
 
 Per muscle (one muscle = its action lines, loops over muscles only):
 
-1. Rest pose (`motion.surface_rest`): coordinates and body transforms; mesh, landmarks and bones
+1. Rest pose (`motion.surface.rest`): coordinates and body transforms; mesh, landmarks and bones
    to ground. A mesh farther from its action line than 0.25 m + 3 x its own size is refused as a
    likely unit mistake (InputError naming the muscle and the ``units`` key).
-2. No mesh: a generated surface. With the model's tendon slack length (`motion.surface_tendons`,
-   `motion.muscle_parameters`) it is the belly only: a straight flat-capped tube of the rest
-   belly length ``L - l_ts`` (`motion.surface_generate.belly_surface`), bound to the straightened
+2. No mesh: a generated surface. With the model's tendon slack length (`motion.surface.tendons`,
+   `motion.osim.muscle_parameters`) it is the belly only: a straight flat-capped tube of the rest
+   belly length ``L - l_ts`` (`motion.surface.generate.belly_surface`), bound to the straightened
    rest belly line and bent onto the belly piece ``[l_ts / 2, L - l_ts / 2]`` of the current line
    in every frame; its landmarks (the caps) ride the belly. Without one, a fusiform surface around
-   the first action line (`motion.surface_generate.fusiform_surface`). Volume from ``spec.volume``
+   the first action line (`motion.surface.generate.fusiform_surface`). Volume from ``spec.volume``
    or the muscle's max isometric force and optimal fibre length.
 3. Current action lines per frame, including the arc over every wrap object between its two
    tangent points (cylinder: the helix, i.e. the geodesic; sphere: the great circle in the
    direction the path arrives; ellipsoid: the great circle of the scaled unit sphere mapped
    back; torus: the chord).
-4. `motion.surface_binding`: bind at rest, deform for all frames at once, with the muscle's bone
+4. `motion.surface.binding`: bind at rest, deform for all frames at once, with the muscle's bone
    meshes as obstacles or, where it has none, bones derived from its wrap objects (the wrap
    surface moved inwards by the local half-thickness: the wrap object guides the centre line,
-   tissue may lie inside it; `motion.surface_obstacles`, `motion.surface_thickness`). Landmarks
-   at a MovingPathPoint end of the first line follow that point (`motion.surface_tendons`).
+   tissue may lie inside it; `motion.surface.obstacles`, `motion.surface.thickness`). Landmarks
+   at a MovingPathPoint end of the first line follow that point (`motion.surface.tendons`).
 """
 from __future__ import annotations
 
@@ -41,16 +41,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
-from .surface_binding import bind_surface
-from .muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
-from .surface_generate import belly_surface, fusiform_surface
-from .surface_rest import rest_pose
-from .surface_tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
-from .surface_curves import round_corners
-from .surface_obstacles import TANGENT_SMOOTHING, line_samples, muscle_obstacles
-from .surface_thickness import local_half_thickness
-from .surface_volume import mesh_volume
+from ..errors import InputError
+from .binding import bind_surface
+from ..osim.muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
+from .generate import belly_surface, fusiform_surface
+from .rest import rest_pose
+from .tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
+from .curves import round_corners
+from .obstacles import TANGENT_SMOOTHING, line_samples, muscle_obstacles
+from .thickness import local_half_thickness
+from .volume import mesh_volume
 
 __all__ = ["WrappedSurface", "wrap_surfaces", "path_polylines"]
 
@@ -84,7 +84,7 @@ class WrappedSurface:
     rest_residual : float
         ``frame = "bodies"``: residual of the solved all-frames-coincide pose.
     tendon_slack : tuple of float
-        Tendon slack length per action line (0: no tendons; `motion.surface_tendons`). With
+        Tendon slack length per action line (0: no tendons; `motion.surface.tendons`). With
         tendons the surface is the belly and ``origin`` / ``insertion`` ride it.
     notes : tuple of str
         Warnings for the user (a path shorter than its tendon slack length).
@@ -163,15 +163,15 @@ def _current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
             out[name] = (pts, _anchor_positions(path, ids))
     missing = [n for n in names if n not in out]
     if missing:
-        from .kinematics import body_pose_derivatives
-        from .path_points import path_points
+        from ..osim.kinematics import body_pose_derivatives
+        from ..wrapping.path_points import path_points
 
         tf, dtf, q_used, jac = body_pose_derivatives(model, motion, derivatives=True)
         for name in missing:  # loop over paths (few)
             path = model.path(name)
             pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
             if path.wraps:
-                from .path_wrapping import wrap_path
+                from ..wrapping.path import wrap_path
 
                 wrapped = wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
                 pts, ids = _path_polyline_ids(model, wrapped, tf)
@@ -223,7 +223,7 @@ def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POI
     Parameters
     ----------
     model : motion.Model
-    wrapped : motion.path_wrapping.WrappedPath
+    wrapped : motion.wrapping.path.WrappedPath
     tf_ground_body : (F, B, 4, 4) float
 
     Returns
@@ -285,7 +285,7 @@ def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC
 
 # ----------------------------------------------------------------------------- muscles
 #: Tendon-aware bellies: path corners under the belly are rounded over this many line sample
-#: spacings (`motion.surface_curves.round_corners`).
+#: spacings (`motion.surface.curves.round_corners`).
 CORNER_SAMPLES = 1.5
 
 def _apply(tf: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -349,7 +349,7 @@ def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: 
     -------
     tuple of WrappedSurface
     """
-    from .kinematics import body_poses
+    from ..osim.kinematics import body_poses
 
     muscles = tuple(muscles)
     path_names = list(model.path_names)
@@ -385,7 +385,7 @@ def _rest_lines(model, spec, tf_rest_actual, rest_motion):
 
 
 def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigid_radius, blend_radius):
-    from .kinematics import body_poses, motion_from_array
+    from ..osim.kinematics import body_poses, motion_from_array
 
     rest = rest_pose(model, spec)
     rest_motion = motion_from_array(model, rest.q[None])
@@ -421,7 +421,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         fmax, lopt = params.max_isometric_force, params.optimal_fiber_length
         volume = spec.volume
         if volume is None and fmax and lopt and fmax > 0 and lopt > 0:
-            from .surface_generate import SPECIFIC_TENSION
+            from .generate import SPECIFIC_TENSION
 
             volume = fmax / SPECIFIC_TENSION * lopt
         if tendons:
@@ -448,7 +448,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         ends = (origin_rest, insertion_rest)
         free = np.arange(n_v - spec.riders, n_v)
     # a generated belly turns its cross-sections over about its thickness where the path has a
-    # corner (`motion.surface_curves.smoothed_tangents`), so its inner side does not fold
+    # corner (`motion.surface.curves.smoothed_tangents`), so its inner side does not fold
     smoothing = TANGENT_SMOOTHING * float(np.max(local_half_thickness(
         vertices, n_v - spec.riders, rest_curves, n_samples=n_samples))) if spec.generated or tendons else 0.0
     binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],

@@ -4,7 +4,7 @@
 entities are refused: billion-laughs safe) and returns the root `Node`. A `Node` wraps an
 element together with its XML path (``/OpenSimDocument/Model/JointSet/objects/
 PinJoint[@name='knee']``) so that every `InputError` names the file, the element and the fix.
-`parse_function(node)` turns an OpenSim function element into a `motion.functions` object.
+`parse_function(node)` turns an OpenSim function element into a `motion.osim.functions` object.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .functions import (Constant, LinearFunction, MultiplierFunction, PiecewiseLinearFunction,
                         PolynomialFunction, SimmSpline)
 

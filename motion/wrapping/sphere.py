@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import wrap_autodiff as ad
-from .wrap_cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, dsign, quadrant_axis_sign
+from . import dual as ad
+from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, dsign, quadrant_axis_sign
 
 __all__ = ["wrap_sphere", "sphere_wrap_line"]
 
@@ -163,6 +163,6 @@ def wrap_sphere(p1, p2, *, radius, quadrant="all"):
 
     Returns
     -------
-    motion.wrap_autodiff.SegmentWrap
+    motion.wrapping.dual.SegmentWrap
     """
     return ad.segment_wrap(sphere_wrap_line, p1, p2, radius=radius, quadrant=quadrant)

@@ -24,7 +24,7 @@ import numpy as np
 
 from .functions import Constant, LinearFunction
 from .model import TransformAxis
-from .osim_xml import Node, function_child, parse_function
+from .xml_document import Node, function_child, parse_function
 
 __all__ = ["JOINT_TYPES", "joint_axes", "custom_joint_axes", "motion_types"]
 

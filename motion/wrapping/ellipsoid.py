@@ -26,16 +26,16 @@ implementation of the same steps:
    the ellipsoid; its length is the sum of the pieces (as OpenSim; short chords < 1 mm count
    straight). A quadrant-constrained wrap that starts the wrong way is redone the far way.
 
-Everything runs on `motion.wrap_autodiff.Dual` arrays; the derivative is the exact derivative
+Everything runs on `motion.wrapping.dual.Dual` arrays; the derivative is the exact derivative
 of this (iterative, piecewise smooth) function.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from . import wrap_autodiff as ad
-from .wrap_autodiff import Dual
-from .wrap_cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, dsign, quadrant_axis_sign
+from . import dual as ad
+from .dual import Dual
+from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, dsign, quadrant_axis_sign
 
 __all__ = ["wrap_ellipsoid", "ellipsoid_wrap_line", "closest_point_on_ellipsoid"]
 
@@ -496,7 +496,7 @@ def wrap_ellipsoid(p1, p2, *, dimensions, quadrant="all", method="hybrid"):
 
     Returns
     -------
-    motion.wrap_autodiff.SegmentWrap
+    motion.wrapping.dual.SegmentWrap
     """
     return ad.segment_wrap(ellipsoid_wrap_line, p1, p2, dimensions=dimensions,
                            quadrant=quadrant, method=method)

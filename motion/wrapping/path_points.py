@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import Model, Path
+from ..osim.model import Model, Path
 
 __all__ = ["PathPoints", "path_points", "CONDITIONAL_TOLERANCE"]   # + private batched `_PointSet`
 
@@ -34,7 +34,7 @@ class PathPoints:
     active : (F, P) bool
         Whether each point is part of the path in that frame.
     d_points : (F, P, C, 3) float or None
-        d points / d q_k (see `motion.kinematics.coordinate_values` for the meaning of k).
+        d points / d q_k (see `motion.osim.kinematics.coordinate_values` for the meaning of k).
     names : (P,) tuple of str
     bodies : (P,) int
         Body index of each point.
@@ -80,7 +80,7 @@ def path_points(path: Path, model: Model, q_used: np.ndarray, tf_ground_body: np
     path : Path
     model : Model
     q_used : (F, C) float
-        Assembled coordinates (`motion.kinematics.coordinate_values`).
+        Assembled coordinates (`motion.osim.kinematics.coordinate_values`).
     tf_ground_body : (F, B, 4, 4) float
     jac : (F, C, C) float, optional
         dq_used/dq_k; with ``d_tf_ground_body`` gives ``d_points``.

@@ -1,6 +1,6 @@
 """OpenSim's ``computeMomentArm`` convention, where it differs from r = -dL/dq.
 
-`motion.action_lines` returns r = -dL/dq (the project's contract, INTERFACE.md). OpenSim's
+`motion.wrapping.action_lines` returns r = -dL/dq (the project's contract, INTERFACE.md). OpenSim's
 ``Muscle::computeMomentArm`` (MomentArmSolver) instead returns the generalized force of a unit
 path tension in the mobilizer's *generalized speeds* u. For most joints u = qdot and the two
 agree. They differ in three places:
@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from .action_lines import ActionLines
-from .kinematics import _axis_angle_matrices
-from .model import Model
+from ..osim.kinematics import _axis_angle_matrices
+from ..osim.model import Model
 
 __all__ = ["opensim_moment_arms", "EULER_SPEED_JOINTS"]
 
@@ -50,7 +50,7 @@ def opensim_moment_arms(model: Model, lines: ActionLines) -> np.ndarray:
     ----------
     model : Model
     lines : ActionLines
-        From `motion.action_lines` (its ``q`` are the coordinates used).
+        From `motion.wrapping.action_lines` (its ``q`` are the coordinates used).
 
     Returns
     -------

@@ -334,7 +334,7 @@ def round_corners(points, radius: float, *, n_arc: int = 8) -> np.ndarray:
     quadratic Bezier arc of ``n_arc`` points from ``V - d u_in`` over ``V`` to ``V + d u_out``,
     ``d = min(radius tan(a / 2), 0.45 min(adjacent segment lengths))`` (a: the turn angle).
 
-    Why: a belly that slides along its path (rigid tendon, `motion.surface_tendons`) carries its
+    Why: a belly that slides along its path (rigid tendon, `motion.surface.tendons`) carries its
     line samples past the path's corners; a sampled curve cuts each corner by an amount that
     depends on where the corner falls between two samples, so its length ripples as the corner
     passes and its derivative -- a moment arm -- by up to several mm. Rounded over a few sample

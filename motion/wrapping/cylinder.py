@@ -23,15 +23,15 @@ independent numpy implementation:
    against a spiral point taken after r1 moved in the same pass (older releases' source used
    the pass's initial r1; 4.6 is what is reproduced, to ~1e-15 m against live OpenSim).
 
-Everything is computed on `motion.wrap_autodiff.Dual` arrays, so the returned length carries
+Everything is computed on `motion.wrapping.dual.Dual` arrays, so the returned length carries
 its exact derivative with respect to whatever the inputs were seeded with.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from . import wrap_autodiff as ad
-from .wrap_autodiff import Dual
+from . import dual as ad
+from .dual import Dual
 
 __all__ = ["wrap_cylinder", "cylinder_wrap_line", "NO_WRAP", "INSIDE_RADIUS", "WRAPPED",
            "MANDATORY_WRAP", "quadrant_axis_sign"]
@@ -382,7 +382,7 @@ def wrap_cylinder(p1, p2, *, radius, length, quadrant="all", adjust_tangents=Fal
 
     Returns
     -------
-    motion.wrap_autodiff.SegmentWrap
+    motion.wrapping.dual.SegmentWrap
         t1, t2 (F, 3), wrapped (F,), code (F,), arc (F,), length (F,), dl_dp1, dl_dp2 (F, 3).
     """
     return ad.segment_wrap(cylinder_wrap_line, p1, p2, radius=radius, length=length,

@@ -1,7 +1,7 @@
 """Action lines of an OpenSim model: path lengths and exact moment arms, vectorised over frames.
 
 For every path force (muscle, ligament, path actuator): the current path per frame (active
-points, and the wrap tangent points of `motion.path_wrapping` when the path has wrap objects),
+points, and the wrap tangent points of `motion.wrapping.path` when the path has wrap objects),
 its length L (F,) and the moment arms r = -dL/dq (F, C) by forward-mode derivatives (chain rule
 through the body transforms, moving points and couplers; no finite differences).
 
@@ -26,9 +26,9 @@ Speed: per model and path selection an index plan is built once and cached (`_pl
 unwrapped paths' points stacked, sorted by body, grouped in (body, path) pairs, and the
 (pair, spanned coordinate) terms of dL/dq. When no selected path wraps, the body twists come
 straight from the joint chain (no (F, B, C, 4, 4) derivative array). A numba kernel walks the
-active points of every path per frame (`motion.path_points._polyline_kernel`); the numpy twin
+active points of every path per frame (`motion.wrapping.path_points._polyline_kernel`); the numpy twin
 `_polyline_numpy` is used without numba and is tested equal to it. Wrapped paths go through
-`motion.path_wrapping` path by path. Gait2392 walking (211 frames, 92 paths, 262 moment-arm
+`motion.wrapping.path` path by path. Gait2392 walking (211 frames, 92 paths, 262 moment-arm
 pairs): 0.38 -> 0.10 ms per frame (``python bench/lines.py``; OpenSim 4.6 ~16 ms per frame).
 """
 from __future__ import annotations
@@ -38,9 +38,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
-from .kinematics import _pose_twists, body_pose_derivatives, motion_coordinates
-from .model import Model, Path
+from ..errors import InputError
+from ..osim.kinematics import _pose_twists, body_pose_derivatives, motion_coordinates
+from ..osim.model import Model, Path
 from .path_points import (_moving_local, _point_set, _point_set_active, _point_set_positions, _polyline_kernel,
                           path_points)
 
@@ -220,7 +220,7 @@ class _Plan:
     ----------
     unwrapped, wrapped : (M_u,), (M_w,) int
         Indices into the selection.
-    points : `motion.path_points._PointSet` of the unwrapped paths (grid (M_u, K), N points
+    points : `motion.wrapping.path_points._PointSet` of the unwrapped paths (grid (M_u, K), N points
         sorted by body, then path).
     slot_point : (M_u K + 1,) int
         Point index n of each grid slot; N for padding slots and for the extra last slot.
@@ -304,7 +304,7 @@ def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, twist, out: tup
     - (unit vector of the segment leaving it); rigid points contribute through their body's
     twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per (body, path)
     pair first, then one product per pair and spanned coordinate; moving points add
-    g . R dp_body/dq. The compiled kernel (`motion.path_points._polyline_kernel`) does the
+    g . R dp_body/dq. The compiled kernel (`motion.wrapping.path_points._polyline_kernel`) does the
     polyline part; without numba (or with ``COMPILED = False``) the numpy `_polyline_numpy`.
     """
     lengths, dldq, points, mask, order = out
@@ -333,7 +333,7 @@ def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, twist, out: tup
 
 
 def _polyline_numpy(plan: _Plan, p_n, arm, act, twist, dldq) -> tuple:
-    """The numpy twin of `motion.path_points._polyline_kernel`: length (F, M_u), g (F, N, 3),
+    """The numpy twin of `motion.wrapping.path_points._polyline_kernel`: length (F, M_u), g (F, N, 3),
     points, mask, order; adds the rigid-body terms to ``dldq`` (one matrix product per body)."""
     ps = plan.points
     n_paths, n_slots = ps.shape
@@ -382,9 +382,9 @@ def _polyline_numpy(plan: _Plan, p_n, arm, act, twist, dldq) -> tuple:
 
 def _wrap_module():
     try:
-        from . import path_wrapping
+        from . import path as path_wrapping
     except ImportError as exc:       # clearly marked: never measure a wrapped path without its wraps
-        raise NotImplementedError("this path has wrap objects but motion.path_wrapping is not available; "
+        raise NotImplementedError("this path has wrap objects but motion.wrapping.path is not available; "
                                   "refusing to return an unwrapped (wrong) length") from exc
     return path_wrapping
 

@@ -27,10 +27,10 @@ line are the rotation-minimising frames of Wang et al., ACM TOG 2008):
    i.e. its material point slides with the arc-length parameter (the belly stretches along the
    line) while the cross-section scales by ``k``. Since the surface is affine in ``k`` its
    volume is a cubic in ``k``; ``k`` is solved per frame so that the volume equals the rest
-   volume (`motion.surface_volume`). Wrap objects then squeeze the cross-section offsets
+   volume (`motion.surface.volume`). Wrap objects then squeeze the cross-section offsets
    ``k (x N + y B)`` through the thickness where they point into the object
-   (`motion.surface_collision.WrapObstacle.squeezer`), obstacles (wrap objects, bones)
-   push what still penetrates out (`motion.surface_collision`), and ``k`` is re-solved by a
+   (`motion.surface.collision.WrapObstacle.squeezer`), obstacles (wrap objects, bones)
+   push what still penetrates out (`motion.surface.collision`), and ``k`` is re-solved by a
    fixed number of secant steps (on the vertices the faces use; trailing face-less riders,
    e.g. fibre points, are squeezed and pushed once at the final ``k``: every step acts on each
    vertex alone, so that gives the same numbers).
@@ -47,10 +47,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .surface_curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline,
+from .curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline,
                              resample_polylines, smoothed_tangents,
                              rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
-from .surface_volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
+from .volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
 __all__ = ["SurfaceBinding", "SurfaceFrames", "bind_surface", "smoothstep"]
 
@@ -243,10 +243,10 @@ class SurfaceBinding:
         anchors : sequence of L (F, K_l) int or None, keyword-only
             Per line, the indices in each frame's polyline of the anchor points given to
             `bind_surface` (``rest_anchors``); the arc length is then matched piecewise
-            between anchors (`motion.surface_curves.resample_polylines`).
+            between anchors (`motion.surface.curves.resample_polylines`).
         obstacles : sequence, keyword-only
             Objects with ``push_out(vertices (F, V, 3)) -> (F, V, 3)``
-            (`motion.surface_collision`), applied in order after the volume solve.
+            (`motion.surface.collision`), applied in order after the volume solve.
         preserve_volume : bool, keyword-only
             Solve the radial scale so the volume stays the rest volume (else ``k = 1``).
         push_iterations : int, keyword-only
@@ -362,7 +362,7 @@ def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_inse
         the free pieces stretch. None: one piece (global arc length).
     tangent_smoothing : float, keyword-only
         Arc length (m, at rest) over which the line tangents that orient the cross-sections
-        are averaged (`motion.surface_curves.smoothed_tangents`, standard deviation); 0: none.
+        are averaged (`motion.surface.curves.smoothed_tangents`, standard deviation); 0: none.
     free_vertices : (V,) bool or index array or None, keyword-only
         Vertices that get no rigid attachment zone (``w_o = w_i = 0``, all belly): points
         carried with the surface that are not part of it, e.g. fibre points, whose ends the

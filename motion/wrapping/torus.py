@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import wrap_autodiff as ad
-from .wrap_autodiff import Dual
-from .wrap_cylinder import NO_WRAP, WRAPPED, cylinder_wrap_line, dsign, quadrant_axis_sign
+from . import dual as ad
+from .dual import Dual
+from .cylinder import NO_WRAP, WRAPPED, cylinder_wrap_line, dsign, quadrant_axis_sign
 
 __all__ = ["wrap_torus", "torus_wrap_line"]
 
@@ -141,7 +141,7 @@ def wrap_torus(p1, p2, *, inner_radius, outer_radius, quadrant="all", adjust_tan
 
     Returns
     -------
-    motion.wrap_autodiff.SegmentWrap
+    motion.wrapping.dual.SegmentWrap
     """
     return ad.segment_wrap(torus_wrap_line, p1, p2, inner_radius=inner_radius,
                            outer_radius=outer_radius, quadrant=quadrant,

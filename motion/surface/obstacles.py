@@ -3,10 +3,10 @@
 Used by `motion.wrap_surfaces` per muscle:
 
 - bone meshes given for the muscle (``bones``): signed-distance obstacles riding their bodies
-  (`motion.surface_collision.BoneObstacle`); the wrap objects then only guide the line;
+  (`motion.surface.collision.BoneObstacle`); the wrap objects then only guide the line;
 - no bone mesh: a bone derived from every active wrap object of the muscle's action lines (not
   WrapTorus): the wrap surface moved inwards by the muscle's local half-thickness, at most half
-  the object's smallest radius (`motion.surface_thickness`), no squeeze;
+  the object's smallest radius (`motion.surface.thickness`), no squeeze;
 - line samples: enough that they are at most WRAP_SAMPLE_ANGLE apart on the smallest wrap
   object of the muscle (`line_samples`).
 """
@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
-from .surface_collision import BoneDistance, BoneObstacle, wrap_obstacle
-from .surface_thickness import INSET_MAX_FRACTION, local_half_thickness
+from ..errors import InputError
+from .collision import BoneDistance, BoneObstacle, wrap_obstacle
+from .thickness import INSET_MAX_FRACTION, local_half_thickness
 
 __all__ = ["muscle_obstacles", "line_samples", "WRAP_SAMPLE_ANGLE", "TANGENT_SMOOTHING"]
 
@@ -70,7 +70,7 @@ def line_samples(model, spec, rest_curves, n_samples: int) -> int:
 
 def muscle_obstacles(model, spec, tf, rest, vertices, rest_curves, n_surface, *, n_samples, margin, bone_spacing):
     """Bone meshes where the muscle has them; else a bone derived from every active wrap object
-    of its action lines (`motion.surface_thickness`)."""
+    of its action lines (`motion.surface.thickness`)."""
     names = list(model.body_names)
     obstacles = []
     for k, bone in enumerate(spec.bones):

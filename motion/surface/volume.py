@@ -6,7 +6,7 @@ divergence theorem as a sum of signed tetrahedra against the origin,
     6 V = sum_T  v0 . (v1 x v2)
 
 (e.g. Zhang & Chen, "Efficient feature extraction for 2D/3D objects in mesh representation",
-ICIP 2001). The deformation of `motion.surface_binding` writes every vertex of every frame as
+ICIP 2001). The deformation of `motion.surface.binding` writes every vertex of every frame as
 ``v(k) = P + k Q`` where ``k`` is one radial scale per frame (the cross-section of the muscle
 belly scales with ``k``). The volume is then a cubic polynomial in ``k`` whose four
 coefficients are trilinear sums over the triangles; one Newton solve per frame (vectorised over

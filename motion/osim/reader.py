@@ -21,10 +21,10 @@ import numpy as np
 
 from .model import (Body, Coordinate, CouplerConstraint, Geometry, Joint, Model, WeldConstraint,
                     frame_transform)
-from .osim_joints import JOINT_TYPES, coordinate_order, custom_joint_axes, joint_axes, motion_types
-from .osim_paths import read_paths, read_wrap_objects
-from .errors import InputError
-from .osim_xml import Node, function_child, parse_function, read_document
+from .joints import JOINT_TYPES, coordinate_order, custom_joint_axes, joint_axes, motion_types
+from .paths import read_paths, read_wrap_objects
+from ..errors import InputError
+from .xml_document import Node, function_child, parse_function, read_document
 
 __all__ = ["load_model", "ModelFileWarning"]
 
@@ -42,7 +42,7 @@ def load_model(path) -> Model:
     Returns
     -------
     Model
-        Frozen model (see `motion.model`).
+        Frozen model (see `motion.osim.model`).
 
     Raises
     ------

@@ -1,7 +1,7 @@
 """Read the path forces (GeometryPath: points and PathWrapSet) and the wrap objects of a model.
 
 Any force holding a ``<GeometryPath>`` (Thelen2003Muscle, Millard2012EquilibriumMuscle, any
-Muscle subclass, PathActuator, Ligament, PathSpring ...) becomes a `motion.model.Path`.
+Muscle subclass, PathActuator, Ligament, PathSpring ...) becomes a `motion.osim.model.Path`.
 Points: PathPoint, ConditionalPathPoint and MovingPathPoint in 4.x (``socket_parent_frame``,
 ``socket_coordinate``, ``socket_x_coordinate`` ...) and 3.x/2.x (``body``, ``coordinate``,
 ``x_coordinate`` ...) spelling. Wrap objects: WrapCylinder, WrapSphere, WrapEllipsoid, WrapTorus.
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .model import Path, PathPoint, PathWrap, WrapObject
-from .osim_xml import Node, function_child, parse_function
+from .xml_document import Node, function_child, parse_function
 
 __all__ = ["read_paths", "read_wrap_objects"]
 

@@ -1,0 +1,1 @@
+"""Reading OpenSim: the model (.osim), its functions and joints, motions (.mot/.sto) and body poses."""

@@ -1,0 +1,1 @@
+"""Action lines: path points, wrapping over OpenSim wrap objects, lengths and moment arms."""
