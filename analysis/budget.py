@@ -12,7 +12,9 @@ Memory model (bytes; F frames, N fibres, R segments, V surface vertices, K coord
   two-column .mot; Python keeps every number's text while parsing);
 - the action lines: ``F x (1 + M C) x 8 x LINES_COPIES`` (lengths and moment arms of the M
   paths about C coordinates, with their derivatives' work arrays);
-- wrapping one muscle (``bind`` transport): ``F (1 + 2K) x (V + N (2R + 1)) x 3 x 8 x WRAP_COPIES``
+- wrapping one muscle (``bind`` transport): ``P x (V + N (2R + 1)) x 3 x 8 x WRAP_COPIES`` with
+  P = the poses carried at once, ``F (1 + 2K)`` up to ``POSES_PER_CHUNK`` (the frames are streamed
+  in chunks of whole frames)
   (the surface and the fibres' material points at every pose; ``decompose`` transport: ``V``
   plus ``N (R + 1)`` points); ``--jobs J`` muscles at a time;
 - kept for the files: ``F N (R + 1) x 3 x 8`` fibre points per muscle;
@@ -46,6 +48,9 @@ __all__ = ["parse_size", "default_budget", "format_size", "resident_bytes", "che
            "MOTION_PARSE_BYTES_PER_BYTE", "WRAP_COPIES"]
 
 MOTION_PARSE_BYTES_PER_BYTE = 20
+#: poses (frames x (1 + 2K)) a muscle carries through the wrapping at once: with 100 fibres of 19
+#: segments and a 2,000-vertex surface their working arrays are about 0.3 GB
+POSES_PER_CHUNK = 1024
 LINES_COPIES = 6
 WRAP_COPIES = 12
 TABLE_BYTES_PER_ROW = 220
@@ -173,12 +178,14 @@ def muscle_costs(mspec, n_frames, n_coordinates, transport="bind") -> dict:
     f, k = int(n_frames), int(n_coordinates)
     n, r = int(mspec.n_fibres), int(mspec.resolution)
     v = _mesh_vertices(mspec.mesh)
-    poses = f * (1 + 2 * k)
+    per_frame = 1 + 2 * k
+    # the poses carried at once (`analysis.muscle_chain` streams the frames in chunks)
+    poses = min(f, max(1, POSES_PER_CHUNK // per_frame)) * per_frame
     carried = v + (n * (2 * r + 1) if transport == "bind" else 0)
     work = poses * carried * 3 * 8 * WRAP_COPIES
     if transport != "bind":
         work += poses * n * (r + 1) * 3 * 8
-    kept = f * n * (r + 1) * 3 * 8
+    kept = f * n * (r + 1) * 3 * 8 + f * per_frame * n * 8     # points + all poses' lengths
     rows = f * n * (1 + k)
     disk = rows * CSV_BYTES_PER_ROW + f * (n * (r + 1) * 32 + n * 32 + 2048) + PLOT_BYTES
     return {"muscle": mspec.name, "frames": f, "fibres": n, "points": r + 1, "poses": 1 + 2 * k,

@@ -277,23 +277,65 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
             shutil.rmtree(staging)
 
 
-def _write_plots(result, folder: Path, stems, *, quiet, progress):
-    """Per muscle: fibre-length band over time, moment arm vs coordinate, L/L_rest histogram."""
-    from . import interrupts, plots
+#: muscles from which the plots are drawn in worker processes (fewer: in this process)
+PARALLEL_PLOTS_FROM = 4
 
-    folder.mkdir(parents=True, exist_ok=True)
+
+def _plot_tasks(result, folder: Path, stems) -> list:
+    """The keyword arguments of `plots.plot_muscle` for every muscle (plain arrays)."""
     motion_types = result.settings.get("motion_types", {})
-    for m in progress(result.muscles, desc="plots", quiet=quiet, unit="muscle"):
-        interrupts.check()
+    tasks = []
+    for m in result.muscles:
         cols = [result.coordinate_names.index(c) for c in m.coordinates]
-        plots.plot_muscle(folder, m.name, times=result.time, fibre_lengths=m.fibre_lengths,
+        tasks.append(dict(out_dir=folder, muscle=m.name, times=result.time, fibre_lengths=m.fibre_lengths,
                           line_lengths=m.action_line_lengths, line_names=m.action_lines,
                           coordinate_values=result.q[:, cols], fibre_moment_arms=m.fibre_moment_arms,
                           line_moment_arms=m.action_line_moment_arms, coordinate_names=m.coordinates,
                           rest_lengths=m.rest_lengths, normalized_lengths=m.normalized_lengths,
                           line_normalized=m.line_normalized_lengths, stem=stems[m.name],
                           rotational=[motion_types.get(c, "rotational") != "translational"
-                                      for c in m.coordinates])
+                                      for c in m.coordinates]))
+    return tasks
+
+
+def _write_plots(result, folder: Path, stems, *, quiet, progress):
+    """Per muscle: fibre-length band over time, moment arm vs coordinate, L/L_rest histogram.
+
+    From `PARALLEL_PLOTS_FROM` muscles on, the muscles are drawn in worker processes (one per
+    core, at most 4; matplotlib holds the GIL while drawing, so threads would not help): a
+    whole-model run's plots take about 1/cores of the time. Workers are spawned (not forked
+    from this multi-threaded process) and only write files; Ctrl-C cancels the pending ones."""
+    import concurrent.futures
+    import multiprocessing
+    import os
+
+    from . import interrupts, plots
+
+    folder.mkdir(parents=True, exist_ok=True)
+    tasks = _plot_tasks(result, folder, stems)
+    workers = min(os.cpu_count() or 1, 4, len(tasks))
+    bar = progress(total=len(tasks), desc="plots", quiet=quiet, unit="muscle")
+    try:
+        if len(tasks) < PARALLEL_PLOTS_FROM or workers < 2:
+            for kw in tasks:
+                interrupts.check()
+                plots.plot_muscle(**kw)
+                bar.update(1)
+            return
+        pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers,
+                                                      mp_context=multiprocessing.get_context("spawn"))
+        try:
+            futures = [pool.submit(plots.plot_muscle, **kw) for kw in tasks]
+            for fut in concurrent.futures.as_completed(futures):
+                fut.result()
+                bar.update(1)
+                interrupts.check()
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)   # no worker writes after we return
+            raise
+        pool.shutdown(wait=True)
+    finally:
+        bar.close()
 
 
 def _write_vtk(result, folder: Path, stems, *, quiet, progress):

@@ -223,9 +223,9 @@ def muscle_parameters(model, mspec, properties, rest_lengths) -> dict:
     import motion as motion_pkg
     from motion.surface.rest import rest_pose
 
-    from .run import _surface_spec
+    from .muscle_chain import surface_spec
 
-    q_rest = rest_pose(model, _surface_spec(mspec)).q
+    q_rest = rest_pose(model, surface_spec(mspec)).q
     lines = motion_pkg.action_lines(model, np.asarray(q_rest, dtype=float)[None], muscles=list(mspec.action_lines))
     line_len = np.asarray(lines.lengths)[0]
     force = np.array([properties[n].get("max_isometric_force", 1000.0) for n in mspec.action_lines])

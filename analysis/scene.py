@@ -92,7 +92,7 @@ def bone_meshes(model, spec=None, bodies=None) -> list:
         from fibres import as_surface
         from motion.surface.rest import rest_pose
 
-        from .run import _surface_spec
+        from .muscle_chain import surface_spec
 
         for mspec in spec.muscles:
             if not mspec.bones:
@@ -101,7 +101,7 @@ def bone_meshes(model, spec=None, bodies=None) -> list:
             for body, path in mspec.bones:
                 if body in covered or body not in keep:
                     continue
-                pose = pose or rest_pose(model, _surface_spec(mspec))
+                pose = pose or rest_pose(model, surface_spec(mspec))
                 surf = as_surface(path, units=mspec.units)
                 b = model.body_index(body)
                 tf_body_data = np.linalg.inv(pose.tf_ground_body[b]) @ pose.tf_ground_data

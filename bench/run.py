@@ -49,18 +49,18 @@ def _timed_run(spec, motion, frames, *, muscles, transport):
 @contextlib.contextmanager
 def _no_fd():
     """analysis.run with no coordinate spanned: wrap + decompose + lengths only."""
-    mod = importlib.import_module("analysis.run")
-    orig = mod._spanned_coordinates
+    mod = importlib.import_module("analysis.muscle_chain")
+    orig = mod.spanned_coordinates
 
     def none(ctx, mspec):
         idx, rows = orig(ctx, mspec)
         return idx[:0], rows
 
-    mod._spanned_coordinates = none
+    mod.spanned_coordinates = none
     try:
         yield
     finally:
-        mod._spanned_coordinates = orig
+        mod.spanned_coordinates = orig
 
 
 def main(argv=None) -> int:

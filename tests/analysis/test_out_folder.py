@@ -94,7 +94,7 @@ def test_fibres_lines_refuses_them_too(example, tmp_path, capsys):
 def test_second_run_into_a_busy_folder_refuses_at_once(example, tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     out.mkdir()
-    monkeypatch.setattr(run_module, "_run_muscle", lambda *a, **k: pytest.fail("work started"))
+    monkeypatch.setattr(run_module, "run_muscle", lambda *a, **k: pytest.fail("work started"))
     with OutFolderLock(out):              # the first run, still working
         t0 = time.perf_counter()
         code = _run(example, out)
@@ -175,7 +175,7 @@ def test_swallowed_ctrl_c_still_exits_130_and_keeps_the_previous_outputs(example
     out = tmp_path / "out"
     assert _run(example, out, "--frames", "0:27:13") == 0
     before = _files(out)
-    monkeypatch.setattr(run_module, "_run_muscle", _swallowing(run_module._run_muscle))
+    monkeypatch.setattr(run_module, "run_muscle", _swallowing(run_module.run_muscle))
     code = _run(example, out, "--frames", "0:2", "--jobs", jobs)
     err = capsys.readouterr().err
     assert code == 130, err

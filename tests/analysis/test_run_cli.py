@@ -121,7 +121,7 @@ def test_ctrl_c_in_the_middle_leaves_nothing(example, tmp_path, capsys, monkeypa
         raise KeyboardInterrupt
 
     # the per-muscle stage (wrap -> fibres -> lengths) is interrupted after the action lines
-    monkeypatch.setattr(run_module, "_run_muscle", interrupted)
+    monkeypatch.setattr(run_module, "run_muscle", interrupted)
     code = cli.main(["run", str(example / "arm_example.toml"), "--out", str(out), "--quiet", "--frames", "0:2"])
     assert code == 130
     assert "interrupted" in capsys.readouterr().err

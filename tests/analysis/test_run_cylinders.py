@@ -213,7 +213,7 @@ def test_fd_moment_arms_agree_with_a_2_degree_difference_quotient(tmp_path, pull
 def test_length_points_cut_each_rest_segment_into_equal_pieces():
     """The extra carried points lie on the rest segments: the original points are every m-th,
     each segment is cut into m equal pieces and the rest length is unchanged (round-off)."""
-    from analysis.run import _subdivided, fibre_lengths
+    from analysis.fibre_transport import _subdivided, fibre_lengths
 
     pts = np.random.default_rng(5).normal(size=(4, 6, 3))
     fine = _subdivided(pts, 3)

@@ -158,7 +158,7 @@ def test_interrupt_while_writing_leaves_no_file_and_rerun_works(tmp_path, monkey
 def test_difference_quotients_go_one_sided_across_a_conditional_point_switch():
     import importlib
 
-    mod = importlib.import_module("analysis.run")
+    mod = importlib.import_module("analysis.fibre_moment_arms")
     h = 1e-4
     q = np.array([0.3, 0.5, 0.7])                       # a point switches off just above q = 0.5
     length = lambda x: 0.2 - 0.03 * x + 0.01 * x ** 2 + np.where(x > 0.5 + 5e-5, 0.004, 0.0)  # noqa: E731
@@ -167,7 +167,7 @@ def test_difference_quotients_go_one_sided_across_a_conditional_point_switch():
     minus = length(q - h)[None, :, None]
     switch_plus = np.array([[False, True, False]])
     switch_minus = np.zeros((1, 3), dtype=bool)
-    r = mod._difference_quotients(base, plus, minus, np.array([h]), switch_plus, switch_minus)[:, 0, 0]
+    r = mod.difference_quotients(base, plus, minus, np.array([h]), switch_plus, switch_minus)[:, 0, 0]
     exact = 0.03 - 0.02 * q                              # -dL/dq of the smooth part
     # central where nothing switches (error h^2 L'''/6 = 0), backward at the switch (error h/2 * 0.02)
     np.testing.assert_allclose(r, exact, atol=2e-6)

@@ -1,0 +1,213 @@
+"""How the rest fibres of `analysis.run` reach every frame, and their lengths there.
+
+Fibres: ``fibres.decompose`` once on the rest-pose surface, which fixes the decomposition plan
+(box orientation, slicing, contour starts, template parameters of every fibre). Then, per
+frame, one of two ``transport`` modes:
+
+- ``"bind"`` (default): the rest fibres are bound to the action lines like the surface's
+  own belly (they are handed to ``motion.wrap_surfaces`` as ``riders``, face-less extra
+  vertices of the rest surface), so the same smooth deformation moves the surface and its
+  fibres, as Kohout et al. ("Real-time modelling of fibrous muscle", Computer Graphics Forum
+  2014) deform the fibres with the muscle. Fibre k is by construction the same material
+  fibre in every frame, and all frames cost one call (no decomposition per frame). The
+  fibre ends are attachment points: they ride their bones exactly. Each fibre's interior is
+  then corrected by the end residuals spread linearly in its rest arc-length fraction u,
+
+      p'(u) = b(p(u)) + (1 - u) [T_o p(0) - b(p(0))] + u [T_i p(1) - b(p(1))],
+
+  with ``b`` the belly deformation and ``T_o``, ``T_i`` the origin and insertion body motions
+  (each residual held in the belly's line frame at its end and carried along the fibre with
+  those frames, `motion.WrappedSurface.rider_frames`: over a pulley a fibre keeps its offset
+  from the line, so its moment arm is its own radius; on a straight line the frames are
+  constant and this is the plain linear spread). A generated, tendon-aware surface
+  (`motion.surface.tendons`) has its fibre ends on the belly's caps, riding the belly.
+  Why not the surface's own rigid attachment zones: a zone turns the fibre's end piece with
+  its body while the belly turns with the action line, which kinks every fibre next to its
+  ends (a straight cylinder across a pin joint measured 0.33 % too long at 60 degrees). With
+  the linear correction a straight fibre on a straight action line stays exactly the chord
+  of its rigidly carried ends (``b`` is affine in u there), and where the line's end pieces
+  are fixed on their bodies (most paths) the residuals vanish and fibres follow the surface.
+- ``"decompose"``: the paper's procedure per frame, ``fibres.decompose(..., plan=plan)`` on
+  every wrapped surface (slower; fibre identity then rests on the plan's consistency).
+
+Per-fibre length = polyline arc length (sum of segment lengths). In ``"bind"`` mode it is
+measured on a finer sampling of the same material fibre: every rest segment is cut into
+``LENGTH_SUBDIVISION`` (2) pieces whose points are carried as riders too, and the reported
+polylines are every second point (exactly the points a plain binding would give). Why: a
+material polyline stretched over a wrap surface keeps its vertex count on the arc while its
+chords grow, so its length grows at the chords' distance from the axis, rho cos(dphi / 2),
+not at rho (dphi: the angle one chord subtends). On the pulley test of
+``tests/analysis/test_run_cylinders.py`` (40 segments, dphi ~ 0.35 rad) that made fibre
+moment arms up to 3.2 % of R short; with 2 pieces per segment 1.1 % (4: 1.2 %, the rest is
+the radius drift with the volume scale and the vertex sampling of the radius). The length in
+``fibre_lengths.csv`` is therefore the finer curve's, which can exceed the reported
+polyline's own length by the difference of their chord deficits (where fibres bend; on the
+pulley test up to 0.76 mm, 0.23 %, at 120 degrees of wrap; zero on straight pieces).
+
+Both transports are set up once per muscle (`bind_transport`, `decompose_transport`) and then
+carry the fibres over any number of poses, so `analysis.muscle_chain` can stream a long motion
+through them in chunks of frames (bounded memory).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import interrupts
+
+__all__ = ["TRANSPORTS", "LENGTH_SUBDIVISION", "Carried", "fibre_lengths", "bind_transport",
+           "decompose_transport"]
+
+#: how rest fibres reach every frame (module docstring)
+TRANSPORTS = ("bind", "decompose")
+#: ``"bind"`` transport: material points carried per rest fibre segment to measure its length
+#: (module docstring); the reported polylines are every LENGTH_SUBDIVISION-th of them
+LENGTH_SUBDIVISION = 2
+
+
+@dataclasses.dataclass
+class Carried:
+    """The fibres at a batch of poses: ``points`` (F, N, P, 3) as reported, ``lengths`` (F, N)
+    (measured as the module docstring says), ``surfaces`` (F, V, 3) the wrapped surface and the
+    wrapping's ``notes``."""
+
+    points: np.ndarray
+    lengths: np.ndarray
+    surfaces: np.ndarray
+    notes: tuple
+
+
+def fibre_lengths(points) -> np.ndarray:
+    """Polyline arc lengths.
+
+    Parameters
+    ----------
+    points : (..., N, P, 3) float
+
+    Returns
+    -------
+    (..., N) float
+    """
+    p = np.asarray(points, dtype=float)
+    d = p[..., 1:, :] - p[..., :-1, :]
+    # einsum, not np.linalg.norm: one temporary fewer, 5x faster on (1024, 100, 37, 3)
+    return np.sqrt(np.einsum("...i,...i->...", d, d)).sum(-1)
+
+
+def _with_points(att, p_ground, pose0, model, tf_data_ground):
+    """``att`` (a `motion.SurfaceAttachment`) with its points replaced by the rest-pose points
+    ``p_ground`` (K, 3), expressed in the attachment's own frame (the mesh frame or its body's)."""
+    if att.in_body_frame:
+        tf = np.linalg.inv(pose0.tf_ground_body[model.body_index(att.body)])
+    else:
+        tf = tf_data_ground
+    return dataclasses.replace(att, points=p_ground @ tf[:3, :3].T + tf[:3, 3])
+
+
+def _subdivided(points, m: int) -> np.ndarray:
+    """Fibre polylines (N, P, 3) with every segment cut into ``m`` equal pieces: (N, m (P - 1) + 1, 3).
+
+    The new points lie on the rest segments, so the rest length and every original point (each
+    ``m``-th) are unchanged; carried by the deformation they sample the deformed material curve
+    between the original points."""
+    p = np.asarray(points, dtype=float)
+    if m <= 1:
+        return p
+    t = np.arange(m) / m                                                         # (m,)
+    inner = p[:, :-1, None] + t[None, None, :, None] * (p[:, 1:, None] - p[:, :-1, None])
+    return np.concatenate([inner.reshape(p.shape[0], -1, 3), p[:, -1:]], axis=1)
+
+
+def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None):
+    """Fibres carried by the belly deformation (F, N, P, 3), corrected so that their ends are
+    ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the residuals
+    spread linearly in each rest fibre's (N, P, 3) arc-length fraction (module docstring).
+
+    ``frames`` (F, N, P, 3, 3), the belly's line frames at the fibre points (columns normal,
+    binormal, tangent; `motion.WrappedSurface.rider_frames`): each end residual is then held in
+    the frame at its end and carried along the fibre with the frames, so over a pulley a
+    residual across the muscle stays across it instead of a fixed ground vector (where the
+    frames are constant, on a straight line, it is the same correction)."""
+    seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, P-1)
+    u = np.concatenate([np.zeros((rest.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+    u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, P)
+    e0 = origin_ends - carried[:, :, 0]
+    e1 = insertion_ends - carried[:, :, -1]
+    if frames is not None:
+        local0 = np.einsum("fnji,fnj->fni", frames[:, :, 0], e0)       # e0 in the frame at the end
+        local1 = np.einsum("fnji,fnj->fni", frames[:, :, -1], e1)
+        mix = local0[:, :, None] + u[None, :, :, None] * (local1 - local0)[:, :, None]   # (F, N, P, 3)
+        out = carried + np.einsum("fnpij,fnpj->fnpi", frames, mix)   # (faster than batched 3x3 matmul)
+        # the ends exactly (the interpolated frames there are those used for local0/local1)
+        out[:, :, 0] = origin_ends
+        out[:, :, -1] = insertion_ends
+        return out
+    out = carried + e0[:, :, None]                       # = ... + (1 - u) e0 + u e1, two temporaries
+    out += u[None, :, :, None] * (e1 - e0)[:, :, None]
+    return out
+
+
+def bind_transport(model, sspec, rest, bundle0):
+    """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked)`` wraps the
+    rest surface with the rest fibres' material points as riders at every pose of ``stacked``
+    (a `motion.Motion`) and returns a `Carried`.
+
+    ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its surface wrapped at one
+    frame (its rest geometry in ground), ``bundle0`` the rest-pose `fibres.FibreBundle`."""
+    from motion import wrap_surfaces
+    from motion.surface.rest import rest_pose
+
+    shape = bundle0.points.shape                                  # (N, P, 3)
+    n_v = rest.rest_vertices.shape[0]
+    # rest surface + fibre points back to the mesh's own frame, wrapped together
+    pose0 = rest_pose(model, sspec)
+    tf_data_ground = np.linalg.inv(pose0.tf_ground_data)
+    fine = _subdivided(bundle0.points, LENGTH_SUBDIVISION)          # (N, m (P - 1) + 1, 3)
+    both = np.vstack([rest.rest_vertices, fine.reshape(-1, 3)])
+    both = both @ tf_data_ground[:3, :3].T + tf_data_ground[:3, 3]
+    # the fibre end points lie in the attachment areas by construction (Kohout 2012 §3.4):
+    # bind them as attachment points too, so they ride their bones exactly
+    # (a generated muscle with tendons: the landmarks are the belly's ends and ride the belly)
+    ends = {"origin": np.vstack([rest.rest_origin, bundle0.points[:, 0]]),
+            "insertion": np.vstack([rest.rest_insertion, bundle0.points[:, -1]])}
+    bound = dataclasses.replace(sspec, vertices=both, faces=rest.faces, riders=both.shape[0] - n_v,
+                                tendon_slack=getattr(rest, "tendon_slack", None) or None, **{
+        end: _with_points(getattr(sspec, end), p_ground, pose0, model, tf_data_ground)
+        for end, p_ground in ends.items()})
+
+    def carry(stacked) -> Carried:
+        (wrapped,) = wrap_surfaces(model, stacked, [bound])
+        n_all = wrapped.vertices.shape[0]
+        frames = getattr(wrapped, "rider_frames", None)
+        carried = _ends_ride_their_bodies(
+            wrapped.vertices[:, n_v:].reshape((n_all,) + fine.shape), fine,
+            wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:],
+            None if frames is None else frames.reshape((n_all,) + fine.shape[:2] + (3, 3)))
+        return Carried(points=carried[:, :, ::LENGTH_SUBDIVISION], lengths=fibre_lengths(carried),
+                       surfaces=wrapped.vertices[:, :n_v], notes=tuple(getattr(wrapped, "notes", ())))
+
+    return carry
+
+
+def decompose_transport(model, sspec, bundle0, options, bar):
+    """The ``"decompose"`` transport of one muscle (module docstring): ``carry(stacked)`` wraps the
+    surface at every pose of ``stacked`` and decomposes each with the rest plan of ``bundle0``
+    (``options``: the `fibres.decompose` keywords of the rest decomposition); ``bar`` counts
+    the decompositions (`analysis.progress`)."""
+    from fibres import decompose
+    from motion import wrap_surfaces
+
+    def carry(stacked) -> Carried:
+        (wrapped,) = wrap_surfaces(model, stacked, [sspec])
+        points = np.empty((wrapped.vertices.shape[0],) + bundle0.points.shape)
+        for f in range(len(points)):  # one decomposition per (perturbed) frame, the plan frozen
+            interrupts.check()
+            b = decompose((wrapped.vertices[f], wrapped.faces), wrapped.origin[f], wrapped.insertion[f],
+                          plan=bundle0.plan, **options)
+            points[f] = b.points
+            bar.update(1)
+        return Carried(points=points, lengths=fibre_lengths(points), surfaces=wrapped.vertices,
+                       notes=tuple(getattr(wrapped, "notes", ())))
+
+    return carry

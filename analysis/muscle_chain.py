@@ -1,0 +1,207 @@
+"""One muscle of `analysis.run` over a motion: wrap, decompose, carry, measure.
+
+Per muscle (docs/DESIGN.md):
+
+1. The rest surface: the muscle surface (its mesh, or one generated around its action line)
+   wrapped at the motion's first frame (``motion.wrap_surfaces``), its landmarks in ground.
+2. ``fibres.decompose`` once on it, which fixes the decomposition plan, and the fibre quality.
+3. The fibres carried to every frame and to the perturbed poses of the moment arms
+   (`analysis.fibre_transport`, `analysis.fibre_moment_arms`), streamed through the transport
+   in chunks of at most ``POSES_PER_CHUNK`` poses, so the memory a muscle needs is bounded
+   whatever the length of the motion; only the frames' own fibre points (for the 3D files),
+   lengths and moment arms are kept.
+4. The `MuscleResult`: lengths, moment arms, the action lines' values, notes and warnings.
+"""
+from __future__ import annotations
+
+import dataclasses
+import re
+import time as _time
+import warnings
+
+import numpy as np
+
+from . import interrupts
+from .budget import POSES_PER_CHUNK
+from .errors import FibreWarning
+from .fibre_checks import line_normalized_lengths, moment_arm_notes, optimal_lengths
+from .fibre_moment_arms import active_set_changes, difference_quotients, stacked_motion
+from .fibre_transport import bind_transport, decompose_transport, fibre_lengths
+from .progress import progress
+from .result import MuscleResult
+from .spec import FibreModelSpec
+
+__all__ = ["Ctx", "run_muscle", "spanned_coordinates", "surface_spec", "timed"]
+
+
+@dataclasses.dataclass
+class Ctx:
+    """What every muscle of a run shares."""
+
+    spec: FibreModelSpec
+    model: object
+    motion: object            # motion.Motion of the frames used
+    lines: object             # motion.ActionLines of every action line used
+    quiet: bool
+    keep_points: bool
+    keep_surfaces: bool
+    step: dict
+    transport: str = "bind"
+
+
+def timed(timings, stage):
+    """A context adding its wall time to ``timings[stage]``."""
+    class _T:
+        def __enter__(self):
+            self.t0 = _time.perf_counter()
+
+        def __exit__(self, *exc):
+            timings[stage] = timings.get(stage, 0.0) + _time.perf_counter() - self.t0
+            return False
+
+    return _T()
+
+
+def spanned_coordinates(ctx, mspec):
+    """Indices (into model coordinates) of the independent coordinates the muscle's lines span."""
+    lines = ctx.lines
+    rows = [list(lines.muscle_names).index(n) for n in mspec.action_lines]
+    spanned = np.asarray(lines.spanned, dtype=bool)[rows].any(axis=0)
+    indep = np.asarray(ctx.model.independent_coordinates, dtype=bool)
+    return np.flatnonzero(spanned & indep), rows
+
+
+def surface_spec(mspec):
+    """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres."""
+    from fibres import as_surface
+    from motion.surface.spec import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment
+
+    vertices = faces = None
+    if mspec.mesh is not None:
+        surf = as_surface(mspec.mesh, units=mspec.units)
+        vertices, faces = surf.vertices, surf.faces
+    ends = {end: SurfaceAttachment(body=a.body, points=a.points, in_body_frame=a.in_body_frame)
+            for end, a in (("origin", mspec.origin), ("insertion", mspec.insertion))}
+    bones = []
+    for body, path in mspec.bones:
+        bone = as_surface(path, units=mspec.units)
+        bones.append(BoneMesh(body=body, vertices=bone.vertices, faces=bone.faces))
+    return MuscleSurfaceSpec(name=mspec.name, action_lines=tuple(mspec.action_lines), vertices=vertices,
+                             faces=faces, frame=mspec.frame, rest_pose=dict(mspec.rest_pose),
+                             bones=tuple(bones), volume=mspec.volume, **ends)
+
+
+def _chunks(n_frames: int, n_poses_per_frame: int):
+    """Slices of frames whose poses fit in ``POSES_PER_CHUNK`` (at least one frame each)."""
+    size = max(1, POSES_PER_CHUNK // max(n_poses_per_frame, 1))
+    return [slice(a, min(a + size, n_frames)) for a in range(0, n_frames, size)]
+
+
+_COUNT = re.compile(r"\(in (\d+) of (\d+) frames\)")
+
+
+def _merged_notes(chunk_notes) -> tuple:
+    """Notes of the chunks of one wrap, once each; a note that counts frames ("in 3 of 120
+    frames") is summed over the chunks."""
+    merged = {}
+    for notes in chunk_notes:
+        for note in notes:
+            key = _COUNT.sub("(in # of # frames)", note)
+            m = _COUNT.search(note)
+            counts = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
+            old = merged.get(key, (note, (0, 0)))[1]
+            merged[key] = (note, (old[0] + counts[0], old[1] + counts[1]))
+    return tuple(_COUNT.sub(f"(in {a} of {b} frames)", note) if _COUNT.search(note) else note
+                 for note, (a, b) in merged.values())
+
+
+def run_muscle(ctx, mspec):
+    """Wrap, decompose, carry and measure one muscle over all frames (module docstring);
+    returns its `MuscleResult` and stage timings (s)."""
+    import motion as motion_pkg
+    from fibres import decompose
+    from motion import wrap_surfaces
+
+    interrupts.check()
+    timings = {}
+    coord_idx, line_rows = spanned_coordinates(ctx, mspec)
+    sspec = surface_spec(mspec)
+    with timed(timings, "wrap"):   # the rest surface and landmarks in ground (one frame)
+        first = motion_pkg.Motion.from_array(ctx.model, ctx.motion.time[:1], ctx.motion.q[:1])
+        (rest,) = wrap_surfaces(ctx.model, first, [sspec])
+    from .landmark_checks import check_landmarks
+
+    check_landmarks(ctx.model, mspec, sspec, rest)
+    opts = dict(template=mspec.template, n_fibres=mspec.n_fibres, resolution=mspec.resolution,
+                seed=mspec.seed, slicing=mspec.slicing)
+    if mspec.template_params:
+        opts["template_params"] = dict(mspec.template_params)
+    interrupts.check()
+    with timed(timings, "decompose_rest"):
+        bundle0 = decompose((rest.rest_vertices, rest.faces), rest.rest_origin, rest.rest_insertion, **opts)
+    q = np.asarray(ctx.motion.q, dtype=float)
+    n_f, n_poses = len(q), 1 + 2 * len(coord_idx)
+    bar = None
+    if ctx.transport == "bind":
+        with timed(timings, "wrap"):
+            carry = bind_transport(ctx.model, sspec, rest, bundle0)
+        stage = "wrap"
+    else:
+        bar = progress(total=n_f * n_poses, desc=f"fibres {mspec.name}", quiet=ctx.quiet, unit="frame")
+        carry = decompose_transport(ctx.model, sspec, bundle0, opts, bar)
+        stage = "decompose"
+    n_fib = bundle0.points.shape[0]
+    lengths = np.empty((n_poses, n_f, n_fib))
+    points = np.empty((n_f,) + bundle0.points.shape) if ctx.keep_points else None
+    surfaces, chunk_notes, steps = [], [], None
+    try:
+        for rows in _chunks(n_f, n_poses):
+            interrupts.check()
+            stacked, steps, n_c = stacked_motion(ctx.model, q[rows], ctx.motion.source, coord_idx, ctx.step)
+            with timed(timings, stage):
+                got = carry(stacked)
+            with timed(timings, "lengths"):
+                lengths[:, rows] = got.lengths.reshape(n_poses, n_c, n_fib)
+            if points is not None:
+                points[rows] = got.points[:n_c]
+            if ctx.keep_surfaces:
+                surfaces.append(got.surfaces[:n_c])
+            chunk_notes.append(got.notes)
+    finally:
+        if bar is not None:
+            bar.close()
+    with timed(timings, "moment_arms"):
+        full, steps, _ = stacked_motion(ctx.model, q, ctx.motion.source, coord_idx, ctx.step)
+        r = difference_quotients(lengths[0], lengths[1::2], lengths[2::2], steps,
+                                 *active_set_changes(ctx.model, mspec, full.q, n_f))
+    base = lengths[0]
+    lines = ctx.lines
+    al_len = np.asarray(lines.lengths)[:, line_rows]
+    al_r = np.asarray(lines.moment_arms)[:, line_rows][:, :, coord_idx]
+    names = tuple(ctx.model.coordinate_names[c] for c in coord_idx)
+    notes = tuple(getattr(bundle0, "notes", ()) or ())
+    quality = bundle0.quality
+    problems = quality.problems() if quality is not None else []
+    if problems:
+        from fibres.quality import FibreQualityWarning
+
+        notes += (f"fibre quality below the usual limits: {'; '.join(problems)}",)
+        warnings.warn(f"{mspec.name}: fibre quality below the usual limits: {'; '.join(problems)}"
+                      f" (see fibre_quality.csv; try --slicing or another template)",
+                      FibreQualityWarning, stacklevel=2)
+    if getattr(rest, "rest_residual", 0.0):
+        notes += (f"rest pose residual {rest.rest_residual:.3g}",)
+    rest_lengths = fibre_lengths(bundle0.points)
+    warned = tuple(f"warning: {n}" for n in _merged_notes(chunk_notes)) + moment_arm_notes(names, r, al_r)
+    for note in warned:
+        warnings.warn(f"muscle {mspec.name!r}: {note[len('warning: '):]}", FibreWarning, stacklevel=3)
+    result = MuscleResult(
+        name=mspec.name, coordinates=names, fibre_lengths=base, fibre_moment_arms=r,
+        action_lines=mspec.action_lines, action_line_lengths=al_len, action_line_moment_arms=al_r,
+        rest_lengths=rest_lengths, fibre_points=points,
+        surface_vertices=np.concatenate(surfaces) if ctx.keep_surfaces else None,
+        surface_faces=rest.faces if ctx.keep_surfaces else None, notes=notes + warned,
+        quality=None if quality is None else quality.as_dict(),
+        optimal_lengths=optimal_lengths(ctx.model, mspec.action_lines, rest_lengths, generated=mspec.mesh is None),
+        line_normalized_lengths=line_normalized_lengths(ctx.model, mspec.action_lines, al_len))
+    return result, timings
