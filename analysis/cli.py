@@ -82,12 +82,9 @@ def _settle(command: str) -> None:
 
 
 def _input_error_types():
-    import fibres.errors
-    import motion.errors
-
     from . import errors
 
-    return (motion.errors.InputError, fibres.errors.InputError, errors.InputError)
+    return (errors.InputError,)     # one class for the three packages (fibres.errors)
 
 
 def _one_line_warnings(prefix: str) -> None:

@@ -1,4 +1,5 @@
-"""Errors raised by `analysis`.
+"""Errors raised by `analysis`: `fibres.errors`' classes (the toolkit's one hierarchy) and
+`FibreWarning`.
 
 One hierarchy for the whole package:
 
@@ -13,41 +14,9 @@ Anything else escaping the package is an internal failure (exit status 1). `Fibr
 """
 from __future__ import annotations
 
+from fibres.errors import InputError, MissingDependencyError
+
 __all__ = ["InputError", "MissingDependencyError", "FibreWarning"]
-
-
-class InputError(ValueError):
-    """Bad user input. str(err) is one line: file: where: problem. fix.
-
-    Parameters
-    ----------
-    problem : str
-        What is wrong.
-    file : str or os.PathLike, optional
-        The file in which it is wrong.
-    where : str, optional
-        The element: an XML path, line 12, muscle 'biceps', a TOML key ...
-    fix : str, optional
-        What the user should do.
-    """
-
-    def __init__(self, problem: str, *, file=None, where: str | None = None, fix: str | None = None):
-        self.problem = str(problem)
-        self.file = None if file is None else str(file)
-        self.where = where
-        self.fix = fix
-        super().__init__(self._format())
-
-    def _format(self) -> str:
-        parts = [p for p in (self.file, self.where) if p]
-        text = ": ".join(parts + [self.problem]) if parts else self.problem
-        if self.fix:
-            text = text.rstrip(".") + ". " + self.fix
-        return " ".join(text.split())
-
-
-class MissingDependencyError(ImportError):
-    """An optional dependency is missing; the message names the extra to install."""
 
 
 class FibreWarning(UserWarning):

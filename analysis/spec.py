@@ -317,10 +317,7 @@ def _check_template_params(ctx, template, params, where):
 
 
 def _our_input_errors():
-    import fibres.errors
-    import motion.errors
-
-    return (InputError, motion.errors.InputError, fibres.errors.InputError)
+    return (InputError,)            # one class for the three packages (fibres.errors)
 
 
 def load_spec(path, *, model=None) -> FibreModelSpec:

@@ -1,6 +1,6 @@
 """OpenSim side of the toolkit: models, motions, kinematics, action lines, surface wrapping.
 
-Never imports ``fibres`` or ``analysis``.
+Uses `fibres` for geometry and errors, never `analysis` (docs/DESIGN.md, "Layering").
 """
 from .wrapping.action_lines import ActionLines, action_lines
 from .errors import InputError, MissingDependencyError
