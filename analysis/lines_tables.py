@@ -14,6 +14,13 @@ __all__ = ["body_poses_table", "action_lines_table", "moment_arms_table", "POSE_
 POSE_COLUMNS = ("tx", "ty", "tz") + tuple(f"r{i}{j}" for i in range(3) for j in range(3))
 
 
+def _per_frame(frames, time, key, names) -> dict:
+    """frame, time and ``key`` columns of an (F, len(names)) array flattened in C order."""
+    n = len(names)
+    return {"frame": np.repeat(frames, n), "time": np.repeat(time, n),
+            key: np.tile(np.asarray(names, dtype=object), len(time))}
+
+
 def _frame_index(time, frames):
     time = np.asarray(time, dtype=float).reshape(-1)
     frames = np.arange(time.shape[0]) if frames is None else np.asarray(frames).reshape(-1)
@@ -47,11 +54,7 @@ def body_poses_table(time, tf_ground_body, body_names, *, frames=None):
     if tf.shape != (n_frames, n_bodies, 4, 4):
         raise ValueError(f"tf_ground_body must be (F, B, 4, 4) = ({n_frames}, {n_bodies}, 4, 4), "
                          f"got {tf.shape}")
-    table = {
-        "frame": np.repeat(frames, n_bodies),
-        "time": np.repeat(time, n_bodies),
-        "body": np.tile(np.asarray(body_names, dtype=object), n_frames),
-    }
+    table = _per_frame(frames, time, "body", body_names)
     flat = tf.reshape(n_frames * n_bodies, 4, 4)
     for k, axis in enumerate("xyz"):
         table[f"t{axis}"] = flat[:, k, 3]
@@ -87,11 +90,7 @@ def action_lines_table(time, lengths, muscle_names, *, frames=None, action_lines
     n_frames, n_muscles = time.shape[0], len(muscle_names)
     if lengths.shape != (n_frames, n_muscles):
         raise ValueError(f"lengths must be (F, M) = ({n_frames}, {n_muscles}), got {lengths.shape}")
-    table = {
-        "frame": np.repeat(frames, n_muscles),
-        "time": np.repeat(time, n_muscles),
-        "muscle": np.tile(np.asarray(muscle_names, dtype=object), n_frames),
-    }
+    table = _per_frame(frames, time, "muscle", muscle_names)
     if action_lines is not None:
         if len(action_lines) != n_muscles:
             raise ValueError("action_lines must have one name per muscle")

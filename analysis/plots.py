@@ -128,21 +128,10 @@ def plot_fibre_lengths(path, times, fibre_lengths, line_lengths, line_names, *, 
     -------
     Path
     """
-    t = _array(times, "times", 1)
     fl = _array(fibre_lengths, "fibre_lengths", 2)
-    ll = _array(line_lengths, "line_lengths", 2)
-    _check_rows(fl, "fibre_lengths", len(t), "times")
-    _check_rows(ll, "line_lengths", len(t), "times")
-    names = _names(line_names, ll.shape[1], "line_names")
-    fig, (ax,) = _figure()
-    _band(ax, t, fl, 1e3)
-    _lines(ax, t, ll, names, 1e3)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("length (mm)")
-    ax.set_title(title or f"{muscle}: fibre lengths ({fl.shape[1]} fibres) and action lines", y=1.01)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize="small", framealpha=0.7)
-    return _save(fig, path)
+    return _over_time(path, times, fl, line_lengths, line_names, names=("fibre_lengths", "line_lengths"),
+                      scale=1e3, ylabel="length (mm)",
+                      title=title or f"{muscle}: fibre lengths ({fl.shape[1]} fibres) and action lines")
 
 
 #: a coordinate whose range over the frames is below this is constant: not drawn (rad; m)
@@ -168,22 +157,32 @@ def plot_normalized_lengths(path, times, normalized_lengths, line_normalized, li
     -------
     Path
     """
-    t = _array(times, "times", 1)
     nl = _array(normalized_lengths, "normalized_lengths", 2)
-    ln = _array(line_normalized, "line_normalized", 2)
-    _check_rows(nl, "normalized_lengths", len(t), "times")
-    _check_rows(ln, "line_normalized", len(t), "times")
-    names = _names(line_names, ln.shape[1], "line_names")
+    return _over_time(path, times, nl, line_normalized, line_names,
+                      names=("normalized_lengths", "line_normalized"), scale=1.0,
+                      ylabel="normalized length l / l_opt", reference=1.0,
+                      title=title or f"{muscle}: normalized fibre lengths ({nl.shape[1]} fibres)")
+
+
+def _over_time(path, times, fibres, lines, line_names, *, names, scale, ylabel, title, reference=None) -> Path:
+    """The fibres' band (F, N) and the action lines (F, L) over time; line columns without a
+    finite value are not drawn; ``reference``: a dotted horizontal line there."""
+    t = _array(times, "times", 1)
+    lv = _array(lines, names[1], 2)
+    _check_rows(fibres, names[0], len(t), "times")
+    _check_rows(lv, names[1], len(t), "times")
+    lnames = _names(line_names, lv.shape[1], "line_names")
     fig, (ax,) = _figure()
-    _band(ax, t, nl, 1.0)
-    keep = [j for j in range(ln.shape[1]) if np.isfinite(ln[:, j]).any()]
-    _lines(ax, t, ln[:, keep], [names[j] for j in keep], 1.0)
-    ax.axhline(1.0, color="0.4", linewidth=0.8, linestyle=":")
+    _band(ax, t, fibres, scale)
+    keep = [j for j in range(lv.shape[1]) if np.isfinite(lv[:, j]).any()]
+    _lines(ax, t, lv[:, keep], [lnames[j] for j in keep], scale)
+    if reference is not None:
+        ax.axhline(reference, color="0.4", linewidth=0.8, linestyle=":")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("normalized length l / l_opt")
-    ax.set_title(title or f"{muscle}: normalized fibre lengths ({nl.shape[1]} fibres)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, y=1.01)
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    ax.legend(loc="best", fontsize="small", framealpha=0.7)
     return _save(fig, path)
 
 

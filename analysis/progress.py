@@ -47,7 +47,26 @@ def progress(iterable=None, *, total=None, desc=None, quiet=False, unit="it"):
     return tqdm(iterable, total=total, desc=desc, unit=unit, file=sys.stderr, leave=False)
 
 
-class _LineBar:
+class _NullBar:
+    """Stand-in for a manual tqdm bar when progress is off."""
+
+    def update(self, n=1):
+        pass
+
+    def set_description(self, desc):
+        pass
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+class _LineBar(_NullBar):
     """One line per step on stderr: ``fibres: <desc>: 2/3 muscles (12.4 s)``."""
 
     def __init__(self, total, desc, unit):
@@ -72,31 +91,3 @@ class _LineBar:
 
     def set_description(self, desc):
         self.desc = desc
-
-    def close(self):
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-
-class _NullBar:
-    """Stand-in for a manual tqdm bar when progress is off."""
-
-    def update(self, n=1):
-        pass
-
-    def set_description(self, desc):
-        pass
-
-    def close(self):
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False

@@ -53,72 +53,60 @@ def _line_normalized(m):
     return np.full(m.action_line_lengths.shape, np.nan) if value is None else np.asarray(value, dtype=float)
 
 
-def fibre_lengths_table(result):
-    """(frame, time, muscle, fibre, length) for every muscle, frame and fibre."""
+def _long(result, values_of, item, labels_of, value, extra=None):
+    """One long table of per-muscle arrays ``values_of(m)``: (F, I) or, with a coordinate axis,
+    (F, I, C) (muscles spanning no coordinate give no rows). Columns: frame, time, muscle,
+    ``item`` (``labels_of(m)``, I labels), coordinate (with a coordinate axis), ``value``, then
+    ``extra`` (name -> function of the muscle giving an (F, I) array)."""
     import pandas as pd
 
-    cols = ["frame", "time", "muscle", "fibre", "length", "normalized_length"]
-    out = []
+    out, cols = [], None
     for m in result.muscles:
-        n_f, n_n = m.fibre_lengths.shape
-        frame, time = _grid(n_f, result.time, n_n)
-        out.append(pd.DataFrame({"frame": frame, "time": time, "muscle": m.name,
-                                 "fibre": np.tile(np.arange(n_n), n_f),
-                                 "length": m.fibre_lengths.ravel(),
-                                 "normalized_length": _normalized(m).ravel()}))
+        values = np.asarray(values_of(m))
+        n_f, n_i = values.shape[:2]
+        inner = values.shape[1:]
+        if values.ndim == 3 and values.shape[2] == 0:
+            continue
+        n_c = values.shape[2] if values.ndim == 3 else 1
+        frame, time = _grid(n_f, result.time, *inner)
+        labels = np.asarray(labels_of(m))
+        labels = labels.astype(object) if labels.dtype.kind in "US" else labels   # names: Python str
+        data = {"frame": frame, "time": time, "muscle": m.name, item: np.tile(np.repeat(labels, n_c), n_f)}
+        if values.ndim == 3:
+            data["coordinate"] = np.tile(np.array(m.coordinates, dtype=object), n_f * n_i)
+        data[value] = values.ravel()
+        for name, fn in (extra or {}).items():
+            data[name] = np.asarray(fn(m), dtype=float).ravel()
+        out.append(pd.DataFrame(data))
+    return out
+
+
+def fibre_lengths_table(result):
+    """(frame, time, muscle, fibre, length, normalized_length) for every muscle, frame and fibre."""
+    out = _long(result, lambda m: m.fibre_lengths, "fibre", lambda m: np.arange(m.fibre_lengths.shape[1]),
+                "length", extra={"normalized_length": _normalized})
+    cols = ["frame", "time", "muscle", "fibre", "length", "normalized_length"]
     return _concat(out, cols)
 
 
 def fibre_moment_arms_table(result):
     """(frame, time, muscle, fibre, coordinate, moment_arm) for every spanned coordinate."""
-    import pandas as pd
-
-    cols = ["frame", "time", "muscle", "fibre", "coordinate", "moment_arm"]
-    out = []
-    for m in result.muscles:
-        n_f, n_n, n_c = m.fibre_moment_arms.shape
-        if n_c == 0:
-            continue
-        frame, time = _grid(n_f, result.time, n_n, n_c)
-        out.append(pd.DataFrame({"frame": frame, "time": time, "muscle": m.name,
-                                 "fibre": np.tile(np.repeat(np.arange(n_n), n_c), n_f),
-                                 "coordinate": np.tile(np.array(m.coordinates, dtype=object), n_f * n_n),
-                                 "moment_arm": m.fibre_moment_arms.ravel()}))
-    return _concat(out, cols)
+    out = _long(result, lambda m: m.fibre_moment_arms, "fibre",
+                lambda m: np.arange(m.fibre_moment_arms.shape[1]), "moment_arm")
+    return _concat(out, ["frame", "time", "muscle", "fibre", "coordinate", "moment_arm"])
 
 
 def action_lines_table(result):
     """(frame, time, muscle, action_line, length)."""
-    import pandas as pd
-
-    cols = ["frame", "time", "muscle", "action_line", "length"]
-    out = []
-    for m in result.muscles:
-        n_f, n_l = m.action_line_lengths.shape
-        frame, time = _grid(n_f, result.time, n_l)
-        out.append(pd.DataFrame({"frame": frame, "time": time, "muscle": m.name,
-                                 "action_line": np.tile(np.array(m.action_lines, dtype=object), n_f),
-                                 "length": m.action_line_lengths.ravel()}))
-    return _concat(out, cols)
+    out = _long(result, lambda m: m.action_line_lengths, "action_line", lambda m: m.action_lines, "length")
+    return _concat(out, ["frame", "time", "muscle", "action_line", "length"])
 
 
 def action_line_moment_arms_table(result):
     """(frame, time, muscle, action_line, coordinate, moment_arm)."""
-    import pandas as pd
-
-    cols = ["frame", "time", "muscle", "action_line", "coordinate", "moment_arm"]
-    out = []
-    for m in result.muscles:
-        n_f, n_l, n_c = m.action_line_moment_arms.shape
-        if n_c == 0:
-            continue
-        frame, time = _grid(n_f, result.time, n_l, n_c)
-        out.append(pd.DataFrame({
-            "frame": frame, "time": time, "muscle": m.name,
-            "action_line": np.tile(np.repeat(np.array(m.action_lines, dtype=object), n_c), n_f),
-            "coordinate": np.tile(np.array(m.coordinates, dtype=object), n_f * n_l),
-            "moment_arm": m.action_line_moment_arms.ravel()}))
-    return _concat(out, cols)
+    out = _long(result, lambda m: m.action_line_moment_arms, "action_line", lambda m: m.action_lines,
+                "moment_arm")
+    return _concat(out, ["frame", "time", "muscle", "action_line", "coordinate", "moment_arm"])
 
 
 _STATS = ("mean", "std", "min", "p5", "median", "p95", "max")
