@@ -33,6 +33,8 @@ import time as _time
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from .errors import FibreWarning, InputError
 from .sto_files import write_sto_files
 
@@ -155,6 +157,7 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                              template=args.template, slicing=args.slicing)
     check_mesh_files(chosen)
     out = prepare_out_dir(args.out)
+    staging = None
     try:
         if lock.fd is None:
             lock.acquire()
@@ -162,13 +165,16 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
         from .progress import first_run_notice
 
         first_run_notice(args.quiet)
+        staging = open_staging(out)
+        on_muscle = muscle_files_writer(staging, [m.name for m in chosen], scene_step=args.scene_step,
+                                        scene=not args.no_scene)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
             result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,
                          resolution=args.resolution, template=args.template, frames=frames_arg,
                          quiet=args.quiet, jobs=args.jobs, transport=args.transport,
                          keep_surfaces=not args.no_scene, slicing=args.slicing,
-                         max_memory=max_memory, out_dir=out)
+                         max_memory=max_memory, out_dir=out, on_muscle=on_muscle)
         for m in result.muscles:
             for note in m.notes:
                 if note.startswith("warning: "):
@@ -187,8 +193,10 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                     "max_order": args.max_order, "announce": announcer(args.quiet)}
         scene = None if args.no_scene else {"spec": loaded, "step": args.scene_step}
         write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
-                      quiet=args.quiet, command=command, osim=osim, scene=scene)
+                      quiet=args.quiet, command=command, osim=osim, scene=scene, staging=staging)
     except BaseException:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
         lock.release()
         if not existed:    # a failed run leaves no empty output folder behind
             with contextlib.suppress(OSError):
@@ -201,13 +209,16 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
 
 
 def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres=False, quiet=True,
-                  command=None, osim=None, scene=None) -> list:
+                  command=None, osim=None, scene=None, staging=None) -> list:
     """Write every output file of a run into ``out_dir`` (staged, then moved into place).
 
     ``scene``: None, or ``{"spec": FibreModelSpec, "step": K or None}`` to write ``scene/``
     (`analysis.scene`).
     ``osim``: None, or the keyword arguments of `analysis.osim_export.export_osim` (with ``spec``)
     to also write ``<model>_fibres.osim``; its record goes into run.json under ``osim_export``.
+
+    ``staging``: a staging folder made by `open_staging` that already holds the muscles' 3D files
+    (`muscle_files_writer`, written during the run); they are not written again.
 
     Muscle and coordinate names become file names only through `analysis.file_names.file_stems`
     (the mapping is ``file_names`` in run.json); every path is checked to stay inside the staging
@@ -217,7 +228,7 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     """
     from . import interrupts
     from .file_names import file_stems
-    from .out_folder import STAGING_PREFIX, publish, staged_files
+    from .out_folder import publish, staged_files
     from .output_files import confined_to
     from .progress import progress
     from .run_record import write_run_json
@@ -226,7 +237,8 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     out = Path(out_dir)
     stems = file_stems(m.name for m in result.muscles)
     coord_stems = file_stems(c for m in result.muscles for c in m.coordinates)
-    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
+    streamed = staging is not None
+    staging = Path(staging) if streamed else open_staging(out)
     timings = {}
     try:
         with confined_to(staging):
@@ -244,7 +256,7 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
                 _write_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
                 timings["plots"] = _time.perf_counter() - t0
             interrupts.check()
-            if vtk and any(m.fibre_points is not None for m in result.muscles):
+            if vtk and not streamed and any(m.fibre_points is not None for m in result.muscles):
                 t0 = _time.perf_counter()
                 _write_vtk(result, staging / "fibres", stems, quiet=quiet, progress=progress)
                 timings["vtk_files"] = _time.perf_counter() - t0
@@ -338,6 +350,53 @@ def _write_plots(result, folder: Path, stems, *, quiet, progress):
         bar.close()
 
 
+def open_staging(out) -> Path:
+    """A new staging folder inside ``out`` (`out_folder.STAGING_PREFIX`): the run's files are
+    written there and published by `write_outputs`; whoever opens it removes it on failure."""
+    from .out_folder import STAGING_PREFIX
+
+    return Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
+
+
+def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True):
+    """The ``on_muscle`` hook of `analysis.run` for ``fibres run``: writes each muscle's 3D files
+    (``fibres/``, `_write_vtk`) into ``staging`` as soon as the muscle is done, then keeps only
+    what the scene needs of its fibre points and surfaces (the scene's frames,
+    `scene.scene_frames`; nothing without a scene). A whole model's points and surfaces are
+    so never in memory at once (Gait2392, 92 muscles x 211 frames: 1.4 GB otherwise)."""
+    import dataclasses
+
+    from . import vtk_files
+    from .file_names import file_stems
+    from .output_files import confined_to
+    from .scene import scene_frames
+
+    stems = file_stems(names)
+    folder = Path(staging) / "fibres"
+
+    def on_muscle(time, m):
+        folder.mkdir(parents=True, exist_ok=True)
+        with confined_to(staging):
+            _write_muscle_vtk(vtk_files, folder, stems[m.name], m, time)
+        keep = scene_frames(len(time), scene_step) if scene else None
+
+        def kept(a):
+            return None if a is None or keep is None else np.ascontiguousarray(a[keep])
+
+        return dataclasses.replace(m, fibre_points=kept(m.fibre_points), surface_vertices=kept(m.surface_vertices))
+
+    return on_muscle
+
+
+def _write_muscle_vtk(vtk_files, folder, stem, m, time):
+    if m.fibre_points is not None:
+        vtk_files.write_fibre_frames(folder, stem, m.fibre_points, times=time,
+                                     cell_data={"length": m.fibre_lengths,
+                                                "normalized_length": m.normalized_lengths})
+    if m.surface_vertices is not None:
+        vtk_files.write_surface_frames(folder, stem, m.surface_vertices, m.surface_faces, times=time)
+
+
 def _write_vtk(result, folder: Path, stems, *, quiet, progress):
     """``fibres/<stem>.pvd`` + ``<stem>_<frame>.vtp`` (cell data ``fibre``, ``length``,
     ``normalized_length``)."""
@@ -346,10 +405,4 @@ def _write_vtk(result, folder: Path, stems, *, quiet, progress):
     folder.mkdir(parents=True, exist_ok=True)
     for m in progress(result.muscles, desc="3D files", quiet=quiet, unit="muscle"):
         interrupts.check()
-        if m.fibre_points is not None:
-            vtk_files.write_fibre_frames(folder, stems[m.name], m.fibre_points, times=result.time,
-                                         cell_data={"length": m.fibre_lengths,
-                                                    "normalized_length": m.normalized_lengths})
-        if m.surface_vertices is not None:
-            vtk_files.write_surface_frames(folder, stems[m.name], m.surface_vertices, m.surface_faces,
-                                           times=result.time)
+        _write_muscle_vtk(vtk_files, folder, stems[m.name], m, result.time)

@@ -41,9 +41,12 @@ class MuscleResult:
     rest_lengths : (N,) float
         Fibre lengths at the rest pose (the pose the mesh was acquired in).
     fibre_points : (F, N, P, 3) float or None
-        Fibre polylines per frame in ground (kept unless the run was told not to).
+        Fibre polylines per frame in ground (kept unless the run was told not to). After
+        ``fibres run`` (its ``on_muscle`` hook) only the 3D scene's frames are kept, (F', N, P, 3)
+        with F' <= F (`analysis.scene.scene_frames`).
     surface_vertices : (F, V, 3) float or None
-        The wrapped surface per frame, if kept; ``surface_faces`` (T, 3) int goes with it.
+        The wrapped surface per frame (or the scene's frames), if kept; ``surface_faces`` (T, 3)
+        int goes with it.
     notes : tuple of str
     quality : dict or None
         `fibres.quality.FibreQuality` of the rest-pose fibres, as a dict.
@@ -107,8 +110,8 @@ class MuscleResult:
             object.__setattr__(self, "line_normalized_lengths", ln)
         if self.fibre_points is not None:
             pts = _ro(self.fibre_points, 4, "fibre_points")
-            if pts.shape[:2] != (n_f, n_n) or pts.shape[3] != 3:
-                raise ValueError(f"fibre_points must be ({n_f}, {n_n}, P, 3), got {pts.shape}")
+            if pts.shape[0] > n_f or pts.shape[1] != n_n or pts.shape[3] != 3:
+                raise ValueError(f"fibre_points must be (F' <= {n_f}, {n_n}, P, 3), got {pts.shape}")
             object.__setattr__(self, "fibre_points", pts)
         if self.surface_vertices is not None:
             object.__setattr__(self, "surface_vertices", _ro(self.surface_vertices, 3, "surface_vertices"))

@@ -69,7 +69,7 @@ def select_frames(frames, n_rows: int, *, file=None) -> np.ndarray:
 
 def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, template=None,
         frames=None, quiet=True, jobs=1, step=None, keep_points=True, keep_surfaces=False,
-        transport="bind", slicing=None, max_memory=None, out_dir=None) -> RunResult:
+        transport="bind", slicing=None, max_memory=None, out_dir=None, on_muscle=None) -> RunResult:
     """Run the fibre study of a fibre model over a motion.
 
     Parameters
@@ -106,6 +106,11 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
         estimate (`analysis.budget`) exceeds it; the estimate is ``settings["estimate"]``.
     out_dir : str or os.PathLike, optional, keyword-only
         Where the files will be written: the disk estimate is checked against its free space.
+    on_muscle : callable, optional, keyword-only
+        ``on_muscle(time, muscle_result) -> muscle_result``, called in this thread as each
+        muscle is done (in the order of the muscles); what it returns is kept in the result.
+        ``fibres run`` writes a muscle's 3D files there and keeps only the scene's frames of its
+        fibre points and surfaces, so a whole model's points are never in memory at once.
 
     Returns
     -------
@@ -157,6 +162,8 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
             try:
                 for i, fut in enumerate(futures):
                     results[i], t = fut.result()
+                    futures[i] = None                  # the future no longer holds the result
+                    results[i] = on_muscle(mot.time, results[i]) if on_muscle else results[i]
                     muscle_timings.append(t)
                     bar.update(1)
             except BaseException:   # Ctrl-C or a failed muscle: do not wait for the others
@@ -167,6 +174,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
             for i, m in enumerate(mspecs):
                 interrupts.check()
                 results[i], t = run_muscle(ctx, m)
+                results[i] = on_muscle(mot.time, results[i]) if on_muscle else results[i]
                 muscle_timings.append(t)
                 bar.update(1)
     finally:

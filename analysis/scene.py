@@ -32,7 +32,7 @@ import numpy as np
 from .output_files import atomic_path, write_text
 from .vtk_files import _write_polydata
 
-__all__ = ["write_scene", "bone_meshes", "MAX_FRAMES", "PARTS"]
+__all__ = ["write_scene", "scene_frames", "bone_meshes", "MAX_FRAMES", "PARTS"]
 
 #: default most frames written to the scene
 MAX_FRAMES = 100
@@ -147,19 +147,28 @@ def _polylines(curves):
     return pts, np.arange(len(pts), dtype=np.int64), np.cumsum(sizes)
 
 
+def scene_frames(n_frames: int, step=None) -> np.ndarray:
+    """The frames the scene shows: every ``step``-th, by default so that at most `MAX_FRAMES`."""
+    step = int(step) if step else max(1, -(-int(n_frames) // MAX_FRAMES))
+    return np.arange(0, int(n_frames), step)
+
+
 def write_scene(folder, result, spec, *, step=None, progress=None) -> Path:
     """Write the scene of a run (module docstring) into ``folder``; return ``scene.pvd``.
 
     Needs the run's fibre points (``keep_points``) and, for surfaces, its wrapped surfaces
-    (``keep_surfaces``); a muscle without them contributes nothing to that part."""
+    (``keep_surfaces``), at every frame or at the scene's frames only (`scene_frames`, as
+    ``fibres run`` keeps them); a muscle without them contributes nothing to that part."""
     import motion as motion_pkg
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     model = spec.model
     n_f = len(result.time)
-    step = int(step) if step else max(1, -(-n_f // MAX_FRAMES))
-    frames = np.arange(0, n_f, step)
+    frames = scene_frames(n_f, step)
+
+    def at(array, i, f):       # the array's row of scene frame i (= motion frame f)
+        return array[f] if array.shape[0] == n_f else array[i]
     muscles = list(result.muscles)
     line_names = list(dict.fromkeys(n for m in muscles for n in m.action_lines))
     line_muscle = {n: k for k, m in enumerate(muscles) for n in m.action_lines}
@@ -182,7 +191,7 @@ def write_scene(folder, result, spec, *, step=None, progress=None) -> Path:
         names = [f"{part}_{f:04d}.vtp" for part in PARTS]
         pts, conn, offs, ids = _merge([(_apply(tf[i, b], v), faces, b) for b, v, faces in bones])
         _write_polydata(folder / names[0], pts, polys=(conn, offs), cell_data={"body": ids})
-        surf = [(m.surface_vertices[f], m.surface_faces, k) for k, m in enumerate(muscles)
+        surf = [(at(m.surface_vertices, i, f), m.surface_faces, k) for k, m in enumerate(muscles)
                 if m.surface_vertices is not None]
         pts, conn, offs, ids = _merge(surf)
         _write_polydata(folder / names[1], pts, polys=(conn, offs), cell_data={"muscle": ids})
@@ -197,7 +206,7 @@ def write_scene(folder, result, spec, *, step=None, progress=None) -> Path:
         _write_polydata(folder / names[2], pts, lines=(conn, offs),
                         cell_data={"muscle": np.array(cm, np.int64), "action_line": np.array(cl, np.int64)})
         fib = [(k, m) for k, m in enumerate(muscles) if m.fibre_points is not None]
-        curves = [c for _, m in fib for c in m.fibre_points[f]]
+        curves = [c for _, m in fib for c in at(m.fibre_points, i, f)]
         pts, conn, offs = _polylines(curves)
         cell = {"muscle": np.concatenate([np.full(m.n_fibres, k, np.int64) for k, m in fib]) if fib else np.zeros(0, np.int64),
                 "fibre": np.concatenate([np.arange(m.n_fibres, dtype=np.int64) for _, m in fib]) if fib else np.zeros(0, np.int64),

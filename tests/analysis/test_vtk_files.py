@@ -98,3 +98,28 @@ def test_nan_fibres_are_written_as_nan(tmp_path):
     mesh = pv.read(vtk_files.write_polylines_vtp(tmp_path / "n.vtp", pts))
     assert mesh.n_cells == 2
     assert np.isnan(mesh.points[4:]).all() and np.isfinite(mesh.points[:4]).all()
+
+
+def test_muscle_files_are_written_as_each_muscle_ends_and_only_scene_frames_are_kept(tmp_path):
+    """`fibres run`'s ``on_muscle`` hook: a muscle's fibres/ files are complete when the hook
+    returns, and the result keeps the scene's frames of its points and surfaces (every
+    ``scene_step``-th), or none without a scene."""
+    from analysis.cli_run import muscle_files_writer
+    from analysis.result import MuscleResult
+
+    rng = np.random.default_rng(5)
+    n_f = 7
+    m = MuscleResult("a b", ("q",), 0.1 + rng.random((n_f, N)), rng.normal(size=(n_f, N, 1)), ("l",),
+                     0.1 + rng.random((n_f, 1)), rng.normal(size=(n_f, 1, 1)), np.ones(N),
+                     fibre_points=rng.normal(size=(n_f, N, P, 3)), surface_vertices=rng.normal(size=(n_f, 9, 3)),
+                     surface_faces=np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8]]))
+    times = np.arange(n_f) * 0.1
+    kept = muscle_files_writer(tmp_path, ["a b"], scene_step=3)(times, m)
+    np.testing.assert_array_equal(kept.fibre_points, m.fibre_points[[0, 3, 6]])
+    np.testing.assert_array_equal(kept.surface_vertices, m.surface_vertices[[0, 3, 6]])
+    files = sorted(p.name for p in (tmp_path / "fibres").iterdir())
+    assert len([f for f in files if f.endswith(".vtp")]) == 2 * n_f          # fibres + surfaces
+    back = pv.read(tmp_path / "fibres" / [f for f in files if f.endswith("_0005.vtp") and "surface" not in f][0])
+    np.testing.assert_allclose(np.asarray(back.points).reshape(N, P, 3), m.fibre_points[5])
+    none = muscle_files_writer(tmp_path / "x", ["a b"], scene=False)(times, m)
+    assert none.fibre_points is None and none.surface_vertices is None
