@@ -146,9 +146,7 @@ def study(study_file, out, *, scheduler=None, workers=None, engine=None, force=F
         pending = []
         for trial in spec.trials:
             if folder.is_up_to_date(out, trial, record, hashes):
-                entry = record["trials"][trial.label]
-                outcomes[trial.label] = TrialOutcome(trial.subject, trial.trial, trial.folder, "skipped",
-                                                     float(entry.get("seconds", 0.0)))
+                outcomes[trial.label] = TrialOutcome(trial.subject, trial.trial, trial.folder, "skipped")
             else:
                 pending.append(trial)
         record = {"tool": "musclefibres", "study": str(spec.file),
