@@ -20,7 +20,11 @@ Record::
 
     {"tool": "musclefibres", "study": "<study file>",
      "trials": {"<subject>/<trial>": {"subject", "trial", "folder", "status": "ok" | "failed",
-                "seconds", "error", "warnings": [...], "settings": {...}, "finished_utc"}}}
+                "seconds", "error", "warnings": [...], "settings": {...}, "shared_rest": n,
+                "finished_utc"}}}
+
+``shared_rest``: the trial's rest-pose decompositions taken from its subject's shared tasks
+(`analysis.study_tasks`; the others were computed by the trial itself).
 
 Up to date (`is_up_to_date`, the resume rule): the record holds the trial with status ``ok`` and
 the same ``settings`` (`trial_settings`: fibre model and motion paths, the options, the
@@ -128,7 +132,7 @@ def record_entry(trial, outcome: dict) -> dict:
     return {"subject": trial.subject, "trial": trial.trial, "folder": trial.folder,
             "status": outcome["status"], "seconds": round(float(outcome.get("seconds", 0.0)), 3),
             "error": outcome.get("error"), "warnings": list(outcome.get("warnings", ())),
-            "settings": trial_settings(trial),
+            "settings": trial_settings(trial), "shared_rest": outcome.get("shared"),
             "finished_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
 
 
