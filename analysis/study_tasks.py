@@ -147,7 +147,7 @@ def run_trial(trial, out_dir, *bundles) -> dict:
         args = run_arguments(trial, out_dir)
         with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stderr(printed), \
                 shared_rest_bundles(dict(b for b in bundles if b and b[0])):
-            warnings.simplefilter("default")
+            warnings.simplefilter("always")
             execute(args)
     except _input_error_types() as exc:
         status, kind, error = "failed", "input", _one_line(exc)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import filecmp
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -132,12 +133,18 @@ def main(argv=None) -> int:
     study_file = build_study(work / "input")
     env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
                MKL_NUM_THREADS="1", NUMBA_NUM_THREADS="1")
+    def cpu(who):
+        r = resource.getrusage(who)
+        return r.ru_utime + r.ru_stime
+
     singles = {}
+    cpu0 = cpu(resource.RUSAGE_CHILDREN)
     for label, folder, cmd in single_run_commands(study_file, work / "single"):
         t0 = time.perf_counter()
         subprocess.run(["taskset", "-c", "0", sys.executable, "-m", "analysis.cli", *cmd], env=env, check=True)
         singles[label] = time.perf_counter() - t0
         print(f"single run {label}: {singles[label]:.2f} s", flush=True)
+    cpu_singles = cpu(resource.RUSAGE_CHILDREN) - cpu0
     warm = subprocess.run(["taskset", "-c", "0", sys.executable, "-c", (
         "import sys, time, json; sys.path.insert(0, %r); from bench.study import single_run_commands;"
         "from analysis.cli import main; from pathlib import Path;"
@@ -153,9 +160,12 @@ def main(argv=None) -> int:
 
     out = work / "study"
     shutil.rmtree(out, ignore_errors=True)
+    cpu1 = cpu(resource.RUSAGE_CHILDREN) + cpu(resource.RUSAGE_SELF)
     t0 = time.perf_counter()
     report = study(study_file, out, workers=args.workers, engine=args.engine, quiet=False)
     wall = time.perf_counter() - t0
+    time.sleep(1.0)    # the workers are reaped
+    cpu_study = cpu(resource.RUSAGE_CHILDREN) + cpu(resource.RUSAGE_SELF) - cpu1
     print(report.table())
     diffs = {t.label: same_tables(out / t.folder, work / "single" / t.folder)
              for t in __import__("analysis.study_file", fromlist=["x"]).load_study(study_file).trials}
@@ -164,6 +174,8 @@ def main(argv=None) -> int:
     print(f"sum of single runs in one warm process on one core: {total_warm:.1f} s")
     print(f"study on {args.workers} workers ({report.engine}): {wall:.1f} s = {wall / total:.2f} x the "
           f"processes' sum, {wall / total_warm:.2f} x the warm sum")
+    print(f"CPU time (user + sys): single processes {cpu_singles:.1f} s, study (client and workers) "
+          f"{cpu_study:.1f} s; load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     print("tables equal to the single runs:", "all" if not any(diffs.values()) else diffs)
     return 0
 

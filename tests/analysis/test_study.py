@@ -225,3 +225,19 @@ def test_dask_local_cluster_survives_a_killed_worker_with_the_same_tables(pool_s
         assert _differing(tmp_path / "out" / trial.folder, pool_out / trial.folder) == [], trial.label
         assert not [p for p in (tmp_path / "out" / trial.folder).iterdir() if p.name.startswith(".")]
     shutil.rmtree(tmp_path / "out")
+
+
+def test_without_dask_the_pool_is_used_and_said(monkeypatch):
+    import importlib
+
+    study_module = importlib.import_module("analysis.study")
+    from analysis.errors import MissingDependencyError
+
+    monkeypatch.setattr(study_module, "dask_available", lambda: False)
+    said = []
+    assert study_module._choose_engine(None, None, said.append) == "processes"
+    assert "Dask is not installed" in said[0] and "musclefibres[dask]" in said[0]
+    with pytest.raises(MissingDependencyError, match=r"musclefibres\[dask\]"):
+        study_module._choose_engine(None, "tcp://127.0.0.1:8786", said.append)
+    with pytest.raises(InputError, match="--engine"):
+        study_module._choose_engine("threads", None, said.append)
