@@ -123,6 +123,10 @@ def _checked_value(key, value, action, negated, *, file, where):
     if action.type is int:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise bad("expected a whole number >= 1", f"Write {key} = 10, for example.")
+        if key in ("fibres", "resolution"):        # the limits of the fibre model
+            from .spec import check_count
+
+            check_count(key, value, where=where, file=file)
         return action.dest, value
     if key == "max_memory" and isinstance(value, int) and not isinstance(value, bool):
         value = str(value)

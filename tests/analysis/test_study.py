@@ -117,6 +117,7 @@ def test_study_file_trials_names_and_options(tmp_path):
 @pytest.mark.parametrize("text, where", [
     ('[options]\nfibers = 5\n[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot"]', "options.fibers"),
     ('[options]\nfibres = "many"\n[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot"]', "options.fibres"),
+    ('[options]\nfibres = 200000\n[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot"]', "options.fibres"),
     ('[options]\nslicing = "cubes"\n[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot"]', "options.slicing"),
     ('[options]\nno-plots = 1\n[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot"]', "options.no-plots"),
     ('[options]\nframes = "a:b"\n[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot"]', "options.frames"),
