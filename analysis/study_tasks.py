@@ -6,13 +6,14 @@
   returned as ``(key, FibreBundle)``.
 - `run_trial(trial, out, *bundles)`: ``fibres run`` of one trial (`analysis.cli_run.execute`,
   so its folder holds exactly what ``fibres run`` writes, staged and moved into place), with the
-  subject's rest bundles handed to the run (`shared_rest_bundles`). Never raises for a failing
-  trial: it returns ``{"status": "failed", "error": <one line>}``, so that one trial's failure
-  cannot stop the others; only Ctrl-C and the worker's own death end it otherwise.
+  subject's rest bundles handed to the run (`shared_rest_bundles`) and its plots drawn in the
+  worker itself (`_plots_in_this_process`). Never raises for a failing trial: it returns
+  ``{"status": "failed", "error": <one line>}``, so that one trial's failure cannot stop the
+  others; only Ctrl-C and the worker's own death end it otherwise.
 
 How a rest bundle reaches the run without changing `analysis.run`: within `run_trial`,
-``fibres.decompose`` (which `analysis.run` looks up at call time) is wrapped by a function that
-returns the shared bundle when the call is a rest-pose decomposition with *exactly* the inputs
+``fibres.decompose`` (which `analysis.muscle_chain.run_muscle` imports at call time) is wrapped
+by a function that returns the shared bundle when the call is a rest-pose decomposition with *exactly* the inputs
 the bundle was made from: the key is the sha256 of the vertices, faces, origin and insertion
 points (float64/int64 bytes) and the options. Anything else (a different surface, a plan given,
 a changed option) goes to ``fibres.decompose`` itself. A bundle is therefore used only where the
@@ -80,7 +81,8 @@ def shared_rest_bundles(bundles):
 
 
 def _decompose_options(mspec) -> dict:
-    """The options `analysis.run` decomposes a muscle with (a changed rule only loses sharing)."""
+    """The options `analysis.muscle_chain.run_muscle` decomposes a muscle with (a changed rule
+    there only loses the sharing: the keys then differ)."""
     opts = dict(template=mspec.template, n_fibres=mspec.n_fibres, resolution=mspec.resolution,
                 seed=mspec.seed, slicing=mspec.slicing)
     if mspec.template_params:
@@ -92,14 +94,18 @@ def rest_bundle(spec_path, options: dict, muscle: str):
     """``(key, FibreBundle)`` of one muscle's rest-pose decomposition with the study's options,
     or ``(None, None)`` when it cannot be made (the trials then report the problem themselves).
 
-    The rest surface is the one `analysis.run` decomposes: `motion.wrap_surfaces` of the muscle
-    at one pose (the model's defaults: ``rest_vertices`` do not depend on the pose), in ground."""
-    import motion as motion_pkg
-
-    from .run import _select_muscles, _surface_spec, _wrap_surfaces
-    from .spec import load_spec
-
+    The rest surface is the one `analysis.run` decomposes (`analysis.muscle_chain.run_muscle`):
+    `motion.wrap_surfaces` of the muscle at one pose (the model's defaults: ``rest_vertices``
+    do not depend on the pose), in ground."""
     try:
+        import fibres
+        import motion as motion_pkg
+        from motion import wrap_surfaces
+
+        from .muscle_chain import surface_spec
+        from .run import _select_muscles
+        from .spec import load_spec
+
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             spec = load_spec(spec_path)
@@ -108,9 +114,7 @@ def rest_bundle(spec_path, options: dict, muscle: str):
                                        template=options.get("template"), slicing=options.get("slicing"))
             model = spec.model
             pose = motion_pkg.Motion.from_array(model, np.zeros(1), {})
-            (rest,) = _wrap_surfaces()(model, pose, [_surface_spec(mspec)])
-            import fibres
-
+            (rest,) = wrap_surfaces(model, pose, [surface_spec(mspec)])
             opts = _decompose_options(mspec)
             surface = (rest.rest_vertices, rest.faces)
             bundle = fibres.decompose(surface, rest.rest_origin, rest.rest_insertion, **opts)
@@ -118,6 +122,24 @@ def rest_bundle(spec_path, options: dict, muscle: str):
             return rest_key(surface, rest.rest_origin, rest.rest_insertion, opts), bundle
     except Exception:   # noqa: BLE001 - the trial runs without it and reports the error
         return None, None
+
+
+@contextlib.contextmanager
+def _plots_in_this_process():
+    """Within the block, `fibres run` draws its plots in this process (its own pool of plot
+    processes is for a run alone on a machine): a study already keeps every core busy with
+    trials, and a Dask worker is a daemonic process, which may not start processes."""
+    from . import cli_run
+
+    saved = getattr(cli_run, "PARALLEL_PLOTS_FROM", None)
+    if saved is None:
+        yield
+        return
+    cli_run.PARALLEL_PLOTS_FROM = float("inf")
+    try:
+        yield
+    finally:
+        cli_run.PARALLEL_PLOTS_FROM = saved
 
 
 def _muscle_names(spec_path, options) -> list:
@@ -146,7 +168,7 @@ def run_trial(trial, out_dir, *bundles) -> dict:
     try:
         args = run_arguments(trial, out_dir)
         with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stderr(printed), \
-                shared_rest_bundles(dict(b for b in bundles if b and b[0])):
+                shared_rest_bundles(dict(b for b in bundles if b and b[0])), _plots_in_this_process():
             warnings.simplefilter("always")
             execute(args)
     except _input_error_types() as exc:
