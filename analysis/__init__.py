@@ -11,6 +11,7 @@ from .errors import InputError, MissingDependencyError  # noqa: E402
 from .result import MuscleResult, RunResult  # noqa: E402
 from .run import run  # noqa: E402
 from .spec import AttachmentSpec, FibreModelSpec, MuscleSpec, load_spec  # noqa: E402
+from .study import study  # noqa: E402  (the function; the module stays importable as analysis.study)
 
 __all__ = ["InputError", "MissingDependencyError", "run", "RunResult", "MuscleResult", "load_spec",
-           "FibreModelSpec", "MuscleSpec", "AttachmentSpec"]
+           "FibreModelSpec", "MuscleSpec", "AttachmentSpec", "study"]

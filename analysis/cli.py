@@ -28,6 +28,7 @@ COMMANDS = {
     "decompose": ("analysis.cli_decompose", "decompose one static muscle surface into fibres"),
     "export-osim": ("analysis.cli_export", "an OpenSim model with one muscle per fibre (polynomial paths)"),
     "render": ("analysis.cli_render", "an off-screen picture (PNG) of one frame of a run's 3D scene"),
+    "study": ("analysis.cli_study", "a cohort: fibres run of many subjects x trials on Dask, resumable"),
 }
 
 
@@ -67,6 +68,8 @@ SETTLE = {
             "motion.surface.rest", "fibres.decompose"),
     "lines": ("numpy", "pandas", "motion", "analysis.lines_tables"),
     "decompose": ("numpy", "trimesh", "fibres", "fibres.decompose", "fibres.fitting"),
+    "study": ("numpy", "pandas", "motion", "fibres", "analysis.run", "analysis.study", "analysis.study_file",
+              "analysis.study_folder", "analysis.study_tasks", "analysis.cli_run"),
 }
 
 

@@ -21,6 +21,7 @@ EXPECTED = {
     "analysis": {
         "InputError", "MissingDependencyError",
         "run", "RunResult", "MuscleResult", "load_spec", "FibreModelSpec", "MuscleSpec", "AttachmentSpec",
+        "study",
     },
 }
 
