@@ -10,6 +10,7 @@ CAGD 22, 2005). Here, step by step:
    and harmonic elsewhere (`fibres.harmonic_field`). The field is a material property: it
    is kept per vertex in the `HarmonicPlan`, so a deformed frame needs no new solve and its
    isolines are the same material curves (`fibres.isolines`).
+   Steps 2-5 are in `fibres.harmonic_sections`.
 2. **Levels** (`_levels`): the R - 1 inner slices of a fibre of resolution R sit at field
    levels whose isolines' centroids are evenly spaced along the muscle (a harmonic field is
    not proportional to length: it changes fast where a fan narrows); the fibre's two ends
@@ -23,8 +24,9 @@ CAGD 22, 2005). Here, step by step:
    transport (projection onto each next loop's plane); ``e2 = n x e1``.
 5. **Square <-> loop**: each loop is sampled at `SAMPLES` points of equal arc length from a
    *seam*: on the middle loop, its point towards the square's corner (0, 0) in the frame
-   ``(e1, e2)``; on every other loop, the point nearest to the previous loop's seam (the
-   field's flow lines cross the isolines at right angles, so the seam follows one). Sample k
+   ``(e1, e2)``; on every other loop, the cyclic shift whose samples best match the previous
+   loop's in the least-squares sense (`fibres.harmonic_sections`: a seam carried by one
+   nearest point let the samples slide back and forth between loops). Sample k
    corresponds to the point at k / SAMPLES of the perimeter of a rectangle with the loop's
    aspect (its extents along e1 and e2), counter-clockwise from (0, 0), scaled to the unit
    square: the square's sides go to the loop's sides, also for a flat muscle. A template
@@ -65,24 +67,18 @@ import scipy.sparse as sp
 from .attachment_patch import attachment_patches
 from .errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
-from .isolines import isoline_loops, isoline_moments
+from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
 from .patch_map import area_points, knothe_rosenblatt, locate
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
-#: loop samples per level (a multiple of 4: the square's corners are samples)
-SAMPLES = 64
 #: template fibres per side of the grid that measures the family's extent (step 7)
 _ENVELOPE = 11
 #: grid cells per side of the square that triangulate a membrane for its area measure
 _MEMBRANE = 16
 #: share of a fibre over which it bends towards its ends (`_bend_to_ends`)
 END_BEND = 0.3
-#: candidate levels (x 2) searched for the slice levels
-_CANDIDATES = 96
-#: field level of the patches' rim loops
-_RIM = 1e-6
 
 
 @dataclass(frozen=True)
@@ -162,201 +158,6 @@ def make_harmonic_plan(vertices, faces, origin, insertion) -> HarmonicPlan:
     return HarmonicPlan(f, v, u, patches.origin, patches.insertion, patches.origin_faces,
                         patches.insertion_faces, np.asarray(origin, float),
                         np.asarray(insertion, float), edges, face_edges, patches.notes)
-
-
-# -- levels, loops, frames ------------------------------------------------------------------
-
-def _levels(plan: HarmonicPlan, resolution: int) -> np.ndarray:
-    """(R + 1,) field levels whose isolines' centroids are evenly spaced along the muscle.
-
-    The centroid C(t) and vector area of the whole isoline are measured at `_CANDIDATES`
-    levels (evenly spaced, and at the area quantiles of the field, which resolve the levels
-    where the muscle is; `fibres.isolines.isoline_moments`). Progress along the muscle is
-    the centroid's advance along the isolines' mean normal, ``ds = max(0, dC . n)``: an
-    isoline sweeping back through a dead end beyond a patch (the field is flat there) makes
-    no progress and gets no slice. The R - 1 inner levels divide s evenly."""
-    v, u, f = plan.rest_vertices, plan.field, plan.faces
-    tri = v[f]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    uc = u[f].mean(axis=1)
-    order = np.argsort(uc, kind="stable")
-    cum = np.cumsum(area[order])
-    q = np.interp(np.linspace(0, 1, _CANDIDATES), cum / cum[-1], uc[order])
-    cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
-    cand = cand[(cand > 2 * _RIM) & (cand < 1 - 2 * _RIM)]
-    cand = np.concatenate([[_RIM], cand, [1 - _RIM]])
-    length, centre, _ = isoline_moments(u, v, f, cand)
-    ok = length > 0
-    cand, centre = cand[ok], centre[ok]
-    step = np.diff(centre, axis=0)
-    ahead = np.einsum("ij,ij->i", step, centre[-1] - centre[:-1]) > 0
-    ds = np.where(ahead, np.linalg.norm(step, axis=1), 0.0)
-    s = np.concatenate([[0.0], np.cumsum(ds)])
-    s = s + 1e-12 * np.arange(s.size)                     # strictly increasing
-    levels = np.interp(np.linspace(0.0, s[-1], resolution + 1), s, cand)
-    levels[0], levels[-1] = _RIM, 1.0 - _RIM
-    levels[1:-1] = np.clip(levels[1:-1], 2 * _RIM, 1 - 2 * _RIM)
-    return levels
-
-
-def _loop_frame(points):
-    """(centroid, unit normal, segment lengths) of a closed loop."""
-    nxt = np.roll(points, -1, axis=0)
-    seg = np.linalg.norm(nxt - points, axis=1)
-    total = seg.sum()
-    c = (0.5 * (points + nxt) * seg[:, None]).sum(axis=0) / total if total > 0 \
-        else points.mean(axis=0)
-    area = 0.5 * np.cross(points - c, nxt - c).sum(axis=0)
-    norm = np.linalg.norm(area)
-    n = area / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
-    return c, n, seg
-
-
-def _major_axis(points, c, n, loop):
-    d = points - c
-    d = d - np.outer(d @ n, n)
-    vals, vecs = np.linalg.eigh(d.T @ d)
-    e1 = vecs[:, -1]
-    # material sign: the vertex numbering rides along with a deformed copy
-    if np.dot((loop.a + 1.0), d @ e1) < 0:
-        e1 = -e1
-    return e1
-
-
-def _transport(e1, n):
-    p = e1 - np.dot(e1, n) * n
-    norm = np.linalg.norm(p)
-    if norm < 1e-9:
-        return None
-    return p / norm
-
-
-def _rectangle_samples(k: int, share: float) -> np.ndarray:
-    """(k, 2) points of the unit square's boundary, counter-clockwise from (0, 0), evenly
-    spaced on the perimeter of a rectangle whose sides along x take ``share`` of its
-    perimeter (the loop's aspect: ``a / (a + b)`` for extents a along e1, b along e2)."""
-    w = min(max(float(share), 0.02), 0.98)
-    phi = np.arange(k) / k
-    out = np.empty((k, 2))
-    bounds = np.array([0.0, w / 2, 0.5, 0.5 + w / 2, 1.0])
-    side = np.searchsorted(bounds, phi, side="right") - 1
-    f = (phi - bounds[side]) / np.diff(bounds)[side]
-    out[:, 0] = np.choose(side, [f, np.ones_like(f), 1 - f, np.zeros_like(f)])
-    out[:, 1] = np.choose(side, [np.zeros_like(f), f, np.ones_like(f), 1 - f])
-    return out
-
-
-def _position_point(points, pos):
-    m = len(points)
-    i = int(np.floor(pos)) % m
-    f = pos - np.floor(pos)
-    return (1.0 - f) * points[i] + f * points[(i + 1) % m]
-
-
-def _closest_position(points, q) -> float:
-    """Fractional loop position (node + fraction) of the closed polyline's point nearest q."""
-    a = points
-    b = np.roll(points, -1, axis=0)
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(
-        np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
-    d = np.linalg.norm(a + t[:, None] * ab - q, axis=1)
-    k = int(np.argmin(d))
-    return k + float(t[k])
-
-
-def _arc_positions(seg, start, k):
-    """(k,) fractional loop positions (node + fraction) that divide the closed loop with
-    segment lengths ``seg`` into k equal arcs from the position ``start``."""
-    m = len(seg)
-    i0 = int(np.floor(start)) % m
-    f0 = start - np.floor(start)
-    # segment lengths in loop order from the start, the first one split there
-    order = (np.arange(m) + i0) % m
-    seg = seg[order]
-    head = seg[0] * (1.0 - f0)
-    cum = np.concatenate([[0.0, head], head + np.cumsum(seg[1:])])
-    cum = np.append(cum, cum[-1] + seg[0] * f0)                  # back at the start
-    pos = np.concatenate([[start], i0 + 1.0 + np.arange(m), [start + m]])
-    cum = cum + 1e-15 * cum[-1] * np.arange(cum.size)            # strictly increasing
-    target = np.arange(k) / k * cum[-1]
-    return np.interp(target, cum, pos) % m
-
-
-@dataclass(frozen=True)
-class _Slices:
-    """The loops of one resolution: per level (L = R + 1), `SAMPLES` loop samples as a sparse
-    (L * SAMPLES, V) matrix of vertex weights, the frames at rest, and notes."""
-
-    samples: sp.csr_matrix
-    centres: np.ndarray
-    normals: np.ndarray
-    axes: np.ndarray
-    shares: np.ndarray
-    notes: tuple
-
-
-def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
-    levels = _levels(plan, max(int(resolution), 2))[1:-1]
-    if resolution < 2:  # one segment: the ends still come from a middle membrane
-        levels = levels[:1]
-    v = plan.rest_vertices
-    loops, notes = [], []
-    for j, t in enumerate(levels):
-        found = isoline_loops(plan.field, plan.faces, t, plan.edges, plan.face_edges, v)
-        if not found:
-            raise InputError("the harmonic field has no isoline at a slice level",
-                             where="mesh", fix="Check the attachment landmarks.")
-        if len(found) > 1:
-            notes.append(f"slice {j}: {len(found)} isoline loops, the longest kept")
-        loops.append(found[0])
-    pts = [lp.points(v) for lp in loops]
-    frames = [_loop_frame(p) for p in pts]
-    centres = np.array([f[0] for f in frames])
-    normals = np.array([f[1] for f in frames])
-    mid = len(loops) // 2
-    axes = np.zeros_like(centres)
-    axes[mid] = _major_axis(pts[mid], centres[mid], normals[mid], loops[mid])
-    for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
-        prev = mid
-        for j in rng:
-            e = _transport(axes[prev], normals[j])
-            axes[j] = e if e is not None else axes[prev]
-            prev = j
-    # positions along each loop by arc length from a seam that starts at the middle loop's
-    # point towards the square's corner (0, 0) and is carried to each next loop by its nearest
-    # point (the field's flow lines cross its isolines at right angles)
-    e2m = np.cross(normals[mid], axes[mid])
-    d = pts[mid] - centres[mid]
-    x, y = d @ axes[mid], d @ e2m
-    score = -x / max(np.ptp(x), 1e-12) - y / max(np.ptp(y), 1e-12)
-    seams = [0.0] * len(loops)
-    seams[mid] = float(np.argmax(score))
-    for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
-        prev = mid
-        for j in rng:
-            q = _position_point(pts[prev], seams[prev])
-            seams[j] = _closest_position(pts[j], q)
-            prev = j
-    shares = np.empty(len(loops))
-    rows, cols, vals = [], [], []
-    for j, (lp, p) in enumerate(zip(loops, pts)):
-        d = p - centres[j]
-        a, b = np.ptp(d @ axes[j]), np.ptp(d @ np.cross(normals[j], axes[j]))
-        shares[j] = a / max(a + b, 1e-300)
-        seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
-        pos = _arc_positions(seg, seams[j], SAMPLES)
-        i0 = np.floor(pos).astype(np.int64) % len(lp)
-        f = pos - np.floor(pos)
-        i1 = (i0 + 1) % len(lp)
-        r = j * SAMPLES + np.arange(SAMPLES)
-        for idx, wgt in ((i0, 1.0 - f), (i1, f)):
-            rows += [r, r]
-            cols += [lp.a[idx], lp.b[idx]]
-            vals += [wgt * (1.0 - lp.s[idx]), wgt * lp.s[idx]]
-    mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                        shape=(len(loops) * SAMPLES, len(v)))
-    return _Slices(mat, centres, normals, axes, shares, tuple(notes))
 
 
 # -- template points to the muscle ----------------------------------------------------------
