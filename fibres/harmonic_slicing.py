@@ -30,19 +30,25 @@ CAGD 22, 2005). Here, step by step:
    corresponds to the point at k / SAMPLES of the perimeter of a rectangle with the loop's
    aspect (its extents along e1 and e2), counter-clockwise from (0, 0), scaled to the unit
    square: the square's sides go to the loop's sides, also for a flat muscle. A template
-   point ``(x, y)`` of the slice goes to ``sum_k lambda_k(x, y)
-   S_k``: its mean value coordinates (Hormann & Floater, ACM TOG 25(4), 2006) with respect
+   point ``(x, y)`` of the slice is first spread by area over the membrane (below), to
+   ``(x*, y*)``, and goes to ``sum_k lambda_k(x*, y*) S_k``: its mean value coordinates (Hormann & Floater, ACM TOG 25(4), 2006) with respect
    to the square's samples applied to the loop's -- a 3D generalisation of Kohout 2012
-   §3.3 without planarisation: the map spans the loop like a membrane. Seam and arc
+   §3.3 without planarisation: the map spans the loop like a membrane. The spreading by
+   area is a Knothe-Rosenblatt map in the square's own coordinates, the mass of each cell
+   of a 16 x 16 grid being the area of its image on the membrane
+   (`fibres.patch_map.grid_area_map`): one-to-one whatever the membrane's shape. Seam and arc
    lengths change continuously from loop to loop, so fibres do not jump between slices.
-6. **Fibre ends spread over the patches** (`fibres.patch_map`): the template's origin and
-   insertion coordinates go onto the whole patches by area and order-preserving (a
-   Knothe-Rosenblatt map in the frame of the first / last inner loop, so the ends line up
-   with the fibres' places in the sections); the end's offset from the fibre's own course
-   (its first inner segment continued) is spread over the fibre's first (last) `END_BEND`,
-   so fibres turn towards their place on the patch without hooking (`_bend_to_ends`). The
-   points are then put at equal arc-length steps of each rest fibre (`_even`): a slice that
-   hugs a patch leaves no stub segment.
+6. **Fibre ends spread over the patches** (`fibres.patch_map`): each fibre's place on the
+   first (last) inner membrane, projected on that loop's frame, is carried onto the whole
+   patch by area and in order: its Knothe-Rosenblatt coordinates under the membrane's
+   projected area (`kr_coordinates`) go through the patch's Knothe-Rosenblatt map in the
+   same frame (`area_points`). On a straight cylinder the membranes and the caps have the
+   same projected measure, so fibres stay straight; on a muscle every part of the patch
+   gets ends. The end's offset from the fibre's own course (its first inner segment
+   continued) is spread over the fibre's first (last) `END_BEND`, so fibres turn towards
+   their place on the patch without hooking (`_bend_to_ends`). The points are then put at
+   equal arc-length steps of each rest fibre (`_even`): a slice that hugs a patch leaves
+   no stub segment.
 7. The template's cross-section coordinates are first normalised by the extent of its whole
    family at the same curve parameter (a grid of `_ENVELOPE` x `_ENVELOPE` fibres): the
    field already follows the muscle's fans and bends, so the template gives the fibres'
@@ -69,7 +75,7 @@ from .errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
 from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
-from .patch_map import area_points, knothe_rosenblatt, locate
+from .patch_map import area_points, grid_area_map, kr_coordinates
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
@@ -78,7 +84,7 @@ _ENVELOPE = 11
 #: grid cells per side of the square that triangulate a membrane for its area measure
 _MEMBRANE = 16
 #: share of a fibre over which it bends towards its ends (`_bend_to_ends`)
-END_BEND = 0.3
+END_BEND = 0.2
 
 
 @dataclass(frozen=True)
@@ -198,20 +204,30 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     cells = np.concatenate([np.stack([n00, n00 + _MEMBRANE + 1, n00 + _MEMBRANE + 2], 1),
                             np.stack([n00, n00 + _MEMBRANE + 2, n00 + 1], 1)])
 
+    membranes = {}
+
+    def membrane(j):
+        """Loop j's membrane at rest: its grid nodes (3D) and cell triangles' areas."""
+        if j not in membranes:
+            memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]    # (G+1)^2 x 3
+            tri = memb[cells]
+            area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                        axis=1)
+            membranes[j] = (tri, area)
+        return membranes[j]
+
     def lam(j, pts):
         """MVC weights of the points of the square that spread ``pts`` evenly by area over
-        loop j's membrane (Knothe-Rosenblatt in the loop's frame, as at the patches)."""
+        loop j's membrane: Knothe-Rosenblatt in the square's own coordinates with the area
+        of each grid cell's image as its mass (`fibres.patch_map.grid_area_map`; the map in
+        a projection of the membrane jumped between the sheets of a folded projection:
+        docs/decisions.md)."""
         pts = pts.reshape(-1, 2)
-        memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]        # (G+1)^2 x 3
-        e1 = slices.axes[j]
-        e2 = np.cross(slices.normals[j], e1)
-        tri = memb[cells]
-        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
-                                    axis=1)
-        px, py = (tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2
-        xs, ys = knothe_rosenblatt(px, py, area, pts[:, 0], pts[:, 1], samples=len(cells))
-        pick, bary = locate(px, py, xs, ys)
-        square = np.einsum("nk,nkd->nd", bary, nodes[cells[pick]])
+        area = membrane(j)[1]
+        half = _MEMBRANE * _MEMBRANE
+        xs, ys = grid_area_map((area[:half] + area[half:]).reshape(_MEMBRANE, _MEMBRANE),
+                               pts[:, 0], pts[:, 1])
+        square = np.stack([xs, ys], axis=1)
         return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons[j])
 
     rows, cols, vals = [], [], []
@@ -233,15 +249,22 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
                 rows.append(np.repeat(r_in[sel], k))
                 cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
                 vals.append((lam(j, xy_in[sel]) * wj[sel, None]).reshape(-1))
-    # ends: the template's end coordinates onto the whole patch by area, in the first / last
-    # inner loop's frame (fibres.patch_map), the fibres then bent towards them (_bend_to_ends)
+    # ends: the fibres' places on the first / last inner membrane, projected on its frame,
+    # carried onto the whole patch by area and in order (the membrane's projected area
+    # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.patch_map); the fibres
+    # then bend towards them (_bend_to_ends)
     for col, mask, patch, j in ((0, plan.origin_faces, plan.origin, 0),
                                 (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
         if not mask.any():
             mask = patch[plan.faces].any(axis=1)
         e1 = slices.axes[j]
+        e2 = np.cross(slices.normals[j], e1)
+        tri, area = membrane(j)
+        on = lam(j, xy[:, col]) @ rest[j] - slices.centres[j]
+        X, Y = kr_coordinates((tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2,
+                              area, on @ e1, on @ e2)
         face, bary = area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j], e1,
-                                 np.cross(slices.normals[j], e1), xy[:, col, 0], xy[:, col, 1])
+                                 e2, X, Y)
         rows.append(np.repeat(rid[:, col], 3))
         cols.append(base + plan.faces[face].reshape(-1))
         vals.append(bary.reshape(-1))

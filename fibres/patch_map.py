@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["area_points", "knothe_rosenblatt", "locate", "WINDOW", "SAMPLES"]
+__all__ = ["area_points", "grid_area_map", "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
 
 
 #: nearest triangles tried first when locating a point (`locate`)
@@ -73,6 +73,77 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
     ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
     return xs, ys
+
+
+def grid_area_map(mass, X, Y):
+    """Unit-square coordinates ``(X, Y)`` onto the square itself, spread by a cell density.
+
+    ``mass`` (G, G) is the mass of the grid cells of [0, 1]^2 (cell ``(a, b)`` spans
+    ``[a, a + 1] / G`` along x and ``[b, b + 1] / G`` along y): here the area of a
+    membrane's image of each cell (`fibres.harmonic_slicing`). The map is Knothe-Rosenblatt
+    (Rosenblatt 1952) in the square's own coordinates: ``x* = F1^-1(X)`` with F1 the
+    cumulative column masses (piecewise linear between the grid lines), then
+    ``y* = F2^-1(Y | x*)`` with the conditional profile of y interpolated linearly between
+    the two columns whose centres bracket x* (so that y* is continuous in x*). Equal areas
+    of the square go to about equal masses, and the map is one-to-one and continuous in X,
+    Y and the masses: unlike a map in a projection of the membrane, it cannot jump between
+    two sheets of a folded projection.
+
+    Returns
+    -------
+    xs, ys : (N,) float in [0, 1]
+    """
+    m = np.maximum(np.asarray(mass, dtype=np.float64), 0.0)
+    g = m.shape[0]
+    m = m + 1e-12 * max(float(m.sum()), 1e-300) / m.size        # no empty cell
+    knots = np.linspace(0.0, 1.0, g + 1)
+    col = m.sum(axis=1)
+    f1 = np.concatenate([[0.0], np.cumsum(col)]) / col.sum()
+    xs = np.interp(np.clip(X, 0.0, 1.0), f1, knots)
+    c = np.clip(xs * g - 0.5, 0.0, g - 1.0)
+    a0 = np.minimum(np.floor(c).astype(np.int64), g - 1)
+    a1 = np.minimum(a0 + 1, g - 1)
+    t = (c - a0)[:, None]
+    prof = m / col[:, None]                                     # (G, G) rows sum to 1
+    p = (1.0 - t) * prof[a0] + t * prof[a1]                     # (N, G)
+    cum = np.concatenate([np.zeros((len(xs), 1)), np.cumsum(p, axis=1)], axis=1)
+    cum /= cum[:, -1:]
+    q = np.clip(Y, 0.0, 1.0)[:, None]
+    k = np.clip((cum[:, 1:] < q).sum(axis=1), 0, g - 1)
+    rows = np.arange(len(xs))
+    lo, hi = cum[rows, k], cum[rows, k + 1]
+    f = np.clip((q[:, 0] - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
+    return xs, (k + f) / g
+
+
+def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
+    """The inverse of `knothe_rosenblatt`: unit-square coordinates ``(X, Y)`` of planar
+    points ``(qx, qy)`` under the same measure (triangles' projected corners ``px``, ``py``
+    and areas), ``X = F1(qx)``, ``Y = F2(qy | qx)`` with the same sampling and conditional
+    window, so ``knothe_rosenblatt(..., *kr_coordinates(..., x, y))`` returns ``(x, y)`` up
+    to the sampling. Used to carry points of one measure onto another in order (the first
+    section's membrane onto an attachment patch: `fibres.harmonic_slicing`)."""
+    n = int(np.clip(np.sqrt(samples / max(len(px), 1)), 1, 8))
+    sub = _sub_centroids(n)
+    sx = (px @ sub.T).reshape(-1)
+    sy = (py @ sub.T).reshape(-1)
+    sw = np.repeat(np.asarray(area, dtype=np.float64) / len(sub), len(sub))
+    order = np.argsort(sx, kind="stable")
+    cum = np.cumsum(sw[order])
+    mid = (cum - 0.5 * sw[order]) / cum[-1]
+    X = np.interp(qx, sx[order], mid)
+    h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
+    order = np.argsort(sy, kind="stable")
+    sy, sx, sw = sy[order], sx[order], sw[order]
+    w = sw[None] * np.exp(-0.5 * ((sx[None] - np.asarray(qx)[:, None]) / h) ** 2)
+    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    k = np.clip((sy[None] < np.asarray(qy)[:, None]).sum(axis=1), 1, len(sy) - 1)
+    rows = np.arange(len(k))
+    f = np.clip((qy - sy[k - 1]) / np.maximum(sy[k] - sy[k - 1], 1e-300), 0.0, 1.0)
+    Y = mid[rows, k - 1] + f * (mid[rows, k] - mid[rows, k - 1])
+    return np.clip(X, 0.0, 1.0), np.clip(Y, 0.0, 1.0)
 
 
 def locate(px, py, xs, ys):

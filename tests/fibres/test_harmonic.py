@@ -125,6 +125,50 @@ def test_box_fibres_stay_inside():
     assert b.quality.turn_max < 5.0
 
 
+def test_grid_area_map_uniform_is_the_identity_and_weights_move_the_quantiles():
+    """Equal cell masses: the map is the identity. Columns x < 1/2 three times as heavy
+    (masses 3 and 1 per cell, total 2): the x-marginal is F1(x) = 3x / 2 up to 1/2, so
+    X = 1/2 goes to x = 1/3 and X = 3/4 (= F1(1/2)) to 1/2; rows equal: y = Y.
+    Rows y < 1/4 of every column weigh 5 (the rest 1, total 5/4 + 3/4 = 2): the conditional
+    F2(y) = 5y / 2 up to 1/4, so Y = 5/16 goes to y = 1/8; x stays X."""
+    from fibres.patch_map import grid_area_map
+    g = 8
+    X = np.array([0.0, 0.1, 0.5, 0.77, 1.0])
+    Y = np.array([0.3, 0.0, 0.9, 0.5, 1.0])
+    xs, ys = grid_area_map(np.ones((g, g)), X, Y)
+    np.testing.assert_allclose(xs, X, atol=1e-9)
+    np.testing.assert_allclose(ys, Y, atol=1e-9)
+    m = np.ones((g, g))
+    m[: g // 2] = 3.0
+    xs, ys = grid_area_map(m, np.array([0.5, 0.75]), np.array([0.2, 0.6]))
+    np.testing.assert_allclose(xs, [1 / 3, 1 / 2], atol=1e-9)
+    np.testing.assert_allclose(ys, [0.2, 0.6], atol=1e-9)
+    m = np.ones((g, g))
+    m[:, : g // 4] = 5.0
+    xs, ys = grid_area_map(m, np.array([0.3]), np.array([5 / 16]))
+    np.testing.assert_allclose(xs, [0.3], atol=1e-9)
+    np.testing.assert_allclose(ys, [1 / 8], atol=1e-9)
+
+
+def test_kr_coordinates_of_a_uniform_rectangle_and_the_round_trip():
+    """A uniform rectangle [0, 2] x [0, 1] (two triangles): X = x / 2 and Y = y away from the
+    rim (the measure is sampled at sub-triangle centroids, 8 x 8 per triangle here, and the
+    conditional of y is a Gaussian window in x: exact to a few hundredths); `knothe_rosenblatt`
+    maps the coordinates back to the points exactly (both use the same sampled measure)."""
+    from fibres.patch_map import knothe_rosenblatt, kr_coordinates
+    px = np.array([[0.0, 2.0, 2.0], [0.0, 2.0, 0.0]])
+    py = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
+    area = np.array([1.0, 1.0])
+    qx = np.array([0.5, 1.0, 1.5, 1.2])
+    qy = np.array([0.5, 0.25, 0.7, 0.4])
+    X, Y = kr_coordinates(px, py, area, qx, qy)
+    np.testing.assert_allclose(X, qx / 2, atol=0.03)
+    np.testing.assert_allclose(Y, qy, atol=0.03)
+    bx, by = knothe_rosenblatt(px, py, area, X, Y)     # the exact inverse of the sampled map
+    np.testing.assert_allclose(bx, qx, atol=1e-9)
+    np.testing.assert_allclose(by, qy, atol=1e-9)
+
+
 # -- quality numbers on known cases -------------------------------------------------------
 
 def test_quality_of_one_axial_fibre_in_a_cylinder():
