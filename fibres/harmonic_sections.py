@@ -171,15 +171,24 @@ def _registered_seam(prev_pts, prev_seam, pts, guess):
     """The seam (fractional position) of loop ``pts`` whose `SAMPLES` arc-length samples lie
     nearest the previous loop's, in the least-squares sense with both sample sets centred
     (the loops move along the muscle; only the cyclic shift is sought): the shifts searched
-    are `_FINE` per sample spacing, all round the loop, starting from ``guess``."""
-    _, ref = _loop_samples(prev_pts, prev_seam, SAMPLES)
-    pos, fine = _loop_samples(pts, guess, SAMPLES * _FINE)
+    are `_FINE` per sample spacing, all round the loop, starting from ``guess``.
+
+    Shift ``t = q F + r`` (F = `_FINE`) takes every F-th fine sample from r, rolled by q:
+    its centred sum of squares depends on r only, and the cross term with the reference is
+    a circular cross-correlation over q, computed for all q at once by FFT."""
+    k = SAMPLES
+    _, ref = _loop_samples(prev_pts, prev_seam, k)
+    pos, fine = _loop_samples(pts, guess, k * _FINE)
     ref = ref - ref.mean(axis=0)
-    idx = (np.arange(SAMPLES)[None] * _FINE + np.arange(SAMPLES * _FINE)[:, None]) % len(fine)
-    cand = fine[idx]                                                  # (shifts, K, 3)
-    cand = cand - cand.mean(axis=1, keepdims=True)
-    cost = np.einsum("tkd,tkd->t", cand, cand) - 2.0 * np.einsum("tkd,kd->t", cand, ref)
-    return float(pos[int(np.argmin(cost))])
+    sub = fine.reshape(k, _FINE, 3).transpose(1, 0, 2)                # (F, K, 3): [r, k]
+    sub = sub - sub.mean(axis=1, keepdims=True)
+    power = np.einsum("rkd,rkd->r", sub, sub)
+    # corr[r, q] = sum_k sub[r, (k + q) mod K] . ref[k]
+    corr = np.fft.irfft(np.fft.rfft(sub, axis=1) * np.conj(np.fft.rfft(ref, axis=0))[None],
+                        n=k, axis=1).sum(axis=2)
+    cost = power[:, None] - 2.0 * corr                                # (F, K)
+    r, q = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    return float(pos[(q * _FINE + r) % len(pos)])
 
 
 @dataclass(frozen=True)
