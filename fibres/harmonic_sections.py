@@ -31,7 +31,7 @@ __all__ = ["SAMPLES"]
 #: loop samples per level (a multiple of 4: the square's corners are samples)
 SAMPLES = 64
 #: candidate levels (x 2) searched for the slice levels
-_CANDIDATES = 96
+_CANDIDATES = 48
 #: field level of the patches' rim loops
 _RIM = 1e-6
 

@@ -262,7 +262,7 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         tri, area = membrane(j)
         on = lam(j, xy[:, col]) @ rest[j] - slices.centres[j]
         X, Y = kr_coordinates((tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2,
-                              area, on @ e1, on @ e2)
+                              area, on @ e1, on @ e2, samples=len(area))
         face, bary = area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j], e1,
                                  e2, X, Y)
         rows.append(np.repeat(rid[:, col], 3))

@@ -16,7 +16,7 @@ __all__ = ["area_points", "grid_area_map", "knothe_rosenblatt", "kr_coordinates"
 #: nearest triangles tried first when locating a point (`locate`)
 CANDIDATES = 12
 #: about this many samples of a patch's area measure (each triangle split into n^2 equal parts)
-SAMPLES = 4000
+SAMPLES = 1500
 
 
 def _sub_centroids(n: int) -> np.ndarray:
