@@ -44,7 +44,11 @@ CAGD 22, 2005). Here, step by step:
    projected area (`kr_coordinates`) go through the patch's Knothe-Rosenblatt map in the
    same frame (`area_points`). On a straight cylinder the membranes and the caps have the
    same projected measure, so fibres stay straight; on a muscle every part of the patch
-   gets ends. The end's offset from the fibre's own course (its first inner segment
+   gets ends. The ends are then spread more evenly by a few Lloyd steps on the patch
+   (`fibres.patch_map.relax_on_patch`: a quasi-random set of 100 ends left 15 % of a
+   gluteus medius origin more than 5 mm from an end), and each end's shift is carried along
+   its fibre, fading linearly to the other end (where both ends shift alike, as on a
+   straight cylinder, the fibre stays straight). The end's offset from the fibre's own course (its first inner segment
    continued) is spread over the fibre's first (last) `END_BEND`, so fibres turn towards
    their place on the patch without hooking (`_bend_to_ends`). The points are then put at
    equal arc-length steps of each rest fibre (`_even`): a slice that hugs a patch leaves
@@ -75,7 +79,7 @@ from .errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
 from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
-from .patch_map import area_points, grid_area_map, kr_coordinates
+from .patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patch
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
@@ -265,9 +269,19 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
                               area, on @ e1, on @ e2, samples=len(area))
         face, bary = area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j], e1,
                                  e2, X, Y)
+        moved, mbary = relax_on_patch(plan.rest_vertices, plan.faces, mask, face, bary)
         rows.append(np.repeat(rid[:, col], 3))
-        cols.append(base + plan.faces[face].reshape(-1))
-        vals.append(bary.reshape(-1))
+        cols.append(base + plan.faces[moved].reshape(-1))
+        vals.append(mbary.reshape(-1))
+        # the ends' relaxation shift, carried along the whole fibre and fading linearly to
+        # the other end: where both ends move alike (a straight cylinder) fibres stay straight
+        if p > 2:
+            fade = np.linspace(1.0, 0.0, p)[1:-1] if col == 0 else np.linspace(0.0, 1.0, p)[1:-1]
+            for fc, bc, sign in ((moved, mbary, 1.0), (face, bary, -1.0)):
+                rows.append(np.repeat(rid[:, 1:-1].reshape(-1), 3))
+                cols.append(np.repeat(base + plan.faces[fc], p - 2, axis=0).reshape(-1))
+                vals.append((sign * np.repeat(bc, p - 2, axis=0)
+                             * np.tile(fade, n)[:, None]).reshape(-1))
     n_cols = base + len(plan.rest_vertices)
     mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                         shape=(n * p, n_cols))
