@@ -327,16 +327,15 @@ def _even(points):
     cum = np.concatenate([np.zeros((n, 1)), np.cumsum(seg, axis=1)], axis=1)
     total = np.maximum(cum[:, -1:], 1e-300)
     target = np.linspace(0.0, 1.0, p)[None] * total                  # (N, P)
-    rows, cols, vals = [], [], []
-    for f in range(n):
-        c = cum[f] + 1e-15 * total[f, 0] * np.arange(p)
-        k = np.clip(np.searchsorted(c, target[f], side="right") - 1, 0, p - 2)
-        w = np.clip((target[f] - c[k]) / np.maximum(c[k + 1] - c[k], 1e-300), 0.0, 1.0)
-        r = f * p + np.arange(p)
-        rows += [r, r]
-        cols += [f * p + k, f * p + k + 1]
-        vals += [1.0 - w, w]
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+    c = cum + 1e-15 * total * np.arange(p)[None]                      # strictly increasing
+    k = np.clip((target[:, :, None] >= c[:, None, :]).sum(axis=2) - 1, 0, p - 2)   # (N, P)
+    lo = np.take_along_axis(c, k, axis=1)
+    hi = np.take_along_axis(c, k + 1, axis=1)
+    w = np.clip((target - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
+    r = np.arange(n * p)
+    first = (np.arange(n)[:, None] * p + k).reshape(-1)
+    return sp.csr_matrix((np.concatenate([(1.0 - w).reshape(-1), w.reshape(-1)]),
+                          (np.concatenate([r, r]), np.concatenate([first, first + 1]))),
                          shape=(n * p, n * p))
 
 
