@@ -203,6 +203,21 @@ def test_lloyd_steps_spread_points_evenly_over_a_square_patch():
     assert np.all(bc >= -1e-12) and np.allclose(bc.sum(axis=1), 1.0)
 
 
+def test_registered_seam_finds_the_same_material_start_on_a_renumbered_loop():
+    """Two loops: an ellipse and the same ellipse 1 unit higher whose points are numbered from
+    another start (rolled by 50 of 200). The previous loop's seam at point 37 must be matched
+    by the point numbered (37 - 50) mod 200 = 187 of the next loop, whatever the starting
+    guess, to within half the search step (shifts are tried every 1/8 of a sample spacing
+    from the guess: 200 / 64 / 8 = 0.39 points)."""
+    from fibres.harmonic_sections import _registered_seam
+    th = np.linspace(0.0, 2 * np.pi, 200, endpoint=False)
+    prev = np.c_[3 * np.cos(th), np.sin(th), np.zeros_like(th)]
+    nxt = np.roll(prev + [0.0, 0.0, 1.0], -50, axis=0)
+    for guess in (0.0, 63.5, 150.0):
+        seam = _registered_seam(prev, 37.0, nxt, guess)
+        assert abs((seam - 187.0 + 100.0) % 200.0 - 100.0) <= 0.5 * 200 / 64 / 8 + 1e-9
+
+
 # -- quality numbers on known cases -------------------------------------------------------
 
 def test_quality_of_one_axial_fibre_in_a_cylinder():
