@@ -218,6 +218,21 @@ def test_registered_seam_finds_the_same_material_start_on_a_renumbered_loop():
         assert abs((seam - 187.0 + 100.0) % 200.0 - 100.0) <= 0.5 * 200 / 64 / 8 + 1e-9
 
 
+def test_bending_measure_is_zero_on_a_line_and_counts_a_half_turn():
+    """A straight path adds nothing. A semicircle of radius 1 (length pi, turning pi) adds
+    weight * (pi / pi) * pi at its end, less the half step of turning lost at each end by
+    the one-sided directions there: pi (1 - 1 / 47) for 48 samples."""
+    from fibres.harmonic_sections import bending_measure
+    s = np.linspace(0.0, 2.0, 30)
+    line = np.c_[s, 0.5 * s, np.zeros_like(s)] / np.sqrt(1.25)
+    np.testing.assert_allclose(bending_measure(s, line, 0.25), 0.0, atol=1e-12)
+    th = np.linspace(0.0, np.pi, 400)
+    arc = np.c_[np.cos(th), np.sin(th), np.zeros_like(th)]
+    m = bending_measure(th, arc, 0.25)
+    np.testing.assert_allclose(m[-1], 0.25 * np.pi * (1 - 1 / 47), rtol=1e-3)
+    assert np.all(np.diff(m) >= 0)
+
+
 # -- quality numbers on known cases -------------------------------------------------------
 
 def test_quality_of_one_axial_fibre_in_a_cylinder():
