@@ -81,9 +81,10 @@ def _graph(vertices, edges):
                           (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)), length
 
 
-def _face_areas(vertices, faces):
+def _face_normals(vertices, faces):
+    """(T, 3) face normals scaled by twice the face area."""
     tri = vertices[faces]
-    return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
 
 
 def _grow(graph, seeds, radius):
@@ -92,14 +93,26 @@ def _grow(graph, seeds, radius):
     return d
 
 
-def _fill_holes(patch, graph, vertex_area):
+def _components(mask, edges):
+    """Connected components of the vertices ``mask`` over the mesh edges joining two of them:
+    (count, label of each of ``np.flatnonzero(mask)``)."""
+    idx = np.flatnonzero(mask)
+    where = np.full(mask.size, -1, dtype=np.int64)
+    where[idx] = np.arange(idx.size)
+    keep = mask[edges[:, 0]] & mask[edges[:, 1]]
+    a, b = where[edges[keep, 0]], where[edges[keep, 1]]
+    g = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(idx.size, idx.size))
+    return connected_components(g, directed=False)
+
+
+def _fill_holes(patch, edges, vertex_area):
     """The patch plus every component of the rest of the surface smaller than half the
     patch (holes between landmarks; not the muscle's free surface, nor a face that a ring of
     landmarks round a thin muscle's rim happens to enclose)."""
     rest = np.flatnonzero(~patch)
     if rest.size == 0:
         return patch
-    n, label = connected_components(graph[rest][:, rest], directed=False)
+    n, label = _components(~patch, edges)
     if n <= 1:
         return patch
     area = np.bincount(label, vertex_area[rest])
@@ -110,9 +123,9 @@ def _fill_holes(patch, graph, vertex_area):
     return out
 
 
-def _drop_small_pieces(patch, graph, vertex_area, name, notes):
+def _drop_small_pieces(patch, edges, vertex_area, name, notes):
     idx = np.flatnonzero(patch)
-    n, label = connected_components(graph[idx][:, idx], directed=False)
+    n, label = _components(patch, edges)
     if n <= 1:
         return patch
     area = np.bincount(label, vertex_area[idx])
@@ -144,7 +157,11 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
     mean_edge = float(length.mean())
     tree = cKDTree(v)
     notes = []
-    areas = _face_areas(v, faces)
+    fn = _face_normals(v, faces)
+    areas = 0.5 * np.linalg.norm(fn, axis=1)
+    flat = faces.reshape(-1)
+    vn = np.stack([np.bincount(flat, np.repeat(fn[:, d], 3), len(v)) for d in range(3)], axis=1)
+    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
     vertex_area = np.bincount(faces.reshape(-1), np.repeat(areas / 3.0, 3), len(v))
     patches, dists, seed_sets = [], [], []
     for name, pts in (("origin", origin), ("insertion", insertion)):
@@ -165,10 +182,10 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
         else:
             radius = 0.5 * mean_edge
         d = _grow(graph, seeds, radius)
-        enclosed, facing = _enclosed(v, faces, pts, dist, mean_edge)
+        enclosed, facing = _enclosed(v, vn, pts, dist, mean_edge)
         patch = np.isfinite(d) if _STRIP else (np.isfinite(d) & facing) | enclosed
-        patch = _fill_holes(patch, graph, vertex_area)
-        patch = _drop_small_pieces(patch, graph, vertex_area, name, notes)
+        patch = _fill_holes(patch, edges, vertex_area)
+        patch = _drop_small_pieces(patch, edges, vertex_area, name, notes)
         patches.append(patch)
         dists.append(dist)
         seed_sets.append(seeds)
@@ -190,7 +207,7 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
     return AttachmentPatches(o, i, of, if_, (dists[0], dists[1]), tuple(notes))
 
 
-def _enclosed(v, faces, landmarks, dist, mean_edge):
+def _enclosed(v, vn, landmarks, dist, mean_edge):
     """(V,) vertices over the region the landmarks outline (module docstring, step 2b), and
     (V,) vertices facing the landmarks' surface (all, for fewer than 4 landmarks)."""
     none, every = np.zeros(len(v), dtype=bool), np.ones(len(v), dtype=bool)
@@ -220,11 +237,7 @@ def _enclosed(v, faces, landmarks, dist, mean_edge):
     eq = hull.equations                                  # (H, 3): a x + b y + c <= 0 inside
     inside = (np.stack([vx, vy], axis=1) @ eq[:, :2].T + eq[:, 2] <= 1e-12).all(axis=1)
     # facing the bone: the outward vertex normal points towards the landmarks' surface
-    tri = v[faces]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    vn = np.stack([np.bincount(faces.reshape(-1), np.repeat(fn[:, d], 3), len(v))
-                   for d in range(3)], axis=1)
-    cos = (vn @ frame[:, 2]) / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)
+    cos = vn @ frame[:, 2]
     facing = cos * side < -FACING_COS
     return inside & near & facing, facing
 

@@ -64,6 +64,15 @@ def cotangent_weights(vertices, faces, edges, face_edges) -> np.ndarray:
     return np.maximum(w, 0.0)
 
 
+def _rhs(where, i, j, w, one, n_free):
+    """Right-hand side of the free vertices: the weights of their edges to the value-1 patch."""
+    rhs = np.zeros(n_free)
+    for x, y in ((i, j), (j, i)):
+        sel = (where[x] >= 0) & one[y]
+        rhs += np.bincount(where[x[sel]], w[sel], n_free)
+    return rhs
+
+
 def harmonic_field(vertices, faces, zero, one, *, edges=None, face_edges=None) -> np.ndarray:
     """The discrete harmonic field with value 0 on ``zero`` and 1 on ``one`` (module docstring).
 
@@ -99,15 +108,23 @@ def harmonic_field(vertices, faces, zero, one, *, edges=None, face_edges=None) -
     # tiny floor: keeps the free system non-singular where a vertex's every weight is 0
     w = w + 1e-12 * (w.max() if w.size else 1.0)
     i, j = edges[:, 0], edges[:, 1]
-    lap = sp.coo_matrix((np.concatenate([-w, -w]), (np.concatenate([i, j]),
-                                                    np.concatenate([j, i]))), shape=(n, n))
-    lap = (lap + sp.diags(np.bincount(i, w, n) + np.bincount(j, w, n))).tocsr()
     fixed = zero | one
     free = np.flatnonzero(~fixed)
     u = np.where(one, 1.0, 0.0)
     if free.size:
-        rhs = -(lap[free][:, np.flatnonzero(one)] @ np.ones(int(one.sum())))
-        a = lap[free][:, free].tocsc()
-        u[free] = splu(a, permc_spec="MMD_AT_PLUS_A",
+        # the free vertices' block of the Laplacian straight from the edges: diagonal the sum
+        # of all a vertex's weights, off-diagonal -w between two free vertices; the edges to
+        # the insertion patch (u = 1) move to the right-hand side
+        where = np.full(n, -1, dtype=np.int64)
+        where[free] = np.arange(free.size)
+        diag = (np.bincount(i, w, n) + np.bincount(j, w, n))[free]
+        both = (where[i] >= 0) & (where[j] >= 0)
+        a, b, wb = where[i[both]], where[j[both]], w[both]
+        k = np.arange(free.size)
+        mat = sp.csc_matrix((np.concatenate([-wb, -wb, diag]),
+                             (np.concatenate([a, b, k]), np.concatenate([b, a, k]))),
+                            shape=(free.size, free.size))
+        rhs = _rhs(where, i, j, w, one, free.size)
+        u[free] = splu(mat, permc_spec="MMD_AT_PLUS_A",
                        options={"SymmetricMode": True}).solve(rhs)
     return np.clip(u, 0.0, 1.0)

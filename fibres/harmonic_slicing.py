@@ -10,6 +10,7 @@ CAGD 22, 2005). Here, step by step:
    and harmonic elsewhere (`fibres.harmonic_field`). The field is a material property: it
    is kept per vertex in the `HarmonicPlan`, so a deformed frame needs no new solve and its
    isolines are the same material curves (`fibres.isolines`).
+   Steps 2-5 are in `fibres.harmonic_sections`.
 2. **Levels** (`_levels`): the R - 1 inner slices of a fibre of resolution R sit at field
    levels whose isolines' centroids are evenly spaced along the muscle (a harmonic field is
    not proportional to length: it changes fast where a fan narrows); the fibre's two ends
@@ -23,24 +24,35 @@ CAGD 22, 2005). Here, step by step:
    transport (projection onto each next loop's plane); ``e2 = n x e1``.
 5. **Square <-> loop**: each loop is sampled at `SAMPLES` points of equal arc length from a
    *seam*: on the middle loop, its point towards the square's corner (0, 0) in the frame
-   ``(e1, e2)``; on every other loop, the point nearest to the previous loop's seam (the
-   field's flow lines cross the isolines at right angles, so the seam follows one). Sample k
+   ``(e1, e2)``; on every other loop, the cyclic shift whose samples best match the previous
+   loop's in the least-squares sense (`fibres.harmonic_sections`: a seam carried by one
+   nearest point let the samples slide back and forth between loops). Sample k
    corresponds to the point at k / SAMPLES of the perimeter of a rectangle with the loop's
    aspect (its extents along e1 and e2), counter-clockwise from (0, 0), scaled to the unit
    square: the square's sides go to the loop's sides, also for a flat muscle. A template
-   point ``(x, y)`` of the slice goes to ``sum_k lambda_k(x, y)
-   S_k``: its mean value coordinates (Hormann & Floater, ACM TOG 25(4), 2006) with respect
+   point ``(x, y)`` of the slice is first spread by area over the membrane (below), to
+   ``(x*, y*)``, and goes to ``sum_k lambda_k(x*, y*) S_k``: its mean value coordinates (Hormann & Floater, ACM TOG 25(4), 2006) with respect
    to the square's samples applied to the loop's -- a 3D generalisation of Kohout 2012
-   §3.3 without planarisation: the map spans the loop like a membrane. Seam and arc
+   §3.3 without planarisation: the map spans the loop like a membrane. The spreading by
+   area is a Knothe-Rosenblatt map in the square's own coordinates, the mass of each cell
+   of a 16 x 16 grid being the area of its image on the membrane
+   (`fibres.patch_map.grid_area_map`): one-to-one whatever the membrane's shape. Seam and arc
    lengths change continuously from loop to loop, so fibres do not jump between slices.
-6. **Fibre ends spread over the patches** (`fibres.patch_map`): the template's origin and
-   insertion coordinates go onto the whole patches by area and order-preserving (a
-   Knothe-Rosenblatt map in the frame of the first / last inner loop, so the ends line up
-   with the fibres' places in the sections); the end's offset from the fibre's own course
-   (its first inner segment continued) is spread over the fibre's first (last) `END_BEND`,
-   so fibres turn towards their place on the patch without hooking (`_bend_to_ends`). The
-   points are then put at equal arc-length steps of each rest fibre (`_even`): a slice that
-   hugs a patch leaves no stub segment.
+6. **Fibre ends spread over the patches** (`fibres.patch_map`): each fibre's place on the
+   first (last) inner membrane, projected on that loop's frame, is carried onto the whole
+   patch by area and in order: its Knothe-Rosenblatt coordinates under the membrane's
+   projected area (`kr_coordinates`) go through the patch's Knothe-Rosenblatt map in the
+   same frame (`area_points`). On a straight cylinder the membranes and the caps have the
+   same projected measure, so fibres stay straight; on a muscle every part of the patch
+   gets ends. The ends are then spread more evenly by a few Lloyd steps on the patch
+   (`fibres.patch_map.relax_on_patch`: a quasi-random set of 100 ends left 15 % of a
+   gluteus medius origin more than 5 mm from an end), and each end's shift is carried along
+   its fibre, fading linearly to the other end (where both ends shift alike, as on a
+   straight cylinder, the fibre stays straight). The end's offset from the fibre's own course (its first inner segment
+   continued) is spread over the fibre's first (last) `END_BEND`, so fibres turn towards
+   their place on the patch without hooking (`_bend_to_ends`). The points are then put at
+   equal arc-length steps of each rest fibre (`_even`): a slice that hugs a patch leaves
+   no stub segment.
 7. The template's cross-section coordinates are first normalised by the extent of its whole
    family at the same curve parameter (a grid of `_ENVELOPE` x `_ENVELOPE` fibres): the
    field already follows the muscle's fans and bends, so the template gives the fibres'
@@ -65,24 +77,18 @@ import scipy.sparse as sp
 from .attachment_patch import attachment_patches
 from .errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
-from .isolines import isoline_loops, isoline_moments
+from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
-from .patch_map import area_points, knothe_rosenblatt, locate
+from .patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patch
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
-#: loop samples per level (a multiple of 4: the square's corners are samples)
-SAMPLES = 64
 #: template fibres per side of the grid that measures the family's extent (step 7)
 _ENVELOPE = 11
 #: grid cells per side of the square that triangulate a membrane for its area measure
 _MEMBRANE = 16
 #: share of a fibre over which it bends towards its ends (`_bend_to_ends`)
-END_BEND = 0.3
-#: candidate levels (x 2) searched for the slice levels
-_CANDIDATES = 96
-#: field level of the patches' rim loops
-_RIM = 1e-6
+END_BEND = 0.2
 
 
 @dataclass(frozen=True)
@@ -164,201 +170,6 @@ def make_harmonic_plan(vertices, faces, origin, insertion) -> HarmonicPlan:
                         np.asarray(insertion, float), edges, face_edges, patches.notes)
 
 
-# -- levels, loops, frames ------------------------------------------------------------------
-
-def _levels(plan: HarmonicPlan, resolution: int) -> np.ndarray:
-    """(R + 1,) field levels whose isolines' centroids are evenly spaced along the muscle.
-
-    The centroid C(t) and vector area of the whole isoline are measured at `_CANDIDATES`
-    levels (evenly spaced, and at the area quantiles of the field, which resolve the levels
-    where the muscle is; `fibres.isolines.isoline_moments`). Progress along the muscle is
-    the centroid's advance along the isolines' mean normal, ``ds = max(0, dC . n)``: an
-    isoline sweeping back through a dead end beyond a patch (the field is flat there) makes
-    no progress and gets no slice. The R - 1 inner levels divide s evenly."""
-    v, u, f = plan.rest_vertices, plan.field, plan.faces
-    tri = v[f]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    uc = u[f].mean(axis=1)
-    order = np.argsort(uc, kind="stable")
-    cum = np.cumsum(area[order])
-    q = np.interp(np.linspace(0, 1, _CANDIDATES), cum / cum[-1], uc[order])
-    cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
-    cand = cand[(cand > 2 * _RIM) & (cand < 1 - 2 * _RIM)]
-    cand = np.concatenate([[_RIM], cand, [1 - _RIM]])
-    length, centre, _ = isoline_moments(u, v, f, cand)
-    ok = length > 0
-    cand, centre = cand[ok], centre[ok]
-    step = np.diff(centre, axis=0)
-    ahead = np.einsum("ij,ij->i", step, centre[-1] - centre[:-1]) > 0
-    ds = np.where(ahead, np.linalg.norm(step, axis=1), 0.0)
-    s = np.concatenate([[0.0], np.cumsum(ds)])
-    s = s + 1e-12 * np.arange(s.size)                     # strictly increasing
-    levels = np.interp(np.linspace(0.0, s[-1], resolution + 1), s, cand)
-    levels[0], levels[-1] = _RIM, 1.0 - _RIM
-    levels[1:-1] = np.clip(levels[1:-1], 2 * _RIM, 1 - 2 * _RIM)
-    return levels
-
-
-def _loop_frame(points):
-    """(centroid, unit normal, segment lengths) of a closed loop."""
-    nxt = np.roll(points, -1, axis=0)
-    seg = np.linalg.norm(nxt - points, axis=1)
-    total = seg.sum()
-    c = (0.5 * (points + nxt) * seg[:, None]).sum(axis=0) / total if total > 0 \
-        else points.mean(axis=0)
-    area = 0.5 * np.cross(points - c, nxt - c).sum(axis=0)
-    norm = np.linalg.norm(area)
-    n = area / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
-    return c, n, seg
-
-
-def _major_axis(points, c, n, loop):
-    d = points - c
-    d = d - np.outer(d @ n, n)
-    vals, vecs = np.linalg.eigh(d.T @ d)
-    e1 = vecs[:, -1]
-    # material sign: the vertex numbering rides along with a deformed copy
-    if np.dot((loop.a + 1.0), d @ e1) < 0:
-        e1 = -e1
-    return e1
-
-
-def _transport(e1, n):
-    p = e1 - np.dot(e1, n) * n
-    norm = np.linalg.norm(p)
-    if norm < 1e-9:
-        return None
-    return p / norm
-
-
-def _rectangle_samples(k: int, share: float) -> np.ndarray:
-    """(k, 2) points of the unit square's boundary, counter-clockwise from (0, 0), evenly
-    spaced on the perimeter of a rectangle whose sides along x take ``share`` of its
-    perimeter (the loop's aspect: ``a / (a + b)`` for extents a along e1, b along e2)."""
-    w = min(max(float(share), 0.02), 0.98)
-    phi = np.arange(k) / k
-    out = np.empty((k, 2))
-    bounds = np.array([0.0, w / 2, 0.5, 0.5 + w / 2, 1.0])
-    side = np.searchsorted(bounds, phi, side="right") - 1
-    f = (phi - bounds[side]) / np.diff(bounds)[side]
-    out[:, 0] = np.choose(side, [f, np.ones_like(f), 1 - f, np.zeros_like(f)])
-    out[:, 1] = np.choose(side, [np.zeros_like(f), f, np.ones_like(f), 1 - f])
-    return out
-
-
-def _position_point(points, pos):
-    m = len(points)
-    i = int(np.floor(pos)) % m
-    f = pos - np.floor(pos)
-    return (1.0 - f) * points[i] + f * points[(i + 1) % m]
-
-
-def _closest_position(points, q) -> float:
-    """Fractional loop position (node + fraction) of the closed polyline's point nearest q."""
-    a = points
-    b = np.roll(points, -1, axis=0)
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(
-        np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
-    d = np.linalg.norm(a + t[:, None] * ab - q, axis=1)
-    k = int(np.argmin(d))
-    return k + float(t[k])
-
-
-def _arc_positions(seg, start, k):
-    """(k,) fractional loop positions (node + fraction) that divide the closed loop with
-    segment lengths ``seg`` into k equal arcs from the position ``start``."""
-    m = len(seg)
-    i0 = int(np.floor(start)) % m
-    f0 = start - np.floor(start)
-    # segment lengths in loop order from the start, the first one split there
-    order = (np.arange(m) + i0) % m
-    seg = seg[order]
-    head = seg[0] * (1.0 - f0)
-    cum = np.concatenate([[0.0, head], head + np.cumsum(seg[1:])])
-    cum = np.append(cum, cum[-1] + seg[0] * f0)                  # back at the start
-    pos = np.concatenate([[start], i0 + 1.0 + np.arange(m), [start + m]])
-    cum = cum + 1e-15 * cum[-1] * np.arange(cum.size)            # strictly increasing
-    target = np.arange(k) / k * cum[-1]
-    return np.interp(target, cum, pos) % m
-
-
-@dataclass(frozen=True)
-class _Slices:
-    """The loops of one resolution: per level (L = R + 1), `SAMPLES` loop samples as a sparse
-    (L * SAMPLES, V) matrix of vertex weights, the frames at rest, and notes."""
-
-    samples: sp.csr_matrix
-    centres: np.ndarray
-    normals: np.ndarray
-    axes: np.ndarray
-    shares: np.ndarray
-    notes: tuple
-
-
-def _slices(plan: HarmonicPlan, resolution: int) -> _Slices:
-    levels = _levels(plan, max(int(resolution), 2))[1:-1]
-    if resolution < 2:  # one segment: the ends still come from a middle membrane
-        levels = levels[:1]
-    v = plan.rest_vertices
-    loops, notes = [], []
-    for j, t in enumerate(levels):
-        found = isoline_loops(plan.field, plan.faces, t, plan.edges, plan.face_edges, v)
-        if not found:
-            raise InputError("the harmonic field has no isoline at a slice level",
-                             where="mesh", fix="Check the attachment landmarks.")
-        if len(found) > 1:
-            notes.append(f"slice {j}: {len(found)} isoline loops, the longest kept")
-        loops.append(found[0])
-    pts = [lp.points(v) for lp in loops]
-    frames = [_loop_frame(p) for p in pts]
-    centres = np.array([f[0] for f in frames])
-    normals = np.array([f[1] for f in frames])
-    mid = len(loops) // 2
-    axes = np.zeros_like(centres)
-    axes[mid] = _major_axis(pts[mid], centres[mid], normals[mid], loops[mid])
-    for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
-        prev = mid
-        for j in rng:
-            e = _transport(axes[prev], normals[j])
-            axes[j] = e if e is not None else axes[prev]
-            prev = j
-    # positions along each loop by arc length from a seam that starts at the middle loop's
-    # point towards the square's corner (0, 0) and is carried to each next loop by its nearest
-    # point (the field's flow lines cross its isolines at right angles)
-    e2m = np.cross(normals[mid], axes[mid])
-    d = pts[mid] - centres[mid]
-    x, y = d @ axes[mid], d @ e2m
-    score = -x / max(np.ptp(x), 1e-12) - y / max(np.ptp(y), 1e-12)
-    seams = [0.0] * len(loops)
-    seams[mid] = float(np.argmax(score))
-    for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
-        prev = mid
-        for j in rng:
-            q = _position_point(pts[prev], seams[prev])
-            seams[j] = _closest_position(pts[j], q)
-            prev = j
-    shares = np.empty(len(loops))
-    rows, cols, vals = [], [], []
-    for j, (lp, p) in enumerate(zip(loops, pts)):
-        d = p - centres[j]
-        a, b = np.ptp(d @ axes[j]), np.ptp(d @ np.cross(normals[j], axes[j]))
-        shares[j] = a / max(a + b, 1e-300)
-        seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
-        pos = _arc_positions(seg, seams[j], SAMPLES)
-        i0 = np.floor(pos).astype(np.int64) % len(lp)
-        f = pos - np.floor(pos)
-        i1 = (i0 + 1) % len(lp)
-        r = j * SAMPLES + np.arange(SAMPLES)
-        for idx, wgt in ((i0, 1.0 - f), (i1, f)):
-            rows += [r, r]
-            cols += [lp.a[idx], lp.b[idx]]
-            vals += [wgt * (1.0 - lp.s[idx]), wgt * lp.s[idx]]
-    mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                        shape=(len(loops) * SAMPLES, len(v)))
-    return _Slices(mat, centres, normals, axes, shares, tuple(notes))
-
-
 # -- template points to the muscle ----------------------------------------------------------
 
 def _normalised(tmpl, unit, t):
@@ -397,20 +208,30 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     cells = np.concatenate([np.stack([n00, n00 + _MEMBRANE + 1, n00 + _MEMBRANE + 2], 1),
                             np.stack([n00, n00 + _MEMBRANE + 2, n00 + 1], 1)])
 
+    membranes = {}
+
+    def membrane(j):
+        """Loop j's membrane at rest: its grid nodes (3D) and cell triangles' areas."""
+        if j not in membranes:
+            memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]    # (G+1)^2 x 3
+            tri = memb[cells]
+            area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                        axis=1)
+            membranes[j] = (tri, area)
+        return membranes[j]
+
     def lam(j, pts):
         """MVC weights of the points of the square that spread ``pts`` evenly by area over
-        loop j's membrane (Knothe-Rosenblatt in the loop's frame, as at the patches)."""
+        loop j's membrane: Knothe-Rosenblatt in the square's own coordinates with the area
+        of each grid cell's image as its mass (`fibres.patch_map.grid_area_map`; the map in
+        a projection of the membrane jumped between the sheets of a folded projection:
+        docs/decisions.md)."""
         pts = pts.reshape(-1, 2)
-        memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]        # (G+1)^2 x 3
-        e1 = slices.axes[j]
-        e2 = np.cross(slices.normals[j], e1)
-        tri = memb[cells]
-        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
-                                    axis=1)
-        px, py = (tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2
-        xs, ys = knothe_rosenblatt(px, py, area, pts[:, 0], pts[:, 1], samples=len(cells))
-        pick, bary = locate(px, py, xs, ys)
-        square = np.einsum("nk,nkd->nd", bary, nodes[cells[pick]])
+        area = membrane(j)[1]
+        half = _MEMBRANE * _MEMBRANE
+        xs, ys = grid_area_map((area[:half] + area[half:]).reshape(_MEMBRANE, _MEMBRANE),
+                               pts[:, 0], pts[:, 1])
+        square = np.stack([xs, ys], axis=1)
         return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons[j])
 
     rows, cols, vals = [], [], []
@@ -432,18 +253,35 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
                 rows.append(np.repeat(r_in[sel], k))
                 cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
                 vals.append((lam(j, xy_in[sel]) * wj[sel, None]).reshape(-1))
-    # ends: the template's end coordinates onto the whole patch by area, in the first / last
-    # inner loop's frame (fibres.patch_map), the fibres then bent towards them (_bend_to_ends)
+    # ends: the fibres' places on the first / last inner membrane, projected on its frame,
+    # carried onto the whole patch by area and in order (the membrane's projected area
+    # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.patch_map); the fibres
+    # then bend towards them (_bend_to_ends)
     for col, mask, patch, j in ((0, plan.origin_faces, plan.origin, 0),
                                 (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
         if not mask.any():
             mask = patch[plan.faces].any(axis=1)
         e1 = slices.axes[j]
+        e2 = np.cross(slices.normals[j], e1)
+        tri, area = membrane(j)
+        on = lam(j, xy[:, col]) @ rest[j] - slices.centres[j]
+        X, Y = kr_coordinates((tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2,
+                              area, on @ e1, on @ e2, samples=len(area))
         face, bary = area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j], e1,
-                                 np.cross(slices.normals[j], e1), xy[:, col, 0], xy[:, col, 1])
+                                 e2, X, Y)
+        moved, mbary = relax_on_patch(plan.rest_vertices, plan.faces, mask, face, bary)
         rows.append(np.repeat(rid[:, col], 3))
-        cols.append(base + plan.faces[face].reshape(-1))
-        vals.append(bary.reshape(-1))
+        cols.append(base + plan.faces[moved].reshape(-1))
+        vals.append(mbary.reshape(-1))
+        # the ends' relaxation shift, carried along the whole fibre and fading linearly to
+        # the other end: where both ends move alike (a straight cylinder) fibres stay straight
+        if p > 2:
+            fade = np.linspace(1.0, 0.0, p)[1:-1] if col == 0 else np.linspace(0.0, 1.0, p)[1:-1]
+            for fc, bc, sign in ((moved, mbary, 1.0), (face, bary, -1.0)):
+                rows.append(np.repeat(rid[:, 1:-1].reshape(-1), 3))
+                cols.append(np.repeat(base + plan.faces[fc], p - 2, axis=0).reshape(-1))
+                vals.append((sign * np.repeat(bc, p - 2, axis=0)
+                             * np.tile(fade, n)[:, None]).reshape(-1))
     n_cols = base + len(plan.rest_vertices)
     mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                         shape=(n * p, n_cols))
@@ -489,16 +327,15 @@ def _even(points):
     cum = np.concatenate([np.zeros((n, 1)), np.cumsum(seg, axis=1)], axis=1)
     total = np.maximum(cum[:, -1:], 1e-300)
     target = np.linspace(0.0, 1.0, p)[None] * total                  # (N, P)
-    rows, cols, vals = [], [], []
-    for f in range(n):
-        c = cum[f] + 1e-15 * total[f, 0] * np.arange(p)
-        k = np.clip(np.searchsorted(c, target[f], side="right") - 1, 0, p - 2)
-        w = np.clip((target[f] - c[k]) / np.maximum(c[k + 1] - c[k], 1e-300), 0.0, 1.0)
-        r = f * p + np.arange(p)
-        rows += [r, r]
-        cols += [f * p + k, f * p + k + 1]
-        vals += [1.0 - w, w]
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+    c = cum + 1e-15 * total * np.arange(p)[None]                      # strictly increasing
+    k = np.clip((target[:, :, None] >= c[:, None, :]).sum(axis=2) - 1, 0, p - 2)   # (N, P)
+    lo = np.take_along_axis(c, k, axis=1)
+    hi = np.take_along_axis(c, k + 1, axis=1)
+    w = np.clip((target - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
+    r = np.arange(n * p)
+    first = (np.arange(n)[:, None] * p + k).reshape(-1)
+    return sp.csr_matrix((np.concatenate([(1.0 - w).reshape(-1), w.reshape(-1)]),
+                          (np.concatenate([r, r]), np.concatenate([first, first + 1]))),
                          shape=(n * p, n * p))
 
 

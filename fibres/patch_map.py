@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["area_points", "knothe_rosenblatt", "locate", "WINDOW", "SAMPLES"]
+__all__ = ["area_points", "relax_on_patch", "LLOYD", "grid_area_map", "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
 
 
 #: nearest triangles tried first when locating a point (`locate`)
 CANDIDATES = 12
 #: about this many samples of a patch's area measure (each triangle split into n^2 equal parts)
-SAMPLES = 4000
+SAMPLES = 1500
 
 
 def _sub_centroids(n: int) -> np.ndarray:
@@ -73,6 +73,77 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
     ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
     return xs, ys
+
+
+def grid_area_map(mass, X, Y):
+    """Unit-square coordinates ``(X, Y)`` onto the square itself, spread by a cell density.
+
+    ``mass`` (G, G) is the mass of the grid cells of [0, 1]^2 (cell ``(a, b)`` spans
+    ``[a, a + 1] / G`` along x and ``[b, b + 1] / G`` along y): here the area of a
+    membrane's image of each cell (`fibres.harmonic_slicing`). The map is Knothe-Rosenblatt
+    (Rosenblatt 1952) in the square's own coordinates: ``x* = F1^-1(X)`` with F1 the
+    cumulative column masses (piecewise linear between the grid lines), then
+    ``y* = F2^-1(Y | x*)`` with the conditional profile of y interpolated linearly between
+    the two columns whose centres bracket x* (so that y* is continuous in x*). Equal areas
+    of the square go to about equal masses, and the map is one-to-one and continuous in X,
+    Y and the masses: unlike a map in a projection of the membrane, it cannot jump between
+    two sheets of a folded projection.
+
+    Returns
+    -------
+    xs, ys : (N,) float in [0, 1]
+    """
+    m = np.maximum(np.asarray(mass, dtype=np.float64), 0.0)
+    g = m.shape[0]
+    m = m + 1e-12 * max(float(m.sum()), 1e-300) / m.size        # no empty cell
+    knots = np.linspace(0.0, 1.0, g + 1)
+    col = m.sum(axis=1)
+    f1 = np.concatenate([[0.0], np.cumsum(col)]) / col.sum()
+    xs = np.interp(np.clip(X, 0.0, 1.0), f1, knots)
+    c = np.clip(xs * g - 0.5, 0.0, g - 1.0)
+    a0 = np.minimum(np.floor(c).astype(np.int64), g - 1)
+    a1 = np.minimum(a0 + 1, g - 1)
+    t = (c - a0)[:, None]
+    prof = m / col[:, None]                                     # (G, G) rows sum to 1
+    p = (1.0 - t) * prof[a0] + t * prof[a1]                     # (N, G)
+    cum = np.concatenate([np.zeros((len(xs), 1)), np.cumsum(p, axis=1)], axis=1)
+    cum /= cum[:, -1:]
+    q = np.clip(Y, 0.0, 1.0)[:, None]
+    k = np.clip((cum[:, 1:] < q).sum(axis=1), 0, g - 1)
+    rows = np.arange(len(xs))
+    lo, hi = cum[rows, k], cum[rows, k + 1]
+    f = np.clip((q[:, 0] - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
+    return xs, (k + f) / g
+
+
+def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
+    """The inverse of `knothe_rosenblatt`: unit-square coordinates ``(X, Y)`` of planar
+    points ``(qx, qy)`` under the same measure (triangles' projected corners ``px``, ``py``
+    and areas), ``X = F1(qx)``, ``Y = F2(qy | qx)`` with the same sampling and conditional
+    window, so ``knothe_rosenblatt(..., *kr_coordinates(..., x, y))`` returns ``(x, y)`` up
+    to the sampling. Used to carry points of one measure onto another in order (the first
+    section's membrane onto an attachment patch: `fibres.harmonic_slicing`)."""
+    n = int(np.clip(np.sqrt(samples / max(len(px), 1)), 1, 8))
+    sub = _sub_centroids(n)
+    sx = (px @ sub.T).reshape(-1)
+    sy = (py @ sub.T).reshape(-1)
+    sw = np.repeat(np.asarray(area, dtype=np.float64) / len(sub), len(sub))
+    order = np.argsort(sx, kind="stable")
+    cum = np.cumsum(sw[order])
+    mid = (cum - 0.5 * sw[order]) / cum[-1]
+    X = np.interp(qx, sx[order], mid)
+    h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
+    order = np.argsort(sy, kind="stable")
+    sy, sx, sw = sy[order], sx[order], sw[order]
+    w = sw[None] * np.exp(-0.5 * ((sx[None] - np.asarray(qx)[:, None]) / h) ** 2)
+    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    k = np.clip((sy[None] < np.asarray(qy)[:, None]).sum(axis=1), 1, len(sy) - 1)
+    rows = np.arange(len(k))
+    f = np.clip((qy - sy[k - 1]) / np.maximum(sy[k] - sy[k - 1], 1e-300), 0.0, 1.0)
+    Y = mid[rows, k - 1] + f * (mid[rows, k] - mid[rows, k - 1])
+    return np.clip(X, 0.0, 1.0), np.clip(Y, 0.0, 1.0)
 
 
 def locate(px, py, xs, ys):
@@ -149,3 +220,57 @@ def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
     xs, ys = knothe_rosenblatt(px, py, area, X, Y)
     pick, bary = locate(px, py, xs, ys)
     return idx[pick], bary
+
+
+#: Lloyd iterations of `relax_on_patch`
+LLOYD = 3
+
+
+def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = LLOYD,
+                   samples: int = SAMPLES):
+    """Points on a patch (``face``, ``bary``) spread more evenly over it: a few Lloyd steps
+    towards a centroidal Voronoi tessellation of the patch's area (Lloyd, IEEE Trans. Inf.
+    Theory 28(2), 1982; Du, Faber & Gunzburger, SIAM Review 41(4), 1999).
+
+    The patch's area is sampled at the centroids of each triangle's split into n^2 equal
+    parts (about ``samples`` in all); each step gives every sample to its nearest point and
+    moves each point to the sample nearest the area-weighted centroid of its own samples
+    (so it stays on the patch, at a known face and barycentric weights). A point moves by
+    at most about half its distance to its neighbours per step and keeps its place among
+    them (order is kept but for local swaps), while the holes of a quasi-random set (Sobol
+    ends leave ~15 % of a patch more than half a spacing from any end) close.
+
+    Returns
+    -------
+    face : (N,) int64
+    bary : (N, 3) float
+    """
+    from scipy.spatial import cKDTree
+
+    face = np.asarray(face, dtype=np.int64).copy()
+    bary = np.asarray(bary, dtype=np.float64).copy()
+    idx = np.flatnonzero(face_mask)
+    if iterations <= 0 or idx.size == 0 or len(face) < 2:
+        return face, bary
+    tri = vertices[faces[idx]]                                       # (Tp, 3, 3)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    n = int(np.clip(np.sqrt(samples / max(len(idx), 1)), 1, 8))
+    sub = _sub_centroids(n)                                          # (S, 3)
+    pts = np.einsum("sk,tkd->tsd", sub, tri).reshape(-1, 3)
+    w = np.repeat(area / len(sub), len(sub))
+    s_face = np.repeat(idx, len(sub))
+    s_bary = np.tile(sub, (len(idx), 1))
+    tree = cKDTree(pts)
+    p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
+    for _ in range(int(iterations)):
+        owner = cKDTree(p).query(pts)[1]
+        mass = np.bincount(owner, w, len(p))
+        has = mass > 0
+        c = np.stack([np.bincount(owner, w * pts[:, d], len(p)) for d in range(3)], axis=1)
+        c[has] /= mass[has, None]
+        pick = tree.query(c[has])[1]
+        sel = np.flatnonzero(has)
+        face[sel], bary[sel] = s_face[pick], s_bary[pick]
+        p[sel] = pts[pick]
+    return face, bary
+
