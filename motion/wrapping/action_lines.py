@@ -409,12 +409,30 @@ def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -
     for m in plan.wrapped:
         path = chosen[m]
         pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
-        wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
+        # derivatives only along the coordinates this path spans (the others are 0 by definition)
+        cols = np.flatnonzero(plan.spanned[m])
+        d_pts, d_tf = _spanned_derivatives(model, path, pp.d_points, dtf, cols)
+        wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, d_pts, tf, d_tf)
         lengths[:, m] = wrapped.length
-        dldq[:, m] = wrapped.d_length
+        dldq[:, m, cols] = wrapped.d_length
         per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
                          tuple(str(x) for x in wrapped.labels), np.asarray(wrapped.order)))
     return q_used, per_path
+
+
+def _spanned_derivatives(model: Model, path: Path, d_points, dtf, cols) -> tuple:
+    """The path points' and the wrap bodies' derivatives restricted to the coordinates ``cols``.
+
+    The wrap code carries one derivative per coordinate through every step, so its cost grows
+    with their number; a path spans few of a whole-body model's coordinates (Rajagopal: 2-8 of
+    39), and dL/dq is 0 along the others by the `spanned_coordinates` contract. ``dtf`` is
+    filled only for the bodies of the path's wrap objects (the only bodies `wrap_path` reads).
+    """
+    d_pts = d_points[:, :, cols]
+    d_tf = np.zeros(dtf.shape[:2] + (len(cols), 4, 4))
+    for b in {model.body_index(model.wrap_object(pw.wrap_object).body) for pw in path.wraps}:
+        d_tf[:, b] = dtf[:, b][:, cols]
+    return d_pts, d_tf
 
 
 def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
