@@ -382,9 +382,9 @@ def _polyline_numpy(plan: _Plan, p_n, arm, act, twist, dldq) -> tuple:
 
 def _wrap_module():
     try:
-        from . import path as path_wrapping
+        from . import batch as path_wrapping
     except ImportError as exc:       # clearly marked: never measure a wrapped path without its wraps
-        raise NotImplementedError("this path has wrap objects but motion.wrapping.path is not available; "
+        raise NotImplementedError("this path has wrap objects but motion.wrapping.batch is not available; "
                                   "refusing to return an unwrapped (wrong) length") from exc
     return path_wrapping
 
@@ -406,33 +406,18 @@ def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -
     if len(plan.unwrapped):
         _unwrapped_paths(plan, model, q_used, jac, tf, twist, out)
     per_path = []
-    for m in plan.wrapped:
-        path = chosen[m]
-        pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
-        # derivatives only along the coordinates this path spans (the others are 0 by definition)
-        cols = np.flatnonzero(plan.spanned[m])
-        d_pts, d_tf = _spanned_derivatives(model, path, pp.d_points, dtf, cols)
-        wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, d_pts, tf, d_tf)
-        lengths[:, m] = wrapped.length
-        dldq[:, m, cols] = wrapped.d_length
-        per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
-                         tuple(str(x) for x in wrapped.labels), np.asarray(wrapped.order)))
+    if len(plan.wrapped):
+        paths = [chosen[m] for m in plan.wrapped]
+        pps = [path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf) for path in paths]
+        # derivatives only along the coordinates each path spans (the others are 0 by definition)
+        cols = [np.flatnonzero(plan.spanned[m]) for m in plan.wrapped]
+        results = _wrap_module().wrap_paths(paths, model, [pp.points for pp in pps], [pp.active for pp in pps],
+                                            [pp.d_points for pp in pps], tf, dtf, cols)
+        for m, c, (length, d_length, pts, msk, labels, ordr) in zip(plan.wrapped, cols, results):
+            lengths[:, m] = length
+            dldq[:, m, c] = d_length
+            per_path.append((pts, msk, labels, ordr))
     return q_used, per_path
-
-
-def _spanned_derivatives(model: Model, path: Path, d_points, dtf, cols) -> tuple:
-    """The path points' and the wrap bodies' derivatives restricted to the coordinates ``cols``.
-
-    The wrap code carries one derivative per coordinate through every step, so its cost grows
-    with their number; a path spans few of a whole-body model's coordinates (Rajagopal: 2-8 of
-    39), and dL/dq is 0 along the others by the `spanned_coordinates` contract. ``dtf`` is
-    filled only for the bodies of the path's wrap objects (the only bodies `wrap_path` reads).
-    """
-    d_pts = d_points[:, :, cols]
-    d_tf = np.zeros(dtf.shape[:2] + (len(cols), 4, 4))
-    for b in {model.body_index(model.wrap_object(pw.wrap_object).body) for pw in path.wraps}:
-        d_tf[:, b] = dtf[:, b][:, cols]
-    return d_pts, d_tf
 
 
 def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:

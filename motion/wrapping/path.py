@@ -267,11 +267,87 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     if len(path.points) != points.shape[1]:
         raise ValueError(f"path {path.name!r} has {len(path.points)} points, got {points.shape[1]}")
     nf, n_points = points.shape[:2]
+    slots = []
+    for pw in path.wraps:
+        wo = model.wrap_object(pw.wrap_object)
+        b = model.body_index(wo.body)
+        fn, opts = _line_function(wo, pw.method, len(path.wraps) == 1)
+        start, end = wrap_range(pw, n_points)
+        slots.append(WrapSlot(fn, opts, {}, bool(wo.active), tf_ground_body[:, b] @ wo.tf_body_wrap,
+                              np.asarray(d_tf_ground_body)[:, b] @ wo.tf_body_wrap,
+                              np.full(nf, start), np.full(nf, end)))
+    length, order, mask, seen, arcs = wrap_rows(points, active, d_points, slots)
     n_coords = d_points.shape[2]
-    wraps = tuple(path.wraps)
-    n_wraps = len(wraps)
-    n_nodes = n_points + 2 * n_wraps
+    n_wraps = len(slots)
+    pts = np.stack([n.v for n in seen], axis=1)
+    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in seen], axis=1)
+    pts = np.where(mask[..., None], pts, np.nan)
+    labels = [p.name for p in path.points]
+    kinds = ["point"] * n_points
+    for pw in path.wraps:
+        labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
+        kinds += ["wrap", "wrap"]
+    arc = np.stack([np.where(mask[:, n_points + 2 * w], arcs[w].v, 0.0) for w in range(n_wraps)],
+                   axis=1) if n_wraps else np.zeros((nf, 0))
+    return WrappedPath(length=length.v, d_length=np.broadcast_to(length.d, (nf, n_coords)),
+                       points=pts, d_points=np.moveaxis(dpts, 2, 3), mask=mask, order=order,
+                       labels=tuple(labels), kinds=tuple(kinds), arc=arc,
+                       wrap_objects=tuple(pw.wrap_object for pw in path.wraps))
 
+
+@dataclass(frozen=True)
+class WrapSlot:
+    """One wrap of a path (PathWrapSet entry), for every row (frame, or frame of one of several
+    batched paths).
+
+    ``fn(p1, p2, **opts, **{k: v[rows]})`` is the wrap object's wrap-line function in its own
+    frame; ``row_opts`` hold per-row option arrays (N,) (cylinder radius and length of batched
+    paths); ``tf`` (N, 4, 4) the wrap frame in ground and ``dtf`` (N, D, 4, 4) its derivatives;
+    ``start``, ``end`` (N,) the 0-based range of defined points the wrap may act on.
+    """
+
+    fn: object
+    opts: dict
+    row_opts: dict
+    active: bool
+    tf: np.ndarray
+    dtf: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+
+def wrap_range(path_wrap, n_points: int) -> tuple:
+    """0-based (start, end) of a PathWrap's range (OpenSim: 1-based, -1 = first / last point)."""
+    start = 0 if path_wrap.range[0] < 1 else path_wrap.range[0] - 1
+    end = n_points - 1 if path_wrap.range[1] < 1 else path_wrap.range[1] - 1
+    return start, min(end, n_points - 1)
+
+
+def wrap_rows(points, active, d_points, slots) -> tuple:
+    """OpenSim's applyWrapObjects on N independent rows (see the module docstring).
+
+    Parameters
+    ----------
+    points : (N, P, 3) float; active : (N, P) bool; d_points : (N, P, D, 3) float
+        Defined path points in ground per row (padding points: inactive), their derivatives
+        along D directions (per row any meaning: the algebra is linear in them).
+    slots : sequence of `WrapSlot` in PathWrapSet order.
+
+    Returns
+    -------
+    length : Dual (N,) with (N, D) derivatives
+    order : (N, P + 2 W) int
+        Current path as node indices (nodes ``P + 2 w``, ``P + 2 w + 1``: wrap w's tangent points).
+    mask : (N, P + 2 W) bool
+    seen : list of Dual (N, 3)
+        Node positions as OpenSim reports them (first reads of the ground-position cache).
+    arcs : list of Dual (N,)
+        Arc length per wrap (valid where its tangent points are in the path).
+    """
+    nf, n_points = points.shape[:2]
+    n_coords = d_points.shape[2]
+    n_wraps = len(slots)
+    n_nodes = n_points + 2 * n_wraps
     with np.errstate(all="ignore"):
         nodes = [Dual(points[:, k], np.moveaxis(d_points[:, k], 1, 2)) for k in range(n_points)]
         nan = Dual(np.full((nf, 3), np.nan), np.zeros((nf, 3, n_coords)))
@@ -287,19 +363,10 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
         count = active.sum(axis=1)
 
         setups = []
-        single = n_wraps == 1
-        for w, pw in enumerate(wraps):
-            wo = model.wrap_object(pw.wrap_object)
-            b = model.body_index(wo.body)
-            tf_bw = np.asarray(wo.tf_body_wrap)
-            tf = np.asarray(tf_ground_body)[:, b] @ tf_bw
-            dtf = np.asarray(d_tf_ground_body)[:, b] @ tf_bw  # (F, C, 4, 4)
-            rot = Dual(tf[:, :3, :3], np.moveaxis(dtf[:, :, :3, :3], 1, 3))
-            origin = Dual(tf[:, :3, 3], np.moveaxis(dtf[:, :, :3, 3], 1, 2))
-            fn, opts = _line_function(wo, pw.method, single)
-            start = 0 if pw.range[0] < 1 else pw.range[0] - 1
-            end = n_points - 1 if pw.range[1] < 1 else pw.range[1] - 1
-            setups.append((wo, rot, origin, fn, opts, start, min(end, n_points - 1)))
+        for slot in slots:
+            rot = Dual(slot.tf[:, :3, :3], np.moveaxis(slot.dtf[:, :, :3, :3], 1, 3))
+            origin = Dual(slot.tf[:, :3, 3], np.moveaxis(slot.dtf[:, :, :3, 3], 1, 2))
+            setups.append((slot, rot, origin))
 
         wrap_order = np.tile(np.arange(n_wraps), (nf, 1))
         running = np.ones(nf, dtype=bool)
@@ -317,12 +384,11 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
                         continue
                     ids = (n_points + 2 * w, n_points + 2 * w + 1)
                     order, count = _remove(order, count, ids, frames)
-                    wo, rot, origin, fn, opts, start, end = setups[w]
-                    if not wo.active:
+                    slot, rot, origin = setups[w]
+                    if not slot.active:
                         continue
                     order, count, nodes, arcs, res = _wrap_one(
-                        w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts,
-                        start, end, n_points, cache)
+                        w, frames, order, count, nodes, arcs, active, rot, origin, slot, n_points, cache)
                     result[frames, i] = res[frames]
             length = _path_length(order, nodes, arcs, n_points, n_wraps, cache)
             conv = running & (np.abs(length.v - last_length) < _CONVERGED)
@@ -345,31 +411,16 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     ok = order >= 0
     mask[fr[ok], order[ok]] = True
     # reported points are what OpenSim's getLocationInGround returns: the cached positions
-    pts = np.stack([n.v for n in cache.seen], axis=1)
-    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in cache.seen], axis=1)
-    pts = np.where(mask[..., None], pts, np.nan)
-    labels = [p.name for p in path.points]
-    kinds = ["point"] * n_points
-    for pw in wraps:
-        labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
-        kinds += ["wrap", "wrap"]
-    arc = np.stack([np.where(mask[:, n_points + 2 * w], arcs[w].v, 0.0) for w in range(n_wraps)],
-                   axis=1) if n_wraps else np.zeros((nf, 0))
-    return WrappedPath(length=length.v, d_length=np.broadcast_to(length.d, (nf, n_coords)),
-                       points=pts, d_points=np.moveaxis(dpts, 2, 3), mask=mask, order=order,
-                       labels=tuple(labels), kinds=tuple(kinds), arc=arc,
-                       wrap_objects=tuple(pw.wrap_object for pw in wraps))
+    return length, order, mask, cache.seen, arcs
 
 
-def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts, start, end,
-              n_points, cache):
+def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, slot, n_points, cache):
     """Try wrap ``w`` on every eligible segment of the frames' current paths; insert the best."""
     nf, nk = order.shape
     n_coords = nodes[0].d.shape[-1]
     # first / last active defined point in the range, and their positions in the current path
-    rng = np.arange(n_points)
-    in_range = (rng >= start) & (rng <= end)
-    act = active & in_range[None, :]
+    rng = np.arange(n_points)[None, :]
+    act = active & (rng >= slot.start[:, None]) & (rng <= slot.end[:, None])
     has = act.any(axis=1)
     jfwd = np.argmax(act, axis=1)
     jrev = n_points - 1 - np.argmax(act[:, ::-1], axis=1)
@@ -397,7 +448,7 @@ def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, fn, opt
         r_s, o_s = _subset(rot, sel), _subset(origin, sel)
         p1 = _apply_rt(r_s, pa - o_s)
         p2 = _apply_rt(r_s, pb - o_s)
-        code, r1, r2, arc = fn(p1, p2, **opts)
+        code, r1, r2, arc = slot.fn(p1, p2, **slot.opts, **{k: v[sel] for k, v in slot.row_opts.items()})
         r1g = _apply_r(r_s, r1) + o_s
         r2g = _apply_r(r_s, r2) + o_s
         result[sel] = code
