@@ -128,13 +128,17 @@ def _line_function(wrap_object, method: str, single: bool):
 
 
 def _apply_rt(rot: Dual, v: Dual) -> Dual:
-    """R^T v for stacks: rot (F, 3, 3), v (F, 3)."""
-    return (rot * v.expand(-1)).sum(-2)
+    """R^T v for stacks: rot (F, 3, 3), v (F, 3); d(R^T v) = dR^T v + R^T dv."""
+    rot, v = ad.lift(rot), ad.lift(v)
+    return Dual(np.einsum("fij,fi->fj", rot.v, v.v),
+                np.einsum("fijd,fi->fjd", rot.d, v.v) + np.einsum("fij,fid->fjd", rot.v, v.d))
 
 
 def _apply_r(rot: Dual, v: Dual) -> Dual:
-    """R v for stacks: rot (F, 3, 3), v (F, 3)."""
-    return (rot * v.expand(-2)).sum(-1)
+    """R v for stacks: rot (F, 3, 3), v (F, 3); d(R v) = dR v + R dv."""
+    rot, v = ad.lift(rot), ad.lift(v)
+    return Dual(np.einsum("fij,fj->fi", rot.v, v.v),
+                np.einsum("fijd,fj->fid", rot.d, v.v) + np.einsum("fij,fjd->fid", rot.v, v.d))
 
 
 def _subset(x: Dual, sel) -> Dual:
