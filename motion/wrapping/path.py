@@ -146,13 +146,23 @@ def _subset(x: Dual, sel) -> Dual:
 
 
 def _gather(nodes: list, ids: np.ndarray) -> Dual:
-    """Per-frame node positions: nodes[k] Dual (F, 3), ids (F,) -> Dual (F, 3)."""
-    nf = ids.shape[0]
-    v = np.stack([n.v for n in nodes], axis=1)
-    d = np.stack([n.d for n in nodes], axis=1)
+    """Per-frame node positions: nodes[k] Dual (F, 3), ids (F,) -> Dual (F, 3) (id -1: node 0).
+
+    Copies frame rows node by node (a path has few distinct nodes at one position of its
+    current path) rather than stacking every node's (F, 3, D) derivatives first."""
     safe = np.where(ids >= 0, ids, 0)
-    fr = np.arange(nf)
-    return Dual(v[fr, safe], d[fr, safe])
+    uniq = np.unique(safe)
+    if len(uniq) == 1:
+        return nodes[uniq[0]]
+    nf = ids.shape[0]
+    n_d = ad.dsize(*[nodes[k] for k in uniq])
+    v = np.empty((nf, 3))
+    d = np.empty((nf, 3, n_d))
+    for k in uniq:
+        rows = safe == k
+        v[rows] = nodes[k].v[rows]
+        d[rows] = np.broadcast_to(nodes[k].d, (nf, 3, n_d))[rows]
+    return Dual(v, d)
 
 
 class _GroundCache:
