@@ -199,13 +199,15 @@ def stack(items, axis=-1) -> Dual:
 def dot(a, b) -> Dual:
     """Dot product over the last value axis (length 3).
 
-    d(a . b) = da . b + a . db, as two contractions (``einsum``) rather than a product array
-    summed over its middle axis (4x faster on (8000, 3, 5) derivative arrays).
+    d(a . b) = da . b + a . db, summed component by component rather than as a product array
+    summed over its middle axis (2.5x faster on (8000, 3, 5) derivative arrays; ``einsum``
+    is faster on equal shapes but much slower where the operands broadcast).
     """
     a, b = lift(a), lift(b)
-    av, bv = a.v, b.v
+    av, bv, ad, bd = a.v, b.v, a.d, b.d
     v = av[..., 0] * bv[..., 0] + av[..., 1] * bv[..., 1] + av[..., 2] * bv[..., 2]
-    d = np.einsum("...id,...i->...d", a.d, bv) + np.einsum("...i,...id->...d", av, b.d)
+    d = (ad[..., 0, :] * bv[..., 0, None] + ad[..., 1, :] * bv[..., 1, None] + ad[..., 2, :] * bv[..., 2, None]
+         + bd[..., 0, :] * av[..., 0, None] + bd[..., 1, :] * av[..., 1, None] + bd[..., 2, :] * av[..., 2, None])
     return Dual(v, d)
 
 
