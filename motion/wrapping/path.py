@@ -145,6 +145,13 @@ def _subset(x: Dual, sel) -> Dual:
     return Dual(x.v[sel], x.d[sel])
 
 
+def _concat(parts: list) -> Dual:
+    """Duals (n_i, ...) stacked along the leading axis."""
+    n_d = ad.dsize(*parts)
+    return Dual(np.concatenate([p.v for p in parts]),
+                np.concatenate([np.broadcast_to(p.d, p.v.shape + (n_d,)) for p in parts]))
+
+
 def _gather(nodes: list, ids: np.ndarray) -> Dual:
     """Per-frame node positions: nodes[k] Dual (F, 3), ids (F,) -> Dual (F, 3) (id -1: node 0).
 
@@ -450,21 +457,36 @@ def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, slot, n
     best_r1 = Dual(np.zeros((nf, 3)), np.zeros((nf, 3, n_coords)))
     best_r2 = best_r1
     best_arc = Dual(np.zeros(nf), np.zeros((nf, n_coords)))
+    # every eligible segment of every row in one call of the wrap function (its cost is the
+    # number of numpy calls); OpenSim's order -- segments in path order, the first mandatory
+    # wrap ends the search -- is applied to the results below
+    cand = []
     for j in range(nk - 1):
         a, b = order[:, j], order[:, j + 1]
         same = (a >= n_points) & (b >= n_points) & ((a - n_points) // 2 == (b - n_points) // 2)
-        ok = frames & ~found_mand & (j >= pos_s) & (j < pos_e) & (a >= 0) & (b >= 0) & ~same
+        ok = frames & (j >= pos_s) & (j < pos_e) & (a >= 0) & (b >= 0) & ~same
         sel = np.nonzero(ok)[0]
-        if sel.size == 0:
+        if sel.size:
+            cand.append((j, a, b, sel))
+    if cand:
+        rows = np.concatenate([c[3] for c in cand])
+        pa = _concat([_subset(_gather(nodes, a), sel) for _, a, _, sel in cand])
+        pb = _concat([_subset(_gather(nodes, b), sel) for _, _, b, sel in cand])
+        r_s, o_s = _subset(rot, rows), _subset(origin, rows)
+        code_all, r1_all, r2_all, arc_all = slot.fn(_apply_rt(r_s, pa - o_s), _apply_rt(r_s, pb - o_s),
+                                                    **slot.opts, **{k: v[rows] for k, v in slot.row_opts.items()})
+        r1g_all = _apply_r(r_s, r1_all) + o_s
+        r2g_all = _apply_r(r_s, r2_all) + o_s
+    start = 0
+    for j, a, b, sel in cand:
+        part = np.arange(start, start + sel.size)
+        start += sel.size
+        keep = ~found_mand[sel]
+        if not keep.any():
             continue
-        pa = _subset(_gather(nodes, a), sel)
-        pb = _subset(_gather(nodes, b), sel)
-        r_s, o_s = _subset(rot, sel), _subset(origin, sel)
-        p1 = _apply_rt(r_s, pa - o_s)
-        p2 = _apply_rt(r_s, pb - o_s)
-        code, r1, r2, arc = slot.fn(p1, p2, **slot.opts, **{k: v[sel] for k, v in slot.row_opts.items()})
-        r1g = _apply_r(r_s, r1) + o_s
-        r2g = _apply_r(r_s, r2) + o_s
+        sel, part = sel[keep], part[keep]
+        code, arc = code_all[part], _subset(arc_all, part)
+        r1g, r2g = _subset(r1g_all, part), _subset(r2g_all, part)
         result[sel] = code
         mand = code == MANDATORY_WRAP
         wrapped = code == WRAPPED
