@@ -28,8 +28,9 @@ unwrapped paths' points stacked, sorted by body, grouped in (body, path) pairs, 
 straight from the joint chain (no (F, B, C, 4, 4) derivative array). A numba kernel walks the
 active points of every path per frame (`motion.wrapping.path_points._polyline_kernel`); the numpy twin
 `_polyline_numpy` is used without numba and is tested equal to it. Wrapped paths go through
-`motion.wrapping.path` path by path. Gait2392 walking (211 frames, 92 paths, 262 moment-arm
-pairs): 0.38 -> 0.10 ms per frame (``python bench/lines.py``; OpenSim 4.6 ~16 ms per frame).
+`motion.wrapping.batch.wrap_paths`: paths with the same kind of wraps share one pass of the
+wrap algorithm (rows = path x frame), each carrying derivatives only along its own spanned
+coordinates. Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
 """
 from __future__ import annotations
 

@@ -28,8 +28,10 @@ PathWrap.cpp; reproduced here in numpy, not copied):
 - Not reproduced: when a range holds no active point OpenSim abandons all remaining wrap
   objects of that pass; here only that wrap object is skipped (such a range is a model error).
 
-Frames are processed together: each frame carries its own current path as an index array, and
-every wrap computation runs on all frames that need it, with masks. Values are
+Frames are processed together (`wrap_rows`: rows are frames, or frames of several paths with
+the same kind of wraps, `motion.wrapping.batch`): each row carries its own current path as an
+index array, and every wrap computation runs on all rows that need it, with masks; all
+eligible segments of all rows go through the wrap-line function in one call. Values are
 `motion.wrapping.dual.Dual` numbers seeded with the path points' derivatives with respect to
 the coordinates, so dL/dq is exact for the algorithm OpenSim runs.
 """
