@@ -18,17 +18,73 @@ the paths of one group become rows (path, frame) of one call:
 - per-row arrays carry what differs inside a group: wrap frames and their derivatives, the
   PathWrap ranges, and cylinder radii and lengths.
 
+The module also holds what describes one wrap for the row-level algorithm (`WrapSlot`,
+`line_function`: the wrap-line function and options of a wrap object, `wrap_range`).
+
 On the RajagopalLaiUhlrich2023 walk (42 wrapped paths, 46 cylinder wraps) the 42 per-path
-passes become 6 group passes (see ``bench/lines.py`` and ``docs/decisions.md``).
+passes become 5 group passes (see ``bench/lines.py`` and ``docs/decisions.md``).
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from .cylinder import cylinder_wrap_line
-from .path import WrapSlot, _line_function, wrap_range, wrap_rows
+from .ellipsoid import ellipsoid_wrap_line
+from .sphere import sphere_wrap_line
+from .torus import torus_wrap_line
 
-__all__ = ["wrap_paths"]
+__all__ = ["wrap_paths", "WrapSlot", "wrap_range", "line_function"]
+
+@dataclass(frozen=True)
+class WrapSlot:
+    """One wrap of a path (PathWrapSet entry), for every row (frame, or frame of one of several
+    batched paths).
+
+    ``fn(p1, p2, **opts, **{k: v[rows]})`` is the wrap object's wrap-line function in its own
+    frame; ``row_opts`` hold per-row option arrays (N,) (cylinder radius and length of batched
+    paths); ``tf`` (N, 4, 4) the wrap frame in ground and ``dtf`` (N, D, 4, 4) its derivatives;
+    ``start``, ``end`` (N,) the 0-based range of defined points the wrap may act on.
+    """
+
+    fn: object
+    opts: dict
+    row_opts: dict
+    active: bool
+    tf: np.ndarray
+    dtf: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+
+def wrap_range(path_wrap, n_points: int) -> tuple:
+    """0-based (start, end) of a PathWrap's range (OpenSim: 1-based, -1 = first / last point)."""
+    start = 0 if path_wrap.range[0] < 1 else path_wrap.range[0] - 1
+    end = n_points - 1 if path_wrap.range[1] < 1 else path_wrap.range[1] - 1
+    return start, min(end, n_points - 1)
+
+
+def line_function(wrap_object, method: str, single: bool):
+    """(wrap-line function, options) of a wrap object; ``single``: the path's only wrap (OpenSim
+    then skips the cylinder's tangent re-adjustment, ``WrapResult::singleWrap``)."""
+    kind = wrap_object.kind
+    if kind == "cylinder":
+        return cylinder_wrap_line, dict(radius=float(wrap_object.radius),
+                                        length=float(wrap_object.length),
+                                        quadrant=wrap_object.quadrant,
+                                        adjust_tangents=not single)
+    if kind == "sphere":
+        return sphere_wrap_line, dict(radius=float(wrap_object.radius), quadrant=wrap_object.quadrant)
+    if kind == "ellipsoid":
+        return ellipsoid_wrap_line, dict(dimensions=np.asarray(wrap_object.dimensions, dtype=float),
+                                         quadrant=wrap_object.quadrant, method=method)
+    if kind == "torus":
+        return torus_wrap_line, dict(inner_radius=float(wrap_object.inner_radius),
+                                     outer_radius=float(wrap_object.outer_radius),
+                                     quadrant=wrap_object.quadrant)
+    raise ValueError(f"unknown wrap object kind {kind!r}")
+
 
 # options that may differ between the rows of one call (the function accepts (N,) arrays)
 _ROW_OPTIONS = {cylinder_wrap_line: ("radius", "length")}
@@ -39,7 +95,7 @@ def _signature(model, path) -> tuple:
     out = []
     for pw in path.wraps:
         wo = model.wrap_object(pw.wrap_object)
-        fn, opts = _line_function(wo, pw.method, len(path.wraps) == 1)
+        fn, opts = line_function(wo, pw.method, len(path.wraps) == 1)
         fixed = tuple(sorted((k, tuple(np.ravel(v)) if isinstance(v, np.ndarray) else v)
                              for k, v in opts.items() if k not in _ROW_OPTIONS.get(fn, ())))
         out.append((fn, fixed, bool(wo.active)))
@@ -106,13 +162,14 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
             rows = slice(g * n_frames, (g + 1) * n_frames)
             wo = model.wrap_object(path.wraps[w].wrap_object)
             b = model.body_index(wo.body)
-            fn, opts = _line_function(wo, path.wraps[w].method, len(path.wraps) == 1)
+            fn, opts = line_function(wo, path.wraps[w].method, len(path.wraps) == 1)
             tf_w[rows] = tf[:, b] @ wo.tf_body_wrap
             dtf_w[rows, :len(cols)] = dtf[:, b][:, cols] @ wo.tf_body_wrap
             start[rows], end[rows] = wrap_range(path.wraps[w], len(path.points))
             for key in _ROW_OPTIONS.get(fn, ()):
                 row_opts.setdefault(key, np.empty(n_rows))[rows] = opts.pop(key)
         slots.append(WrapSlot(fn, opts, row_opts, bool(wo.active), tf_w, dtf_w, start, end))
+    from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module
     length, order, mask, seen, _ = wrap_rows(pts, act, dpts, slots)
     node_v = np.stack([n.v for n in seen], axis=1)                       # (N, P_max + 2 W, 3)
     d_length = np.broadcast_to(length.d, (n_rows, d_max))

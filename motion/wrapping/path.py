@@ -43,10 +43,8 @@ import numpy as np
 
 from . import dual as ad
 from .dual import Dual
-from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, cylinder_wrap_line
-from .ellipsoid import ellipsoid_wrap_line
-from .sphere import sphere_wrap_line
-from .torus import torus_wrap_line
+from .batch import WrapSlot, line_function, wrap_range
+from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
 
 __all__ = ["WrappedPath", "wrap_path"]
 
@@ -108,25 +106,6 @@ class WrappedPath:
         idx = np.where(self.order >= 0, self.order, 0)
         out = np.take_along_axis(self.points, idx[..., None], axis=1)
         return np.where((self.order >= 0)[..., None], out, np.nan)
-
-
-def _line_function(wrap_object, method: str, single: bool):
-    kind = wrap_object.kind
-    if kind == "cylinder":
-        return cylinder_wrap_line, dict(radius=float(wrap_object.radius),
-                                        length=float(wrap_object.length),
-                                        quadrant=wrap_object.quadrant,
-                                        adjust_tangents=not single)
-    if kind == "sphere":
-        return sphere_wrap_line, dict(radius=float(wrap_object.radius), quadrant=wrap_object.quadrant)
-    if kind == "ellipsoid":
-        return ellipsoid_wrap_line, dict(dimensions=np.asarray(wrap_object.dimensions, dtype=float),
-                                         quadrant=wrap_object.quadrant, method=method)
-    if kind == "torus":
-        return torus_wrap_line, dict(inner_radius=float(wrap_object.inner_radius),
-                                     outer_radius=float(wrap_object.outer_radius),
-                                     quadrant=wrap_object.quadrant)
-    raise ValueError(f"unknown wrap object kind {kind!r}")
 
 
 def _apply_rt(rot: Dual, v: Dual) -> Dual:
@@ -294,7 +273,7 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     for pw in path.wraps:
         wo = model.wrap_object(pw.wrap_object)
         b = model.body_index(wo.body)
-        fn, opts = _line_function(wo, pw.method, len(path.wraps) == 1)
+        fn, opts = line_function(wo, pw.method, len(path.wraps) == 1)
         start, end = wrap_range(pw, n_points)
         slots.append(WrapSlot(fn, opts, {}, bool(wo.active), tf_ground_body[:, b] @ wo.tf_body_wrap,
                               np.asarray(d_tf_ground_body)[:, b] @ wo.tf_body_wrap,
@@ -316,34 +295,6 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
                        points=pts, d_points=np.moveaxis(dpts, 2, 3), mask=mask, order=order,
                        labels=tuple(labels), kinds=tuple(kinds), arc=arc,
                        wrap_objects=tuple(pw.wrap_object for pw in path.wraps))
-
-
-@dataclass(frozen=True)
-class WrapSlot:
-    """One wrap of a path (PathWrapSet entry), for every row (frame, or frame of one of several
-    batched paths).
-
-    ``fn(p1, p2, **opts, **{k: v[rows]})`` is the wrap object's wrap-line function in its own
-    frame; ``row_opts`` hold per-row option arrays (N,) (cylinder radius and length of batched
-    paths); ``tf`` (N, 4, 4) the wrap frame in ground and ``dtf`` (N, D, 4, 4) its derivatives;
-    ``start``, ``end`` (N,) the 0-based range of defined points the wrap may act on.
-    """
-
-    fn: object
-    opts: dict
-    row_opts: dict
-    active: bool
-    tf: np.ndarray
-    dtf: np.ndarray
-    start: np.ndarray
-    end: np.ndarray
-
-
-def wrap_range(path_wrap, n_points: int) -> tuple:
-    """0-based (start, end) of a PathWrap's range (OpenSim: 1-based, -1 = first / last point)."""
-    start = 0 if path_wrap.range[0] < 1 else path_wrap.range[0] - 1
-    end = n_points - 1 if path_wrap.range[1] < 1 else path_wrap.range[1] - 1
-    return start, min(end, n_points - 1)
 
 
 def wrap_rows(points, active, d_points, slots) -> tuple:
