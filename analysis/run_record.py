@@ -34,7 +34,7 @@ from pathlib import Path
 
 __all__ = ["sha256_file", "software_versions", "run_record", "write_run_json"]
 
-_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "pyarrow", "trimesh", "pyvista", "casadi", "matplotlib",
+_PACKAGES = ("musclefibres", "numpy", "scipy", "pandas", "pyarrow", "trimesh", "pyvista", "matplotlib",
              "numba", "tqdm", "opensim")
 
 
