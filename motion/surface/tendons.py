@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..osim.muscle_parameters import belly_span, muscle_parameters
-from .curves import trim_polylines
+from .curves import round_corners, trim_polylines
 
 __all__ = ["tendon_slacks", "belly_polylines", "end_point_offsets", "polyline_lengths", "straight_belly"]
 
@@ -53,12 +53,29 @@ def polyline_lengths(points) -> np.ndarray:
     return np.nansum(seg, axis=1)
 
 
-def belly_polylines(points, slack: float):
-    """The belly pieces (F, P + 2, 3) of polylines (F, P, 3) with tendon slack ``slack`` (m),
-    and the (F,) frames in which the path is too short to hold its tendon."""
+def belly_polylines(points, slack: float, *, corner_radius: float = 0.0):
+    """The belly pieces (F, P', 3) of polylines (F, P, 3) with tendon slack ``slack`` (m),
+    and the (F,) frames in which the path is too short to hold its tendon.
+
+    ``corner_radius > 0``: the pieces are cut from the path with its corners rounded
+    (`motion.surface.curves.round_corners`), and they keep the belly length ``b(L)`` of the
+    *unrounded* path (`motion.osim.muscle_parameters.belly_span`): the rounding shortens the
+    line by ``d (2 tan(a/2) - a) / tan(a/2)`` per corner, a function of the corner angle ``a``,
+    which would otherwise add ``-d(shortening)/dq`` to every fibre's moment arm; here the
+    tendons give up that length instead (each end the same), so the belly's centre line is
+    exactly ``L - l_ts`` long and changes length with the path, ``db/dq = dL/dq``.
+    """
     pts = np.asarray(points, dtype=float)
-    start, stop, short = belly_span(polyline_lengths(pts), slack)
-    return trim_polylines(pts, start, stop), short
+    length = polyline_lengths(pts)
+    start, stop, short = belly_span(length, slack)
+    if corner_radius <= 0:
+        return trim_polylines(pts, start, stop), short
+    rounded = round_corners(pts, corner_radius)
+    length_r = polyline_lengths(rounded)
+    belly = stop - start
+    start = np.clip(0.5 * (length_r - belly), 0.0, None)
+    stop = np.minimum(start + belly, length_r)
+    return trim_polylines(rounded, start, stop), short
 
 
 def end_point_offsets(model, path_name: str, curve, rest_curve, tf_ground_body, tf_rest_ground_body):

@@ -44,10 +44,9 @@ import numpy as np
 from ..errors import InputError
 from .binding import bind_surface
 from ..osim.muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
-from .generate import belly_surface, fusiform_surface
+from .generate import belly_radius, belly_surface, fusiform_surface
 from .rest import rest_pose
 from .tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
-from .curves import round_corners
 from .obstacles import TANGENT_SMOOTHING, line_samples, muscle_obstacles
 from .thickness import local_half_thickness
 from .volume import mesh_volume
@@ -284,9 +283,35 @@ def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC
 
 
 # ----------------------------------------------------------------------------- muscles
-#: Tendon-aware bellies: path corners under the belly are rounded over this many line sample
-#: spacings (`motion.surface.curves.round_corners`).
+#: Tendon-aware bellies: path corners under the belly are rounded with a radius of at least
+#: this many line sample spacings (`corner_radius`).
 CORNER_SAMPLES = 1.5
+
+
+def corner_radius(rest_belly, n_samples: int, volume: float | None) -> float:
+    """The radius (m) with which a tendon-aware belly's path corners are rounded
+    (`motion.surface.tendons.belly_polylines`): the generated belly's own radius
+    (`motion.surface.generate.belly_radius` of the straight rest belly ``rest_belly`` (P, 3);
+    for a mesh belly, ``volume`` None, the 1:10 default), at least ``CORNER_SAMPLES`` line
+    sample spacings.
+
+    Why the belly's radius: the belly slides along its path (rigid tendon), so its material
+    fibre polylines (segments of a few mm) pass the path's corners, and a polyline cuts a
+    corner by an amount that depends on where the corner falls between its points: its length
+    ripples as the corner passes and its derivative, the fibre's moment arm, saw-tooths by
+    ~theta s / (24 rho) of the moment arm (s the segment, rho the rounding radius, theta the
+    turn). Rounded over 1.5 line samples (0.6-3.4 mm) Gait2392's psoas and iliacus medians
+    were 3.3-3.5 mm off their lines, Arm26's TRIlong 1.6 mm (saw-tooth over the elbow angle);
+    rounded over the belly's radius (10-14 mm) the segments resolve the bend. A tube of radius
+    r cannot bend tighter than r without its inner side folding, and the cross-sections
+    already turn over about that length (`TANGENT_SMOOTHING`). The belly keeps its length
+    ``L - l_ts`` (the tendons give up what the rounding shortens), so the centre line's moment
+    arm stays the path's.
+    """
+    c = np.asarray(rest_belly, dtype=float)
+    length = float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)))
+    spacing = length / max(int(n_samples) - 1, 1)
+    return max(belly_radius(length, volume=volume), CORNER_SAMPLES * spacing)
 
 def _apply(tf: np.ndarray, p: np.ndarray) -> np.ndarray:
     """tf (..., 4, 4) applied to points (K, 3) -> (..., K, 3)."""
@@ -398,14 +423,20 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     curves = [current[name][0] for name in spec.action_lines]
     anchors = [current[name][1] for name in spec.action_lines]
     n_samples = line_samples(model, spec, full_rest, n_samples)
+    volume = spec.volume
+    if spec.generated:
+        params = muscle_parameters(model, spec.action_lines[0])
+        fmax, lopt = params.max_isometric_force, params.optimal_fiber_length
+        if volume is None and fmax and lopt and fmax > 0 and lopt > 0:
+            from .generate import SPECIFIC_TENSION
+
+            volume = fmax / SPECIFIC_TENSION * lopt
     if tendons:
         for k, (name, slack) in enumerate(zip(spec.action_lines, slacks)):  # loop over lines (few)
             belly, short_rest = belly_polylines(rest_curves[k][None], slack)
             rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
-            # the belly slides past the path's corners: round them over a few sample spacings
-            # (on the whole path, so a corner at the belly's end is rounded like any other)
-            spacing = float(np.linalg.norm(rest_curves[k][-1] - rest_curves[k][0])) / (n_samples - 1)
-            curves[k], short = belly_polylines(round_corners(curves[k], CORNER_SAMPLES * spacing), slack)
+            curves[k], short = belly_polylines(curves[k], slack, corner_radius=corner_radius(
+                rest_curves[k], n_samples, volume if spec.generated else None))
             if short_rest.any() or short.any():
                 n_short = int(short.sum())
                 notes.append(f"action line {name}: the path is shorter than its tendon slack length "
@@ -417,13 +448,6 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         anchors = None
     first_path = model.path(spec.action_lines[0])
     if spec.generated:
-        params = muscle_parameters(model, spec.action_lines[0])
-        fmax, lopt = params.max_isometric_force, params.optimal_fiber_length
-        volume = spec.volume
-        if volume is None and fmax and lopt and fmax > 0 and lopt > 0:
-            from .generate import SPECIFIC_TENSION
-
-            volume = fmax / SPECIFIC_TENSION * lopt
         if tendons:
             vertices, faces, belly_origin, belly_insertion = belly_surface(rest_curves[0], volume=volume)
         else:
