@@ -25,8 +25,10 @@ import numpy as np
 
 from ..osim.muscle_parameters import belly_span, muscle_parameters
 from .curves import round_corners, trim_polylines
+from .generate import belly_radius
 
-__all__ = ["tendon_slacks", "belly_polylines", "end_point_offsets", "polyline_lengths", "straight_belly"]
+__all__ = ["tendon_slacks", "belly_polylines", "corner_radius", "end_point_offsets", "polyline_lengths", "straight_belly",
+           "CORNER_SAMPLES"]
 
 
 def tendon_slacks(model, spec) -> tuple:
@@ -124,3 +126,34 @@ def straight_belly(piece, n_points: int = 8) -> np.ndarray:
     norm = float(np.linalg.norm(chord))
     direction = chord / norm if norm > 1e-12 else np.array([0.0, 0.0, 1.0])
     return p[0] + np.linspace(0.0, length, int(n_points))[:, None] * direction
+
+
+#: Tendon-aware bellies: path corners under the belly are rounded with a radius of at least
+#: this many line sample spacings (`corner_radius`).
+CORNER_SAMPLES = 1.5
+
+
+def corner_radius(rest_belly, n_samples: int, volume: float | None) -> float:
+    """The radius (m) with which a tendon-aware belly's path corners are rounded
+    (`motion.surface.tendons.belly_polylines`): the generated belly's own radius
+    (`motion.surface.generate.belly_radius` of the straight rest belly ``rest_belly`` (P, 3);
+    for a mesh belly, ``volume`` None, the 1:10 default), at least ``CORNER_SAMPLES`` line
+    sample spacings.
+
+    Why the belly's radius: the belly slides along its path (rigid tendon), so its material
+    fibre polylines (segments of a few mm) pass the path's corners, and a polyline cuts a
+    corner by an amount that depends on where the corner falls between its points: its length
+    ripples as the corner passes and its derivative, the fibre's moment arm, saw-tooths by
+    ~theta s / (24 rho) of the moment arm (s the segment, rho the rounding radius, theta the
+    turn). Rounded over 1.5 line samples (0.6-3.4 mm) Gait2392's psoas and iliacus medians
+    were 3.3-3.5 mm off their lines, Arm26's TRIlong 1.6 mm (saw-tooth over the elbow angle);
+    rounded over the belly's radius (10-14 mm) the segments resolve the bend. A tube of radius
+    r cannot bend tighter than r without its inner side folding, and the cross-sections
+    already turn over about that length (`motion.surface.obstacles.TANGENT_SMOOTHING`). The belly keeps its length
+    ``L - l_ts`` (the tendons give up what the rounding shortens), so the centre line's moment
+    arm stays the path's.
+    """
+    c = np.asarray(rest_belly, dtype=float)
+    length = float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)))
+    spacing = length / max(int(n_samples) - 1, 1)
+    return max(belly_radius(length, volume=volume), CORNER_SAMPLES * spacing)
