@@ -199,10 +199,12 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
 
 
 def _path_features(model, mspec, coordinates, q_frames, coord_idx, kinds):
-    """Gates for the ConditionalPathPoints of the muscle's action lines that switch inside the
-    sampled range (`analysis.path_fit`, module docstring), and plain-language limitations: the
-    wrap objects (a polynomial smooths over the bend in a fibre's length where its line starts or
-    stops wrapping) and conditional points on coordinates the function does not take."""
+    """Gates (`analysis.path_fit`, module docstring) for the ConditionalPathPoints of the muscle's
+    action lines that switch inside the sampled range and, for a muscle spanning one coordinate,
+    for the values where a line starts or stops wrapping; and plain-language limitations: wrap
+    objects of a muscle spanning several coordinates (the polynomial smooths over the bend in a
+    fibre's length where its line starts or stops wrapping) and conditional points on
+    coordinates the function does not take."""
     gates, notes = [], []
     lo_q = np.asarray(q_frames)[:, coord_idx].min(axis=0)
     hi_q = np.asarray(q_frames)[:, coord_idx].max(axis=0)
@@ -222,10 +224,39 @@ def _path_features(model, mspec, coordinates, q_frames, coord_idx, kinds):
             inside = [lo_q[c] - half[c] < x < hi_q[c] + half[c] for x in gate[1:]]
             if any(inside) and gate not in gates:
                 gates.append(gate)
-        for w in path.wraps:
-            notes.append(f"{line}: wraps {w.wrap_object}; where it starts or stops wrapping a fibre's length "
-                         "bends sharply, which the polynomial smooths (see motion_moment_arm_max_m)")
+        if path.wraps and len(coordinates) == 1:
+            # one coordinate: the line starts / stops wrapping at fixed values of it, where a
+            # fibre's length bends sharply (its moment arm steps, README "Wrap objects"): a gate
+            # there makes the function piecewise, so it follows the bend
+            for x, wrapped_above in _wrap_switches(model, line, coord_idx[0], q_frames[0],
+                                                   lo_q[0] - half[0], hi_q[0] + half[0]):
+                gate = (0, x, 1e3) if wrapped_above else (0, -1e3, x)
+                if gate not in gates:
+                    gates.append(gate)
+        elif path.wraps:
+            notes.append(f"{line}: wraps {', '.join(w.wrap_object for w in path.wraps)}; where it starts or stops "
+                         "wrapping (a surface in the coordinates' space) a fibre's length bends sharply, which "
+                         "the polynomial smooths (see motion_moment_arm_max_m)")
     return tuple(gates), tuple(notes)
+
+
+def _wrap_switches(model, line, column, q_base, lo, hi, n_grid: int = 4001):
+    """Values of model coordinate ``column`` in [lo, hi] (the others at ``q_base``) where path
+    ``line`` starts or stops wrapping any of its wrap objects (its tangent points appear or
+    vanish, `motion.wrapping.action_lines`), each with True when it is wrapped above it."""
+    import motion as motion_pkg
+
+    grid = np.linspace(lo, hi, n_grid)
+    q = np.repeat(np.asarray(q_base, dtype=float)[None], n_grid, axis=0)
+    q[:, column] = grid
+    lines = motion_pkg.action_lines(model, q, muscles=[line])
+    n_points = len(model.path(line).points)
+    wrapped = np.asarray(lines.point_mask)[:, 0, n_points::2]          # (G, W): first tangent point
+    out = []
+    for w in range(wrapped.shape[1]):
+        for i in np.flatnonzero(wrapped[1:, w] != wrapped[:-1, w]):
+            out.append((0.5 * (grid[i] + grid[i + 1]), bool(wrapped[i + 1, w])))
+    return out
 
 
 def _evaluate_each(choice, d, q, gates=()):
