@@ -77,6 +77,7 @@ class MuscleFit:
     rest_lengths: np.ndarray
     ok: np.ndarray
     gates: tuple = ()
+    gate_reasons: tuple = ()
     limitations: tuple = ()
 
     def report(self) -> dict:
@@ -86,8 +87,8 @@ class MuscleFit:
 
         return {"coordinates": list(self.coordinates), "n_samples": int(self.n_samples),
                 "length_function": "ExpressionBasedFunction" if self.gates else "MultivariatePolynomialFunction",
-                "conditional_gates": [{"coordinate": self.coordinates[c], "active_from": float(lo),
-                                       "active_to": float(hi)} for c, lo, hi in self.gates],
+                "gates": [{"coordinate": self.coordinates[c], "active_from": float(lo), "active_to": float(hi),
+                           "why": why} for (c, lo, hi), why in zip(self.gates, self.gate_reasons)],
                 "limitations": list(self.limitations),
                 "within_tolerance": bool(np.all(self.ok)),
                 "order": [int(o) for o in self.orders],
@@ -163,7 +164,7 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
         rng_v = np.random.default_rng([seed, 2])
         d = len(coord_idx)
         n = int(n_samples or 64 * d)
-        gates, limitations = _path_features(model, spec.muscle(name), m.coordinates, result.q, coord_idx, kinds)
+        gates, reasons, limitations = _path_features(model, spec.muscle(name), m.coordinates, result.q, coord_idx, kinds)
         top = path_fit.max_order_for(d, max_order)
         q_val = path_fit.sample_poses(result.q, coord_idx, kinds, max(n // 2, 16), rng_v)
         if announce:
@@ -194,7 +195,8 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
                         "moment_arm_max": choice.moment_arm_max},
             motion={"length_max": np.abs(l_m - m.fibre_lengths).max(axis=0),
                     "moment_arm_max": np.abs(r_m - m.fibre_moment_arms).max(axis=(0, 2))},
-            rest_lengths=m.rest_lengths, ok=choice.ok, gates=gates, limitations=limitations)
+            rest_lengths=m.rest_lengths, ok=choice.ok, gates=gates,
+            gate_reasons=reasons, limitations=limitations)
     return out
 
 
@@ -205,7 +207,7 @@ def _path_features(model, mspec, coordinates, q_frames, coord_idx, kinds):
     objects of a muscle spanning several coordinates (the polynomial smooths over the bend in a
     fibre's length where its line starts or stops wrapping) and conditional points on
     coordinates the function does not take."""
-    gates, notes = [], []
+    gates, reasons, notes = [], [], []
     lo_q = np.asarray(q_frames)[:, coord_idx].min(axis=0)
     hi_q = np.asarray(q_frames)[:, coord_idx].max(axis=0)
     half = np.array([path_fit.SAMPLING_HALF_WIDTH.get(k, path_fit.SAMPLING_HALF_WIDTH["rotational"])
@@ -224,6 +226,7 @@ def _path_features(model, mspec, coordinates, q_frames, coord_idx, kinds):
             inside = [lo_q[c] - half[c] < x < hi_q[c] + half[c] for x in gate[1:]]
             if any(inside) and gate not in gates:
                 gates.append(gate)
+                reasons.append(f"{line}: ConditionalPathPoint {pt.name}")
         if path.wraps and len(coordinates) == 1:
             # one coordinate: the line starts / stops wrapping at fixed values of it, where a
             # fibre's length bends sharply (its moment arm steps, README "Wrap objects"): a gate
@@ -233,11 +236,12 @@ def _path_features(model, mspec, coordinates, q_frames, coord_idx, kinds):
                 gate = (0, x, 1e3) if wrapped_above else (0, -1e3, x)
                 if gate not in gates:
                     gates.append(gate)
+                    reasons.append(f"{line}: {'starts' if wrapped_above else 'stops'} wrapping above it")
         elif path.wraps:
             notes.append(f"{line}: wraps {', '.join(w.wrap_object for w in path.wraps)}; where it starts or stops "
                          "wrapping (a surface in the coordinates' space) a fibre's length bends sharply, which "
                          "the polynomial smooths (see motion_moment_arm_max_m)")
-    return tuple(gates), tuple(notes)
+    return tuple(gates), tuple(reasons), tuple(notes)
 
 
 def _wrap_switches(model, line, column, q_base, lo, hi, n_grid: int = 4001):

@@ -71,7 +71,7 @@ def test_exported_arm_matches_our_fibres_in_opensim(arm_export):
     # polynomial follows: one gate per line there, an ExpressionBasedFunction
     rep = record["muscles"]["triceps"]
     assert rep["length_function"] == "ExpressionBasedFunction"
-    starts = sorted(np.degrees(g["active_from"]) for g in rep["conditional_gates"])
+    starts = sorted(np.degrees(g["active_from"]) for g in rep["gates"])
     np.testing.assert_allclose(starts, [56.74, 58.21], atol=0.05)
     assert record["muscles"]["biceps"]["length_function"] == "MultivariatePolynomialFunction"
 
@@ -193,8 +193,8 @@ def test_lhdl_export_from_a_3x_model(tmp_path):
     assert np.abs(arms - m.fibre_moment_arms).max() < 1e-3
     rep = record["muscles"]["psoas_r"]
     assert rep["length_function"] == "ExpressionBasedFunction"
-    assert rep["conditional_gates"][0]["coordinate"] == "hip_flexion_r"
-    assert rep["conditional_gates"][0]["active_to"] == pytest.approx(0.698132 + 1e-5)
+    assert rep["gates"][0]["coordinate"] == "hip_flexion_r"
+    assert rep["gates"][0]["active_to"] == pytest.approx(0.698132 + 1e-5)
     assert record["muscles"]["glut_med_r"]["length_function"] == "MultivariatePolynomialFunction"
 
 
