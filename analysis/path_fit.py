@@ -79,10 +79,13 @@ def monomial_exponents(dim: int, order: int) -> np.ndarray:
     return exps
 
 
-def max_order_for(dim: int, max_order: int, max_terms: int = 180) -> int:
-    """The highest order tried for ``dim`` coordinates: ``max_order``, raised while the polynomial
-    has at most ``max_terms`` terms (one coordinate: up to order 20; two: 17; three: 8), so a
-    muscle spanning one or two coordinates can follow a sharp bend (a wrap onset) closer."""
+def max_order_for(dim: int, max_order: int, max_terms: int = 286) -> int:
+    """The highest order tried for ``dim`` coordinates: ``max_order``, raised (up to 20) while the
+    polynomial has at most ``max_terms`` terms (one or two coordinates: 20; three: 10; four or
+    more: ``max_order``), so a fibre whose length bends sharply is followed closer. Measured
+    (LHDL gluteus maximus, three coordinates, the fibre whose flexion moment arm turns from -40 to
+    -46 mm over the first 2 degrees of the motion): worst motion error 1.5 mm at order 8, 0.64 at
+    10 (validation worst 5.2 -> 4.1 mm); fitting took 47 -> 196 s."""
     order = int(max_order)
     while order < 20 and n_terms(dim, order + 1) <= max_terms:
         order += 1

@@ -143,5 +143,7 @@ def test_expression_is_evaluated_by_opensim_as_ours():
 
 def test_higher_orders_only_for_few_coordinates():
     assert path_fit.max_order_for(1, 8) == 20
-    assert path_fit.max_order_for(3, 8) == 8
-    assert path_fit.n_terms(2, path_fit.max_order_for(2, 8)) <= 180
+    assert path_fit.max_order_for(2, 8) == 20
+    assert path_fit.max_order_for(3, 8) == 10
+    assert path_fit.max_order_for(4, 8) == 8
+    assert path_fit.n_terms(3, path_fit.max_order_for(3, 8)) <= 286
