@@ -76,6 +76,9 @@ class MuscleFit:
     motion: dict
     rest_lengths: np.ndarray
     ok: np.ndarray
+    gates: tuple = ()
+    gate_reasons: tuple = ()
+    limitations: tuple = ()
 
     def report(self) -> dict:
         """JSON-ready per-fibre record (for run.json)."""
@@ -83,6 +86,10 @@ class MuscleFit:
             return [float(f"{v:.4g}") for v in np.asarray(a, dtype=float)]
 
         return {"coordinates": list(self.coordinates), "n_samples": int(self.n_samples),
+                "length_function": "ExpressionBasedFunction" if self.gates else "MultivariatePolynomialFunction",
+                "gates": [{"coordinate": self.coordinates[c], "active_from": float(lo), "active_to": float(hi),
+                           "why": why} for (c, lo, hi), why in zip(self.gates, self.gate_reasons)],
+                "limitations": list(self.limitations),
                 "within_tolerance": bool(np.all(self.ok)),
                 "order": [int(o) for o in self.orders],
                 "validation_length_max_m": r(self.validation["length_max"]),
@@ -157,6 +164,8 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
         rng_v = np.random.default_rng([seed, 2])
         d = len(coord_idx)
         n = int(n_samples or 64 * d)
+        gates, reasons, limitations = _path_features(model, spec.muscle(name), m.coordinates, result.q, coord_idx, kinds)
+        top = path_fit.max_order_for(d, max_order)
         q_val = path_fit.sample_poses(result.q, coord_idx, kinds, max(n // 2, 16), rng_v)
         if announce:
             announce(f"fitting path functions of {name} ({m.n_fibres} fibres, {d} coordinates)")
@@ -173,12 +182,12 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
             q_tr, l_tr, r_tr = np.vstack([q_tr, q_new]), np.vstack([l_tr, l_new]), np.vstack([r_tr, r_new])
             train = (np.vstack([q_tr, result.q])[:, coord_idx], np.vstack([l_tr, m.fibre_lengths]),
                      np.vstack([r_tr, m.fibre_moment_arms]))
-            choice = path_fit.select_orders(train, (q_val[:, coord_idx], l_val, r_val), max_order=max_order,
-                                            length_tol=length_tol, moment_arm_tol=moment_arm_tol)
+            choice = path_fit.select_orders(train, (q_val[:, coord_idx], l_val, r_val), max_order=top,
+                                            length_tol=length_tol, moment_arm_tol=moment_arm_tol, gates=gates)
             if choice.ok.all() or 2 * n > max_samples:
                 break
             n *= 2
-        l_m, r_m = _evaluate_each(choice, d, result.q[:, coord_idx])
+        l_m, r_m = _evaluate_each(choice, d, result.q[:, coord_idx], gates)
         out[name] = MuscleFit(
             muscle=name, coordinates=tuple(m.coordinates), orders=choice.orders,
             coefficients=choice.coefficients, n_samples=len(train[0]),
@@ -186,11 +195,75 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
                         "moment_arm_max": choice.moment_arm_max},
             motion={"length_max": np.abs(l_m - m.fibre_lengths).max(axis=0),
                     "moment_arm_max": np.abs(r_m - m.fibre_moment_arms).max(axis=(0, 2))},
-            rest_lengths=m.rest_lengths, ok=choice.ok)
+            rest_lengths=m.rest_lengths, ok=choice.ok, gates=gates,
+            gate_reasons=reasons, limitations=limitations)
     return out
 
 
-def _evaluate_each(choice, d, q):
+def _path_features(model, mspec, coordinates, q_frames, coord_idx, kinds):
+    """Gates (`analysis.path_fit`, module docstring) for the ConditionalPathPoints of the muscle's
+    action lines that switch inside the sampled range and, for a muscle spanning one coordinate,
+    for the values where a line starts or stops wrapping; and plain-language limitations: wrap
+    objects of a muscle spanning several coordinates (the polynomial smooths over the bend in a
+    fibre's length where its line starts or stops wrapping) and conditional points on
+    coordinates the function does not take."""
+    gates, reasons, notes = [], [], []
+    lo_q = np.asarray(q_frames)[:, coord_idx].min(axis=0)
+    hi_q = np.asarray(q_frames)[:, coord_idx].max(axis=0)
+    half = np.array([path_fit.SAMPLING_HALF_WIDTH.get(k, path_fit.SAMPLING_HALF_WIDTH["rotational"])
+                     for k in kinds])
+    for line in mspec.action_lines:
+        path = model.path(line)
+        for pt in path.points:
+            if pt.kind != "conditional":
+                continue
+            if pt.coordinate not in coordinates:
+                notes.append(f"{line}: ConditionalPathPoint {pt.name} switches with {pt.coordinate}, "
+                             "which the path function does not take: its step is not represented")
+                continue
+            c = list(coordinates).index(pt.coordinate)
+            gate = (c, float(pt.range[0]) - 1e-5, float(pt.range[1]) + 1e-5)
+            inside = [lo_q[c] - half[c] < x < hi_q[c] + half[c] for x in gate[1:]]
+            if any(inside) and gate not in gates:
+                gates.append(gate)
+                reasons.append(f"{line}: ConditionalPathPoint {pt.name}")
+        if path.wraps and len(coordinates) == 1:
+            # one coordinate: the line starts / stops wrapping at fixed values of it, where a
+            # fibre's length bends sharply (its moment arm steps, README "Wrap objects"): a gate
+            # there makes the function piecewise, so it follows the bend
+            for x, wrapped_above in _wrap_switches(model, line, coord_idx[0], q_frames[0],
+                                                   lo_q[0] - half[0], hi_q[0] + half[0]):
+                gate = (0, x, 1e3) if wrapped_above else (0, -1e3, x)
+                if gate not in gates:
+                    gates.append(gate)
+                    reasons.append(f"{line}: {'starts' if wrapped_above else 'stops'} wrapping above it")
+        elif path.wraps:
+            notes.append(f"{line}: wraps {', '.join(w.wrap_object for w in path.wraps)}; where it starts or stops "
+                         "wrapping (a surface in the coordinates' space) a fibre's length bends sharply, which "
+                         "the polynomial smooths (see motion_moment_arm_max_m)")
+    return tuple(gates), tuple(reasons), tuple(notes)
+
+
+def _wrap_switches(model, line, column, q_base, lo, hi, n_grid: int = 4001):
+    """Values of model coordinate ``column`` in [lo, hi] (the others at ``q_base``) where path
+    ``line`` starts or stops wrapping any of its wrap objects (its tangent points appear or
+    vanish, `motion.wrapping.action_lines`), each with True when it is wrapped above it."""
+    import motion as motion_pkg
+
+    grid = np.linspace(lo, hi, n_grid)
+    q = np.repeat(np.asarray(q_base, dtype=float)[None], n_grid, axis=0)
+    q[:, column] = grid
+    lines = motion_pkg.action_lines(model, q, muscles=[line])
+    n_points = len(model.path(line).points)
+    wrapped = np.asarray(lines.point_mask)[:, 0, n_points::2]          # (G, W): first tangent point
+    out = []
+    for w in range(wrapped.shape[1]):
+        for i in np.flatnonzero(wrapped[1:, w] != wrapped[:-1, w]):
+            out.append((0.5 * (grid[i] + grid[i + 1]), bool(wrapped[i + 1, w])))
+    return out
+
+
+def _evaluate_each(choice, d, q, gates=()):
     """Lengths (S, N) and moment arms (S, N, D) of fibres with their own orders."""
     n = len(choice.orders)
     lengths = np.empty((len(q), n))
@@ -198,7 +271,7 @@ def _evaluate_each(choice, d, q):
     for order in np.unique(choice.orders):        # loop over the few distinct orders
         sel = np.flatnonzero(choice.orders == order)
         coef = np.array([choice.coefficients[k] for k in sel])
-        lengths[:, sel], arms[:, sel] = path_fit.evaluate(coef, path_fit.monomial_exponents(d, int(order)), q)
+        lengths[:, sel], arms[:, sel] = path_fit.evaluate(coef, path_fit.monomial_exponents(d, int(order)), q, gates)
     return lengths, arms
 
 

@@ -126,9 +126,18 @@ def line_properties(model_file, names, *, root=None) -> dict:
     return out
 
 
-def _polynomial_path(coordinate_paths, coefficients, order: int):
+def _polynomial_path(coordinate_paths, coefficients, order: int, gates=()):
     path = ET.Element("FunctionBasedPath", name="path")
     ET.SubElement(path, "coordinate_paths").text = " ".join(coordinate_paths)
+    if gates:   # a polynomial plus ConditionalPathPoint-gated polynomials (analysis.path_fit)
+        from .path_fit import expression, monomial_exponents
+
+        names = [f"q{i}" for i in range(len(coordinate_paths))]
+        fn = ET.SubElement(ET.SubElement(path, "length_function"), "ExpressionBasedFunction")
+        ET.SubElement(fn, "expression").text = expression(
+            coefficients, monomial_exponents(len(coordinate_paths), int(order)), gates, names)
+        ET.SubElement(fn, "variables").text = " ".join(names)
+        return path
     fn = ET.SubElement(ET.SubElement(path, "length_function"), "MultivariatePolynomialFunction")
     ET.SubElement(fn, "coefficients").text = " ".join(_num(c) for c in coefficients)
     ET.SubElement(fn, "dimension").text = str(len(coordinate_paths))
@@ -229,7 +238,8 @@ def write_fibre_model(model_file, out_path, muscles, *, keep_original=False, mus
                              where=f"muscle {mus['name']!r}", fix="Rename the fibre-model muscle.")
         for k, name in enumerate(names):
             el = _fibre_element(template, name, muscle_class,
-                                _polynomial_path(paths, mus["coefficients"][k], mus["orders"][k]), mus["params"], k)
+                                _polynomial_path(paths, mus["coefficients"][k], mus["orders"][k], mus.get("gates", ())),
+                                mus["params"], k)
             objects.insert(index + 1 + k, el)
         if not keep_original:
             for n in mus["action_lines"]:
@@ -296,7 +306,8 @@ def export_osim(spec, result, out_path, *, muscles=None, keep_original=False, mu
         props = line_properties(spec.model_path, mspec.action_lines, root=source)
         params = muscle_parameters(spec.model, mspec, props, fit.rest_lengths)
         entries.append({"name": name, "action_lines": list(mspec.action_lines), "coordinates": fit.coordinates,
-                        "orders": fit.orders, "coefficients": fit.coefficients, "params": params})
+                        "orders": fit.orders, "coefficients": fit.coefficients, "params": params,
+                        "gates": fit.gates})
         rep = fit.report()
         rep.update({"fibre_muscles": fibre_muscle_names(name, len(fit.orders)),
                     "replaces": list(mspec.action_lines),

@@ -329,7 +329,7 @@ def catmull_rom_weights(j: np.ndarray, t: np.ndarray, n: int):
     return idx, w
 
 
-def round_corners(points, radius: float, *, n_arc: int = 8) -> np.ndarray:
+def round_corners(points, radius, *, n_arc: int = 8) -> np.ndarray:
     """Polylines (F, P, 3) (trailing NaN padding) with every interior corner replaced by a
     quadratic Bezier arc of ``n_arc`` points from ``V - d u_in`` over ``V`` to ``V + d u_out``,
     ``d = min(radius tan(a / 2), 0.45 min(adjacent segment lengths))`` (a: the turn angle).
@@ -340,7 +340,9 @@ def round_corners(points, radius: float, *, n_arc: int = 8) -> np.ndarray:
     passes and its derivative -- a moment arm -- by up to several mm. Rounded over a few sample
     spacings the corner is resolved by the samples, the ripple goes; the rounding itself shortens
     the line by ``~2 d - radius a`` per corner (continuous in the poses; ``d`` shrinks to 0
-    with the turn angle). Returns (F, 2 + (P - 2) n_arc, 3), NaN-padded.
+    with the turn angle). ``radius``: a float, or (F, P - 2) per interior point (0 leaves that
+    corner sharp: its ``n_arc`` points coincide). Returns (F, 2 + (P - 2) n_arc, 3), NaN-padded;
+    point ``j >= 1`` of a polyline is at ``1 + (j - 1) n_arc`` in it (`rounded_index`).
     """
     pts = np.asarray(points, dtype=float)
     f_n, p_n = pts.shape[:2]
@@ -356,7 +358,8 @@ def round_corners(points, radius: float, *, n_arc: int = 8) -> np.ndarray:
     u_out = a_out / np.maximum(l_out, _TINY)[..., None]
     cos = np.clip(np.sum(u_in * u_out, axis=-1), -1.0, 1.0)
     half = 0.5 * np.arccos(cos)                                             # a / 2
-    d = np.minimum(float(radius) * np.tan(np.minimum(half, 1.4)), 0.45 * np.minimum(l_in, l_out))
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), half.shape)   # per corner allowed
+    d = np.minimum(radius * np.tan(np.minimum(half, 1.4)), 0.45 * np.minimum(l_in, l_out))
     d = np.where(inner, d, 0.0)
     start = here - d[..., None] * u_in
     stop = here + d[..., None] * u_out
@@ -370,3 +373,43 @@ def round_corners(points, radius: float, *, n_arc: int = 8) -> np.ndarray:
     keep = np.isfinite(both).all(axis=-1)
     perm = np.argsort(~keep, axis=1, kind="stable")
     return np.take_along_axis(both, perm[..., None], axis=1)
+
+
+def rounded_index(index, n_arc: int = 8) -> np.ndarray:
+    """Where point ``index`` (int array) of a polyline is after `round_corners` (the first of
+    its ``n_arc`` arc points; the ends stay the ends)."""
+    index = np.asarray(index, dtype=np.int64)
+    return np.where(index >= 1, 1 + (index - 1) * int(n_arc), index)
+
+
+def round_sliding_corners(curves, anchors, sliding, radius: float):
+    """Round the corners that line samples slide past, keep the anchors' (`round_corners`).
+
+    ``curves``: per line (F, P, 3) polylines; ``anchors``: per line (F, K) anchor positions or
+    None; ``sliding``: per line (F, P) bool, the points to round (ConditionalPathPoints, which
+    are no anchors). Returns the rounded curves and the anchors' positions in them.
+
+    Why: `motion.surface.binding` resamples a line piecewise between anchors, so its samples
+    slide past a corner inside a piece; a sampled polyline cuts that corner by an amount that
+    depends on where it falls between two samples, so the cut line's length derivative jumps
+    each time a sample crosses it, and the surface's fibres inherited the jumps (LHDL iliacus:
+    fibre moment arms jumping ~10 mm at four hip angles, at its pelvic-brim
+    ConditionalPathPoint, while the line's changed 0.3 mm per step). Rounded over the muscle's
+    thickness (the length over which its cross-sections turn anyway) the samples and the fibre
+    polylines resolve the bend; the rounding shortens the line by ~``d (2 tan(a/2) - a) /
+    tan(a/2)`` at such a corner, smoothly in the poses.
+    """
+    out_c, out_a = [], []
+    for c, a, m in zip(curves, anchors, sliding):
+        c = np.asarray(c, dtype=float)
+        single = c.ndim == 2
+        c3, m2 = (c[None], np.asarray(m)[None]) if single else (c, np.asarray(m))
+        if not m2[:, 1:-1].any():
+            out_c.append(c)
+            out_a.append(a)
+            continue
+        r = np.where(m2[:, 1:c3.shape[1] - 1], float(radius), 0.0)
+        rc = round_corners(c3, r)
+        out_c.append(rc[0] if single else rc)
+        out_a.append(None if a is None else rounded_index(a))
+    return out_c, out_a

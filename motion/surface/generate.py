@@ -28,7 +28,7 @@ import numpy as np
 from .curves import any_perpendicular, curve_tangents, resample_polylines, rotation_minimizing_frames
 from .volume import mesh_volume, solve_radial_scale, volume_cubic
 
-__all__ = ["fusiform_surface", "fusiform_radius", "belly_surface", "SPECIFIC_TENSION"]
+__all__ = ["fusiform_surface", "fusiform_radius", "belly_surface", "belly_radius", "SPECIFIC_TENSION"]
 
 #: A generated belly's radius is at most this fraction of its rest length (`belly_surface`).
 BELLY_MAX_ASPECT = 0.1
@@ -126,6 +126,20 @@ def fusiform_surface(curve, *, max_radius: float | None = None, volume: float | 
     return vertices, faces
 
 
+def belly_radius(length: float, *, volume: float | None = None, max_radius: float | None = None) -> float:
+    """The radius of `belly_surface`'s tube of rest length ``length`` (m), before the
+    triangulated volume is made exact: ``max_radius``; else ``sqrt(volume / (pi length))``
+    capped at ``BELLY_MAX_ASPECT * length``; else ``BELLY_MAX_ASPECT * length``."""
+    if max_radius is not None:
+        return float(max_radius)
+    cap = BELLY_MAX_ASPECT * float(length)
+    if volume is None:
+        return cap
+    if not volume > 0:
+        raise ValueError("volume must be positive")
+    return min(math.sqrt(float(volume) / (math.pi * float(length))), cap)
+
+
 def belly_surface(curve, *, volume: float | None = None, max_radius: float | None = None,
                   n_rings: int = 40, n_around: int = 24, landmark_fraction: float = 0.9):
     """A closed tube around the belly piece of an action line, flat caps where the tendons join.
@@ -163,17 +177,8 @@ def belly_surface(curve, *, volume: float | None = None, max_radius: float | Non
         raise ValueError("the belly has zero length")
     if n_rings < 2 or n_around < 3:
         raise ValueError("need n_rings >= 2 and n_around >= 3")
-    if max_radius is not None:
-        r = float(max_radius)
-    elif volume is not None:
-        if not volume > 0:
-            raise ValueError("volume must be positive")
-        r = math.sqrt(float(volume) / (math.pi * length))
-    else:
-        r = 0.1 * length
-    slender = max_radius is None and r > BELLY_MAX_ASPECT * length
-    if slender:
-        r = BELLY_MAX_ASPECT * length
+    r = belly_radius(length, volume=volume, max_radius=max_radius)
+    slender = max_radius is None and volume is not None and r < math.sqrt(float(volume) / (math.pi * length))
     tan = curve_tangents(c[None])
     frames = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
     phi = 2.0 * np.pi * np.arange(int(n_around)) / int(n_around)

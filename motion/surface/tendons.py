@@ -24,9 +24,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..osim.muscle_parameters import belly_span, muscle_parameters
-from .curves import trim_polylines
+from .curves import round_corners, trim_polylines
+from .generate import belly_radius
 
-__all__ = ["tendon_slacks", "belly_polylines", "end_point_offsets", "polyline_lengths", "straight_belly"]
+__all__ = ["tendon_slacks", "belly_polylines", "corner_radius", "end_point_offsets", "polyline_lengths", "straight_belly",
+           "CORNER_SAMPLES"]
 
 
 def tendon_slacks(model, spec) -> tuple:
@@ -53,12 +55,29 @@ def polyline_lengths(points) -> np.ndarray:
     return np.nansum(seg, axis=1)
 
 
-def belly_polylines(points, slack: float):
-    """The belly pieces (F, P + 2, 3) of polylines (F, P, 3) with tendon slack ``slack`` (m),
-    and the (F,) frames in which the path is too short to hold its tendon."""
+def belly_polylines(points, slack: float, *, corner_radius: float = 0.0):
+    """The belly pieces (F, P', 3) of polylines (F, P, 3) with tendon slack ``slack`` (m),
+    and the (F,) frames in which the path is too short to hold its tendon.
+
+    ``corner_radius > 0``: the pieces are cut from the path with its corners rounded
+    (`motion.surface.curves.round_corners`), and they keep the belly length ``b(L)`` of the
+    *unrounded* path (`motion.osim.muscle_parameters.belly_span`): the rounding shortens the
+    line by ``d (2 tan(a/2) - a) / tan(a/2)`` per corner, a function of the corner angle ``a``,
+    which would otherwise add ``-d(shortening)/dq`` to every fibre's moment arm; here the
+    tendons give up that length instead (each end the same), so the belly's centre line is
+    exactly ``L - l_ts`` long and changes length with the path, ``db/dq = dL/dq``.
+    """
     pts = np.asarray(points, dtype=float)
-    start, stop, short = belly_span(polyline_lengths(pts), slack)
-    return trim_polylines(pts, start, stop), short
+    length = polyline_lengths(pts)
+    start, stop, short = belly_span(length, slack)
+    if corner_radius <= 0:
+        return trim_polylines(pts, start, stop), short
+    rounded = round_corners(pts, corner_radius)
+    length_r = polyline_lengths(rounded)
+    belly = stop - start
+    start = np.clip(0.5 * (length_r - belly), 0.0, None)
+    stop = np.minimum(start + belly, length_r)
+    return trim_polylines(rounded, start, stop), short
 
 
 def end_point_offsets(model, path_name: str, curve, rest_curve, tf_ground_body, tf_rest_ground_body):
@@ -107,3 +126,34 @@ def straight_belly(piece, n_points: int = 8) -> np.ndarray:
     norm = float(np.linalg.norm(chord))
     direction = chord / norm if norm > 1e-12 else np.array([0.0, 0.0, 1.0])
     return p[0] + np.linspace(0.0, length, int(n_points))[:, None] * direction
+
+
+#: Tendon-aware bellies: path corners under the belly are rounded with a radius of at least
+#: this many line sample spacings (`corner_radius`).
+CORNER_SAMPLES = 1.5
+
+
+def corner_radius(rest_belly, n_samples: int, volume: float | None) -> float:
+    """The radius (m) with which a tendon-aware belly's path corners are rounded
+    (`motion.surface.tendons.belly_polylines`): the generated belly's own radius
+    (`motion.surface.generate.belly_radius` of the straight rest belly ``rest_belly`` (P, 3);
+    for a mesh belly, ``volume`` None, the 1:10 default), at least ``CORNER_SAMPLES`` line
+    sample spacings.
+
+    Why the belly's radius: the belly slides along its path (rigid tendon), so its material
+    fibre polylines (segments of a few mm) pass the path's corners, and a polyline cuts a
+    corner by an amount that depends on where the corner falls between its points: its length
+    ripples as the corner passes and its derivative, the fibre's moment arm, saw-tooths by
+    ~theta s / (24 rho) of the moment arm (s the segment, rho the rounding radius, theta the
+    turn). Rounded over 1.5 line samples (0.6-3.4 mm) Gait2392's psoas and iliacus medians
+    were 3.3-3.5 mm off their lines, Arm26's TRIlong 1.6 mm (saw-tooth over the elbow angle);
+    rounded over the belly's radius (10-14 mm) the segments resolve the bend. A tube of radius
+    r cannot bend tighter than r without its inner side folding, and the cross-sections
+    already turn over about that length (`motion.surface.obstacles.TANGENT_SMOOTHING`). The belly keeps its length
+    ``L - l_ts`` (the tendons give up what the rounding shortens), so the centre line's moment
+    arm stays the path's.
+    """
+    c = np.asarray(rest_belly, dtype=float)
+    length = float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)))
+    spacing = length / max(int(n_samples) - 1, 1)
+    return max(belly_radius(length, volume=volume), CORNER_SAMPLES * spacing)

@@ -46,8 +46,8 @@ from .binding import bind_surface
 from ..osim.muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
 from .generate import belly_surface, fusiform_surface
 from .rest import rest_pose
-from .tendons import belly_polylines, end_point_offsets, straight_belly, tendon_slacks
-from .curves import round_corners
+from .tendons import belly_polylines, corner_radius, end_point_offsets, straight_belly, tendon_slacks
+from .curves import round_sliding_corners
 from .obstacles import TANGENT_SMOOTHING, line_samples, muscle_obstacles
 from .thickness import local_half_thickness
 from .volume import mesh_volume
@@ -149,9 +149,17 @@ def _anchor_positions(path, ids: np.ndarray) -> np.ndarray | None:
     return np.argmax(hit, axis=1)
 
 
+def _conditional(path, ids: np.ndarray) -> np.ndarray:
+    """(F, N) bool: polyline entries (ids from `_compact`/`_path_polyline_ids`) that are
+    ConditionalPathPoints of ``path``."""
+    kinds = np.array([p.kind == "conditional" for p in path.points] + [False])
+    ids = np.asarray(ids)
+    return kinds[np.where((ids >= 0) & (ids < len(path.points)), ids, -1)]
+
+
 def _current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
     """Mapping path name -> ((F, N, 3) current polyline with wrap arcs, NaN-padded;
-    (F, K) anchor positions or None)."""
+    (F, K) anchor positions or None; (F, N) bool, the points that are ConditionalPathPoints)."""
     out = {}
     table = getattr(lines, "muscle_names", None) if lines is not None else None
     for name in names:
@@ -160,7 +168,7 @@ def _current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
             m = table.index(name)
             pts, ids = _compact(np.asarray(lines.points)[:, m, :len(path.points)],
                                 np.asarray(lines.point_mask)[:, m, :len(path.points)])
-            out[name] = (pts, _anchor_positions(path, ids))
+            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids))
     missing = [n for n in names if n not in out]
     if missing:
         from ..osim.kinematics import body_pose_derivatives
@@ -177,7 +185,7 @@ def _current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
                 pts, ids = _path_polyline_ids(model, wrapped, tf)
             else:
                 pts, ids = _compact(pp.points, np.asarray(pp.active, dtype=bool))
-            out[name] = (pts, _anchor_positions(path, ids))
+            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids))
     return out
 
 
@@ -284,10 +292,6 @@ def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC
 
 
 # ----------------------------------------------------------------------------- muscles
-#: Tendon-aware bellies: path corners under the belly are rounded over this many line sample
-#: spacings (`motion.surface.curves.round_corners`).
-CORNER_SAMPLES = 1.5
-
 def _apply(tf: np.ndarray, p: np.ndarray) -> np.ndarray:
     """tf (..., 4, 4) applied to points (K, 3) -> (..., K, 3)."""
     return np.einsum("...ij,kj->...ki", tf[..., :3, :3], p) + tf[..., None, :3, 3]
@@ -373,15 +377,18 @@ def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: 
 
 
 def _rest_lines(model, spec, tf_rest_actual, rest_motion):
-    """Rest polylines (one (P, 3) per action line) and their anchor positions (or None)."""
+    """Rest polylines (one (P, 3) per action line), their anchor positions (or None) and
+    ConditionalPathPoint masks (P,)."""
     rest_lines = _current_polylines(model, rest_motion, spec.action_lines, None, tf_rest_actual)
-    curves, anchors = [], []
+    curves, anchors, sliding = [], [], []
     for name in spec.action_lines:
         c = rest_lines[name][0][0]
-        curves.append(c[np.isfinite(c).all(axis=1)])
+        ok = np.isfinite(c).all(axis=1)
+        curves.append(c[ok])
         a = rest_lines[name][1]
         anchors.append(None if a is None else a[0])
-    return curves, anchors
+        sliding.append(rest_lines[name][2][0][ok])
+    return curves, anchors, sliding
 
 
 def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigid_radius, blend_radius):
@@ -390,7 +397,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     rest = rest_pose(model, spec)
     rest_motion = motion_from_array(model, rest.q[None])
     tf_rest_actual = np.asarray(body_poses(model, rest_motion).tf_ground_body, dtype=float)
-    rest_curves, rest_anchors = _rest_lines(model, spec, tf_rest_actual, rest_motion)
+    rest_curves, rest_anchors, rest_sliding = _rest_lines(model, spec, tf_rest_actual, rest_motion)
     full_rest = list(rest_curves)
     slacks = tendon_slacks(model, spec)
     tendons = any(x > 0 for x in slacks)
@@ -398,14 +405,20 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
     curves = [current[name][0] for name in spec.action_lines]
     anchors = [current[name][1] for name in spec.action_lines]
     n_samples = line_samples(model, spec, full_rest, n_samples)
+    volume = spec.volume
+    if spec.generated:
+        params = muscle_parameters(model, spec.action_lines[0])
+        fmax, lopt = params.max_isometric_force, params.optimal_fiber_length
+        if volume is None and fmax and lopt and fmax > 0 and lopt > 0:
+            from .generate import SPECIFIC_TENSION
+
+            volume = fmax / SPECIFIC_TENSION * lopt
     if tendons:
         for k, (name, slack) in enumerate(zip(spec.action_lines, slacks)):  # loop over lines (few)
             belly, short_rest = belly_polylines(rest_curves[k][None], slack)
             rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
-            # the belly slides past the path's corners: round them over a few sample spacings
-            # (on the whole path, so a corner at the belly's end is rounded like any other)
-            spacing = float(np.linalg.norm(rest_curves[k][-1] - rest_curves[k][0])) / (n_samples - 1)
-            curves[k], short = belly_polylines(round_corners(curves[k], CORNER_SAMPLES * spacing), slack)
+            curves[k], short = belly_polylines(curves[k], slack, corner_radius=corner_radius(
+                rest_curves[k], n_samples, volume if spec.generated else None))
             if short_rest.any() or short.any():
                 n_short = int(short.sum())
                 notes.append(f"action line {name}: the path is shorter than its tendon slack length "
@@ -417,13 +430,6 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         anchors = None
     first_path = model.path(spec.action_lines[0])
     if spec.generated:
-        params = muscle_parameters(model, spec.action_lines[0])
-        fmax, lopt = params.max_isometric_force, params.optimal_fiber_length
-        volume = spec.volume
-        if volume is None and fmax and lopt and fmax > 0 and lopt > 0:
-            from .generate import SPECIFIC_TENSION
-
-            volume = fmax / SPECIFIC_TENSION * lopt
         if tendons:
             vertices, faces, belly_origin, belly_insertion = belly_surface(rest_curves[0], volume=volume)
         else:
@@ -449,8 +455,12 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         free = np.arange(n_v - spec.riders, n_v)
     # a generated belly turns its cross-sections over about its thickness where the path has a
     # corner (`motion.surface.curves.smoothed_tangents`), so its inner side does not fold
-    smoothing = TANGENT_SMOOTHING * float(np.max(local_half_thickness(
-        vertices, n_v - spec.riders, rest_curves, n_samples=n_samples))) if spec.generated or tendons else 0.0
+    half = float(np.max(local_half_thickness(vertices, n_v - spec.riders, rest_curves, n_samples=n_samples)))
+    smoothing = TANGENT_SMOOTHING * half if spec.generated or tendons else 0.0
+    if not tendons:   # corners the line samples slide past (conditional points): rounded over h
+        rest_curves, rest_anchors = round_sliding_corners(rest_curves, rest_anchors, rest_sliding, half)
+        curves, anchors = round_sliding_corners(curves, anchors, [current[n][2] for n in spec.action_lines],
+                                                half)
     binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
                            *ends, n_samples=n_samples, rigid_radius=rigid_radius, blend_radius=blend_radius,
                            rest_anchors=rest_anchors, free_vertices=free, tangent_smoothing=smoothing)

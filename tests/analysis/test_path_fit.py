@@ -100,3 +100,50 @@ def test_select_orders_refuses_too_few_poses():
     with pytest.raises(ValueError, match="too few"):
         path_fit.select_orders((q, np.zeros((1, 2)), np.zeros((1, 2, 3))), (q, np.zeros((1, 2)), np.zeros((1, 2, 3))),
                                max_order=4, length_tol=1e-4, moment_arm_tol=1e-4)
+
+
+def test_gated_fit_recovers_a_step_exactly():
+    """A length with a ConditionalPathPoint-like step (a different polynomial while q0 <= 0.7):
+    the gated fit returns both pieces exactly; a plain polynomial cannot (its error is the step's)."""
+    rng = np.random.default_rng(5)
+    exps = path_fit.monomial_exponents(2, 3)
+    gates = ((0, -3.2, 0.7),)
+    true = rng.normal(size=(3, 2 * len(exps)))
+    q = rng.uniform(-0.5, 1.5, size=(80, 2))
+    lengths, arms = path_fit.evaluate(true, exps, q, gates)
+    active = path_fit.gate_activity(q, gates)[:, 0]
+    assert 0 < active.sum() < len(q)
+    coef = path_fit.fit_polynomials(q, lengths, arms, 3, gates)
+    np.testing.assert_allclose(coef, true, atol=1e-9)
+    plain = path_fit.fit_polynomials(q, lengths, arms, 3)
+    lp, _ = path_fit.evaluate(plain, exps, q)
+    assert np.abs(lp - lengths).max() > 1e-2
+
+
+@pytest.mark.oracle
+def test_expression_is_evaluated_by_opensim_as_ours():
+    """The ExpressionBasedFunction text of a gated polynomial: OpenSim 4.6's value and analytic
+    partial derivatives equal `path_fit.evaluate` on both sides of the gate."""
+    osim = pytest.importorskip("opensim")
+    if not hasattr(osim, "ExpressionBasedFunction"):
+        pytest.skip("OpenSim < 4.5")
+    rng = np.random.default_rng(7)
+    exps = path_fit.monomial_exponents(3, 4)
+    gates = ((0, -3.14160, 0.698142), (2, -0.2, 0.9))
+    coef = rng.normal(size=len(exps) * 3)
+    text = path_fit.expression(coef, exps, gates, ["q0", "q1", "q2"])
+    fn = osim.ExpressionBasedFunction(text, osim.StdVectorString(["q0", "q1", "q2"]))
+    for x in ([0.3, -0.4, 0.1], [0.8, 0.2, 0.5], [0.3, 0.1, 1.2], [0.9, -0.7, -0.5]):
+        ours, arms = path_fit.evaluate(coef[None], exps, np.array([x]), gates)
+        assert fn.calcValue(osim.Vector(x)) == pytest.approx(ours[0, 0], rel=1e-12, abs=1e-12)
+        for c in range(3):
+            d = fn.calcDerivative(osim.StdVectorInt([c]), osim.Vector(x))
+            assert -arms[0, 0, c] == pytest.approx(d, rel=1e-10, abs=1e-10)
+
+
+def test_higher_orders_only_for_few_coordinates():
+    assert path_fit.max_order_for(1, 8) == 20
+    assert path_fit.max_order_for(2, 8) == 20
+    assert path_fit.max_order_for(3, 8) == 10
+    assert path_fit.max_order_for(4, 8) == 8
+    assert path_fit.n_terms(3, path_fit.max_order_for(3, 8)) <= 286
