@@ -67,16 +67,7 @@ def _kernels():
     lengths, vertex blocks' boxes, an area's triangles, several areas' triangles) compiled
     with numba, or None (then numpy, component-wise: the same arithmetic in the same
     order)."""
-    if not _KERNELS:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNELS.append(None)
-        else:
-            jit = numba.njit(cache=True, nogil=True)
-            _KERNELS.append((jit(_nearest_loop), jit(_within_loop), jit(_edge_sum_loop),
-                             jit(_blocks_loop), jit(_region_loop), jit(_regions_loop)))
-    return _KERNELS[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 #: vertices per block of `_blocks_loop`

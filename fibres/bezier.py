@@ -86,14 +86,7 @@ _KERNEL = []
 
 def _sum_kernel():
     """`_sum_loop` compiled with numba, or None (then numpy)."""
-    if not _KERNEL:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNEL.append(None)
-        else:
-            _KERNEL.append(numba.njit(cache=True, nogil=True)(_sum_loop))
-    return _KERNEL[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def arc_weight(p0, p1, p2) -> np.ndarray:

@@ -129,16 +129,7 @@ _GEOMETRY = []
 
 def _geometry_kernel():
     """`_geometry_loop` compiled with numba, or None (then numpy, component-wise)."""
-    if not _GEOMETRY:
-        try:
-            import numba  # noqa: F401
-        except ImportError:                                     # pragma: no cover - optional
-            _GEOMETRY.append(None)
-        else:
-            from .slicing import compile_with_measures
-
-            _GEOMETRY.append(compile_with_measures(_geometry_loop))
-    return _GEOMETRY[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def _geometry_loop(v, f, tol2):  # pragma: no cover - compiled by numba
@@ -190,14 +181,7 @@ _DUPLICATES = []
 
 def _duplicates_kernel():
     """`_duplicates_loop` compiled with numba, or None (then the sort of the row hashes)."""
-    if not _DUPLICATES:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _DUPLICATES.append(None)
-        else:
-            _DUPLICATES.append(numba.njit(cache=True, nogil=True)(_duplicates_loop))
-    return _DUPLICATES[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def _duplicates_loop(v, scale):  # pragma: no cover - compiled by numba

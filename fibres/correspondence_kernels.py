@@ -142,16 +142,4 @@ _START_KERNEL = []
 
 def _start_kernel():
     """`_soft_start_loop` compiled with numba (with `_gauss_segment`), or the Python one."""
-    if not _START_KERNEL:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _START_KERNEL.append(_soft_start_loop)
-        else:
-            global _arc_segment, _gauss_segment, _mod
-            _plan.anchor_kernel()                 # compiles the plan's `_gauss_segment`
-            _gauss_segment = _plan._gauss_segment
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _arc_segment, _mod = jit(_arc_segment), jit(_mod)
-            _START_KERNEL.append(jit(_soft_start_loop))
-    return _START_KERNEL[0]
+    return _soft_start_loop  # numpy (no compiled kernels: docs/decisions.md, issue 13)

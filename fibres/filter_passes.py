@@ -43,24 +43,7 @@ _resampling = _evaluate = _cut_s = _geometry = _area = _search = None
 def passes():
     """(choices_areas_loop, choices_ends_loop, apply_loop) compiled with numba, or None
     (then `fibres.filtering` runs step by step)."""
-    if not _PASSES:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _PASSES.append(None)
-        else:
-            from . import attachment_area, ray_triangles, resample
-            global _nearest, _within, _edge_sum, _blocks, _triangles, _bounds, _regions
-            global _resampling, _evaluate, _cut_s, _geometry, _area, _search
-            area, tri = attachment_area._kernels(), ray_triangles._kernels()
-            _nearest, _within, _edge_sum, _blocks, _, _regions = area
-            _triangles, _bounds = tri
-            _resampling, _evaluate = resample._compiled()
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _cut_s, _geometry, _area = jit(_cut_s_loop), jit(_geometry_loop), jit(_area_loop)
-            _search = jit(_search_loop)
-            _PASSES.append((jit(choices_areas_loop), jit(choices_ends_loop), jit(apply_loop)))
-    return _PASSES[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def _cut_s_loop(h, r, seg, level, fallback, slack):  # pragma: no cover - compiled by numba

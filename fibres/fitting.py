@@ -219,32 +219,7 @@ _FIT = []
 
 def _fit_kernels():
     """`_Kernels` compiled with numba, or None (then numpy)."""
-    if not _FIT:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _FIT.append(None)
-        else:
-            import types
-
-            jit = numba.njit(cache=True, nogil=True)
-
-            def calling(fn, **called):  # numba resolves a compiled function's globals
-                glb = dict(fn.__globals__, **called)  # when it compiles it
-                return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
-
-            screen, candidates = compile_screens(jit)
-            extents, row_sum = jit(_extents_loop), jit(_row_sum_loop)
-            projected = calling(_projected_boxes_loop, _candidates_loop=candidates,
-                                _extents_loop=extents)
-            _FIT.append(_Kernels(
-                screen, extents, jit(_nearest_loop), jit(_centred_loop), row_sum,
-                jit(_mapped_nearest_loop),
-                calling(_boxes_loop, _projected_boxes_loop=projected),
-                calling(_blas_boxes_loop, _projected_boxes_loop=projected),
-                candidates, jit(_section_loop), jit(_combine_loop),
-                jit(_transposed_mean_loop), jit(_moment_loop)))
-    return _FIT[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def _centred(vertices, c):

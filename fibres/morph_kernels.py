@@ -395,27 +395,4 @@ _KERNELS = []
 def kernels():
     """(roll, subdivide, anchor search, insertion, orientation terms, clockwise gather,
     slice_maps pass, morph_local pass) compiled with numba, or None."""
-    if not _KERNELS:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _KERNELS.append(None)
-        else:
-            from .correspondence_kernels import _start_kernel
-            from .mvc import _kernel as _mvc_kernel
-            from .plan import anchor_kernel
-
-            global _cross_loop, _clockwise_loop, _insert_loop, _roll_loop, _subdivide_loop
-            global _segment_lengths, _roll_lengths, _pairwise_sum, _reduceat_sum
-            global _soft_start, _mvc_vec
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _cross_loop, _clockwise_loop = jit(_cross_loop), jit(_clockwise_loop)
-            _insert_loop, _roll_loop = jit(_insert_loop), jit(_roll_loop)
-            _segment_lengths, _roll_lengths = jit(_segment_lengths), jit(_roll_lengths)
-            _subdivide_loop = jit(_subdivide_loop)
-            _pairwise_sum = jit(_pairwise_sum)
-            _reduceat_sum = jit(_reduceat_sum)
-            _soft_start, _mvc_vec = _start_kernel(), _mvc_kernel()
-            _KERNELS.append((_roll_loop, _subdivide_loop, anchor_kernel(), _insert_loop,
-                             _cross_loop, _clockwise_loop, jit(_maps_pass), jit(_morph_pass)))
-    return _KERNELS[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)

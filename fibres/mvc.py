@@ -217,18 +217,7 @@ _KERNEL = []
 
 def _kernel():
     """The numba-compiled loop of `mvc_map`, or None without numba (compiled once)."""
-    if _KERNEL:
-        return _KERNEL[0]
-    try:
-        import numba
-    except ImportError:                                   # pragma: no cover - optional
-        _KERNEL.append(None)
-        return None
-    global _mvc_scalar
-    jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-    _mvc_scalar = jit(_mvc_map_loop)
-    _KERNEL.append(jit(_mvc_map_vec))
-    return _KERNEL[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 #: the compiled `_mvc_map_loop` (set by `_kernel`), called by `_mvc_map_vec`

@@ -664,15 +664,4 @@ _ANCHOR_KERNEL = []
 
 def anchor_kernel():
     """`_soft_anchor_loop` compiled with numba (with its helpers), or the Python version."""
-    if not _ANCHOR_KERNEL:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _ANCHOR_KERNEL.append(_soft_anchor_loop)
-        else:
-            global _order_arcs, _erfcx, _gauss_segment
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _order_arcs, _erfcx = jit(_order_arcs), jit(_erfcx)
-            _gauss_segment = jit(_gauss_segment)
-            _ANCHOR_KERNEL.append(jit(_soft_anchor_loop))
-    return _ANCHOR_KERNEL[0]
+    return _soft_anchor_loop  # numpy (no compiled kernels: docs/decisions.md, issue 13)

@@ -29,22 +29,7 @@ _KERNELS = []
 def _kernels():
     """(closest triangle point to each ray, corner bounds) compiled with numba, or None
     (then numpy)."""
-    if not _KERNELS:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNELS.append(None)
-        else:
-            global _pair, _across_distance, _apart
-            jit = numba.njit(cache=True, nogil=True)
-            # inlined into `_triangles_loop` (numba IR: the same operations; a call passes
-            # each of the twelve arrays as a struct)
-            inline = numba.njit(cache=True, nogil=True, inline="always")
-            _pair = inline(_pair_loop)
-            _across_distance = inline(_across_distance_loop)
-            _apart = inline(_apart_loop)
-            _KERNELS.append((jit(_triangles_loop), jit(_bounds_loop)))
-    return _KERNELS[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 #: the compiled `_pair_loop` and `_across_distance_loop` (set by `_kernels`), called by

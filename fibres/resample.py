@@ -18,15 +18,7 @@ _KERNEL = []
 
 def _compiled():
     """(resampling_loop, evaluate_loop) compiled with numba, or None."""
-    if not _KERNEL:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNEL.append(None)
-        else:
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _KERNEL.append((jit(resampling_loop), jit(evaluate_loop)))
-    return _KERNEL[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def resampling_kernel():

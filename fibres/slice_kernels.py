@@ -161,16 +161,4 @@ _KERNELS = []
 def kernels():
     """(`_crossings_loop`, `_loop_order_loop`, `_points_loop`, `_slice_pass`) compiled with
     numba, or None."""
-    if not _KERNELS:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _KERNELS.append(None)
-        else:
-            global _crossings_loop, _loop_order_loop, _points_loop
-            jit = numba.njit(cache=True, nogil=True)
-            _crossings_loop, _loop_order_loop = jit(_crossings_loop), jit(_loop_order_loop)
-            _points_loop = jit(_points_loop)
-            _KERNELS.append((_crossings_loop, _loop_order_loop, _points_loop,
-                             jit(_slice_pass)))
-    return _KERNELS[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)

@@ -221,14 +221,7 @@ _TOPOLOGY = []
 
 def _topology_kernel():
     """`_topology_loop` compiled with numba, or None (then the array version)."""
-    if not _TOPOLOGY:
-        try:
-            import numba  # noqa: F401
-        except ImportError:                                 # pragma: no cover - optional
-            _TOPOLOGY.append(None)
-        else:
-            _TOPOLOGY.append(compile_with_measures(_topology_loop))
-    return _TOPOLOGY[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compiled by numba
@@ -658,14 +651,7 @@ _WALK = []
 
 
 def _walk_kernel():
-    if not _WALK:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _WALK.append(None)
-        else:
-            _WALK.append(numba.njit(cache=True, nogil=True)(_walk_loop))
-    return _WALK[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def _walk_loop(nxt, label, rank):  # pragma: no cover - compiled by numba

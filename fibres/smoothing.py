@@ -130,14 +130,7 @@ _KERNEL = []
 
 def _kernel():
     """`_smooth_loop` compiled with numba, or None (then arrays)."""
-    if not _KERNEL:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNEL.append(None)
-        else:
-            _KERNEL.append(numba.njit(cache=True, nogil=True)(_smooth_loop))
-    return _KERNEL[0]
+    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
 
 
 def _smooth_loop(out, k, inv, iterations, shift2):  # pragma: no cover - compiled by numba

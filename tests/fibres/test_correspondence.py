@@ -211,23 +211,6 @@ def test_soft_anchor_points():
                                    * (np.roll(p, -1, axis=0)[seg[s]] - p[seg[s]]), atol=1e-15)
 
 
-def test_compiled_insertion():
-    # every contour vertex moves up by the anchors inserted before it
-    pytest.importorskip("numba")
-    from fibres.morph import _kernels
-
-    rng = np.random.default_rng(3)
-    m = rng.integers(4, 40, 9)
-    offs = np.concatenate([[0], np.cumsum(m)])
-    pts = rng.normal(size=(offs[-1], 2))
-    seg = np.stack([np.sort(rng.integers(0, k, 4)) for k in m])
-    offs2 = np.concatenate([[0], np.cumsum(m + 4)])
-    new = _kernels()[3](pts, m, offs, seg, offs2)
-    for s in range(m.size):
-        j = np.arange(m[s])
-        shift = (seg[s][None, :] < j[:, None]).sum(axis=1)
-        np.testing.assert_array_equal(new[offs2[s] + j + shift], pts[offs[s]:offs[s + 1]])
-
 
 def test_order_arcs_is_the_bounded_isotonic_projection():
     # _order_arcs against a brute-force projection onto {lo <= a0 <= a1 <= a2 <= hi}
@@ -414,30 +397,6 @@ def test_soft_start_is_the_closest_point_where_defined_and_continuous_where_not(
     assert 1.0 < slope < 100.0
     assert np.linalg.norm(start(1e-7) - start(-1e-7)) <= 2.0 * slope * 2e-7
 
-
-def test_insert_points_compiled_equals_array_version():
-    pytest.importorskip("numba")
-    from fibres.correspondence import insert_points
-    from fibres.morph import _kernels
-
-    rng = np.random.default_rng(13)
-    m = rng.integers(3, 40, 9)
-    offs = np.concatenate([[0], np.cumsum(m)])
-    pts = rng.normal(size=(offs[-1], 2))
-    seg = np.stack([rng.integers(0, k, 4) for k in m])
-    tau = rng.uniform(0, 1, seg.shape)
-    tau[0, 1] = tau[0, 0]
-    seg[0, 1] = seg[0, 0]                                                # a tie
-    point = rng.normal(size=seg.shape + (2,))
-    a, ia = insert_points(pts, m, offs, seg, tau, point)
-    b, ib = insert_points(pts, m, offs, seg, tau, point, shift_kernel=_kernels()[3])
-    np.testing.assert_array_equal(a, b)
-    np.testing.assert_array_equal(ia, ib)
-    offs2 = np.concatenate([[0], np.cumsum(m + 4)])
-    for s in range(m.size):
-        np.testing.assert_array_equal(a[offs2[s] + ia[s]], point[s])    # the points in place
-        keep = np.setdiff1d(np.arange(m[s] + 4), ia[s])
-        np.testing.assert_array_equal(a[offs2[s] + keep], pts[offs[s]:offs[s + 1]])
 
 
 def test_soft_start_compiled_equals_python():

@@ -64,21 +64,3 @@ def test_prepare_bounds_with_zero_and_signed_zero_coordinates(monkeypatch):
     np.testing.assert_array_equal(got.lo, v.min(axis=0))
 
 
-def test_cross_section_reference_sign_near_zero_moment_falls_back_to_numpy(monkeypatch):
-    # a palindromic vertex order makes the sign moment (n + 1) / 2 sum_i x_i ~ 0 (the
-    # vertices are centred): the ordered sum cannot decide, numpy's dot does, as before
-    pytest.importorskip("numba")
-    rng = np.random.default_rng(6)
-    w = (rng.normal(size=(3000, 3)) * [0.02, 0.035, 0.12])
-    v = np.concatenate([w, w[::-1]])
-    frame = fitting.principal_frame(v, v[:3], v[:3] + [0.0, 0.0, 1.0], axis="attachments")
-    kernels = fitting._fit_kernels()
-    dt = kernels.section(np.ascontiguousarray(v.T), frame.centroid, frame.axis)
-    ref = decompose_module._cross_section_ref(v, frame)
-    s, a = kernels.moment(dt, np.ascontiguousarray(ref))
-    n = v.shape[0]
-    assert abs(s) <= 3 * n * 2.0 ** -53 / (1 - n * 2.0 ** -53) * a     # undecided
-    with monkeypatch.context() as mp:
-        mp.setattr(fitting, "_FIT", [None])
-        want = decompose_module._cross_section_ref(v, frame)
-    np.testing.assert_array_equal(ref, want)

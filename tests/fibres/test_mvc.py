@@ -143,58 +143,6 @@ def test_mvc_map_without_numba_gives_the_same(monkeypatch):
     assert np.abs(mvc_map(pts, groups, polys, targets) - compiled).max() <= 1e-12
 
 
-def test_vectorised_kernel_equals_the_point_loop_bit_for_bit():
-    # the compiled mvc_map splits each point's roots/divisions into vectorisable loops; it
-    # must do the same operations in the same order as the one-point loop (and hand points
-    # on vertices/edges to it): identical results, not just close ones
-    pytest.importorskip("numba")
-    from fibres.mvc import _kernel, mvc_map
-
-    _kernel()
-    rng = np.random.default_rng(11)
-    t = np.sort(rng.uniform(0, 2 * np.pi, 300))
-    star = np.c_[np.cos(t), np.sin(t)] * (1 + 0.3 * np.sin(5 * t))[:, None]
-    polys = [star, ARROW, SQUARE * 2.0]
-    targets = [p * [1.2, 0.7] + 0.05 * np.sin(4 * p[:, ::-1]) for p in polys]
-    groups = rng.integers(0, 3, 600)
-    pts = rng.uniform(-1.2, 1.2, (600, 2))
-    pts[:300], groups[:300] = star, 0                         # on vertices
-    pts[300:305], groups[300:305] = 0.3 * star[:5] + 0.7 * star[1:6], 0     # on edges
-    weights = rng.uniform(0.1, 1, 600)
-    got = mvc_map(pts, groups, polys, targets, weights=weights)
-    src, dst = np.concatenate(polys), np.concatenate(targets)
-    offsets = np.r_[0, np.cumsum([len(p) for p in polys])]
-    ref = np.empty_like(pts)
-    mvc._mvc_scalar(pts, groups, weights, src, dst, offsets, mvc._ON_EDGE, ref)
-    assert np.array_equal(got, ref)
-    assert np.array_equal(got[:300], weights[:300, None] * targets[0])
-
-
-def test_point_major_kernel_with_empty_and_single_point_polygons():
-    # the compiled map buckets the points by polygon and advances all points of a polygon
-    # together: polygons without points, with one point, and points given in any group
-    # order must still equal the one-point loop bit for bit (and the exact vertex rule)
-    pytest.importorskip("numba")
-    from fibres.mvc import _kernel, mvc_map
-
-    _kernel()
-    rng = np.random.default_rng(12)
-    polys = [SQUARE * 2.0, ARROW, SQUARE[::-1] + 0.5, ARROW * 3.0]
-    targets = [p[::-1] * 0.9 + 0.2 for p in polys]
-    groups = np.r_[np.full(50, 3), [1], np.full(70, 0)]              # polygon 2 gets none
-    pts = rng.uniform(0.1, 1.9, (groups.size, 2))
-    pts[groups == 3] *= 1.5
-    pts[50] = ARROW[4]                                              # on a vertex
-    order = rng.permutation(groups.size)
-    pts, groups = pts[order], groups[order]
-    got = mvc_map(pts, groups, polys, targets)
-    src, dst = np.concatenate(polys), np.concatenate(targets)
-    offsets = np.r_[0, np.cumsum([len(p) for p in polys])]
-    ref = np.empty_like(pts)
-    mvc._mvc_scalar(pts, groups, np.ones(len(pts)), src, dst, offsets, mvc._ON_EDGE, ref)
-    assert np.array_equal(got, ref)
-    assert np.array_equal(got[groups == 1][0], targets[1][4])
-
 
 def test_packed_planes_map_like_separate_polygons():
     # `planes` views of one array skip mvc_map's concatenation: the same result bit for bit

@@ -297,24 +297,6 @@ def test_pieces_touching_at_one_vertex_are_not_clean():
     assert len(ref_f) == 4 and any("stray piece" in r for r in repairs)
 
 
-@pytest.mark.parametrize("n_pieces", [1, 2, 5])
-def test_compiled_pieces_count_equals_scipy(n_pieces):
-    # the compiled topology pass's flood fill counts the same edge-connected pieces as
-    # scipy's connected components (the path without it), with the pieces' faces
-    # interleaved in the face list
-    pytest.importorskip("numba")
-    import fibres.clean_check as fs
-    from fibres.slicing import _closed_topology, mesh_topology
-
-    m = trimesh.creation.icosphere(subdivisions=2)
-    v0, f0 = np.asarray(m.vertices), np.asarray(m.faces)
-    v = np.vstack([v0 + [3.0 * p, 0, 0] for p in range(n_pieces)])
-    f = np.vstack([f0 + p * len(v0) for p in range(n_pieces)]).astype(np.int64)
-    f = f[np.random.default_rng(n_pieces).permutation(len(f))]
-    nb = mesh_topology(f, len(v)).neighbours
-    assert fs._n_pieces(nb) == n_pieces
-    assert _closed_topology(np.ascontiguousarray(f), len(v))[1] == n_pieces
-
 
 def test_attachment_area_closest_points_compiled_equal_numpy(monkeypatch):
     # fibres.ray_triangles (the attachment filter's new fibre ends on the area's surface):
@@ -379,39 +361,3 @@ def test_closest_points_within_a_distance(kernels, monkeypatch):
         assert 0 < kept.sum() < n or w == 0.0
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_compiled_merge_test_equals_numpy(seed):
-    # the hash-table pass that rounds the rows itself answers as numpy's rows
-    # (v * scale).round().astype(int64) and the sort of their hashes: rows with and without
-    # one duplicate (placed anywhere), rows differing in one coordinate only, ties at .5
-    # (rounded half to even), -0.0 and 0.0; rows rounding beyond int64 are left to numpy
-    from fibres.clean_check import _duplicates_kernel, _has_duplicate_rows, _has_merged_vertices
-
-    pytest.importorskip("numba")
-    rng = np.random.default_rng(seed)
-    scale = 10 ** 8
-
-    def rows_of(v):
-        return (v * scale).round().astype(np.int64)
-
-    seen = set()
-    for n, span in ((1, 5), (2, 2), (50, 3), (3000, 10 ** 9), (3000, 40)):
-        q = rng.integers(-span, span, size=(n, 3)).astype(np.float64)
-        v = (q + rng.choice([-0.4, 0.0, 0.3, 0.5, -0.5], size=q.shape)) / scale
-        for x in (v, v[np.unique(rows_of(v), axis=0, return_index=True)[1]],
-                  np.vstack([v, v[rng.integers(0, n)] + 0.2 / scale])[::-1]):
-            x = np.ascontiguousarray(x)
-            expected = _has_duplicate_rows(rows_of(x))
-            seen.add(expected)
-            assert _duplicates_kernel()(x, float(scale)) == int(expected)
-            assert _has_merged_vertices(x, scale) == expected
-    assert seen == {False, True}                                 # not vacuous
-    line = np.zeros((500, 3))
-    line[:, 2] = np.arange(500) / scale                      # unique, one coordinate differs
-    assert _duplicates_kernel()(line, float(scale)) == 0
-    line[499, 2] = -0.3 / scale                               # rounds to -0.0: equals row 0
-    assert _duplicates_kernel()(line, float(scale)) == 1 and _has_duplicate_rows(rows_of(line))
-    huge = np.array([[1e12, 0.0, 0.0], [2e12, 0.0, 0.0]])    # beyond int64 once scaled
-    assert _duplicates_kernel()(huge, float(scale)) == -1
-    with np.errstate(invalid="ignore"):
-        assert _has_merged_vertices(huge, scale) == _has_duplicate_rows(rows_of(huge))
