@@ -159,9 +159,9 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
         if lock.fd is None:
             lock.acquire()
         clean_stale(out)
-        from .progress import first_run_notice
+        from .progress import start_notice
 
-        first_run_notice(args.quiet)
+        start_notice(f"{len(chosen)} muscle(s): moving, wrapping and decomposing the surfaces", args.quiet)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
             result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,

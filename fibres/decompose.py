@@ -41,6 +41,7 @@ from .slicing import _topology_kernel, mesh_topology, slice_mesh
 from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth, smooth_taubin
 from .surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .templates import Template, get_template
+from .threads import blas_single
 
 __all__ = ["decompose", "make_plan", "SLICINGS", "DEFAULT_SLICING"]
 
@@ -237,6 +238,7 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool,
     return box, heights, P, Q, None, notes + map_notes
 
 
+@blas_single
 def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int = 19,
               units: str = "m", template_params=None, axis: str = "auto",
               angle_step_deg: float = 5.0, slicing: str = DEFAULT_SLICING):
@@ -330,6 +332,7 @@ def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
     return fc
 
 
+@blas_single
 def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,
               resolution: int = 19, seed: int = 0, units: str = "m", template_params=None,
               smoothing_iterations: int = DEFAULT_ITERATIONS, filter_attachments: bool = True,

@@ -75,9 +75,8 @@ above each fibre kept fibres converging to the top as well (gap 36 mm).
 
 Code. The attachment area and its triangles are `fibres.attachment_area`, the area's
 closest point to a ray `fibres.ray_triangles`, the resampling record `fibres.resample`.
-Below, `filter_choices` and `apply_filter` are written step by step in numpy; with numba
-they run as the compiled passes of `fibres.filter_passes` (the same arithmetic in the same
-order: the same arrays bit for bit).
+`filter_choices` and `apply_filter` are written step by step in numpy (no compiled passes:
+docs/decisions.md, issue 13).
 """
 from __future__ import annotations
 
@@ -87,7 +86,6 @@ import numpy as np
 
 from .attachment_area import _kernels as _area_kernels
 from .attachment_area import _mean_edge, _region_indices, attachment_region, regions_triangles
-from .filter_passes import passes
 from . import ray_triangles as _rt
 from .ray_triangles import closest_on_triangles
 from .resample import evaluate_kernel, resampling_kernel
@@ -305,11 +303,6 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
         tol = TIE * float(np.linalg.norm(prepared.hi - prepared.lo))
     pts = np.ascontiguousarray(pts)
     h = pts @ u                                                       # (N, P)
-    fused = passes()
-    if fused is not None:  # the steps below in three compiled passes (fibres.filter_passes)
-        return FilterChoice._owned(lms, *_fused_choices(
-            fused, pts, h, h_o, h_i, tol, vt, verts, faces, origin, insertion, mean_edge,
-            reference), seed, template)
     cut, segment, cut_param, t_face, t_vert, t_bary, piece, param = _untouched(n, p)
 
     def done():
@@ -400,25 +393,6 @@ def _untouched(n, p):
             piece, param)
 
 
-def _fused_choices(fused, pts, h, h_o, h_i, tol, vt, verts, faces, origin, insertion,
-                   mean_edge, reference):
-    """`filter_choices`' steps in the compiled passes of `fibres.filter_passes` (the same
-    arithmetic: bit for bit the same arrays); the choices' arrays as `_untouched`."""
-    areas_loop, ends_loop, _ = fused
-    verts = np.ascontiguousarray(verts)
-    faces = np.ascontiguousarray(faces, dtype=np.int64)
-    cut, segment, cut_param, area_o, area_i, bounds = areas_loop(
-        pts, h, h_o, h_i, tol, np.ascontiguousarray(vt), verts, faces,
-        np.ascontiguousarray(origin), np.ascontiguousarray(insertion),
-        -1.0 if mean_edge is None else float(mean_edge))
-    if len(area_o[0]) == 0 and len(area_i[0]) == 0:  # no fibre is cut
-        return (cut, segment, cut_param) + _untouched(len(pts), pts.shape[1])[3:]
-    # the searches' touching tolerance (closest_on_triangles: 1e-12 of the area's extent)
-    eps2 = np.array([(1e-12 * float(np.linalg.norm(b[1] - b[0]))) ** 2 for b in bounds])
-    ref = pts if reference is None else np.ascontiguousarray(reference, dtype=np.float64)
-    return (cut, segment, cut_param) + ends_loop(
-        pts, ref, reference is not None, cut, segment, cut_param, area_o, area_i, bounds,
-        eps2, float(2 * tol) ** 2, tol, verts, faces, _hit_blocks())
 
 
 def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param):
@@ -501,19 +475,6 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
     if n > choice.n_fibres or p != choice.n_points:
         raise ValueError(f"the choices are for {choice.n_fibres} fibres x {choice.n_points} "
                          f"points, got {n} x {p}")
-    fused = passes()
-    if fused is not None:  # the steps below in one compiled pass (fibres.filter_passes)
-        u = np.asarray(axis, dtype=np.float64)
-        u = u / np.linalg.norm(u)
-        h_o, h_i, _ = _planes(np.asarray(origin, float).reshape(-1, 3),
-                              np.asarray(insertion, float).reshape(-1, 3), u,
-                              choice.landmarks)
-        pts = np.ascontiguousarray(pts)
-        out, sel = fused[2](pts, pts @ u, h_o, h_i, choice.cut, choice.segment,
-                            choice.cut_param, choice.target_vertices, choice.target_bary,
-                            choice.piece, choice.param,
-                            np.ascontiguousarray(vertices, dtype=np.float64), CUT_SLACK)
-        return out, sel, sel.copy()
     ch = choice.head(n) if n < choice.n_fibres else choice
     sel = ch.cut.any(axis=1)
     out = np.array(pts, copy=True)

@@ -50,28 +50,3 @@ def test_topology_of_closed_and_open_meshes(case):
     assert all(i in nb[j] for i in range(0, len(faces), 37) for j in nb[i])
 
 
-@pytest.mark.parametrize("m", [4, 6, 8])
-def test_sorting_networks_sort(m):
-    # 0-1 principle (Knuth §5.3.4): a comparator network sorts every input iff it sorts
-    # every 0/1 input; and the compiled networks sort random distinct int64 keys in place
-    pytest.importorskip("numba")
-    import itertools
-
-    import numba
-
-    from fibres.sort_networks import NETWORKS, _sort_small
-
-    for bits in itertools.product((0, 1), repeat=m):
-        a = list(bits)
-        for i, j in NETWORKS[m]:
-            a[i], a[j] = min(a[i], a[j]), max(a[i], a[j])
-        assert a == sorted(bits)
-    run = numba.njit(_sort_small)
-    rng = np.random.default_rng(m)
-    for _ in range(200):
-        key = rng.choice(1 << 40, size=m + 5, replace=False).astype(np.int64)
-        want = key.copy()
-        want[2:2 + m] = np.sort(want[2:2 + m])
-        assert run(key, 2, m)
-        np.testing.assert_array_equal(key, want)
-    assert not run(np.zeros(10, np.int64), 0, m + 1)
