@@ -74,7 +74,7 @@ at the crest's top (landmark gap 108 mm); per-fibre planes through the innermost
 above each fibre kept fibres converging to the top as well (gap 36 mm).
 
 Code. The attachment area and its triangles are `fibres.attachment_area`, the area's
-closest point to a ray `fibres.ray_triangles`, the resampling record `fibres.resample`.
+closest point to a ray `fibres.ray_triangles`.
 `filter_choices` and `apply_filter` are written step by step in numpy (no compiled passes:
 docs/decisions.md, issue 13).
 """
@@ -88,7 +88,6 @@ from .attachment_area import _kernels as _area_kernels
 from .attachment_area import _mean_edge, _region_indices, attachment_region, regions_triangles
 from . import ray_triangles as _rt
 from .ray_triangles import closest_on_triangles
-from .resample import evaluate_kernel, resampling_kernel
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
            "apply_filter", "TIE"]
@@ -404,11 +403,6 @@ def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param
     tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut[sel], segment[sel],
                                                      cut_param[sel],
                                                      (target[0][sel], target[1][sel]))
-    kernel = resampling_kernel()
-    if kernel is not None:  # the same arithmetic, fibre by fibre (`fibres.resample`)
-        piece[sel], param[sel] = kernel(np.ascontiguousarray(fib), tau_o, tau_i, c_o, c_i,
-                                        end_o, end_i, np.linspace(0.0, 1.0, p))
-        return
     body_tau = np.clip(np.arange(p, dtype=float)[None, :], tau_o[:, None], tau_i[:, None])
     body = np.where((body_tau == np.arange(p))[..., None], fib, _at_index(fib, body_tau))
     poly = np.concatenate([end_o[:, None], c_o[:, None], body, c_i[:, None], end_i[:, None]], 1)
@@ -500,10 +494,6 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
 def _evaluate(fib, verts, cut, segment, s, target, piece, param):
     """Output points from the recorded pieces and parameters."""
     tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut, segment, s, target)
-    kernel = evaluate_kernel()
-    if kernel is not None:  # the same arithmetic, point by point (`fibres.resample`)
-        return kernel(np.ascontiguousarray(fib), tau_o, tau_i, c_o, c_i, end_o, end_i,
-                      np.ascontiguousarray(piece), np.ascontiguousarray(param))
     lam = param[..., None]
     on_o = end_o[:, None] + lam * (c_o - end_o)[:, None]
     on_i = c_i[:, None] + lam * (end_i - c_i)[:, None]

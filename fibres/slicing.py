@@ -116,35 +116,7 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
                         oriented)
 
 
-def _closed_topology(f, n_vertices, vertices=None, tol2=0.0):
-    """`mesh_topology` of (T, 3) int64 faces with its indices in range, with the number of
-    edge-connected pieces and whether every vertex is used -- in one compiled pass (for
-    `fibres.clean_check.clean_mesh_geometry`), or None without numba or when some edge is not
-    shared by exactly two faces. With ``vertices`` (V, 3) float64 C-contiguous, the same
-    pass measures the faces as `fibres.clean_check._geometry_loop` (threshold ``tol2``).
-
-    Returns
-    -------
-    (MeshTopology, n_pieces, all_used, geometry) or None
-        ``geometry``: (every edge and height above tol2, 6 x signed volume, sum of the edge
-        lengths, vertex minimum (3,), maximum (3,)) -- `fibres.clean_check._geometry_loop`'s
-        results -- or None without ``vertices``.
-    """
-    kernel = _topology_kernel()
-    if kernel is None or not f.size:
-        return None
-    measure = vertices is not None
-    out = kernel(f, np.int64(n_vertices), True, vertices if measure else _NO_VERTICES,
-                 float(tol2))
-    if not out[0]:
-        return None
-    return (MeshTopology(out[7], out[1], out[2], out[3], int(n_vertices), bool(out[4])),
-            int(out[5]), bool(out[6]),
-            (bool(out[8]), out[9], out[10], out[11], out[12]) if measure else None)
-
-
 #: no vertices: the topology pass measures no geometry
-_NO_VERTICES = np.zeros((0, 3))
 
 
 def _paired_topology(f, a, b, lo, hi, order, n_vertices):
@@ -161,21 +133,6 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
     oriented = bool(np.array_equal(a[even], b[odd]))
     return MeshTopology(f, np.stack([lo[even], hi[even]], axis=1), face_edges.reshape(-1, 3),
                         (twin // 3).reshape(-1, 3), n_vertices, oriented)
-
-
-
-
-
-
-
-
-
-
-def _topology_kernel():
-    """`_topology_loop` compiled with numba, or None (then the array version)."""
-    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
-
-
 
 
 @dataclass(frozen=True)
@@ -311,8 +268,7 @@ def _crossings(d, faces, neighbours, h):
     """Every (plane, face) crossing as a node of the chaining: its face, plane, "down"
     half-edge (above -> below) and the node its "up" half-edge leads to.
 
-    Compiled when numba is installed (one pass over the faces, binary searches on the
-    heights: the same integers as the array version), else arrays.
+    On arrays (`_crossings_numpy`).
 
     Returns
     -------
@@ -323,7 +279,7 @@ def _crossings(d, faces, neighbours, h):
 
 
 def _crossings_numpy(d, faces, neighbours, h):
-    """`_crossings` with arrays (no numba)."""
+    """`_crossings` with arrays."""
     df = d[faces]                                              # (T, 3)
     f_lo = np.minimum(np.minimum(df[:, 0], df[:, 1]), df[:, 2])
     f_hi = np.maximum(np.maximum(df[:, 0], df[:, 1]), df[:, 2])
@@ -412,9 +368,7 @@ def _cycles_doubling(nxt):
 def _cycles(nxt):
     """Cycle label (smallest member) and position after it, for a permutation.
 
-    A compiled walk over the cycles when numba is installed (scanning nodes in increasing
-    order, the first unvisited node of a cycle is its smallest member, so the result is
-    the same as `_cycles_doubling`), else pointer doubling.
+    By pointer doubling (`_cycles_doubling`).
 
     Parameters
     ----------
@@ -424,31 +378,4 @@ def _cycles(nxt):
     -------
     label, rank : (n,) int64
     """
-    walk = _walk_kernel()
-    if walk is None:                                        # pragma: no cover - optional
-        return _cycles_doubling(nxt)
-    label = np.empty(nxt.size, dtype=np.int64)
-    rank = np.empty(nxt.size, dtype=np.int64)
-    walk(np.ascontiguousarray(nxt, dtype=np.int64), label, rank)
-    return label, rank
-
-
-_WALK = []
-
-
-def _walk_kernel():
-    return None  # numpy (no compiled kernels: docs/decisions.md, issue 13)
-
-
-def _walk_loop(nxt, label, rank):  # pragma: no cover - compiled by numba
-    label[:] = -1
-    for start in range(nxt.size):
-        if label[start] >= 0:
-            continue
-        node = start
-        k = 0
-        while label[node] < 0:
-            label[node] = start
-            rank[node] = k
-            k += 1
-            node = nxt[node]
+    return _cycles_doubling(nxt)

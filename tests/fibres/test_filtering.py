@@ -461,30 +461,6 @@ def test_plan_reuse_keeps_the_end_on_its_material_point():
     assert np.linalg.norm(out[:, 0] - rest[:, 0], axis=1).min() > 1e-3
 
 
-def test_compiled_resampling_record_equals_the_array_version(monkeypatch):
-    # fibres.resample does the array version's arithmetic point by point: pieces,
-    # parameters and the placed points bit for bit (tube case: both ends cut; wobbly fibres
-    # so that the kept points are not evenly spaced and pieces 0, 1 and 2 all occur)
-    import fibres.resample as rs
-    from fibres.filtering import apply_filter, filter_choices
-
-    if rs.resampling_kernel() is None:
-        pytest.skip("numba not installed")
-    v, f, fib, origin, insertion, _, _ = _tube_case()
-    rng = np.random.default_rng(5)
-    fib = fib + rng.normal(0.0, 0.05, fib.shape) * [1, 1, 0.3]
-    compiled = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
-    moved = fib + 0.01 * np.sin(fib[..., [2, 0, 1]])             # another frame
-    out = apply_filter(moved, v, origin, insertion, [0, 0, 1], compiled)[0]
-    monkeypatch.setattr(rs, "_KERNEL", [None])
-    plain = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
-    np.testing.assert_array_equal(out, apply_filter(moved, v, origin, insertion, [0, 0, 1],
-                                                    plain)[0])
-    assert compiled.cut.all()
-    np.testing.assert_array_equal(compiled.piece, plain.piece)
-    np.testing.assert_array_equal(compiled.param, plain.param)
-    assert set(np.unique(plain.piece)) == {0, 1, 2}
-
 
 def test_compiled_nearest_vertex_is_the_first_nearest():
     # the block-pruned nearest-vertex search returns np.argmin's answer (first index among

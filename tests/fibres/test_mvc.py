@@ -131,18 +131,6 @@ def test_mvc_map_equals_coordinates_times_targets():
     assert np.array_equal(got[:7], weights[:7, None] * targets[1])
 
 
-def test_mvc_map_without_numba_gives_the_same(monkeypatch):
-    from fibres.mvc import mvc_map
-
-    rng = np.random.default_rng(8)
-    pts = rng.uniform(0.05, 0.95, (100, 2)) * [4, 3]
-    groups = rng.integers(0, 2, 100)
-    polys, targets = [ARROW, SQUARE * 3], [ARROW * 2 + 1, SQUARE[::-1] * 3]
-    compiled = mvc_map(pts, groups, polys, targets)
-    monkeypatch.setattr(mvc, "_KERNEL", [None])          # the numpy fallback
-    assert np.abs(mvc_map(pts, groups, polys, targets) - compiled).max() <= 1e-12
-
-
 
 def test_packed_planes_map_like_separate_polygons():
     # `planes` views of one array skip mvc_map's concatenation: the same result bit for bit

@@ -231,55 +231,6 @@ def test_fast_path_equals_the_repair(case):
     np.testing.assert_array_equal(s.faces, ref_f)
 
 
-@pytest.mark.parametrize("case", list(_imperfect_variants()))
-def test_compiled_geometry_check_equals_numpy(case, monkeypatch):
-    # the one-pass compiled face check and the component-wise numpy check make the same
-    # decision; the mean edge is the plain mean of the 3 T directed face edges (rounding:
-    # 1e-12 relative covers any summation order over ~4K terms)
-    import fibres.clean_check as fs
-
-    v, f = _imperfect_variants()[case]
-    f = np.asarray(f, np.int64)
-    top_c, edge_c = fs.clean_mesh_geometry(v, f)
-    monkeypatch.setattr(fs, "_GEOMETRY", [None])
-    top_n, edge_n = fs.clean_mesh_geometry(v, f)
-    assert (top_c is None) == (top_n is None) == (case != "clean")
-    if case == "clean":
-        ref = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean()
-        assert edge_c == pytest.approx(ref, rel=1e-12)
-        assert edge_n == pytest.approx(ref, rel=1e-12)
-        np.testing.assert_array_equal(top_c.neighbours, top_n.neighbours)
-
-
-@pytest.mark.parametrize("case", list(_imperfect_variants()) + ["collapsed edge"])
-def test_topology_pass_measures_the_faces_as_the_geometry_loop(case):
-    # the clean check measures the faces (edge/height test, volume, edge-length sum, vertex
-    # bounds) inside the compiled topology pass: exactly _geometry_loop's numbers, bit for
-    # bit, wherever the topology pass gets through (the topology equal to the plain pass's)
-    pytest.importorskip("numba")
-    import fibres.clean_check as fs
-    from fibres.slicing import _closed_topology
-
-    if case == "collapsed edge":  # a clean topology with two zero-length edges: check fails
-        v, f = _imperfect_variants()["clean"]
-        v = v.copy()
-        v[f[0, 1]] = v[f[0, 0]]
-    else:
-        v, f = _imperfect_variants()[case]
-    v = np.ascontiguousarray(v, dtype=np.float64)
-    f = np.ascontiguousarray(f, dtype=np.int64)
-    with_geometry = _closed_topology(f, len(v), v, 2e-8)
-    plain = _closed_topology(f, len(v))
-    assert (with_geometry is None) == (plain is None)
-    if plain is None:
-        return
-    assert plain[3] is None and plain[1:3] == with_geometry[1:3]
-    np.testing.assert_array_equal(plain[0].neighbours, with_geometry[0].neighbours)
-    ref = fs._geometry_kernel()(v, f, 2e-8)
-    assert ref[0] == (case != "collapsed edge")
-    for got, want in zip(with_geometry[3], ref):
-        np.testing.assert_array_equal(got, want)
-
 
 def test_pieces_touching_at_one_vertex_are_not_clean():
     # two tetrahedra sharing one vertex: every edge is used twice and the winding is
