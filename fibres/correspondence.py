@@ -454,7 +454,7 @@ def soft_start(pts, m, offs, q0, *, fractions=(), compiled=True):
         Also return the points at these fractions of the length after the start, as
         `ratio_points` does (e.g. `split_fractions`), in the same pass.
     compiled : bool
-        Use the numba kernel (default) or the same loop in Python (tests).
+        Kept for callers; the loop always runs in Python (no compiled kernels).
 
     Returns
     -------

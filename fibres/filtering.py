@@ -84,9 +84,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .attachment_area import _kernels as _area_kernels
 from .attachment_area import _mean_edge, _region_indices, attachment_region, regions_triangles
-from . import ray_triangles as _rt
 from .ray_triangles import closest_on_triangles
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
@@ -330,11 +328,9 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     ref = None if reference is None else np.asarray(reference, dtype=np.float64)
     ends = [end for end in range(2) if cut[:, end].any()]
     # the areas' triangles of both ends with one pass over the faces
-    kernels = _area_kernels()
-    blocks = None if kernels is None else kernels[3](vt)    # the vertex blocks, once
     areas = dict(zip(ends, regions_triangles(
-        faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge,
-                                blocks) for end in ends], len(verts))))
+        faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge)
+                for end in ends], len(verts))))
     for end, (landmarks, c, a, b) in enumerate((
             (origin, c_o, segment[:, 0] + 1, segment[:, 0]),     # ray towards the origin
             (insertion, c_i, segment[:, 1], segment[:, 1] + 1))):  # ray towards the insertion
@@ -374,11 +370,6 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     return done()
 
 
-def _hit_blocks():
-    """`fibres.ray_triangles._HIT_BLOCKS` as the compiled loop takes them ((0, 1): off)."""
-    return _rt._HIT_BLOCKS if _rt._HIT_BLOCKS[0] > 0 else (0, 1)
-
-
 def _untouched(n, p):
     """The choices' arrays of N fibres of P points that no plane cuts (cut, segment,
     cut_param, target_face, target_vertices, target_bary, piece, param)."""
@@ -390,8 +381,6 @@ def _untouched(n, p):
     return (np.zeros((n, 2), bool), np.zeros((n, 2), np.int64), np.zeros((n, 2)),
             np.full((n, 2), -1, np.int64), np.zeros((n, 2, 3), np.int64), np.zeros((n, 2, 3)),
             piece, param)
-
-
 
 
 def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param):

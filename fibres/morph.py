@@ -160,7 +160,7 @@ def _degenerate(P_all, Q_all, ok, pts, offs, extents):
 
 
 def _slice_maps_steps(sections: Sections, chosen, extents, *, topology: MeshTopology):
-    """`slice_maps` step by step on arrays (without numba, or with split smoothing)."""
+    """`slice_maps` step by step on arrays."""
     rect = rectangle(float(extents[0]), float(extents[1]))
     pts, edge, _, _, m, offs, idx = _clockwise_all(sections, chosen, topology, anchors=False)
     # start (soft closest point to Q0) and the split points at the perimeter ratios (S, 4)
@@ -241,8 +241,7 @@ def _roll_and_subdivide(pts, m, offs, start, split, rect):
 
 
 def _roll_and_subdivide_numpy(pts, m, offs, start, split, rect):
-    """`_roll_and_subdivide` with arrays (no numba); the compiled loops do the same
-    operations in the same order."""
+    """`_roll_and_subdivide` with arrays."""
     n_s = m.size
     sl = np.repeat(np.arange(n_s), m)
     j = np.arange(offs[-1]) - offs[sl]

@@ -402,7 +402,7 @@ ARC_GAP = 1e-3
 ARC_WINDOW = 0.25
 
 
-def _order_arcs(a, lo, hi):  # pragma: no cover - compiled by numba (and called by it)
+def _order_arcs(a, lo, hi):
     """Euclidean projection of ``a`` (3,) onto ``lo <= a0 <= a1 <= a2 <= hi``: pool adjacent
     violators (isotonic regression), then clip -- a continuous (1-Lipschitz) map that is
     the identity on ordered input (Barlow et al. 1972, "Statistical inference under order
@@ -439,7 +439,7 @@ SOFT_FLOOR = 1e-7
 SOFT_CUTOFF = 40.0
 
 
-def _erfcx(x):  # pragma: no cover - compiled by numba (and called by it)
+def _erfcx(x):
     """exp(x^2) erfc(x), x >= 0 (asymptotic series beyond 20, relative error < 1e-11)."""
     if x < 20.0:
         return exp(x * x) * erfc(x)
@@ -447,7 +447,7 @@ def _erfcx(x):  # pragma: no cover - compiled by numba (and called by it)
     return (1.0 - 0.5 * y * (1.0 - 1.5 * y * (1.0 - 2.5 * y * (1.0 - 3.5 * y)))) / (x * sqrt(pi))
 
 
-def _gauss_segment(ax, px, dx, dim, sigma2):  # pragma: no cover - numba
+def _gauss_segment(ax, px, dx, dim, sigma2):
     """Integral over t in [0, 1] of exp(-(|A - P - t D|^2 - d_c^2) / sigma^2) (d_c the
     distance to the segment's closest point, so the result is <= 1) and the mean t
     under that weight; exact (error functions), so splitting a segment in two changes
@@ -486,7 +486,7 @@ def _gauss_segment(ax, px, dx, dim, sigma2):  # pragma: no cover - numba
 
 
 def _soft_anchor_loop(pts, X, NX, m, offs, AX, NAX, nominal, gap, window,
-                      spread, floor):  # pragma: no cover - compiled by numba
+                      spread, floor):
     """The four correspondence points of every plane from a plan's anchors, as smooth
     functions of the contour (a soft closest point instead of an argmin).
 
@@ -663,5 +663,5 @@ _ANCHOR_KERNEL = []
 
 
 def anchor_kernel():
-    """`_soft_anchor_loop` compiled with numba (with its helpers), or the Python version."""
+    """`_soft_anchor_loop` (Python; no compiled kernels: docs/decisions.md, issue 13)."""
     return _soft_anchor_loop  # numpy (no compiled kernels: docs/decisions.md, issue 13)

@@ -249,47 +249,12 @@ def test_pieces_touching_at_one_vertex_are_not_clean():
 
 
 
-def test_attachment_area_closest_points_compiled_equal_numpy(monkeypatch):
-    # fibres.ray_triangles (the attachment filter's new fibre ends on the area's surface):
-    # the compiled loop prunes pairs with exact lower bounds (bounding sphere, box and
-    # 2D distance across the ray) and evaluates the rest by increasing bound; rays grazing
-    # a curved patch (many nearly equidistant triangles, closest points on shared edges
-    # and vertices) and rays hitting it must give the unpruned numpy answer (the same
-    # point: 1e-12 of the unit-size coordinates covers rounding of the pair formulas)
-    pytest.importorskip("numba")
-    import fibres.ray_triangles as rt
 
-    m = trimesh.creation.icosphere(subdivisions=4)
-    v, f = np.asarray(m.vertices), np.asarray(m.faces)
-    cap = f[(v[f][:, :, 2] > 0.6).all(axis=1)]               # a spherical cap patch
-    tv = v[cap]
-    rng = np.random.default_rng(11)
-    n = 300
-    start = np.c_[rng.uniform(-1.2, 1.2, (n, 2)), rng.uniform(0.5, 1.5, n)]
-    direction = np.c_[rng.standard_normal((n, 2)), 0.3 * rng.standard_normal(n)]
-    direction[: n // 3, 2] = -1.0                            # some rays hit the cap
-    got_k, got_b = rt.closest_on_triangles(tv, start, direction)
-    monkeypatch.setattr(rt, "_KERNELS", [None])
-    ref_k, ref_b = rt.closest_on_triangles(tv, start, direction)
-    got = np.einsum("nk,nkc->nc", got_b, tv[got_k])
-    ref = np.einsum("nk,nkc->nc", ref_b, tv[ref_k])
-    np.testing.assert_allclose(got, ref, atol=1e-12)
-    # a point inside a triangle has one owner; on shared edges and vertices the owners may
-    # differ (the compiled loop ranks the most promising triangle first, numpy by index)
-    inside = (got_b > 1e-9).all(axis=1)
-    assert 20 < inside.sum() < n and (got_b.max(axis=1) > 1 - 1e-12).sum() > 20
-    np.testing.assert_array_equal(got_k[inside], ref_k[inside])
-
-
-@pytest.mark.parametrize("kernels", ["compiled", "numpy"])
-def test_closest_points_within_a_distance(kernels, monkeypatch):
+def test_closest_points_within_a_distance():
     # closest_on_triangles(..., within=w): rays that come within w of the cap (or touch it)
     # get exactly the unrestricted answer, the others index -1 -- checked against the
     # unrestricted distances (1e-9 relative: far above the rounding of the check itself)
     import fibres.ray_triangles as rt
-
-    if kernels == "numpy":
-        monkeypatch.setattr(rt, "_KERNELS", [None])
     m = trimesh.creation.icosphere(subdivisions=3)
     v, f = np.asarray(m.vertices), np.asarray(m.faces)
     tv = v[f[(v[f][:, :, 2] > 0.5).all(axis=1)]]
