@@ -41,7 +41,7 @@ from math import sqrt
 import numpy as np
 
 # the plan's soft anchor points (re-exported here, where the correspondence is)
-from .plan import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR, SOFT_SPREAD,  # noqa: F401
+from .soft_anchor import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR, SOFT_SPREAD,  # noqa: F401
                    _gauss_segment, _order_arcs, _soft_anchor_loop, anchor_kernel)
 from .correspondence_kernels import _soft_start_loop, _start_kernel
 

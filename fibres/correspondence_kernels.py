@@ -9,8 +9,7 @@ from math import exp, pi
 
 import numpy as np
 
-from . import plan as _plan
-from .plan import SOFT_CUTOFF, _gauss_segment
+from .soft_anchor import SOFT_CUTOFF, _gauss_segment
 
 __all__ = []
 
