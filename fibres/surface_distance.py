@@ -22,8 +22,8 @@ Search (numpy and scipy, no compiled code). The triangles' centroids go into a k
 For each point: the exact distance d0 to the triangle of its nearest centroid bounds the
 nearest distance from above, so the centroids within ``min(d0, reach) + R`` hold every nearest
 triangle; their exact distances give d_min and the tie set. A point deeper than ``watch``
-(d_min > watch) and inside by ray parity (`SurfaceGrid.inside`; the unit-weight vote of the
-nearest triangles can be wrong at a vertex) gets ``s = -inf`` (it is not measured further); every other point within `reach` gathers the centroids within
+(d_min > watch) and inside by ray parity (`SurfaceGrid.inside`, a uniform 2-d grid of the triangles
+seen along the ray; the unit-weight vote of the nearest triangles can be wrong at a vertex) gets ``s = -inf`` (it is not measured further); every other point within `reach` gathers the centroids within
 ``min(d_min + KAPPA tau, reach) + R`` and is blended over them. The candidate pairs are
 flattened (point, triangle) and measured at once by
 `fibres.closest_point.closest_points_on_triangles`; the per-point sums of the blend are
@@ -31,6 +31,8 @@ flattened (point, triangle) and measured at once by
 ``reach + R`` has no triangle within `reach`: ``s = -inf`` at the cost of one tree query.
 """
 from __future__ import annotations
+
+from itertools import chain
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -65,6 +67,35 @@ def _ray_basis():
     return np.stack([u, v, np.cross(u, v)])
 
 
+def _ray_grid(a, b, c):
+    """The triangles (a, b, c) in the ray frame (`_ray_basis`) and binned by their (y, z)
+    bounding boxes: (basis, corners (T, 3, 3), grid origin (2,), cell, dims (2,), CSR start
+    (cells + 1,), triangle items). Cells about twice the median (y, z) extent of a triangle,
+    at most ~4 cells per triangle in all."""
+    basis = _ray_basis()
+    corners = np.stack([a, b, c], 1) @ basis.T                         # (T, 3, 3)
+    yz = corners[..., 1:]
+    tlo, thi = yz.min(axis=1), yz.max(axis=1)                            # (T, 2)
+    lo, hi = tlo.min(axis=0), thi.max(axis=0)
+    span = np.maximum(hi - lo, 1e-300)
+    cell = max(2.0 * float(np.median((thi - tlo).max(axis=1))) if len(yz) else 1.0,
+               float(np.sqrt(span[0] * span[1] / (4.0 * len(yz) + 1.0))), 1e-300)
+    dims = (np.floor(span / cell).astype(np.int64) + 1)
+    i0 = np.clip(((tlo - lo) / cell).astype(np.int64), 0, dims - 1)
+    i1 = np.clip(((thi - lo) / cell).astype(np.int64), 0, dims - 1)
+    ni, nj = i1[:, 0] - i0[:, 0] + 1, i1[:, 1] - i0[:, 1] + 1
+    n = ni * nj
+    tri = np.repeat(np.arange(len(yz)), n)
+    k = np.arange(len(tri)) - np.repeat(np.cumsum(n) - n, n)
+    ci = i0[tri, 0] + k // nj[tri]
+    cj = i0[tri, 1] + k % nj[tri]
+    key = ci * dims[1] + cj
+    order = np.argsort(key, kind="stable")
+    start = np.zeros(int(dims[0] * dims[1]) + 1, np.int64)
+    np.cumsum(np.bincount(key, minlength=int(dims[0] * dims[1])), out=start[1:])
+    return basis, corners, lo, cell, dims, start, tri[order]
+
+
 def _pairs(tree, x, radius):
     """(point index, triangle index) of every centroid within radius[i] of x[i], grouped by
     point in increasing order."""
@@ -72,7 +103,7 @@ def _pairs(tree, x, radius):
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     lists = tree.query_ball_point(x, radius, return_sorted=False)
     counts = np.fromiter(map(len, lists), np.int64, len(lists))
-    tri = np.fromiter((t for row in lists for t in row), np.int64, int(counts.sum()))
+    tri = np.fromiter(chain.from_iterable(lists), np.int64, int(counts.sum()))
     return np.repeat(np.arange(len(x)), counts), tri
 
 
@@ -111,20 +142,22 @@ class SurfaceGrid:
         """Whether each point (n, 3) is inside the closed surface, by ray parity: the ray from
         the point along a fixed generic direction (`RAY`; ties on edges have measure zero)
         crosses the surface an odd number of times. In the frame whose x axis is the ray, the
-        triangles whose (y, z) centroid lies within their largest (y, z) radius of the point's
-        come from a 2-d k-d tree; each is crossed when the point's (y, z) lies in its
-        projection (three edge functions of one sign) beyond the point along x."""
+        triangles are binned by their (y, z) bounding boxes in a uniform 2-d grid (CSR arrays);
+        a point meets the triangles of its own cell, and each is crossed when the point's
+        (y, z) lies in its projection (three edge functions of one sign) beyond the point
+        along x."""
         x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         if self._ray is None:
-            basis = _ray_basis()
-            corners = np.stack([self.a, self.b, self.c], 1) @ basis.T       # (T, 3, 3)
-            yz = corners[..., 1:]
-            mid = yz.mean(axis=1)
-            rad = float(np.sqrt(((yz - mid[:, None]) ** 2).sum(-1)).max()) if len(yz) else 0.0
-            self._ray = (basis, corners, cKDTree(mid), rad)
-        basis, corners, tree, rad = self._ray
+            self._ray = _ray_grid(self.a, self.b, self.c)
+        basis, corners, lo, cell, dims, start, items = self._ray
         p = x @ basis.T
-        pi, ti = _pairs(tree, p[:, 1:], np.full(len(p), rad))
+        cy = np.clip(((p[:, 1] - lo[0]) / cell).astype(np.int64), 0, dims[0] - 1)
+        cz = np.clip(((p[:, 2] - lo[1]) / cell).astype(np.int64), 0, dims[1] - 1)
+        key = cy * dims[1] + cz
+        first, counts = start[key], start[key + 1] - start[key]
+        pi = np.repeat(np.arange(len(p)), counts)
+        local = np.arange(len(pi)) - np.repeat(np.cumsum(counts) - counts, counts)
+        ti = items[first[pi] + local]
         c = corners[ti]
         py, pz = p[pi, 1], p[pi, 2]
         y, z = c[..., 1], c[..., 2]
@@ -173,16 +206,24 @@ class SurfaceGrid:
         near = np.flatnonzero(dc - big_r <= self.reach)      # others: no triangle in reach
         if len(near) == 0:
             return s, g
-        xn = x[near]
-        t0 = t0[near]
-        q0 = closest_points_on_triangles(xn, self.a[t0], self.b[t0], self.c[t0])
-        d0 = np.sqrt(((xn - q0) ** 2).sum(1))
-        # pass 1: the nearest triangles (every triangle within d0 <= the nearest distance)
-        pi, ti, d, diff = self._measure(xn, np.minimum(d0, self.reach) + big_r)
-        dmin = np.full(len(xn), np.inf)
-        np.minimum.at(dmin, pi, d)
+        xn, dcn = x[near], dc[near]
         enclosed = self.inside(xn)
-        deep = (dmin > watch) & enclosed
+        # the nearest centroid bounds the nearest distance from below (d >= dc - R): a point
+        # with dc - R > watch is deeper than watch if inside (-inf, no search) and measured
+        # in full if outside
+        deep = enclosed & (dcn - big_r > watch)
+        look = np.flatnonzero(~deep)
+        dmin = np.full(len(xn), np.inf)
+        if len(look):
+            xl, tl = xn[look], t0[near[look]]
+            q0 = closest_points_on_triangles(xl, self.a[tl], self.b[tl], self.c[tl])
+            d0 = np.sqrt(((xl - q0) ** 2).sum(1))
+            # pass 1: the nearest triangles (every triangle within d0 >= the nearest distance)
+            pi, ti, d, diff = self._measure(xl, np.minimum(d0, self.reach) + big_r)
+            dl = np.full(len(xl), np.inf)
+            np.minimum.at(dl, pi, d)
+            dmin[look] = dl
+        deep |= (dmin > watch) & enclosed
         go = np.flatnonzero((dmin <= self.reach) & ~deep)
         if len(go) == 0:
             return s, g
