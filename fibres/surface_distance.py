@@ -21,9 +21,12 @@ Search (numpy and scipy, no compiled code). The triangles' centroids go into a k
 (R = max r_t): a triangle within distance d of a point has its centroid within d + R of it.
 For each point: the exact distance d0 to the triangle of its nearest centroid bounds the
 nearest distance from above, so the centroids within ``min(d0, reach) + R`` hold every nearest
-triangle; their exact distances give d_min and the tie set. A point deeper than ``watch``
-(d_min > watch) and inside by ray parity (`SurfaceGrid.inside`, a uniform 2-d grid of the triangles
-seen along the ray; the unit-weight vote of the nearest triangles can be wrong at a vertex) gets ``s = -inf`` (it is not measured further); every other point within `reach` gathers the centroids within
+triangle; their exact distances give d_min and the tie set. Every point is first classified
+by ray parity (`SurfaceGrid.inside`: a uniform 2-d grid of the triangles seen along the ray;
+the unit-weight vote of the nearest triangles can be wrong at a mesh vertex). An inside point
+deeper than ``watch`` gets ``s = -inf`` and is not measured further (deeper by the centroid
+bound ``dc - R > watch`` before any search, else by d_min); every other point within `reach`
+gathers the centroids within
 ``min(d_min + KAPPA tau, reach) + R`` and is blended over them. The candidate pairs are
 flattened (point, triangle) and measured at once by
 `fibres.closest_point.closest_points_on_triangles`; the per-point sums of the blend are
