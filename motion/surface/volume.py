@@ -88,15 +88,28 @@ def volume_cubic(p, q, faces) -> np.ndarray:
     f = _check_faces(faces, p.shape[1])
     out = np.empty((p.shape[0], 4))
     for s in range(0, p.shape[0], _CHUNK):
-        p0, p1, p2 = (p[s:s + _CHUNK, f[:, i]] for i in range(3))
-        q0, q1, q2 = (q[s:s + _CHUNK, f[:, i]] for i in range(3))
-        a = np.cross(p1, p2)
-        b = np.cross(p1, q2) + np.cross(q1, p2)
-        c = np.cross(q1, q2)
-        dot = lambda x, y: np.einsum("ftk,ftk->f", x, y)  # noqa: E731
+        # component-major (3, C, T) corner arrays: the products run on long contiguous rows
+        pt, qt = p[s:s + _CHUNK].transpose(2, 0, 1), q[s:s + _CHUNK].transpose(2, 0, 1)
+        p0, p1, p2 = (pt[:, :, f[:, i]] for i in range(3))
+        q0, q1, q2 = (qt[:, :, f[:, i]] for i in range(3))
+        a = _cross(p1, p2)
+        b = _cross(p1, q2) + _cross(q1, p2)
+        c = _cross(q1, q2)
         out[s:s + _CHUNK] = np.stack(
-            [dot(p0, a), dot(q0, a) + dot(p0, b), dot(q0, b) + dot(p0, c), dot(q0, c)], axis=-1) / 6.0
+            [_dot(p0, a), _dot(q0, a) + _dot(p0, b), _dot(q0, b) + _dot(p0, c), _dot(q0, c)],
+            axis=-1) / 6.0
     return out
+
+
+def _cross(u, v):
+    """Cross products of component-major (3, ...) arrays."""
+    return np.stack([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                     u[0] * v[1] - u[1] * v[0]])
+
+
+def _dot(u, v):
+    """Dot products of component-major (3, C, T) arrays, summed over the last axis (C,)."""
+    return (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]).sum(axis=-1)
 
 
 def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
