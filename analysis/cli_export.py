@@ -93,9 +93,9 @@ def execute(args) -> int:
         raise InputError("the folder of the exported model does not exist", file=out.parent, where="--out",
                          fix="Create it first or choose another --out.")
     say = announcer(args.quiet)
-    from .progress import first_run_notice
+    from .progress import start_notice
 
-    first_run_notice(args.quiet)
+    start_notice("exporting the fibres as an OpenSim model", args.quiet)
     if say:
         say("computing the fibres over the motion")
     result = run(spec, args.motion, muscles=args.muscle, fibres=args.fibres, resolution=args.resolution,

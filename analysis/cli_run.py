@@ -162,9 +162,9 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
         if lock.fd is None:
             lock.acquire()
         clean_stale(out)
-        from .progress import first_run_notice
+        from .progress import start_notice
 
-        first_run_notice(args.quiet)
+        start_notice(f"{len(chosen)} muscle(s): moving, wrapping and decomposing the surfaces", args.quiet)
         staging = open_staging(out)
         on_muscle = muscle_files_writer(staging, [m.name for m in chosen], scene_step=args.scene_step,
                                         scene=not args.no_scene)

@@ -5,24 +5,18 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["progress", "first_run_notice"]
+__all__ = ["progress", "start_notice"]
 
 
-def first_run_notice(quiet=False) -> bool:
-    """Say so (one line on stderr) before the one-time preparation of a fresh installation: numba
-    compiles the fibre kernels on their first call and caches them beside the sources
-    (``fibres/__pycache__/*.nbi``); with no cached kernel yet, the first muscle takes about two
-    minutes longer (measured: 136 s on a 2-core machine for the bundled example). Returns whether
-    the notice was printed."""
-    from pathlib import Path
-
-    import fibres
-
-    cache = Path(fibres.__file__).resolve().parent / "__pycache__"
-    if quiet or any(cache.glob("*.nbi")):
+def start_notice(what: str, quiet=False) -> bool:
+    """Print ``fibres: <what>`` on stderr at once (unless quiet), so that a run is never silent
+    before its first muscle is done (issue 13: progress within 5 s of starting). There is no
+    compile step to announce: the fibre decomposition has no compiled kernels, and the one
+    compiled kernel of the action lines (`motion.wrapping.path_points`) compiles in about a
+    second on first use and is cached. Returns whether the line was printed."""
+    if quiet:
         return False
-    print("fibres: first run after installation: compiling the numerical kernels once "
-          "(about 2 minutes; later runs start at once)", file=sys.stderr, flush=True)
+    print(f"fibres: {what}", file=sys.stderr, flush=True)
     return True
 
 

@@ -18,13 +18,13 @@ release the GIL in the heavy parts).
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
 import dataclasses
 import time as _time
-import warnings
 from pathlib import Path
 
 import numpy as np
+
+from fibres.threads import blas_single
 
 from . import budget, interrupts
 from .errors import InputError
@@ -67,6 +67,7 @@ def select_frames(frames, n_rows: int, *, file=None) -> np.ndarray:
 
 
 
+@blas_single
 def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, template=None,
         frames=None, quiet=True, jobs=1, step=None, keep_points=True, keep_surfaces=False,
         transport="bind", slicing=None, max_memory=None, out_dir=None, on_muscle=None) -> RunResult:
@@ -155,7 +156,6 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     bar = progress(total=len(mspecs), desc="wrap + fibres", quiet=quiet, unit="muscle")
     try:
         if jobs > 1 and len(mspecs) > 1:
-            _warm_kernels(mspecs)
             interrupts.check()
             pool = concurrent.futures.ThreadPoolExecutor(max_workers=jobs)
             futures = [pool.submit(run_muscle, ctx, m) for m in mspecs]
@@ -241,32 +241,6 @@ def _select_muscles(spec, muscles, *, fibres, resolution, template, slicing=None
                              fix=f"Use one of: {', '.join(SLICINGS)}.")
         over["slicing"] = slicing
     return [dataclasses.replace(m, **over) for m in chosen]
-
-
-def _warm_kernels(mspecs) -> None:
-    """Decompose a small generated surface with each template of the run, in this thread,
-    before muscles run in threads (``--jobs``).
-
-    Why: `fibres` compiles its numba kernels lazily, on first use, into module-level caches
-    that are not guarded by a lock; two threads reaching a kernel first at the same time made
-    numba raise "A jit decorator was called on an already jitted function" (exit 1, about one
-    fresh ``--jobs 2`` process in ten on the example). Here they are compiled (or loaded from
-    numba's cache) once, in one thread; it costs one small decomposition per template.
-    """
-    from fibres import as_surface
-    from motion import fusiform_surface
-
-    from fibres import decompose
-    axis = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.05], [0.0, 0.0, 0.1]])
-    v, f = fusiform_surface(axis, max_radius=0.01, n_rings=12, n_around=10)
-    surface = as_surface((v, f))
-    for template, slicing in dict.fromkeys((m.template, getattr(m, "slicing", None)) for m in mspecs):
-        opts = {} if slicing is None else {"slicing": slicing}
-        # only the compilation matters: a warning or failure on this small surface is not the run's
-        with warnings.catch_warnings(), contextlib.suppress(Exception):
-            warnings.simplefilter("ignore")
-            decompose(surface, v[:1] + [0.0, 0.0, 0.002], v[-1:] - [0.0, 0.0, 0.002], template=template,
-                      n_fibres=4, resolution=4, **opts)
 
 
 def check_mesh_files(mspecs) -> None:

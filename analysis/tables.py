@@ -60,7 +60,7 @@ def _long(result, values_of, item, labels_of, value, extra=None):
     ``extra`` (name -> function of the muscle giving an (F, I) array)."""
     import pandas as pd
 
-    out, cols = [], None
+    out = []
     for m in result.muscles:
         values = np.asarray(values_of(m))
         n_f, n_i = values.shape[:2]

@@ -1,8 +1,8 @@
 """Vectorised (rational) Bézier curves: Bernstein basis on arrays.
 
 A family of N curves of degree D shares one parameter vector t (P,): the basis is computed once,
-(P, D+1), and every curve is evaluated in one pass (compiled with numba when installed; the
-same sums without it). Rational curves (positive weights) stay inside the convex hull of their
+(P, D+1), and every curve is evaluated as a sum over the control points in order (numpy).
+Rational curves (positive weights) stay inside the convex hull of their
 control points, which is what keeps template fibres inside the unit cube (Farin, "Curves and
 Surfaces for CAGD", 5th ed., ch. 13; Piegl & Tiller, "The NURBS Book", §1.4).
 """
@@ -54,11 +54,6 @@ def evaluate(control, t, weights=None) -> np.ndarray:
     control = np.asarray(control, dtype=np.float64)
     basis = bernstein(control.shape[1] - 1, t)  # (P, D+1)
     if weights is None:  # sum over d in order (einsum's order; ~5x faster for small D)
-        kernel = _sum_kernel()
-        if kernel is not None and control.ndim == 3 and control.shape[1] > 0:
-            out = np.empty((control.shape[0], basis.shape[0], control.shape[2]))
-            kernel(basis, np.ascontiguousarray(control), out)
-            return out
         out = basis[None, :, 0, None] * control[:, None, 0, :]
         for d in range(1, control.shape[1]):  # the D + 1 control points
             out = out + basis[None, :, d, None] * control[:, None, d, :]
@@ -67,33 +62,6 @@ def evaluate(control, t, weights=None) -> np.ndarray:
     num = np.einsum("pd,nd,ndk->npk", basis, w, control)
     den = np.einsum("pd,nd->np", basis, w)
     return num / den[..., None]
-
-
-def _sum_loop(basis, control, out):  # pragma: no cover - compiled by numba
-    """``out[n, p, k] = sum_d basis[p, d] control[n, d, k]``, d in order (`evaluate`'s array
-    version, the same operations), without its broadcast temporaries."""
-    for n in range(control.shape[0]):
-        for p in range(basis.shape[0]):
-            for k in range(control.shape[2]):
-                acc = basis[p, 0] * control[n, 0, k]
-                for d in range(1, control.shape[1]):
-                    acc = acc + basis[p, d] * control[n, d, k]
-                out[n, p, k] = acc
-
-
-_KERNEL = []
-
-
-def _sum_kernel():
-    """`_sum_loop` compiled with numba, or None (then numpy)."""
-    if not _KERNEL:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNEL.append(None)
-        else:
-            _KERNEL.append(numba.njit(cache=True, nogil=True)(_sum_loop))
-    return _KERNEL[0]
 
 
 def arc_weight(p0, p1, p2) -> np.ndarray:

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-# called by the compiled _geometry_loop (numba resolves its globals when compiling it)
-from .slicing import _face_measure, _vertex_bounds  # noqa: F401
 
 __all__ = ["clean_topology", "clean_mesh_geometry"]
 
@@ -60,30 +58,14 @@ def clean_mesh_geometry(v, f):
     """
     from trimesh import tol, util
 
-    from .slicing import _closed_topology
-
     n_v = len(v)
     if len(f) < 4:
         return None, None
-    kernel = _geometry_kernel()
-    # topology, pieces, all vertices used; and the faces measured in the same pass
-    closed = _closed_topology(f, n_v, np.ascontiguousarray(v) if kernel is not None else None,
-                              2 * tol.merge)
-    if closed is None and (f.min() < 0 or f.max() >= n_v
-                           or np.bincount(f.ravel(), minlength=n_v).min() == 0):
+    closed = None
+    if f.min() < 0 or f.max() >= n_v or np.bincount(f.ravel(), minlength=n_v).min() == 0:
         return None, None
-    if closed is not None and not closed[2]:
-        return None, None
-    f = closed[0].faces if closed is not None else f   # the kernel's C-contiguous copy
     if _has_merged_vertices(v, 10 ** util.decimal_to_digits(tol.merge)):
         return None, None
-    if kernel is not None:
-        ok, volume, edge_sum, lo, hi = closed[3] if closed is not None else kernel(
-            np.ascontiguousarray(v), np.ascontiguousarray(f), 2 * tol.merge)
-        if not ok:
-            return None, None
-        return _clean_topology_rest(v, f, volume, edge_sum / (3 * len(f)), closed,
-                                    extent=hi - lo)
     vt = np.ascontiguousarray(v.T)                                 # (3, V)
     a, b, c = np.take(vt, np.ascontiguousarray(f.T), axis=1).transpose(1, 0, 2)  # (3, T) each
     ab, ac, bc = b - a, c - a, c - b
@@ -124,40 +106,10 @@ def _clean_topology_rest(v, f, volume, mean_edge, closed=None, extent=None):
     return topology, float(mean_edge)
 
 
-_GEOMETRY = []
 
 
-def _geometry_kernel():
-    """`_geometry_loop` compiled with numba, or None (then numpy, component-wise)."""
-    if not _GEOMETRY:
-        try:
-            import numba  # noqa: F401
-        except ImportError:                                     # pragma: no cover - optional
-            _GEOMETRY.append(None)
-        else:
-            from .slicing import compile_with_measures
-
-            _GEOMETRY.append(compile_with_measures(_geometry_loop))
-    return _GEOMETRY[0]
 
 
-def _geometry_loop(v, f, tol2):  # pragma: no cover - compiled by numba
-    """One pass over the faces: (every edge and the height over the first corner's edges
-    above ``tol2``, signed volume x 6, sum of the edge lengths, min and max (3,) of the
-    vertices' coordinates)."""
-    volume = 0.0
-    edge_sum = 0.0
-    ok = True
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    _vertex_bounds(v, lo, hi)
-    for t in range(f.shape[0]):
-        face_ok, vol, edges_t = _face_measure(v, f[t, 0], f[t, 1], f[t, 2], tol2)
-        if not face_ok:
-            ok = False
-        volume += vol
-        edge_sum += edges_t
-    return ok, volume, edge_sum, lo, hi
 
 
 def _dot3(p, q):
@@ -174,65 +126,14 @@ def _cross3(p, q):
 def _has_merged_vertices(v, scale):
     """Whether trimesh's merge would merge two vertices: two rows of
     ``(v * scale).round().astype(np.int64)`` equal (``scale = 10**digits``, an int).
-    Compiled, one pass that rounds the rows itself (`_duplicates_loop`, no (V, 3)
-    temporaries); in numpy (`_has_duplicate_rows`) without numba or when a coordinate rounds
-    beyond the int64 range (numpy's cast decides those)."""
-    kernel = _duplicates_kernel()
-    if kernel is not None:
-        out = kernel(np.ascontiguousarray(v, dtype=np.float64), float(scale))
-        if out >= 0:
-            return bool(out)
+    (`_has_duplicate_rows`)."""
     return _has_duplicate_rows((v * scale).round().astype(np.int64))
 
 
-_DUPLICATES = []
 
 
-def _duplicates_kernel():
-    """`_duplicates_loop` compiled with numba, or None (then the sort of the row hashes)."""
-    if not _DUPLICATES:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _DUPLICATES.append(None)
-        else:
-            _DUPLICATES.append(numba.njit(cache=True, nogil=True)(_duplicates_loop))
-    return _DUPLICATES[0]
 
 
-def _duplicates_loop(v, scale):  # pragma: no cover - compiled by numba
-    """1 if two rows of ``q = rint(v * scale)`` (v (V, 3) float64; rint rounds half to even
-    as numpy's round) are equal, else 0, in O(V); -1 (undecided) when some ``|q|`` is not
-    below 2**63 (or NaN), where numpy's int64 cast is not exact. A row hash of the int64
-    rows picks a slot of a table of >= 4 V slots (linear probing; Knuth, TAOCP vol. 3, §6.4,
-    algorithm L; at most a quarter full, so few rows probe twice: on the 15K bench mesh
-    0.126 -> 0.074 ms against 2 V slots, 8 V no faster); rows meeting in a probe sequence
-    are compared exactly (equal int64 rows are equal rounded rows, -0.0 == 0.0 included;
-    the answer does not depend on the hash)."""
-    n = v.shape[0]
-    size = 1
-    while size < 4 * n:
-        size *= 2
-    mask = size - 1
-    slot = np.full(size, -1, np.int32)  # (V < 2**31 rows: a vertex index)
-    big = 9.223372036854775808e18  # 2**63
-    for i in range(n):
-        x = np.rint(v[i, 0] * scale)
-        y = np.rint(v[i, 1] * scale)
-        z = np.rint(v[i, 2] * scale)
-        if not (abs(x) < big and abs(y) < big and abs(z) < big):
-            return -1
-        h = (np.int64(x) * np.int64(-7046029254386353131) + np.int64(y)) \
-            * np.int64(0x5851F42D4C957F2D) + np.int64(z)
-        k = (h ^ (h >> 29)) & mask
-        while slot[k] >= 0:
-            r = slot[k]
-            if (np.rint(v[r, 0] * scale) == x and np.rint(v[r, 1] * scale) == y
-                    and np.rint(v[r, 2] * scale) == z):
-                return 1
-            k = (k + 1) & mask
-        slot[k] = i
-    return 0
 
 
 def _has_duplicate_rows(q):

@@ -41,7 +41,7 @@ from math import sqrt
 import numpy as np
 
 # the plan's soft anchor points (re-exported here, where the correspondence is)
-from .plan import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR, SOFT_SPREAD,  # noqa: F401
+from .soft_anchor import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR, SOFT_SPREAD,  # noqa: F401
                    _gauss_segment, _order_arcs, _soft_anchor_loop, anchor_kernel)
 from .correspondence_kernels import _soft_start_loop, _start_kernel
 
@@ -454,7 +454,7 @@ def soft_start(pts, m, offs, q0, *, fractions=(), compiled=True):
         Also return the points at these fractions of the length after the start, as
         `ratio_points` does (e.g. `split_fractions`), in the same pass.
     compiled : bool
-        Use the numba kernel (default) or the same loop in Python (tests).
+        Kept for callers; the loop always runs in Python (no compiled kernels).
 
     Returns
     -------

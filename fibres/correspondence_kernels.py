@@ -1,8 +1,7 @@
-"""Compiled loop of `fibres.correspondence.soft_start` (the start point of Kohout et al.,
-GRAPP 2012, §3.3, made soft; see there).
-
-`_soft_start_loop` runs compiled by numba or, without it (and in the tests), by Python:
-the same operations in the same order either way.
+"""The loop of `fibres.correspondence.soft_start` (the start point of Kohout et al., GRAPP
+2012, §3.3, made soft; see there), in Python: 0.17 s of a planar rest decomposition of a
+15K-triangle muscle, not called per frame with a plan (no compiled kernels: docs/decisions.md,
+issue 13).
 """
 from __future__ import annotations
 
@@ -10,13 +9,12 @@ from math import exp, pi
 
 import numpy as np
 
-from . import plan as _plan
-from .plan import SOFT_CUTOFF, _gauss_segment
+from .soft_anchor import SOFT_CUTOFF, _gauss_segment
 
 __all__ = []
 
 
-def _mod(x, length):  # pragma: no cover - compiled by numba (and called by it)
+def _mod(x, length):
     """``x % length`` for ``length > 0`` (Python's float modulo: ``fmod``, then ``+ length``
     for a negative remainder, ``+0.0`` for a zero one) without the ``fmod`` call where
     ``|x| < length``: there ``fmod(x, length)`` is ``x`` itself, so the result is ``x``
@@ -29,10 +27,9 @@ def _mod(x, length):  # pragma: no cover - compiled by numba (and called by it)
 
 
 def _soft_start_loop(pts, m, offs, q0, fractions, spread, floor,
-                     seg_len):  # pragma: no cover - compiled by numba, or run by Python
+                     seg_len):
     """`fibres.correspondence.soft_start` as one loop over the planes (see there), followed
-    by the points at the arc ``fractions`` after the start (`ratio_points`); compiled by
-    numba, or run by Python without it. Returns seg (S, 1 + F), tau (S, 1 + F), point
+    by the points at the arc ``fractions`` after the start (`ratio_points`). Returns seg (S, 1 + F), tau (S, 1 + F), point
     (S, 1 + F, 2), and fills ``seg_len`` (K,) with the segment lengths ``|P_{j+1} - P_j|``
     (``hypot``, as `fibres.correspondence._contour_segments`)."""
     n_s = m.size
@@ -125,7 +122,7 @@ def _soft_start_loop(pts, m, offs, q0, fractions, spread, floor,
     return seg, tk, point
 
 
-def _arc_segment(cum, ms, pos):  # pragma: no cover - compiled by numba (and called by it)
+def _arc_segment(cum, ms, pos):
     """(segment, tau) of arc position ``pos`` on a contour with cumulated lengths ``cum``:
     a zero-length segment is avoided by stepping back."""
     j = 0
@@ -141,17 +138,5 @@ _START_KERNEL = []
 
 
 def _start_kernel():
-    """`_soft_start_loop` compiled with numba (with `_gauss_segment`), or the Python one."""
-    if not _START_KERNEL:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _START_KERNEL.append(_soft_start_loop)
-        else:
-            global _arc_segment, _gauss_segment, _mod
-            _plan.anchor_kernel()                 # compiles the plan's `_gauss_segment`
-            _gauss_segment = _plan._gauss_segment
-            jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-            _arc_segment, _mod = jit(_arc_segment), jit(_mod)
-            _START_KERNEL.append(jit(_soft_start_loop))
-    return _START_KERNEL[0]
+    """`_soft_start_loop` (Python; no compiled kernels: docs/decisions.md, issue 13)."""
+    return _soft_start_loop  # numpy (no compiled kernels: docs/decisions.md, issue 13)

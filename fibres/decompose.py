@@ -31,16 +31,16 @@ from .containment import contain as contain_points
 from .contours import choose_loops
 from .errors import InputError
 from .filtering import apply_filter, filter_choices
-from . import fitting as _fitting
 from .fitting import fit_box, prepare, principal_frame, reference_frame
 from .harmonic_slicing import HarmonicPlan, harmonic_points, make_harmonic_plan
 from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .sampling import sobol_rs
-from .slicing import _topology_kernel, mesh_topology, slice_mesh
+from .slicing import mesh_topology, slice_mesh
 from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth, smooth_taubin
 from .surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .templates import Template, get_template
+from .threads import blas_single
 
 __all__ = ["decompose", "make_plan", "SLICINGS", "DEFAULT_SLICING"]
 
@@ -102,7 +102,7 @@ def _clean_tuple(mesh, units):
         return None
     # int64 faces go in as given when compiled (the check range-checks them and keeps a
     # contiguous copy, the topology's faces, so the caller's array is never kept)
-    f = f.astype(np.int64, copy=_topology_kernel() is None)
+    f = f.astype(np.int64, copy=True)
     v = v * 1e-3 if units == "mm" else v
     topology, mean_edge = clean_mesh_geometry(v, f)
     return None if topology is None else (v, topology.faces, topology, mean_edge)
@@ -128,24 +128,15 @@ def _cross_section_ref(vertices, frame, vt=None):
     direction is defined by the shape and a world axis keeps axis-aligned shapes exact.
 
     Component-wise over the (3, V) coordinates: (3, 3) @ (3, V) products would start BLAS
-    threads for a few microseconds of work; compiled, the element-wise steps are one pass
-    each (`fibres.fit_kernels._section_loop`, `_combine_loop`: the same operations), and
-    the sign moment is first added in order with the sum of its terms' magnitudes A
-    (`_moment_loop`): any order of adding the V terms (numpy's dot) is within
-    ``gamma_V A`` (``gamma_n = n u / (1 - n u)``, u the unit roundoff) of the exact sum,
-    so where the ordered sum exceeds ``3 gamma_V A`` its sign is numpy's; else numpy's dot
-    decides. ``vt``: the (3, V) transposed vertices when at hand."""
+    threads for a few microseconds of work. The sign of the reference is that of the moment
+    ``sum_i i (ref . d_i)`` (numpy's dot). ``vt``: the (3, V) transposed vertices when at
+    hand."""
     u = frame.axis
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
-    kernels = _fitting._fit_kernels()
-    if kernels is not None and vt.flags.c_contiguous:
-        dt = kernels.section(vt, np.ascontiguousarray(frame.centroid, dtype=np.float64),
-                             np.ascontiguousarray(u, dtype=np.float64))
-    else:
-        dt = vt - frame.centroid[:, None]                               # (3, V)
-        along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
-        for c in range(3):  # coordinates
-            dt[c] -= u[c] * along
+    dt = vt - frame.centroid[:, None]                                   # (3, V)
+    along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
+    for c in range(3):  # coordinates
+        dt[c] -= u[c] * along
     gram = np.empty((3, 3))
     for r in range(3):  # coordinates
         for c in range(r, 3):
@@ -155,19 +146,12 @@ def _cross_section_ref(vertices, frame, vt=None):
         return None
     ref = vecs[:, -1]
     n = dt.shape[1]
-    if kernels is not None:
-        s, a = kernels.moment(dt, np.ascontiguousarray(ref))
-        gamma = n * _UNIT_ROUNDOFF / (1.0 - n * _UNIT_ROUNDOFF)
-        if abs(s) > 3.0 * gamma * a:
-            return -ref if s < 0 else ref
-    along = (ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2] if kernels is None
-             else kernels.combine(dt, np.ascontiguousarray(ref)))
+    along = ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]
     if np.dot(np.arange(1.0, n + 1.0), along) < 0:
         ref = -ref
     return ref
 
 
-_UNIT_ROUNDOFF = 2.0 ** -53
 
 
 #: Relative eigenvalue gap below which a cross-section's spread counts as isotropic.
@@ -237,6 +221,7 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool,
     return box, heights, P, Q, None, notes + map_notes
 
 
+@blas_single
 def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int = 19,
               units: str = "m", template_params=None, axis: str = "auto",
               angle_step_deg: float = 5.0, slicing: str = DEFAULT_SLICING):
@@ -330,6 +315,7 @@ def _plan_filter_choice(plan, tmpl, n_fibres, resolution, seed, notes):
     return fc
 
 
+@blas_single
 def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 100,
               resolution: int = 19, seed: int = 0, units: str = "m", template_params=None,
               smoothing_iterations: int = DEFAULT_ITERATIONS, filter_attachments: bool = True,

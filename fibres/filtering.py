@@ -74,10 +74,9 @@ at the crest's top (landmark gap 108 mm); per-fibre planes through the innermost
 above each fibre kept fibres converging to the top as well (gap 36 mm).
 
 Code. The attachment area and its triangles are `fibres.attachment_area`, the area's
-closest point to a ray `fibres.ray_triangles`, the resampling record `fibres.resample`.
-Below, `filter_choices` and `apply_filter` are written step by step in numpy; with numba
-they run as the compiled passes of `fibres.filter_passes` (the same arithmetic in the same
-order: the same arrays bit for bit).
+closest point to a ray `fibres.ray_triangles`.
+`filter_choices` and `apply_filter` are written step by step in numpy (no compiled passes:
+docs/decisions.md, issue 13).
 """
 from __future__ import annotations
 
@@ -85,12 +84,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .attachment_area import _kernels as _area_kernels
 from .attachment_area import _mean_edge, _region_indices, attachment_region, regions_triangles
-from .filter_passes import passes
-from . import ray_triangles as _rt
 from .ray_triangles import closest_on_triangles
-from .resample import evaluate_kernel, resampling_kernel
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
            "apply_filter", "TIE"]
@@ -305,11 +300,6 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
         tol = TIE * float(np.linalg.norm(prepared.hi - prepared.lo))
     pts = np.ascontiguousarray(pts)
     h = pts @ u                                                       # (N, P)
-    fused = passes()
-    if fused is not None:  # the steps below in three compiled passes (fibres.filter_passes)
-        return FilterChoice._owned(lms, *_fused_choices(
-            fused, pts, h, h_o, h_i, tol, vt, verts, faces, origin, insertion, mean_edge,
-            reference), seed, template)
     cut, segment, cut_param, t_face, t_vert, t_bary, piece, param = _untouched(n, p)
 
     def done():
@@ -338,11 +328,9 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     ref = None if reference is None else np.asarray(reference, dtype=np.float64)
     ends = [end for end in range(2) if cut[:, end].any()]
     # the areas' triangles of both ends with one pass over the faces
-    kernels = _area_kernels()
-    blocks = None if kernels is None else kernels[3](vt)    # the vertex blocks, once
     areas = dict(zip(ends, regions_triangles(
-        faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge,
-                                blocks) for end in ends], len(verts))))
+        faces, [_region_indices(verts, faces, (origin, insertion)[end], vt, mean_edge)
+                for end in ends], len(verts))))
     for end, (landmarks, c, a, b) in enumerate((
             (origin, c_o, segment[:, 0] + 1, segment[:, 0]),     # ray towards the origin
             (insertion, c_i, segment[:, 1], segment[:, 1] + 1))):  # ray towards the insertion
@@ -382,11 +370,6 @@ def filter_choices(points, surface, origin, insertion, axis, *, seed: int = 0,
     return done()
 
 
-def _hit_blocks():
-    """`fibres.ray_triangles._HIT_BLOCKS` as the compiled loop takes them ((0, 1): off)."""
-    return _rt._HIT_BLOCKS if _rt._HIT_BLOCKS[0] > 0 else (0, 1)
-
-
 def _untouched(n, p):
     """The choices' arrays of N fibres of P points that no plane cuts (cut, segment,
     cut_param, target_face, target_vertices, target_bary, piece, param)."""
@@ -400,27 +383,6 @@ def _untouched(n, p):
             piece, param)
 
 
-def _fused_choices(fused, pts, h, h_o, h_i, tol, vt, verts, faces, origin, insertion,
-                   mean_edge, reference):
-    """`filter_choices`' steps in the compiled passes of `fibres.filter_passes` (the same
-    arithmetic: bit for bit the same arrays); the choices' arrays as `_untouched`."""
-    areas_loop, ends_loop, _ = fused
-    verts = np.ascontiguousarray(verts)
-    faces = np.ascontiguousarray(faces, dtype=np.int64)
-    cut, segment, cut_param, area_o, area_i, bounds = areas_loop(
-        pts, h, h_o, h_i, tol, np.ascontiguousarray(vt), verts, faces,
-        np.ascontiguousarray(origin), np.ascontiguousarray(insertion),
-        -1.0 if mean_edge is None else float(mean_edge))
-    if len(area_o[0]) == 0 and len(area_i[0]) == 0:  # no fibre is cut
-        return (cut, segment, cut_param) + _untouched(len(pts), pts.shape[1])[3:]
-    # the searches' touching tolerance (closest_on_triangles: 1e-12 of the area's extent)
-    eps2 = np.array([(1e-12 * float(np.linalg.norm(b[1] - b[0]))) ** 2 for b in bounds])
-    ref = pts if reference is None else np.ascontiguousarray(reference, dtype=np.float64)
-    return (cut, segment, cut_param) + ends_loop(
-        pts, ref, reference is not None, cut, segment, cut_param, area_o, area_i, bounds,
-        eps2, float(2 * tol) ** 2, tol, verts, faces, _hit_blocks())
-
-
 def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param):
     """Piece and parameter of every point of the uniform arc-length resampling of
     [end_o, c_o, kept points..., c_i, end_i] (dropped points collapse onto the cuts), in place."""
@@ -430,11 +392,6 @@ def _record_resampling(pts, verts, cut, segment, cut_param, target, piece, param
     tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut[sel], segment[sel],
                                                      cut_param[sel],
                                                      (target[0][sel], target[1][sel]))
-    kernel = resampling_kernel()
-    if kernel is not None:  # the same arithmetic, fibre by fibre (`fibres.resample`)
-        piece[sel], param[sel] = kernel(np.ascontiguousarray(fib), tau_o, tau_i, c_o, c_i,
-                                        end_o, end_i, np.linspace(0.0, 1.0, p))
-        return
     body_tau = np.clip(np.arange(p, dtype=float)[None, :], tau_o[:, None], tau_i[:, None])
     body = np.where((body_tau == np.arange(p))[..., None], fib, _at_index(fib, body_tau))
     poly = np.concatenate([end_o[:, None], c_o[:, None], body, c_i[:, None], end_i[:, None]], 1)
@@ -501,19 +458,6 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
     if n > choice.n_fibres or p != choice.n_points:
         raise ValueError(f"the choices are for {choice.n_fibres} fibres x {choice.n_points} "
                          f"points, got {n} x {p}")
-    fused = passes()
-    if fused is not None:  # the steps below in one compiled pass (fibres.filter_passes)
-        u = np.asarray(axis, dtype=np.float64)
-        u = u / np.linalg.norm(u)
-        h_o, h_i, _ = _planes(np.asarray(origin, float).reshape(-1, 3),
-                              np.asarray(insertion, float).reshape(-1, 3), u,
-                              choice.landmarks)
-        pts = np.ascontiguousarray(pts)
-        out, sel = fused[2](pts, pts @ u, h_o, h_i, choice.cut, choice.segment,
-                            choice.cut_param, choice.target_vertices, choice.target_bary,
-                            choice.piece, choice.param,
-                            np.ascontiguousarray(vertices, dtype=np.float64), CUT_SLACK)
-        return out, sel, sel.copy()
     ch = choice.head(n) if n < choice.n_fibres else choice
     sel = ch.cut.any(axis=1)
     out = np.array(pts, copy=True)
@@ -539,10 +483,6 @@ def apply_filter(points, vertices, origin, insertion, axis, choice: FilterChoice
 def _evaluate(fib, verts, cut, segment, s, target, piece, param):
     """Output points from the recorded pieces and parameters."""
     tau_o, tau_i, c_o, c_i, end_o, end_i = _geometry(fib, verts, cut, segment, s, target)
-    kernel = evaluate_kernel()
-    if kernel is not None:  # the same arithmetic, point by point (`fibres.resample`)
-        return kernel(np.ascontiguousarray(fib), tau_o, tau_i, c_o, c_i, end_o, end_i,
-                      np.ascontiguousarray(piece), np.ascontiguousarray(param))
     lam = param[..., None]
     on_o = end_o[:, None] + lam * (c_o - end_o)[:, None]
     on_i = c_i[:, None] + lam * (end_i - c_i)[:, None]

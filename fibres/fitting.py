@@ -42,12 +42,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError
-from .fit_kernels import (_Kernels, _blas_boxes_loop, _boxes_loop, _centred_loop, _combine_loop,
-                          _extents_loop, _mapped_nearest_loop, _moment_loop, _nearest_loop,
-                          _projected_boxes_loop, _row_sum_loop, _section_loop,
-                          _transposed_mean_loop)
-from .support_screen import (_FIRST_SCREEN, _HULL_BINS, _SCREEN, _SCREEN_STRIDE,
-                             compile_screens, polygon_screen_numpy)
+from .support_screen import polygon_screen_numpy
 from .templates import Template, get_template
 
 __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
@@ -146,7 +141,7 @@ def _boxes(vertices, c, u, v0, w0, theta, *, blas=False):
     the cross-section enter the (J, V') projections (`_support_candidates`); the others
     cannot change a minimum or maximum, so the boxes are exactly those of all vertices.
     Compiled: everything after the BLAS projections, or everything, in one pass
-    (`fibres.fit_kernels._boxes_loop`, the same operations and order).
+    (numpy).
 
     Parameters
     ----------
@@ -162,16 +157,6 @@ def _boxes(vertices, c, u, v0, w0, theta, *, blas=False):
     if blas:
         d = _centred(vertices, c)
         a, b, z = d @ v0, d @ w0, d @ u                               # (V,)
-    kernels = _fit_kernels()
-    if kernels is not None:
-        axes, corner, ext = np.empty((n_rot, 3, 3)), np.empty((n_rot, 3)), np.empty((n_rot, 3))
-        tail = (np.cos(theta), np.sin(theta), *_FIRST_SCREEN, _SCREEN_STRIDE, _HULL_BINS,
-                axes, corner, ext)
-        if blas:
-            kernels.projected_boxes(a, b, z, c, u, v0, w0, *tail)
-        else:
-            kernels.boxes(np.ascontiguousarray(vertices), c, u, v0, w0, *tail)
-        return axes, corner, ext
     if not blas:
         d = vertices - c                                              # (V, 3)
         a, b, z = ((d[:, 0] * e[0] + d[:, 1] * e[1]) + d[:, 2] * e[2] for e in (v0, w0, u))
@@ -192,75 +177,23 @@ def _boxes(vertices, c, u, v0, w0, theta, *, blas=False):
 def _support_candidates(a, b):
     """Indices (V',) int64, increasing, of the 2D points a, b (V,) that can attain a minimum
     or maximum of a projection ``cos(t) a + sin(t) b`` for some angle t (a superset of the
-    convex hull's vertices; `fibres.support_screen`: numpy's three polygons, or compiled the
-    first polygon and the sector hull -- different candidates, every extreme point kept)."""
-    kernels = _fit_kernels()
-    if kernels is None or a.size == 0:
-        return _polygon_screen(a, b)
-    return kernels.candidates(np.ascontiguousarray(a, dtype=np.float64),
-                              np.ascontiguousarray(b, dtype=np.float64), *_FIRST_SCREEN,
-                              _SCREEN_STRIDE, _HULL_BINS)
+    convex hull's vertices; `fibres.support_screen`: numpy's three polygons)."""
+    return _polygon_screen(a, b)
 
 
 def _polygon_screen(a, b):
-    """`_support_candidates` by the polygons of `fibres.support_screen` (numpy, or compiled
-    with the same candidates)."""
+    """`_support_candidates` by the polygons of `fibres.support_screen`."""
     spread = max(float(np.ptp(a)), float(np.ptp(b))) if a.size else 0.0
-    kernels = _fit_kernels()
-    if kernels is None:
-        return polygon_screen_numpy(a, b, spread)
-    return kernels.screen(np.ascontiguousarray(a, dtype=np.float64),
-                          np.ascontiguousarray(b, dtype=np.float64), *_SCREEN, 1e-9 * spread,
-                          _SCREEN_STRIDE)
-
-
-_FIT = []
-
-
-def _fit_kernels():
-    """`_Kernels` compiled with numba, or None (then numpy)."""
-    if not _FIT:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _FIT.append(None)
-        else:
-            import types
-
-            jit = numba.njit(cache=True, nogil=True)
-
-            def calling(fn, **called):  # numba resolves a compiled function's globals
-                glb = dict(fn.__globals__, **called)  # when it compiles it
-                return jit(types.FunctionType(fn.__code__, glb, fn.__name__))
-
-            screen, candidates = compile_screens(jit)
-            extents, row_sum = jit(_extents_loop), jit(_row_sum_loop)
-            projected = calling(_projected_boxes_loop, _candidates_loop=candidates,
-                                _extents_loop=extents)
-            _FIT.append(_Kernels(
-                screen, extents, jit(_nearest_loop), jit(_centred_loop), row_sum,
-                jit(_mapped_nearest_loop),
-                calling(_boxes_loop, _projected_boxes_loop=projected),
-                calling(_blas_boxes_loop, _projected_boxes_loop=projected),
-                candidates, jit(_section_loop), jit(_combine_loop),
-                jit(_transposed_mean_loop), jit(_moment_loop)))
-    return _FIT[0]
+    return polygon_screen_numpy(a, b, spread)
 
 
 def _centred(vertices, c):
     """(V, 3) ``vertices - c``, bit for bit."""
-    kernels = _fit_kernels()
-    return (vertices - c if kernels is None or not vertices.flags.c_contiguous
-            else kernels.centred(vertices, np.ascontiguousarray(c, dtype=np.float64)))
+    return vertices - c
 
 
 def _closest_sum(area, landmarks):
     """Sum over area points of the distance to the closest landmark: area (J, Ka, 3)."""
-    kernels = _fit_kernels()
-    if kernels is not None:
-        near = np.empty(area.shape[:2])
-        kernels.nearest(np.ascontiguousarray(area), np.ascontiguousarray(landmarks), near)
-        return near.sum(axis=1)
     d2 = 0.0
     for c in range(3):      # component-wise: a reduction over the size-3 axis is slow
         dc = area[:, :, c, None] - landmarks[:, c]                      # (J, Ka, K)
@@ -273,17 +206,6 @@ def _scores(template, axes, corner, ext, origin, insertion):
 
     Compiled: mapping and closest-landmark distances in one pass per area
     (`_mapped_nearest_loop`, same operations and order, no (J, Ka, 3) temporaries)."""
-    kernels = _fit_kernels()
-    if kernels is not None:
-        total = None
-        for area, lms in ((template.origin_area, origin), (template.insertion_area, insertion)):
-            near = np.empty((len(axes), len(area)))
-            kernels.mapped_nearest(np.ascontiguousarray(area, dtype=np.float64),
-                                   np.ascontiguousarray(axes), np.ascontiguousarray(ext),
-                                   np.ascontiguousarray(corner),
-                                   np.ascontiguousarray(lms, dtype=np.float64), near)
-            total = near.sum(axis=1) if total is None else total + near.sum(axis=1)
-        return total
     scale = axes * ext[:, None, :]                                    # (J, 3, 3)
 
     def mapped(area):  # corner + sum_l area[k, l] scale[j, :, l], in the order of numpy's
@@ -393,10 +315,7 @@ def _mean_rows(vertices):
     array numpy adds the rows one after the other (a 3-element inner loop per row, ~10x
     slower than this compiled loop); other layouts go to numpy (whose summation order
     then differs)."""
-    kernels = _fit_kernels()
-    if kernels is None or vertices.shape[0] == 0 or not vertices.flags.c_contiguous:
-        return vertices.mean(axis=0)        # (other layouts: numpy's own summation order)
-    return kernels.row_sum(vertices) / vertices.shape[0]
+    return vertices.mean(axis=0)
 
 
 class Prepared(NamedTuple):
@@ -413,12 +332,6 @@ def prepare(vertices) -> Prepared:
     decomposition that would each make them (`principal_frame`, `fit_box`, the attachment
     filter, the containment grid): the same arrays, bit for bit."""
     vertices = np.asarray(vertices, dtype=np.float64)
-    kernels = _fit_kernels()
-    if kernels is not None and vertices.shape[0] and vertices.flags.c_contiguous:
-        vt, centroid, lo, hi = kernels.transposed_mean(vertices)    # the same, one pass
-        if not (lo * hi).all() or np.isnan(centroid).any():
-            lo, hi = vt.min(axis=1), vt.max(axis=1)  # numpy's sign of a zero bound, NaN
-        return Prepared(vt, lo, hi, centroid)
     vt, centroid = _transposed(vertices), _mean_rows(vertices)
     return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid)
 

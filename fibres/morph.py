@@ -15,8 +15,8 @@ results are blended linearly in ``w``, and the point keeps its own height ``w``.
 the result continuous in the point's height (a nearest-plane rule would jump between
 planes), exact for points lying on a plane (the parallel template at the default slice
 fractions puts every point on a plane, i.e. exactly the paper's sweep), and it costs one
-MVC evaluation per point and neighbouring plane (`fibres.mvc`'s compiled map, all uses in
-one call: `fibres.morph_kernels._morph_pass`).
+MVC evaluation per point and neighbouring plane (`fibres.mvc.mvc_map`, all uses in one
+call).
 Plans. `slice_maps` makes the paper's choices, made continuous (start at the soft closest
 contour point to ``Q0``, split points at the perimeter-ratio positions,
 `fibres.correspondence`)
@@ -36,12 +36,10 @@ from __future__ import annotations
 import numpy as np
 
 from .contours import anchored_loops, bridge_loops, clockwise_contour
-from . import correspondence as _correspondence
 from .correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD, anchor_kernel,
                              correspond_continuous, insert_points, rectangle, smooth_split_points,
                              soft_start, split_chain, split_fractions)
-from .morph_kernels import kernels as _kernels
-from .mvc import _ON_EDGE, mvc_map, packed, planes
+from .mvc import mvc_map, planes
 from .plan import rest_geometry, rest_loop_counts
 from .slicing import MeshTopology, Sections
 
@@ -82,21 +80,14 @@ def _clockwise_all(sections: Sections, chosen, topology: MeshTopology, *, anchor
     lo = sections.loop_start[chosen]
     m = sections.loop_start[chosen + 1] - lo
     offs = np.concatenate([[0], np.cumsum(m)])
-    kernels = _kernels()
-    if kernels is not None:
-        # the same gathers compiled; the orientation sums stay numpy's (its summation order)
-        cross = kernels[4](sections.points, lo, m, offs)
-        flip = np.add.reduceat(cross, offs[:-1]) > 0
-        idx, pts, edge = kernels[5](sections.points, sections.edge, lo, m, offs, flip)
-    else:
-        sl = np.repeat(np.arange(n_s), m)
-        j = np.arange(offs[-1]) - offs[sl]
-        raw = sections.points[lo[sl] + j]
-        nx = raw[offs[sl] + (j + 1) % m[sl]]
-        flip = np.add.reduceat(raw[:, 0] * nx[:, 1] - nx[:, 0] * raw[:, 1], offs[:-1]) > 0
-        idx = np.where(flip[sl], lo[sl] + m[sl] - 1 - j, lo[sl] + j)
-        pts = sections.points[idx]
-        edge = sections.edge[idx]
+    sl = np.repeat(np.arange(n_s), m)
+    j = np.arange(offs[-1]) - offs[sl]
+    raw = sections.points[lo[sl] + j]
+    nx = raw[offs[sl] + (j + 1) % m[sl]]
+    flip = np.add.reduceat(raw[:, 0] * nx[:, 1] - nx[:, 0] * raw[:, 1], offs[:-1]) > 0
+    idx = np.where(flip[sl], lo[sl] + m[sl] - 1 - j, lo[sl] + j)
+    pts = sections.points[idx]
+    edge = sections.edge[idx]
     if anchors:
         av, aw = _vertex_anchors(sections, topology, idx)
     else:
@@ -127,8 +118,7 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     ``sum_j (side_j - k length_j)^2`` vanishes; the four points are inserted into the
     contour as vertices (`fibres.correspondence.correspond_continuous` per plane; why not
     the paper's vertex snapping: see `fibres.correspondence`). All planes at once on the
-    concatenated contours: one compiled pass (`fibres.morph_kernels._maps_pass`), or step
-    by step on arrays (`_slice_maps_steps`: without numba, or with split smoothing).
+    concatenated contours, step by step on arrays (`_slice_maps_steps`).
 
     Parameters
     ----------
@@ -156,17 +146,7 @@ def slice_maps(sections: Sections, chosen, extents, *, topology: MeshTopology):
     if (chosen < 0).any():
         s = int(np.flatnonzero(chosen < 0)[0])
         raise ValueError(f"slice {s} at height {sections.heights[s]:.6g} cuts no contour")
-    kernels = _kernels()
-    if kernels is None or _correspondence.SPLIT_SMOOTHING["iterations"] > 0:
-        return _slice_maps_steps(sections, chosen, extents, topology=topology)
-    # compiled: the steps below in one pass over all planes (`fibres.morph_kernels`)
-    P, Q, offs2, ok, choice, av, aw, pts, offs = kernels[6](
-        sections.points, sections.edge, sections.t, sections.loop_start, chosen,
-        topology.edges, float(extents[0]), float(extents[1]), SOFT_SPREAD, SOFT_FLOOR)
-    P_all, Q_all = planes(P, offs2), planes(Q, offs2)    # views of P, Q (`fibres.mvc`)
-    if not ok.all():                          # cannot happen: the points are in arc order
-        P_all, Q_all = _degenerate(P_all, Q_all, ok, pts, offs, extents)
-    return P_all, Q_all, choice, (av, aw), ()
+    return _slice_maps_steps(sections, chosen, extents, topology=topology)
 
 
 def _degenerate(P_all, Q_all, ok, pts, offs, extents):
@@ -180,7 +160,7 @@ def _degenerate(P_all, Q_all, ok, pts, offs, extents):
 
 
 def _slice_maps_steps(sections: Sections, chosen, extents, *, topology: MeshTopology):
-    """`slice_maps` step by step on arrays (without numba, or with split smoothing)."""
+    """`slice_maps` step by step on arrays."""
     rect = rectangle(float(extents[0]), float(extents[1]))
     pts, edge, _, _, m, offs, idx = _clockwise_all(sections, chosen, topology, anchors=False)
     # start (soft closest point to Q0) and the split points at the perimeter ratios (S, 4)
@@ -225,9 +205,7 @@ def _insert_and_subdivide(pts, m, offs, seg, tk, point, rect):
         False where the inserted points are not in start, split order (a contour of zero
         length); those planes' P, Q are placeholders.
     """
-    kernels = _kernels()
-    new, index = insert_points(pts, m, offs, seg, tk, point,
-                               shift_kernel=None if kernels is None else kernels[3])
+    new, index = insert_points(pts, m, offs, seg, tk, point)
     m2 = m + 4
     offs2 = np.concatenate([[0], np.cumsum(m2)])
     start = index[:, 0]
@@ -259,25 +237,11 @@ def _roll_and_subdivide(pts, m, offs, start, split, rect):
         ``P = pts[roll]``.
     split : (S, 3) int64
     """
-    kernels = _kernels()
-    if kernels is None:                                     # pragma: no cover - optional
-        return _roll_and_subdivide_numpy(pts, m, offs, start, split, rect)
-    n_s = m.size
-    start = np.ascontiguousarray(start, dtype=np.int64)
-    roll, P, seg, c_incl, c_excl = kernels[0](np.ascontiguousarray(pts, dtype=float),
-                                              m.astype(np.int64), offs.astype(np.int64), start)
-    if split is None:
-        sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
-        split = np.stack([split_chain(seg[offs[s]:offs[s + 1]], sides) for s in range(n_s)])
-    split = np.ascontiguousarray(split, dtype=np.int64)
-    Q = kernels[1](m.astype(np.int64), offs.astype(np.int64), split, c_incl, c_excl,
-                   np.ascontiguousarray(rect, dtype=float))
-    return P, Q, roll, split
+    return _roll_and_subdivide_numpy(pts, m, offs, start, split, rect)
 
 
 def _roll_and_subdivide_numpy(pts, m, offs, start, split, rect):
-    """`_roll_and_subdivide` with arrays (no numba); the compiled loops do the same
-    operations in the same order."""
+    """`_roll_and_subdivide` with arrays."""
     n_s = m.size
     sl = np.repeat(np.arange(n_s), m)
     j = np.arange(offs[-1]) - offs[sl]
@@ -478,13 +442,6 @@ def morph_local(xy, w, heights, P, Q) -> np.ndarray:
     xy = np.asarray(xy, dtype=float)
     w = np.asarray(w, dtype=float)
     h = np.asarray(heights, dtype=float)
-    kernels = _kernels()
-    if kernels is not None and h.size >= 2:
-        # compiled: the steps below in one call (`fibres.morph_kernels._morph_pass`)
-        src, dst, offsets = packed(Q, P)
-        return kernels[7](np.ascontiguousarray(xy), np.ascontiguousarray(w),
-                          np.ascontiguousarray(h), np.ascontiguousarray(src[:, 0]),
-                          np.ascontiguousarray(src[:, 1]), src, dst, offsets, _ON_EDGE)
     n_s = h.size
     s0 = np.clip(np.searchsorted(h, w, side="right") - 1, 0, n_s - 2)
     a = np.clip((w - h[s0]) / (h[s0 + 1] - h[s0]), 0.0, 1.0)

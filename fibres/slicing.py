@@ -84,11 +84,6 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
     f = np.ascontiguousarray(faces, dtype=np.int64)
     if f.ndim != 2 or f.shape[1] != 3:
         raise ValueError(f"faces must have shape (T, 3), got {f.shape}")
-    kernel = _topology_kernel()
-    if kernel is not None and f.size:
-        out = kernel(f, np.int64(n_vertices), False, _NO_VERTICES, 0.0)
-        if out[0]:                                          # every edge exactly twice
-            return MeshTopology(f, out[1], out[2], out[3], int(n_vertices), bool(out[4]))
     a = f.reshape(-1)
     b = np.roll(f, -1, axis=1).reshape(-1)
     lo = np.minimum(a, b)
@@ -121,35 +116,7 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
                         oriented)
 
 
-def _closed_topology(f, n_vertices, vertices=None, tol2=0.0):
-    """`mesh_topology` of (T, 3) int64 faces with its indices in range, with the number of
-    edge-connected pieces and whether every vertex is used -- in one compiled pass (for
-    `fibres.clean_check.clean_mesh_geometry`), or None without numba or when some edge is not
-    shared by exactly two faces. With ``vertices`` (V, 3) float64 C-contiguous, the same
-    pass measures the faces as `fibres.clean_check._geometry_loop` (threshold ``tol2``).
-
-    Returns
-    -------
-    (MeshTopology, n_pieces, all_used, geometry) or None
-        ``geometry``: (every edge and height above tol2, 6 x signed volume, sum of the edge
-        lengths, vertex minimum (3,), maximum (3,)) -- `fibres.clean_check._geometry_loop`'s
-        results -- or None without ``vertices``.
-    """
-    kernel = _topology_kernel()
-    if kernel is None or not f.size:
-        return None
-    measure = vertices is not None
-    out = kernel(f, np.int64(n_vertices), True, vertices if measure else _NO_VERTICES,
-                 float(tol2))
-    if not out[0]:
-        return None
-    return (MeshTopology(out[7], out[1], out[2], out[3], int(n_vertices), bool(out[4])),
-            int(out[5]), bool(out[6]),
-            (bool(out[8]), out[9], out[10], out[11], out[12]) if measure else None)
-
-
 #: no vertices: the topology pass measures no geometry
-_NO_VERTICES = np.zeros((0, 3))
 
 
 def _paired_topology(f, a, b, lo, hi, order, n_vertices):
@@ -166,210 +133,6 @@ def _paired_topology(f, a, b, lo, hi, order, n_vertices):
     oriented = bool(np.array_equal(a[even], b[odd]))
     return MeshTopology(f, np.stack([lo[even], hi[even]], axis=1), face_edges.reshape(-1, 3),
                         (twin // 3).reshape(-1, 3), n_vertices, oriented)
-
-
-def _vertex_bounds(v, lo, hi):  # pragma: no cover - compiled by numba
-    """Coordinate-wise min (max) of the vertices (V, 3) into lo (hi) (3,), in place."""
-    lx, ly, lz = lo[0], lo[1], lo[2]
-    hx, hy, hz = hi[0], hi[1], hi[2]
-    for i in range(v.shape[0]):
-        x, y, z = v[i, 0], v[i, 1], v[i, 2]
-        lx, ly, lz = min(lx, x), min(ly, y), min(lz, z)
-        hx, hy, hz = max(hx, x), max(hy, y), max(hz, z)
-    lo[0], lo[1], lo[2] = lx, ly, lz
-    hi[0], hi[1], hi[2] = hx, hy, hz
-
-
-def _face_measure(v, i, j, k, tol2):  # pragma: no cover - compiled by numba
-    """Face (i, j, k) of vertices v: (every edge and the height over the first corner's
-    edges above ``tol2``, the signed volume term x 6, the sum of its edge lengths)."""
-    ax, ay, az = v[i, 0], v[i, 1], v[i, 2]
-    bx, by, bz = v[j, 0], v[j, 1], v[j, 2]
-    cx, cy, cz = v[k, 0], v[k, 1], v[k, 2]
-    abx, aby, abz = bx - ax, by - ay, bz - az
-    acx, acy, acz = cx - ax, cy - ay, cz - az
-    bcx, bcy, bcz = cx - bx, cy - by, cz - bz
-    lab = np.sqrt(abx * abx + aby * aby + abz * abz)
-    lbc = np.sqrt(bcx * bcx + bcy * bcy + bcz * bcz)
-    lac = np.sqrt(acx * acx + acy * acy + acz * acz)
-    nx = aby * acz - abz * acy
-    ny = abz * acx - abx * acz
-    nz = abx * acy - aby * acx
-    area2 = np.sqrt(nx * nx + ny * ny + nz * nz)
-    ok = min(lab, lbc, lac) > tol2 and area2 > tol2 * max(lab, lbc, lac)
-    return ok, ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx), lab + lbc + lac
-
-
-def compile_with_measures(fn):
-    """``fn`` compiled by numba with `_vertex_bounds`, `_face_measure` and
-    `fibres.sort_networks._sort_small` inlined into it (numba resolves the globals a compiled
-    function calls when it compiles it)."""
-    import types
-
-    import numba
-
-    from .sort_networks import _sort_small
-
-    inline = numba.njit(inline="always", nogil=True)
-    glb = dict(fn.__globals__, _vertex_bounds=inline(_vertex_bounds),
-               _face_measure=inline(_face_measure), _sort_small=inline(_sort_small))
-    return numba.njit(cache=True, nogil=True)(types.FunctionType(fn.__code__, glb, fn.__name__))
-
-
-_TOPOLOGY = []
-
-
-def _topology_kernel():
-    """`_topology_loop` compiled with numba, or None (then the array version)."""
-    if not _TOPOLOGY:
-        try:
-            import numba  # noqa: F401
-        except ImportError:                                 # pragma: no cover - optional
-            _TOPOLOGY.append(None)
-        else:
-            _TOPOLOGY.append(compile_with_measures(_topology_loop))
-    return _TOPOLOGY[0]
-
-
-def _topology_loop(f, n_vertices, pieces, v, tol2):  # pragma: no cover - compiled by numba
-    """`mesh_topology` of a mesh whose edges are each shared by exactly two faces, in
-    O(T + V): the half-edges are bucketed by their smaller vertex (a counting sort in
-    half-edge order; Cormen et al., Introduction to Algorithms, §8.2) and each bucket (a
-    vertex's few edges) is sorted by the larger vertex, stably. So the order is that of a
-    stable argsort of the keys ``min * V + max`` and edge ``e`` is the pair of sorted
-    positions ``2e, 2e+1``, exactly as in the array version. A half-edge is one int64
-    ``max << 32 | (2 h + (runs min -> max))`` (T < 2**29): sorting these distinct keys by
-    value in a bucket is the stable sort by the larger vertex (ties in half-edge order), with
-    one array to move, by a sorting network for 4, 6 or 8 keys (`fibres.sort_networks`:
-    nearly every bucket; no data-dependent branches) or else by insertion; the pairing reads
-    them in order. With ``pieces``, the edge-connected pieces are counted by a flood fill
-    over the face neighbours (depth-first, an explicit stack) and the used vertices marked.
-    With vertices ``v`` (V, 3) (else (0, 3)), the first pass also measures each face as
-    `fibres.clean_check._geometry_loop` (the same operations in the same order).
-
-    Returns (ok, edges, face_edges, neighbours, oriented, n_pieces, all_used, faces,
-    geometry_ok, volume, edge_sum, lo, hi); ``ok``
-    is False (and nothing else meaningful) when a vertex index is out of range, an edge is
-    not used exactly twice or the mesh is too large for the int32 tables; ``n_pieces``
-    is 0 and ``all_used`` False without ``pieces``; ``faces`` is a C-contiguous copy of
-    ``f`` (which may be strided) made by the first pass; ``geometry_ok``, ``volume`` and
-    ``edge_sum``, ``lo``, ``hi`` are `_geometry_loop`'s (True, 0, 0, inf, -inf without
-    vertices)."""
-    n_t = f.shape[0]
-    n = 3 * n_t
-    n_e = n // 2
-    edges = np.empty((n_e, 2), dtype=np.int64)
-    face_edges = np.empty((n_t, 3), dtype=np.int64)
-    neighbours = np.empty((n_t, 3), dtype=np.int64)
-    fc = np.empty((n_t, 3), dtype=np.int64)
-    v_lo = np.full(3, np.inf)
-    v_hi = np.full(3, -np.inf)
-    if n % 2 or n_t >= 2 ** 29 or n_vertices >= 2 ** 31:
-        return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0, 0.0,
-                v_lo, v_hi)
-    start = np.zeros(n_vertices + 1, dtype=np.int32)
-    measure = v.shape[0] > 0
-    volume = 0.0
-    edge_sum = 0.0
-    geometry_ok = True
-    if measure:  # the vertices' bounds (`fibres.clean_check._geometry_loop`)
-        _vertex_bounds(v, v_lo, v_hi)
-    used = np.zeros(n_vertices if pieces else 0, dtype=np.bool_)
-    for t in range(n_t):
-        a0, a1, a2 = f[t, 0], f[t, 1], f[t, 2]
-        fc[t, 0], fc[t, 1], fc[t, 2] = a0, a1, a2
-        if min(a0, min(a1, a2)) < 0 or max(a0, max(a1, a2)) >= n_vertices:
-            return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0,
-                    0.0, v_lo, v_hi)
-        start[min(a0, a1) + 1] += 1
-        start[min(a1, a2) + 1] += 1
-        start[min(a2, a0) + 1] += 1
-        if pieces:
-            used[a0] = True
-            used[a1] = True
-            used[a2] = True
-        if measure:  # `fibres.clean_check._geometry_loop`, face t
-            face_ok, vol, edges_t = _face_measure(v, a0, a1, a2, tol2)
-            if not face_ok:
-                geometry_ok = False
-            volume += vol
-            edge_sum += edges_t
-    for q in range(n_vertices):
-        start[q + 1] += start[q]
-    fill = start[:n_vertices].copy()
-    key = np.empty(n, dtype=np.int64)
-    for t in range(n_t):  # (from the contiguous copy)
-        for j in range(3):
-            a = fc[t, j]
-            b = fc[t, j + 1] if j < 2 else fc[t, 0]
-            lo = min(a, b)
-            p = fill[lo]
-            fill[lo] = p + 1
-            key[p] = (max(a, b) << 32) | (2 * (3 * t + j) + (a < b))
-    for vb in range(n_vertices):  # each bucket sorted by key: a network for 4, 6 or 8
-        s0 = start[vb]            # keys (nearly all buckets), else insertion
-        if _sort_small(key, s0, start[vb + 1] - s0):
-            continue
-        for i in range(s0 + 1, start[vb + 1]):
-            x = key[i]
-            m = i - 1
-            while m >= s0 and key[m] > x:
-                key[m + 1] = key[m]
-                m -= 1
-            key[m + 1] = x
-    fe = face_edges.ravel()
-    nb = neighbours.ravel()
-    oriented = True
-    vb = 0
-    for e in range(n_e):  # edge e: sorted positions p = 2e, p + 1, in bucket vb
-        p = 2 * e
-        while start[vb + 1] <= p:
-            vb += 1
-        k0 = key[p]
-        k1 = key[p + 1]
-        hi = k0 >> 32
-        if start[vb + 1] == p + 1 or hi != (k1 >> 32) or (
-                p > start[vb] and (key[p - 1] >> 32) == hi):
-            return (False, edges, face_edges, neighbours, False, 0, False, fc, False, 0.0,
-                    0.0, v_lo, v_hi)
-        x0 = k0 & 0xFFFFFFFF
-        x1 = k1 & 0xFFFFFFFF
-        h0 = x0 >> 1
-        h1 = x1 >> 1
-        edges[e, 0] = vb
-        edges[e, 1] = hi
-        fe[h0] = e
-        fe[h1] = e
-        nb[h0] = h1 // 3
-        nb[h1] = h0 // 3
-        if (x0 & 1) == (x1 & 1) and hi != vb:   # not one each way
-            oriented = False
-    n_pieces = 0
-    if pieces:  # edge-connected pieces: a flood fill over the face neighbours
-        seen = np.zeros(n_t, dtype=np.bool_)
-        stack = np.empty(n_t, dtype=np.int32)
-        for t in range(n_t):
-            if seen[t]:
-                continue
-            n_pieces += 1
-            seen[t] = True
-            stack[0] = t
-            top = 1
-            while top > 0:
-                top -= 1
-                x = stack[top]
-                for j in range(3):
-                    y = nb[3 * x + j]
-                    if not seen[y]:
-                        seen[y] = True
-                        stack[top] = y
-                        top += 1
-    all_used = pieces
-    if pieces:
-        for vb in range(n_vertices):
-            all_used &= used[vb]
-    return (True, edges, face_edges, neighbours, oriented, n_pieces, all_used, fc,
-            geometry_ok, volume, edge_sum, v_lo, v_hi)
 
 
 @dataclass(frozen=True)
@@ -470,12 +233,6 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     # (plane, face) crossings: face crosses plane s iff min d <= h_s < max d. Each is one
     # node of the chaining, standing for the crossing of its "down" half-edge (above ->
     # below); the "up" half-edge's twin is the down half-edge of the next node.
-    kernel = _crossings_kernel(3)
-    if kernel is not None and local_t.dtype == np.float64:
-        pts, node_edge, t, loop_start, loop_slice = kernel(
-            np.ascontiguousarray(d), faces, topology.neighbours, face_edges, local_t,
-            np.ascontiguousarray(h))
-        return Sections(h.copy(), pts, node_edge, t, loop_start, loop_slice, tf)
     node_face, node_slice, down, nxt = _crossings(d, faces, topology.neighbours, h)
     order, loop_start = _loop_order(nxt, node_slice, h.size)
     node_face = node_face[order]                            # pragma: no cover - optional
@@ -497,13 +254,8 @@ def _loop_order(nxt, node_slice, n_s):
     """Nodes in loop order: by plane, then by loop (smallest node first), then along the
     loop from its smallest node; and the start of every loop in that order (L+1,).
 
-    Compiled when numba is installed (the cycle walk visits loops by smallest node and
-    along each loop; a stable bucketing by plane keeps that order), else a lexsort.
+    A lexsort of the cycles' labels and ranks.
     """
-    kernel = _crossings_kernel(1)
-    if kernel is not None:
-        return kernel(np.ascontiguousarray(nxt, dtype=np.int64),
-                      np.ascontiguousarray(node_slice, dtype=np.int64), int(n_s))
     label, rank = _cycles(nxt)                              # pragma: no cover - optional
     order = np.lexsort((rank, label, node_slice))
     lab_sorted = label[order]
@@ -516,22 +268,18 @@ def _crossings(d, faces, neighbours, h):
     """Every (plane, face) crossing as a node of the chaining: its face, plane, "down"
     half-edge (above -> below) and the node its "up" half-edge leads to.
 
-    Compiled when numba is installed (one pass over the faces, binary searches on the
-    heights: the same integers as the array version), else arrays.
+    On arrays (`_crossings_numpy`).
 
     Returns
     -------
     node_face, node_slice, down, nxt : (Q,) int64
         Nodes ordered by face, then plane.
     """
-    kernel = _crossings_kernel(0)
-    if kernel is not None:
-        return kernel(np.ascontiguousarray(d), faces, neighbours, np.ascontiguousarray(h))
     return _crossings_numpy(d, faces, neighbours, h)            # pragma: no cover
 
 
 def _crossings_numpy(d, faces, neighbours, h):
-    """`_crossings` with arrays (no numba)."""
+    """`_crossings` with arrays."""
     df = d[faces]                                              # (T, 3)
     f_lo = np.minimum(np.minimum(df[:, 0], df[:, 1]), df[:, 2])
     f_hi = np.maximum(np.maximum(df[:, 0], df[:, 1]), df[:, 2])
@@ -551,19 +299,6 @@ def _crossings_numpy(d, faces, neighbours, h):
     nbr = neighbours[node_face, up]
     nxt = pair_start[nbr] + node_slice - fs0[nbr]
     return node_face, node_slice, down, nxt
-
-
-_CROSSINGS = []
-
-
-def _crossings_kernel(which):
-    """Compiled `fibres.slice_kernels._crossings_loop` (0), ``_loop_order_loop`` (1),
-    ``_points_loop`` (2) or ``_slice_pass`` (3, the three in one call), or None without
-    numba."""
-    if not _CROSSINGS:
-        from .slice_kernels import kernels
-        _CROSSINGS.append(kernels())
-    return None if _CROSSINGS[0] is None else _CROSSINGS[0][which]
 
 
 def _first_at_or_above(h, x):
@@ -633,9 +368,7 @@ def _cycles_doubling(nxt):
 def _cycles(nxt):
     """Cycle label (smallest member) and position after it, for a permutation.
 
-    A compiled walk over the cycles when numba is installed (scanning nodes in increasing
-    order, the first unvisited node of a cycle is its smallest member, so the result is
-    the same as `_cycles_doubling`), else pointer doubling.
+    By pointer doubling (`_cycles_doubling`).
 
     Parameters
     ----------
@@ -645,38 +378,4 @@ def _cycles(nxt):
     -------
     label, rank : (n,) int64
     """
-    walk = _walk_kernel()
-    if walk is None:                                        # pragma: no cover - optional
-        return _cycles_doubling(nxt)
-    label = np.empty(nxt.size, dtype=np.int64)
-    rank = np.empty(nxt.size, dtype=np.int64)
-    walk(np.ascontiguousarray(nxt, dtype=np.int64), label, rank)
-    return label, rank
-
-
-_WALK = []
-
-
-def _walk_kernel():
-    if not _WALK:
-        try:
-            import numba
-        except ImportError:                                 # pragma: no cover - optional
-            _WALK.append(None)
-        else:
-            _WALK.append(numba.njit(cache=True, nogil=True)(_walk_loop))
-    return _WALK[0]
-
-
-def _walk_loop(nxt, label, rank):  # pragma: no cover - compiled by numba
-    label[:] = -1
-    for start in range(nxt.size):
-        if label[start] >= 0:
-            continue
-        node = start
-        k = 0
-        while label[node] < 0:
-            label[node] = start
-            rank[node] = k
-            k += 1
-            node = nxt[node]
+    return _cycles_doubling(nxt)

@@ -62,14 +62,6 @@ def smooth(points, *, k: float = 4.0, iterations: int = DEFAULT_ITERATIONS,
     if max_shift is not None and not (np.isfinite(max_shift) and max_shift > 0):
         raise ValueError(f"max_shift must be a positive number, got {max_shift!r}")
     inv = 1.0 / (k + 2.0)
-    kernel = _kernel()
-    shift2 = 0.0 if max_shift is None else float(max_shift) ** 2
-    if (kernel is not None and out.ndim == 3 and int(iterations) > 0
-            and (max_shift is None or shift2 > 0.0)):
-        # the same arithmetic, compiled (the bound too: its squared length summed as
-        # numpy's einsum does, ``(dx^2 + dz^2) + dy^2``; 0: no bound)
-        kernel(out, k, inv, int(iterations), shift2)
-        return out
     start = out.copy() if max_shift is not None else None
     for _ in range(int(iterations)):  # loop over smoothing steps only, not over points
         out[..., 1:-1, :] = (out[..., :-2, :] + k * out[..., 1:-1, :]
@@ -123,49 +115,3 @@ def smooth_taubin(points, *, iterations: int = 2 * DEFAULT_ITERATIONS,
             lap = 0.5 * (out[..., :-2, :] + out[..., 2:, :]) - out[..., 1:-1, :]
             out[..., 1:-1, :] += factor * lap
     return out
-
-
-_KERNEL = []
-
-
-def _kernel():
-    """`_smooth_loop` compiled with numba, or None (then arrays)."""
-    if not _KERNEL:
-        try:
-            import numba
-        except ImportError:                                     # pragma: no cover - optional
-            _KERNEL.append(None)
-        else:
-            _KERNEL.append(numba.njit(cache=True, nogil=True)(_smooth_loop))
-    return _KERNEL[0]
-
-
-def _smooth_loop(out, k, inv, iterations, shift2):  # pragma: no cover - compiled by numba
-    """The steps of `smooth` in place on (N, P, 3) fibres, point by point: each step reads
-    the previous step's points (``(P_{i-1} + k P_i + P_{i+1}) * inv``, as the arrays do);
-    then, if ``shift2 = max_shift^2 > 0``, the bounded shift
-    ``D' = D / sqrt(1 + |D|^2 / shift2)`` of every point from its start (the array
-    version's operations, ``|D|^2`` in einsum's order ``(dx^2 + dz^2) + dy^2``)."""
-    n, p = out.shape[0], out.shape[1]
-    prev = np.empty((p, 3))
-    start = np.empty((p, 3))
-    for f in range(n):
-        for j in range(p):
-            for c in range(3):
-                start[j, c] = out[f, j, c]
-        for _ in range(iterations):
-            for j in range(p):
-                for c in range(3):
-                    prev[j, c] = out[f, j, c]
-            for j in range(1, p - 1):
-                for c in range(3):
-                    out[f, j, c] = (prev[j - 1, c] + k * prev[j, c] + prev[j + 1, c]) * inv
-        if shift2 > 0.0:
-            for j in range(p):
-                dx = out[f, j, 0] - start[j, 0]
-                dy = out[f, j, 1] - start[j, 1]
-                dz = out[f, j, 2] - start[j, 2]
-                q = np.sqrt(1.0 + ((dx * dx + dz * dz) + dy * dy) / shift2)
-                out[f, j, 0] = start[j, 0] + dx / q
-                out[f, j, 1] = start[j, 1] + dy / q
-                out[f, j, 2] = start[j, 2] + dz / q

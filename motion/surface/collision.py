@@ -38,10 +38,11 @@ smoothly onto a pulley instead of at the corner a pure projection leaves where t
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from fibres.closest_point import closest_points_on_triangles
 
 __all__ = ["WrapObstacle", "BoneDistance", "BoneObstacle", "soft_floor", "wrap_obstacle"]
 
@@ -67,44 +68,6 @@ def soft_floor(x, margin: float) -> np.ndarray:
 def _quintic(x):
     x = np.clip(x, 0.0, 1.0)
     return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
-
-
-def _closest_on_triangles(p, a, b, c):
-    """Closest points (..., 3) on triangles (a, b, c) to points p (Ericson, Real-Time Collision
-    Detection 2005, section 5.1.5), vectorised: Voronoi regions by barycentric tests."""
-    ab, ac, ap = b - a, c - a, p - a
-    d1 = np.einsum("...j,...j->...", ab, ap)
-    d2 = np.einsum("...j,...j->...", ac, ap)
-    bp = p - b
-    d3 = np.einsum("...j,...j->...", ab, bp)
-    d4 = np.einsum("...j,...j->...", ac, bp)
-    cp = p - c
-    d5 = np.einsum("...j,...j->...", ab, cp)
-    d6 = np.einsum("...j,...j->...", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    tiny = 1e-30
-    # interior (default)
-    denom = 1.0 / np.maximum(va + vb + vc, tiny)
-    v = vb * denom
-    w = vc * denom
-    out = a + ab * v[..., None] + ac * w[..., None]
-    # edge regions
-    on_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-    t_bc = (d4 - d3) / np.maximum((d4 - d3) + (d5 - d6), tiny)
-    out = np.where(on_bc[..., None], b + (c - b) * t_bc[..., None], out)
-    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    t_ac = d2 / np.maximum(d2 - d6, tiny)
-    out = np.where(on_ac[..., None], a + ac * t_ac[..., None], out)
-    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    t_ab = d1 / np.maximum(d1 - d3, tiny)
-    out = np.where(on_ab[..., None], a + ab * t_ab[..., None], out)
-    # vertex regions
-    out = np.where(((d6 >= 0) & (d5 <= d6))[..., None], c, out)
-    out = np.where(((d3 >= 0) & (d4 <= d3))[..., None], b, out)
-    out = np.where(((d1 <= 0) & (d2 <= 0))[..., None], a, out)
-    return out
 
 
 def _to_local(tf: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -239,28 +202,15 @@ class WrapObstacle:
             ``squeeze(offsets (F, V, 3)) -> (F, V, 3)`` squeezed offsets ``w``.
         """
         c = np.asarray(centres, dtype=float)
-        kernels = _squeeze_kernel()
-        if kernels is not None and c.ndim == 3:
-            tf = self.tf_ground_obstacle if self.tf_ground_obstacle.ndim == 3 else self.tf_ground_obstacle[None]
-            tf = np.ascontiguousarray(np.broadcast_to(tf, (c.shape[0], 4, 4)))
-            inward, h = np.empty_like(c), np.empty(c.shape[:2])
-            kernels[0](("cylinder", "sphere", "ellipsoid").index(self.kind), np.ascontiguousarray(c), tf,
-                       np.ascontiguousarray(self.radii), float(self.margin), inward, h)
-        else:
-            d, n, window = self._distance_direction(_to_local(self.tf_ground_obstacle, c))
-            inward = _to_ground_dir(self.tf_ground_obstacle, -n) * window[..., None]   # windowed -n
-            h = d - self.margin
+        d, n, window = self._distance_direction(_to_local(self.tf_ground_obstacle, c))
+        inward = _to_ground_dir(self.tf_ground_obstacle, -n) * window[..., None]   # windowed -n
+        h = d - self.margin
         h = h + self._inset_for(c.shape[-2])
         inv_h = 1.0 / np.maximum(h, 1e-300)
         a = float(SQUEEZE_KNEE if self.knee is None else self.knee)
-        kernel = None if kernels is None else kernels[1]
 
         def squeeze(offsets) -> np.ndarray:
             w = np.asarray(offsets, dtype=float)
-            if kernel is not None and w.ndim == 3 and inward.shape == w.shape:
-                out = np.empty_like(w)
-                kernel(np.ascontiguousarray(w), np.ascontiguousarray(inward), np.ascontiguousarray(h), a, out)
-                return out
             t = np.einsum("fvk,fvk->fv", w, inward)          # windowed inward depth
             z = np.clip(t * inv_h, a, 1e6)
             squeezed = np.where(h > 0.0, np.where(t <= a * h, t, h * (1.0 - (1.0 - a) * np.exp((a - z) / (1.0 - a)))),
@@ -272,15 +222,6 @@ class WrapObstacle:
     def push_out(self, vertices) -> np.ndarray:
         """Vertices (F, V, 3) in ground, pushed out of the object (see the module docstring)."""
         v = np.asarray(vertices, dtype=float)
-        kernel = _push_kernel()
-        if kernel is not None and v.ndim == 3:
-            tf = self.tf_ground_obstacle if self.tf_ground_obstacle.ndim == 3 else self.tf_ground_obstacle[None]
-            tf = np.ascontiguousarray(np.broadcast_to(tf, (v.shape[0], 4, 4)))
-            out = np.empty_like(v)
-            kind = ("cylinder", "sphere", "ellipsoid").index(self.kind)
-            kernel(kind, np.ascontiguousarray(v), tf, np.ascontiguousarray(self.radii), float(self.margin),
-                   np.ascontiguousarray(self._inset_for(v.shape[1])), out)
-            return out
         p = _to_local(self.tf_ground_obstacle, v)
         d, n, window = self._distance_direction(p)
         inset = self._inset_for(v.shape[-2])
@@ -297,146 +238,6 @@ class WrapObstacle:
         else:
             delta = move[..., None] * n
         return v + _to_ground_dir(self.tf_ground_obstacle, delta)
-
-
-_PUSH: dict = {}
-
-
-def _squeeze_kernel():
-    """The compiled squeeze set-up and application (same formulas as `WrapObstacle.squeezer`), or None."""
-    if "squeeze" in _PUSH:
-        return _PUSH["squeeze"]
-    if _PUSH.get("kernel", 0) is None:   # numba unavailable, or the numpy path forced (tests)
-        return None
-    try:
-        import numba
-    except ImportError:  # pragma: no cover - numpy path
-        _PUSH["squeeze"] = None
-        return None
-
-    @numba.njit(cache=False)
-    def kernel(w, inward, h, a, out):  # pragma: no cover - compiled
-        for f in range(w.shape[0]):
-            for i in range(w.shape[1]):
-                ix, iy, iz = inward[f, i, 0], inward[f, i, 1], inward[f, i, 2]
-                t = w[f, i, 0] * ix + w[f, i, 1] * iy + w[f, i, 2] * iz
-                hh = h[f, i]
-                out[f, i, 0] = w[f, i, 0]
-                out[f, i, 1] = w[f, i, 1]
-                out[f, i, 2] = w[f, i, 2]
-                if hh > 0.0:
-                    if t <= a * hh:
-                        continue
-                    z = min(t / hh, 1e6)
-                    squeezed = hh * (1.0 - (1.0 - a) * math.exp((a - z) / (1.0 - a)))
-                else:
-                    if t <= hh:
-                        continue
-                    squeezed = hh
-                cut = t - squeezed
-                out[f, i, 0] -= cut * ix
-                out[f, i, 1] -= cut * iy
-                out[f, i, 2] -= cut * iz
-
-    @numba.njit(cache=False)
-    def setup(kind, c, tf, radii, m, inward, h):  # pragma: no cover - compiled
-        r_min = min(radii[0], min(radii[1], radii[2]))
-        for f in range(c.shape[0]):
-            for i in range(c.shape[1]):
-                dx = c[f, i, 0] - tf[f, 0, 3]
-                dy = c[f, i, 1] - tf[f, 1, 3]
-                dz = c[f, i, 2] - tf[f, 2, 3]
-                x = tf[f, 0, 0] * dx + tf[f, 1, 0] * dy + tf[f, 2, 0] * dz
-                y = tf[f, 0, 1] * dx + tf[f, 1, 1] * dy + tf[f, 2, 1] * dz
-                z = tf[f, 0, 2] * dx + tf[f, 1, 2] * dy + tf[f, 2, 2] * dz
-                window = 1.0
-                if kind == 0:
-                    rad = math.sqrt(x * x + y * y)
-                    d = rad - radii[0]
-                    nx, ny, nz = x / max(rad, 1e-12), y / max(rad, 1e-12), 0.0
-                    if math.isfinite(radii[2]):
-                        over = abs(z) - 0.5 * radii[2]
-                        if over > 0.0:
-                            t = min(over / radii[0], 1.0)
-                            window = 1.0 - t * t * t * (t * (6.0 * t - 15.0) + 10.0)
-                elif kind == 1:
-                    rad = math.sqrt(x * x + y * y + z * z)
-                    d = rad - radii[0]
-                    nx, ny, nz = x / max(rad, 1e-12), y / max(rad, 1e-12), z / max(rad, 1e-12)
-                else:
-                    sx, sy, sz = x / radii[0], y / radii[1], z / radii[2]
-                    d = (math.sqrt(sx * sx + sy * sy + sz * sz) - 1.0) * r_min
-                    gx, gy, gz = sx / radii[0], sy / radii[1], sz / radii[2]
-                    g = max(math.sqrt(gx * gx + gy * gy + gz * gz), 1e-12)
-                    nx, ny, nz = gx / g, gy / g, gz / g
-                h[f, i] = d - m
-                inward[f, i, 0] = -window * (tf[f, 0, 0] * nx + tf[f, 0, 1] * ny + tf[f, 0, 2] * nz)
-                inward[f, i, 1] = -window * (tf[f, 1, 0] * nx + tf[f, 1, 1] * ny + tf[f, 1, 2] * nz)
-                inward[f, i, 2] = -window * (tf[f, 2, 0] * nx + tf[f, 2, 1] * ny + tf[f, 2, 2] * nz)
-
-    _PUSH["squeeze"] = (setup, kernel)
-    return _PUSH["squeeze"]
-
-
-def _push_kernel():
-    """The compiled analytic push-out (same formulas as `WrapObstacle.push_out`), or None."""
-    if "kernel" in _PUSH:
-        return _PUSH["kernel"]
-    try:
-        import numba
-    except ImportError:  # pragma: no cover - numpy path
-        _PUSH["kernel"] = None
-        return None
-
-    @numba.njit(cache=False)
-    def kernel(kind, v, tf, radii, m, inset, out):  # pragma: no cover - compiled
-        r_min = min(radii[0], min(radii[1], radii[2]))
-        for f in range(v.shape[0]):
-            for i in range(v.shape[1]):
-                dx = v[f, i, 0] - tf[f, 0, 3]
-                dy = v[f, i, 1] - tf[f, 1, 3]
-                dz = v[f, i, 2] - tf[f, 2, 3]
-                x = tf[f, 0, 0] * dx + tf[f, 1, 0] * dy + tf[f, 2, 0] * dz
-                y = tf[f, 0, 1] * dx + tf[f, 1, 1] * dy + tf[f, 2, 1] * dz
-                z = tf[f, 0, 2] * dx + tf[f, 1, 2] * dy + tf[f, 2, 2] * dz
-                out[f, i, 0] = v[f, i, 0]
-                out[f, i, 1] = v[f, i, 1]
-                out[f, i, 2] = v[f, i, 2]
-                if kind == 0:
-                    rad = math.sqrt(x * x + y * y)
-                    d = rad - radii[0]
-                elif kind == 1:
-                    rad = math.sqrt(x * x + y * y + z * z)
-                    d = rad - radii[0]
-                else:
-                    sx, sy, sz = x / radii[0], y / radii[1], z / radii[2]
-                    rad = math.sqrt(sx * sx + sy * sy + sz * sz)
-                    d = (rad - 1.0) * r_min
-                d += inset[i]
-                if d >= m:
-                    continue
-                window = 1.0
-                if kind == 0 and math.isfinite(radii[2]):
-                    over = abs(z) - 0.5 * radii[2]
-                    if over > 0.0:
-                        t = min(over / radii[0], 1.0)
-                        window = 1.0 - t * t * t * (t * (6.0 * t - 15.0) + 10.0)
-                move = (m * math.exp((d - m) / m) - d) * window
-                if rad < 1e-12 or move == 0.0:
-                    continue
-                if kind == 0:
-                    lx, ly, lz = move * x / rad, move * y / rad, 0.0
-                elif kind == 1:
-                    lx, ly, lz = move * x / rad, move * y / rad, move * z / rad
-                else:
-                    scale = ((d - inset[i] + move) / r_min + 1.0) / rad - 1.0
-                    lx, ly, lz = x * scale, y * scale, z * scale
-                out[f, i, 0] += tf[f, 0, 0] * lx + tf[f, 0, 1] * ly + tf[f, 0, 2] * lz
-                out[f, i, 1] += tf[f, 1, 0] * lx + tf[f, 1, 1] * ly + tf[f, 1, 2] * lz
-                out[f, i, 2] += tf[f, 2, 0] * lx + tf[f, 2, 1] * ly + tf[f, 2, 2] * lz
-
-    _PUSH["kernel"] = kernel
-    return kernel
 
 
 def wrap_obstacle(wrap, tf_ground_body, *, margin: float = 5e-4, inset=0.0,
@@ -523,7 +324,7 @@ class BoneDistance:
             sel = near[s:s + step]
             p = grid[sel]
             _, idx = tree.query(p, k=6)
-            closest = _closest_on_triangles(p[:, None, :], a[idx], b[idx], c[idx])   # (P, 6, 3)
+            closest = closest_points_on_triangles(p[:, None, :], a[idx], b[idx], c[idx])   # (P, 6, 3)
             rel = p[:, None, :] - closest
             dist = np.linalg.norm(rel, axis=-1)
             best = np.argmin(dist + 1e-9 * np.arange(6)[None, :], axis=1)

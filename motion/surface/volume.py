@@ -13,8 +13,9 @@ coefficients are trilinear sums over the triangles; one Newton solve per frame (
 frames) gives the ``k`` that restores the rest volume exactly. The root is a smooth function
 of ``P`` and ``Q``, so the corrected surface stays a smooth function of the body poses.
 
-The per-triangle sums run in a compiled loop when numba is installed (it is the measured hot
-spot, about 8x faster than the equivalent numpy), otherwise in chunked numpy.
+The per-triangle sums run in chunked numpy (a compiled loop was about 8x faster on this part
+alone, but cost a compile in every process; the whole bundled example runs in numpy: see
+docs/decisions.md, issue 13).
 """
 from __future__ import annotations
 
@@ -23,86 +24,6 @@ import numpy as np
 __all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "solve_radial_scale"]
 
 _CHUNK = 8  # frames per numpy chunk: bounds the temporaries to a few (8, T, 3) arrays
-
-
-def _numba():
-    try:
-        import numba
-    except ImportError:  # pragma: no cover - exercised only without numba
-        return None
-    return numba
-
-
-_KERNELS: dict = {}
-
-
-def _kernels():
-    """Compile (once) and return the numba kernels, or None without numba."""
-    if "done" in _KERNELS:
-        return _KERNELS.get("volume"), _KERNELS.get("cubic_vf")
-    numba = _numba()
-    if numba is not None:
-        @numba.njit(cache=False, fastmath=False)
-        def volume_kernel(vertices, faces, out):  # pragma: no cover - compiled
-            for f in range(vertices.shape[0]):
-                acc = 0.0
-                for t in range(faces.shape[0]):
-                    a = vertices[f, faces[t, 0]]
-                    b = vertices[f, faces[t, 1]]
-                    c = vertices[f, faces[t, 2]]
-                    acc += (a[0] * (b[1] * c[2] - b[2] * c[1])
-                            + a[1] * (b[2] * c[0] - b[0] * c[2])
-                            + a[2] * (b[0] * c[1] - b[1] * c[0]))
-                out[f] = acc / 6.0
-
-        @numba.njit(cache=False, fastmath=False)
-        def cubic_kernel_vf(p, q, faces, out):  # pragma: no cover - compiled
-            # layout (V, F, 3): faces outer, frames inner, so each vertex row is read contiguously
-            n_f = p.shape[1]
-            for t in range(faces.shape[0]):
-                i0 = faces[t, 0]
-                i1 = faces[t, 1]
-                i2 = faces[t, 2]
-                for f in range(n_f):
-                    p0x, p0y, p0z = p[i0, f, 0], p[i0, f, 1], p[i0, f, 2]
-                    p1x, p1y, p1z = p[i1, f, 0], p[i1, f, 1], p[i1, f, 2]
-                    p2x, p2y, p2z = p[i2, f, 0], p[i2, f, 1], p[i2, f, 2]
-                    q0x, q0y, q0z = q[i0, f, 0], q[i0, f, 1], q[i0, f, 2]
-                    q1x, q1y, q1z = q[i1, f, 0], q[i1, f, 1], q[i1, f, 2]
-                    q2x, q2y, q2z = q[i2, f, 0], q[i2, f, 1], q[i2, f, 2]
-                    ax = p1y * p2z - p1z * p2y
-                    ay = p1z * p2x - p1x * p2z
-                    az = p1x * p2y - p1y * p2x
-                    bx = p1y * q2z - p1z * q2y + q1y * p2z - q1z * p2y
-                    by = p1z * q2x - p1x * q2z + q1z * p2x - q1x * p2z
-                    bz = p1x * q2y - p1y * q2x + q1x * p2y - q1y * p2x
-                    cx = q1y * q2z - q1z * q2y
-                    cy = q1z * q2x - q1x * q2z
-                    cz = q1x * q2y - q1y * q2x
-                    out[f, 0] += p0x * ax + p0y * ay + p0z * az
-                    out[f, 1] += q0x * ax + q0y * ay + q0z * az + p0x * bx + p0y * by + p0z * bz
-                    out[f, 2] += q0x * bx + q0y * by + q0z * bz + p0x * cx + p0y * cy + p0z * cz
-                    out[f, 3] += q0x * cx + q0y * cy + q0z * cz
-
-        @numba.njit(cache=False)
-        def combine_kernel_vf(p, q, k, out):  # pragma: no cover - compiled
-            # out (F, V, 3) = p (V, F, 3) + k (F,) q: blocks of vertices keep the reads in cache
-            n_v, n_f = p.shape[0], p.shape[1]
-            block = 64
-            for v0 in range(0, n_v, block):
-                v1 = min(v0 + block, n_v)
-                for f in range(n_f):
-                    kf = k[f]
-                    for v in range(v0, v1):
-                        out[f, v, 0] = p[v, f, 0] + kf * q[v, f, 0]
-                        out[f, v, 1] = p[v, f, 1] + kf * q[v, f, 1]
-                        out[f, v, 2] = p[v, f, 2] + kf * q[v, f, 2]
-
-        _KERNELS["volume"] = volume_kernel
-        _KERNELS["combine_vf"] = combine_kernel_vf
-        _KERNELS["cubic_vf"] = cubic_kernel_vf
-    _KERNELS["done"] = True
-    return _KERNELS.get("volume"), _KERNELS.get("cubic_vf")
 
 
 def _as_frames(vertices) -> tuple[np.ndarray, bool]:
@@ -139,15 +60,10 @@ def mesh_volume(vertices, faces) -> np.ndarray | float:
     """
     v, single = _as_frames(vertices)
     f = _check_faces(faces, v.shape[1])
-    volume_kernel, _ = _kernels()
-    if volume_kernel is not None:
-        out = np.empty(v.shape[0])
-        volume_kernel(v, f, out)
-    else:
-        out = np.concatenate([
-            np.einsum("ftk,ftk->f", v[s:s + _CHUNK, f[:, 0]],
-                      np.cross(v[s:s + _CHUNK, f[:, 1]], v[s:s + _CHUNK, f[:, 2]])) / 6.0
-            for s in range(0, v.shape[0], _CHUNK)])
+    out = np.concatenate([
+        np.einsum("ftk,ftk->f", v[s:s + _CHUNK, f[:, 0]],
+                  np.cross(v[s:s + _CHUNK, f[:, 1]], v[s:s + _CHUNK, f[:, 2]])) / 6.0
+        for s in range(0, v.shape[0], _CHUNK)])
     return float(out[0]) if single else out
 
 
@@ -170,20 +86,30 @@ def volume_cubic(p, q, faces) -> np.ndarray:
     if p.shape != q.shape:
         raise ValueError(f"p and q must have the same shape, got {p.shape} and {q.shape}")
     f = _check_faces(faces, p.shape[1])
-    _, cubic_kernel_vf = _kernels()
-    if cubic_kernel_vf is not None:     # one compiled kernel, vertex-major (see volume_cubic_vf)
-        return volume_cubic_vf(p.transpose(1, 0, 2), q.transpose(1, 0, 2), f)
     out = np.empty((p.shape[0], 4))
     for s in range(0, p.shape[0], _CHUNK):
-        p0, p1, p2 = (p[s:s + _CHUNK, f[:, i]] for i in range(3))
-        q0, q1, q2 = (q[s:s + _CHUNK, f[:, i]] for i in range(3))
-        a = np.cross(p1, p2)
-        b = np.cross(p1, q2) + np.cross(q1, p2)
-        c = np.cross(q1, q2)
-        dot = lambda x, y: np.einsum("ftk,ftk->f", x, y)  # noqa: E731
+        # component-major (3, C, T) corner arrays: the products run on long contiguous rows
+        pt, qt = p[s:s + _CHUNK].transpose(2, 0, 1), q[s:s + _CHUNK].transpose(2, 0, 1)
+        p0, p1, p2 = (pt[:, :, f[:, i]] for i in range(3))
+        q0, q1, q2 = (qt[:, :, f[:, i]] for i in range(3))
+        a = _cross(p1, p2)
+        b = _cross(p1, q2) + _cross(q1, p2)
+        c = _cross(q1, q2)
         out[s:s + _CHUNK] = np.stack(
-            [dot(p0, a), dot(q0, a) + dot(p0, b), dot(q0, b) + dot(p0, c), dot(q0, c)], axis=-1) / 6.0
+            [_dot(p0, a), _dot(q0, a) + _dot(p0, b), _dot(q0, b) + _dot(p0, c), _dot(q0, c)],
+            axis=-1) / 6.0
     return out
+
+
+def _cross(u, v):
+    """Cross products of component-major (3, ...) arrays."""
+    return np.stack([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                     u[0] * v[1] - u[1] * v[0]])
+
+
+def _dot(u, v):
+    """Dot products of component-major (3, C, T) arrays, summed over the last axis (C,)."""
+    return (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]).sum(axis=-1)
 
 
 def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
@@ -196,13 +122,7 @@ def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
     p = np.ascontiguousarray(p_vf, dtype=float)
     q = np.ascontiguousarray(q_vf, dtype=float)
     f = _check_faces(faces, p.shape[0])
-    _kernels()
-    kernel = _KERNELS.get("cubic_vf")
-    if kernel is None:
-        return volume_cubic(p.transpose(1, 0, 2), q.transpose(1, 0, 2), f)
-    out = np.zeros((p.shape[1], 4))
-    kernel(p, q, f, out)
-    return out / 6.0
+    return volume_cubic(p.transpose(1, 0, 2), q.transpose(1, 0, 2), f)
 
 
 def combine_vf(p_vf, q_vf, k) -> np.ndarray:
@@ -210,13 +130,7 @@ def combine_vf(p_vf, q_vf, k) -> np.ndarray:
     p = np.ascontiguousarray(p_vf, dtype=float)
     q = np.ascontiguousarray(q_vf, dtype=float)
     k = np.ascontiguousarray(k, dtype=float)
-    _kernels()
-    kernel = _KERNELS.get("combine_vf")
-    if kernel is None:
-        return np.ascontiguousarray((p + k[None, :, None] * q).transpose(1, 0, 2))
-    out = np.empty((p.shape[1], p.shape[0], 3))
-    kernel(p, q, k, out)
-    return out
+    return np.ascontiguousarray((p + k[None, :, None] * q).transpose(1, 0, 2))
 
 
 def solve_radial_scale(coefficients, target, *, start=None, bounds=(0.25, 4.0), iterations=30) -> np.ndarray:

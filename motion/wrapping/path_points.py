@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..osim.model import Model, Path
 
@@ -226,11 +227,9 @@ def _point_set_positions(ps: _PointSet, tf_ground_body: np.ndarray, moving_loc: 
     return pts, arm
 
 
-_KERNEL: dict = {}
-
-
 def _polyline_kernel():
-    """The compiled (numba, once per process) polyline kernel of a `_PointSet`, or None without numba.
+    """The compiled polyline kernel of a `_PointSet` (`_polyline_loop`: numba, module level,
+    cached on disk; numba compiles a dispatcher once, thread-safely).
 
     ``kernel(tf, bodies, loc, moving, moving_loc, act, slot_point, n_slots, pair_of, twist,
     t_pair, t_twist, t_path, t_coord, path_index, length, g_moving, dldq, points, mask, order)``:
@@ -243,79 +242,71 @@ def _polyline_kernel():
     ``dldq``, ``points`` (NaN on entry), ``mask`` (False), ``order`` (-1; the active points'
     slots in path order); ``g_moving`` (F, n_moving, 3) receives g of the moving points.
     """
-    if "kernel" in _KERNEL:
-        return _KERNEL["kernel"]
-    try:
-        import numba
-    except ImportError:  # pragma: no cover - numba is a dependency; numpy path otherwise
-        _KERNEL["kernel"] = None
-        return None
+    return _polyline_loop
 
-    @numba.njit(cache=True, fastmath=False)     # compiled once per machine (numba cache)
-    def kernel(tf, bodies, loc, moving, moving_loc, act, slot_point, n_slots, pair_of, twist, t_pair, t_twist,
-               t_path, t_coord, path_index, length, g_moving, dldq, points, mask, order):  # pragma: no cover
-        n_frames, n_points, n_paths = tf.shape[0], loc.shape[0], path_index.shape[0]
-        pos = np.empty((n_points, 3))
-        arm = np.empty((n_points, 3))
-        g = np.empty((n_points, 3))
-        moment = np.empty((pair_of[n_points - 1] + 1 if n_points else 0, 6))
-        here = loc.copy()
-        for f in range(n_frames):
-            for i in range(moving.shape[0]):
-                for a in range(3):
-                    here[moving[i], a] = moving_loc[f, i, a]
-            for n in range(n_points):
-                b = bodies[n]
-                for a in range(3):
-                    arm[n, a] = tf[f, b, a, 0] * here[n, 0] + tf[f, b, a, 1] * here[n, 1] + tf[f, b, a, 2] * here[n, 2]
-                    pos[n, a] = arm[n, a] + tf[f, b, a, 3]
-                    arm[n, a] = pos[n, a] - tf[f, b, a, 3]
-            g[:] = 0.0
-            for m in range(n_paths):
-                row = path_index[m]
-                prev, total, count = -1, 0.0, 0
-                for k in range(n_slots):
-                    s = m * n_slots + k
-                    n = slot_point[s]
-                    if n == n_points or not act[f, s]:
-                        continue
-                    mask[f, row, k] = True
-                    order[f, row, count] = k
-                    count += 1
-                    for a in range(3):
-                        points[f, row, k, a] = pos[n, a]
-                    if prev >= 0:
-                        d0, d1, d2 = pos[n, 0] - pos[prev, 0], pos[n, 1] - pos[prev, 1], pos[n, 2] - pos[prev, 2]
-                        seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-                        total += seg
-                        if seg > 0:
-                            d0, d1, d2 = d0 / seg, d1 / seg, d2 / seg
-                        else:
-                            d0, d1, d2 = 0.0, 0.0, 0.0
-                        g[prev, 0] -= d0
-                        g[prev, 1] -= d1
-                        g[prev, 2] -= d2
-                        g[n, 0], g[n, 1], g[n, 2] = d0, d1, d2
-                    prev = n
-                length[f, row] = total
-            moment[:] = 0.0
-            for n in range(n_points):
-                j = pair_of[n]
-                moment[j, 0] += arm[n, 1] * g[n, 2] - arm[n, 2] * g[n, 1]
-                moment[j, 1] += arm[n, 2] * g[n, 0] - arm[n, 0] * g[n, 2]
-                moment[j, 2] += arm[n, 0] * g[n, 1] - arm[n, 1] * g[n, 0]
-                moment[j, 3] += g[n, 0]
-                moment[j, 4] += g[n, 1]
-                moment[j, 5] += g[n, 2]
-            for t in range(t_pair.shape[0]):
-                j, u = t_pair[t], t_twist[t]
-                acc = 0.0
-                for a in range(6):
-                    acc += twist[f, u, a] * moment[j, a]
-                dldq[f, t_path[t], t_coord[t]] += acc
-            for i in range(moving.shape[0]):
-                for a in range(3):
-                    g_moving[f, i, a] = g[moving[i], a]
 
-    _KERNEL["kernel"] = kernel
-    return kernel
+@njit(cache=True, nogil=True)
+def _polyline_loop(tf, bodies, loc, moving, moving_loc, act, slot_point, n_slots, pair_of, twist, t_pair, t_twist,
+                   t_path, t_coord, path_index, length, g_moving, dldq, points, mask, order):  # pragma: no cover
+    n_frames, n_points, n_paths = tf.shape[0], loc.shape[0], path_index.shape[0]
+    pos = np.empty((n_points, 3))
+    arm = np.empty((n_points, 3))
+    g = np.empty((n_points, 3))
+    moment = np.empty((pair_of[n_points - 1] + 1 if n_points else 0, 6))
+    here = loc.copy()
+    for f in range(n_frames):
+        for i in range(moving.shape[0]):
+            for a in range(3):
+                here[moving[i], a] = moving_loc[f, i, a]
+        for n in range(n_points):
+            b = bodies[n]
+            for a in range(3):
+                arm[n, a] = tf[f, b, a, 0] * here[n, 0] + tf[f, b, a, 1] * here[n, 1] + tf[f, b, a, 2] * here[n, 2]
+                pos[n, a] = arm[n, a] + tf[f, b, a, 3]
+                arm[n, a] = pos[n, a] - tf[f, b, a, 3]
+        g[:] = 0.0
+        for m in range(n_paths):
+            row = path_index[m]
+            prev, total, count = -1, 0.0, 0
+            for k in range(n_slots):
+                s = m * n_slots + k
+                n = slot_point[s]
+                if n == n_points or not act[f, s]:
+                    continue
+                mask[f, row, k] = True
+                order[f, row, count] = k
+                count += 1
+                for a in range(3):
+                    points[f, row, k, a] = pos[n, a]
+                if prev >= 0:
+                    d0, d1, d2 = pos[n, 0] - pos[prev, 0], pos[n, 1] - pos[prev, 1], pos[n, 2] - pos[prev, 2]
+                    seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                    total += seg
+                    if seg > 0:
+                        d0, d1, d2 = d0 / seg, d1 / seg, d2 / seg
+                    else:
+                        d0, d1, d2 = 0.0, 0.0, 0.0
+                    g[prev, 0] -= d0
+                    g[prev, 1] -= d1
+                    g[prev, 2] -= d2
+                    g[n, 0], g[n, 1], g[n, 2] = d0, d1, d2
+                prev = n
+            length[f, row] = total
+        moment[:] = 0.0
+        for n in range(n_points):
+            j = pair_of[n]
+            moment[j, 0] += arm[n, 1] * g[n, 2] - arm[n, 2] * g[n, 1]
+            moment[j, 1] += arm[n, 2] * g[n, 0] - arm[n, 0] * g[n, 2]
+            moment[j, 2] += arm[n, 0] * g[n, 1] - arm[n, 1] * g[n, 0]
+            moment[j, 3] += g[n, 0]
+            moment[j, 4] += g[n, 1]
+            moment[j, 5] += g[n, 2]
+        for t in range(t_pair.shape[0]):
+            j, u = t_pair[t], t_twist[t]
+            acc = 0.0
+            for a in range(6):
+                acc += twist[f, u, a] * moment[j, a]
+            dldq[f, t_path[t], t_coord[t]] += acc
+        for i in range(moving.shape[0]):
+            for a in range(3):
+                g_moving[f, i, a] = g[moving[i], a]

@@ -84,16 +84,9 @@ def test_default_spec_falls_back_to_the_package_data(tmp_path, monkeypatch):
     assert '"analysis.example" = "models"' in text
 
 
-def test_first_run_notice(tmp_path, monkeypatch, capsys):
-    import fibres
+def test_start_notice(capsys):
+    from analysis.progress import start_notice
 
-    from analysis.progress import first_run_notice
-
-    fake = tmp_path / "fibres"
-    (fake / "__pycache__").mkdir(parents=True)
-    monkeypatch.setattr(fibres, "__file__", str(fake / "__init__.py"))
-    assert first_run_notice() is True
-    assert "compiling" in capsys.readouterr().err
-    (fake / "__pycache__" / "x.nbi").write_text("")
-    assert first_run_notice() is False and capsys.readouterr().err == ""
-    assert first_run_notice(quiet=True) is False
+    assert start_notice("working") is True
+    assert capsys.readouterr().err == "fibres: working\n"
+    assert start_notice("working", quiet=True) is False and capsys.readouterr().err == ""

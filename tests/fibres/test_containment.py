@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 import trimesh
 
-import fibres.surface_distance as sdist
 from fibres.containment import CONTAIN_MARGIN, CONTAIN_SOFTNESS, contain
 from fibres.surface_distance import KAPPA, SurfaceGrid, surface_distance
+
+from distance_oracle import brute
 
 R, RHO = 0.05, 0.01                       # torus major / minor radius (m)
 N_MAJOR, N_MINOR = 96, 32
@@ -199,140 +200,25 @@ def test_surface_distance_matches_the_torus(torus):
     assert np.allclose(np.linalg.norm(n[ok], axis=1), 1.0)
 
 
-def test_compiled_and_numpy_paths_agree(torus, monkeypatch):
+def test_tree_search_equals_the_brute_force_oracle(torus):
+    # the k-d tree search (fibres.surface_distance) against every point x every triangle
+    # (tests/fibres/distance_oracle.py): the same blend on the same triangle sets, equal to
+    # rounding where both measure; the search leaves -inf only where the oracle finds the
+    # point inside (deeper than watch) or nothing within reach
     v, f = torus
-    fib = chords()
     rng = np.random.default_rng(4)
     x = rng.uniform(-1, 1, (400, 3)) * [R + 2 * RHO, R + 2 * RHO, 2 * RHO]
-    s1, n1 = surface_distance(x, v, f, reach=0.008, softness=CONTAIN_SOFTNESS)
-    c1, m1 = contain(fib, v, f)
-    monkeypatch.setattr(sdist, "_KERNELS", [None])
-    s2, n2 = surface_distance(x, v, f, reach=0.008, softness=CONTAIN_SOFTNESS)
-    c2, m2 = contain(fib, v, f)
-    both = np.isfinite(s1)
-    # the same formulas on the same triangles: equal to rounding; the compiled path does
-    # not measure points deep in enclosed cells (-inf), the numpy path does (inside)
-    np.testing.assert_allclose(s1[both], s2[both], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(n1[both], n2[both], rtol=0, atol=1e-12)
-    assert (s2[~both] < 0).all()
-    np.testing.assert_allclose(c1, c2, rtol=0, atol=1e-15)
-    np.testing.assert_array_equal(m1, m2)
-
-
-def test_points_beyond_the_grid_box_are_measured_like_the_others(torus, monkeypatch):
-    # points above the torus beyond the grid (its empty border layer included) but within
-    # reach: their search starts outside the grid; the triangle shapes it needs are made
-    # first (alone, and after inside points that need none)
-    v, f = torus
-    reach = 0.03
-    grid = SurfaceGrid(v, f, reach=reach)
-    top = grid.lo[2] + grid.dims[2] * grid.cell + 1e-4          # just beyond the grid
-    assert top - RHO < reach
-    th = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-    far = np.c_[R * np.cos(th), R * np.sin(th), np.full(24, top)]
-    deep = np.c_[R * np.cos(th), R * np.sin(th), np.zeros(24)]    # the tube's centre line
-    for x in (far, np.r_[deep, far]):
-        g = SurfaceGrid(v, f, reach=reach)
-        # as if the labelling had needed no distance (the torus has several enclosed
-        # components, whose signs made every shape): shapes unmade, their arrays zero
-        g.ready[:] = 0
-        g.nrm[:], g.centre[:], g.radius[:] = 0.0, 0.0, 0.0
-        s1, _ = g.signed_distance(x, tau=CONTAIN_SOFTNESS, watch=0.0)
-        with monkeypatch.context() as m:
-            m.setattr(sdist, "_KERNELS", [None])
-            s2, _ = surface_distance(x, v, f, reach=reach, softness=CONTAIN_SOFTNESS)
-        np.testing.assert_allclose(s1[-24:], s2[-24:], rtol=0, atol=1e-15)
-        # above the tube's top (z = RHO on the mesh's top ring) by top - RHO
-        np.testing.assert_allclose(s1[-24:], top - RHO, rtol=0, atol=SAG)
-
-
-def _labels_reference(occupied):
-    """`fibres.grid_kernels._label_loop` by scipy: face-connected components of the empty
-    cells; those touching the border are outside (2), the others enclosed (3), numbered by
-    their first cell in flat order (the representative)."""
-    from scipy import ndimage
-
-    lab, n = ndimage.label(~occupied, structure=ndimage.generate_binary_structure(3, 1))
-    border = np.zeros(occupied.shape, bool)
-    border[[0, -1]], border[:, [0, -1]], border[:, :, [0, -1]] = True, True, True
-    outside = np.zeros(n + 1, bool)
-    outside[np.unique(lab[border & ~occupied])] = True
-    flat = lab.ravel()
-    label = np.where(occupied.ravel(), 1, np.where(outside[flat], 2, 3)).astype(np.int8)
-    enclosed = np.flatnonzero(label == 3)
-    ids, first = np.unique(flat[enclosed], return_index=True)
-    reps = np.sort(enclosed[first])
-    number = np.full(n + 1, -1, np.int32)
-    number[flat[reps]] = np.arange(len(reps))
-    comp = np.where(label == 3, number[flat], -1).astype(np.int32)
-    return label, comp, reps
-
-
-def test_cell_labels_match_connected_components(torus):
-    # the compiled labelling (interior-only flood) against scipy's connected components: the
-    # torus grid (enclosed components), and random occupancies with pockets and occupied
-    # border cells
-    v, f = torus
-    grid = SurfaceGrid(v, f, reach=0.008)
-    kernel = sdist._kernels()["label"]
-    occ = (grid.start[1:] > grid.start[:-1]).reshape(tuple(grid.dims))
-    cases = [(grid.start, grid.dims, occ)]
-    rng = np.random.default_rng(5)
-    for dims in ((3, 4, 5), (7, 9, 6), (12, 10, 14)):
-        occ = rng.random(dims) < 0.45
-        start = np.r_[0, np.cumsum(occ.ravel())].astype(np.int32)
-        cases.append((start, np.array(dims, np.int64), occ))
-    n_enclosed = 0
-    for start, dims, occ in cases:
-        label, comp, reps = kernel(start, dims)
-        ref = _labels_reference(occ)
-        np.testing.assert_array_equal(label, ref[0])
-        np.testing.assert_array_equal(comp, ref[1])
-        np.testing.assert_array_equal(reps, ref[2])
-        n_enclosed += len(reps)
-    assert n_enclosed > 10                                  # not vacuous
-
-
-def test_grid_csr_matches_a_numpy_binning(torus):
-    # the compiled binning (bit-tested spans of 0/1 cell, loops beyond) against a plain
-    # numpy one: every triangle in every cell of its vertex box, each cell's triangles in
-    # ascending order; on the torus, and on a fine sphere with a large tetrahedron beside it
-    # (its faces span many cells of the sphere's grid)
-    v, f = torus
-    fine = trimesh.creation.icosphere(subdivisions=4)
-    tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]) * 0.06 + 0.012
-    vs = np.vstack([np.asarray(fine.vertices) * 0.01, tet])
-    fs = np.vstack([fine.faces, np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-                    + len(fine.vertices)])
-    spans = set()
-    for vv, ff in ((v, f), (vs, fs)):
-        grid = SurfaceGrid(vv, ff, reach=0.008)
-        cells = np.clip(np.floor((grid.vertices - grid.lo) / grid.cell).astype(np.int64), 0,
-                        grid.dims - 1)[grid.faces]                  # (T, 3 corners, 3)
-        lo, hi = cells.min(axis=1), cells.max(axis=1)
-        pairs = []
-        for t in range(len(ff)):
-            i, j, k = np.meshgrid(*[np.arange(lo[t, a], hi[t, a] + 1) for a in range(3)],
-                                  indexing="ij")
-            q = ((i * grid.dims[1] + j) * grid.dims[2] + k).ravel()
-            pairs.append(np.c_[q, np.full(q.size, t)])
-            spans.add(int((hi[t] - lo[t]).max()))
-        pairs = np.concatenate(pairs)
-        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
-        start = np.searchsorted(pairs[:, 0], np.arange(np.prod(grid.dims) + 1))
-        np.testing.assert_array_equal(grid.start, start)
-        np.testing.assert_array_equal(grid.items, pairs[:, 1])
-    assert {0, 1}.issubset(spans) and max(spans) >= 5                # not vacuous
-
-
-def test_grid_cell_size_does_not_change_the_distances(torus):
-    v, f = torus
-    x = chords().reshape(-1, 3)
-    a = SurfaceGrid(v, f, reach=0.008).signed_distance(x, tau=CONTAIN_SOFTNESS)
-    b = SurfaceGrid(v, f, reach=0.008, cell=0.0031).signed_distance(x, tau=CONTAIN_SOFTNESS)
-    fin = np.isfinite(a[0]) & np.isfinite(b[0])
-    assert fin.sum() > 0.5 * len(x)
-    np.testing.assert_allclose(a[0][fin], b[0][fin], rtol=0, atol=1e-15)
+    for offset, watch in ((False, None), (True, M)):
+        s1, n1 = SurfaceGrid(v, f, reach=0.008).signed_distance(
+            x, tau=CONTAIN_SOFTNESS, watch=watch, offset=offset)
+        s2, n2 = brute(x, v, f, 0.008, CONTAIN_SOFTNESS, offset=offset)
+        both = np.isfinite(s1)
+        assert both.sum() > 50
+        np.testing.assert_allclose(s1[both], s2[both], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(n1[both], n2[both], rtol=0, atol=1e-9)
+        assert ((s2[~both] < 0) | ~np.isfinite(s2[~both])).all()
+        if watch is not None:
+            assert (s2[~both & np.isfinite(s2)] < -M).all()
 
 
 @pytest.mark.parametrize("bad", [0.0, -1.0, np.nan])
@@ -378,7 +264,6 @@ def test_an_outside_pocket_enclosed_by_surface_cells_is_outside():
     # pocket is pulled into the wall. Analytic: the pocket is r < 4 mm, |z| < 2 mm.
     v, f = _bottle()
     grid = SurfaceGrid(v, f, reach=8e-3)
-    assert grid.cell >= 2 * 0.5e-3                   # the necks are no wider than a cell
     x = np.array([[0.0, 0.0, 0.0], [1e-3, 0.0, 0.0], [0.0, 1e-3, 1e-3]])
     s, _ = grid.signed_distance(x, tau=CONTAIN_SOFTNESS, watch=0.0)
     # analytic distances to the pocket's walls (cylinder r = 4 mm, cones to the necks):
@@ -395,7 +280,7 @@ def test_an_outside_pocket_enclosed_by_surface_cells_is_outside():
 @pytest.mark.parametrize("shape", ["torus", "bottle"])
 def test_inside_by_ray_parity_agrees_with_the_distance_sign(torus, shape):
     # contain asks only which points are outside (watch = 0): points in surface cells are
-    # classified by ray parity along the grid (compiled path); they must agree with the sign
+    # classified by the vote of their nearest triangles (watch = 0); they must agree with the sign
     # of the blended distance wherever it is defined
     v, f = torus if shape == "torus" else _bottle()
     grid = SurfaceGrid(v, f, reach=8e-3)
@@ -450,24 +335,3 @@ def test_pull_is_continuous_through_the_surface_near_an_edge():
     assert np.abs(np.diff(s_off)).max() <= 2 * (z[1] - z[0])
     # not vacuous: the signed blended distance jumps here
     assert np.abs(np.diff(s_blend)).max() > 1e-6
-
-
-def test_offset_mode_compiled_and_numpy_agree(torus, monkeypatch):
-    # the same formulas on the same triangles (the compiled path skips points deeper than
-    # watch inside: -inf; the numpy path measures them)
-    v, f = torus
-    rng = np.random.default_rng(5)
-    x = rng.uniform(-1, 1, (400, 3)) * [R + 2 * RHO, R + 2 * RHO, 2 * RHO]
-    grid = SurfaceGrid(v, f, reach=8e-3)
-    s1, n1 = grid.signed_distance(x, tau=CONTAIN_SOFTNESS, watch=M, offset=True)
-    c1, m1 = contain(chords(), v, f)
-    monkeypatch.setattr(sdist, "_KERNELS", [None])
-    grid = SurfaceGrid(v, f, reach=8e-3)
-    s2, n2 = grid.signed_distance(x, tau=CONTAIN_SOFTNESS, watch=M, offset=True)
-    c2, m2 = contain(chords(), v, f)
-    both = np.isfinite(s1)
-    assert both.sum() > 50 and (s2[~both] < -M).all()
-    np.testing.assert_allclose(s1[both], s2[both], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(n1[both], n2[both], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(c1, c2, rtol=0, atol=1e-15)
-    np.testing.assert_array_equal(m1, m2)

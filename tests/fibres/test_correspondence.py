@@ -211,23 +211,6 @@ def test_soft_anchor_points():
                                    * (np.roll(p, -1, axis=0)[seg[s]] - p[seg[s]]), atol=1e-15)
 
 
-def test_compiled_insertion():
-    # every contour vertex moves up by the anchors inserted before it
-    pytest.importorskip("numba")
-    from fibres.morph import _kernels
-
-    rng = np.random.default_rng(3)
-    m = rng.integers(4, 40, 9)
-    offs = np.concatenate([[0], np.cumsum(m)])
-    pts = rng.normal(size=(offs[-1], 2))
-    seg = np.stack([np.sort(rng.integers(0, k, 4)) for k in m])
-    offs2 = np.concatenate([[0], np.cumsum(m + 4)])
-    new = _kernels()[3](pts, m, offs, seg, offs2)
-    for s in range(m.size):
-        j = np.arange(m[s])
-        shift = (seg[s][None, :] < j[:, None]).sum(axis=1)
-        np.testing.assert_array_equal(new[offs2[s] + j + shift], pts[offs[s]:offs[s + 1]])
-
 
 def test_order_arcs_is_the_bounded_isotonic_projection():
     # _order_arcs against a brute-force projection onto {lo <= a0 <= a1 <= a2 <= hi}
@@ -415,30 +398,6 @@ def test_soft_start_is_the_closest_point_where_defined_and_continuous_where_not(
     assert np.linalg.norm(start(1e-7) - start(-1e-7)) <= 2.0 * slope * 2e-7
 
 
-def test_insert_points_compiled_equals_array_version():
-    pytest.importorskip("numba")
-    from fibres.correspondence import insert_points
-    from fibres.morph import _kernels
-
-    rng = np.random.default_rng(13)
-    m = rng.integers(3, 40, 9)
-    offs = np.concatenate([[0], np.cumsum(m)])
-    pts = rng.normal(size=(offs[-1], 2))
-    seg = np.stack([rng.integers(0, k, 4) for k in m])
-    tau = rng.uniform(0, 1, seg.shape)
-    tau[0, 1] = tau[0, 0]
-    seg[0, 1] = seg[0, 0]                                                # a tie
-    point = rng.normal(size=seg.shape + (2,))
-    a, ia = insert_points(pts, m, offs, seg, tau, point)
-    b, ib = insert_points(pts, m, offs, seg, tau, point, shift_kernel=_kernels()[3])
-    np.testing.assert_array_equal(a, b)
-    np.testing.assert_array_equal(ia, ib)
-    offs2 = np.concatenate([[0], np.cumsum(m + 4)])
-    for s in range(m.size):
-        np.testing.assert_array_equal(a[offs2[s] + ia[s]], point[s])    # the points in place
-        keep = np.setdiff1d(np.arange(m[s] + 4), ia[s])
-        np.testing.assert_array_equal(a[offs2[s] + keep], pts[offs[s]:offs[s + 1]])
-
 
 def test_soft_start_compiled_equals_python():
     # the compiled start loop and the same loop run by Python: the same arithmetic
@@ -590,22 +549,6 @@ def test_split_smoothing_straightens_the_lhdl_gluteus_medius(lhdl_dir, monkeypat
     assert before > 12.5 and after < 12.5
 
 
-def test_reduceat_sum_in_the_compiled_pass_is_numpys():
-    # the compiled slice_maps pass decides each loop's orientation with numpy's reduceat
-    # summation order (first term + pairwise sum of the rest): the same sums bit for bit,
-    # for lengths below 8, up to 128 and above (recursive halves)
-    pytest.importorskip("numba")
-    from fibres import morph_kernels
-
-    morph_kernels.kernels()
-    rng = np.random.default_rng(21)
-    m = np.r_[1, 2, 7, 8, 9, 16, 17, 127, 128, 129, 150, 300, 301, 1000, 9000, 20000]
-    offs = np.concatenate([[0], np.cumsum(m)])
-    a = rng.standard_normal(offs[-1]) * 10.0 ** rng.integers(-8, 8, offs[-1])
-    ref = np.add.reduceat(a, offs[:-1])
-    got = np.array([morph_kernels._reduceat_sum(a, offs[s], m[s]) for s in range(m.size)])
-    np.testing.assert_array_equal(got, ref)
-
 
 def _bumpy_sections(n_s=25, seed=None):
     import trimesh
@@ -627,89 +570,6 @@ def _bumpy_sections(n_s=25, seed=None):
     chosen, _ = choose_loops(sec, np.tile(ext[:2] / 2, (n_s, 1)), n_slices=n_s)
     return sec, chosen, ext, top
 
-
-@pytest.mark.parametrize("seed", [None, 3])
-def test_compiled_slice_maps_pass_equals_the_steps(seed):
-    # fibres.morph.slice_maps in one compiled pass (fibres.morph_kernels._maps_pass) and
-    # step by step on arrays (_slice_maps_steps): the same P, Q, choice and anchors bit
-    # for bit (on a bumpy ellipsoid, and jittered so that the loops' sizes vary)
-    pytest.importorskip("numba")
-    from fibres.morph import _slice_maps_steps, slice_maps
-
-    sec, chosen, ext, top = _bumpy_sections(seed=seed)
-    got = slice_maps(sec, chosen, ext, topology=top)
-    ref = _slice_maps_steps(sec, np.asarray(chosen, np.int64), ext, topology=top)
-    assert len(got[0]) == len(ref[0]) == 25
-    for a, b in zip(got[0] + got[1], ref[0] + ref[1]):
-        np.testing.assert_array_equal(a, b)
-    np.testing.assert_array_equal(got[2], ref[2])
-    for a, b in zip(got[3], ref[3]):
-        assert a.dtype == b.dtype
-        np.testing.assert_array_equal(a, b)
-    assert got[4] == ref[4] == ()
-
-
-def test_compiled_morph_local_equals_the_array_version(monkeypatch):
-    # fibres.morph.morph_local in one compiled call (plane pairs, weights, the mean value
-    # map of every use, the two planes added in order) against the array version: bit for
-    # bit, for points on planes, between planes (blended), below the first and above the
-    # last plane, and on a rectangle corner (a polygon vertex)
-    pytest.importorskip("numba")
-    from fibres import morph
-    from fibres.morph import morph_local, slice_maps
-
-    sec, chosen, ext, top = _bumpy_sections()
-    P, Q, *_ = slice_maps(sec, chosen, ext, topology=top)
-    h = sec.heights
-    rng = np.random.default_rng(5)
-    xy = rng.uniform(0.02, 0.98, (400, 2)) * ext[:2]
-    w = rng.uniform(-0.01, 1.01, 400) * ext[2]
-    w[:50] = h[rng.integers(0, h.size, 50)]                              # on planes
-    w[50:52] = [h[0] - 1e-3, h[-1] + 1e-3]                              # beyond the ends
-    xy[60], w[60] = 0.0, h[3]                                          # on Q0
-    got = morph_local(xy, w, h, P, Q)
-    monkeypatch.setattr(morph, "_kernels", lambda: None)
-    ref = morph_local(xy, w, h, P, Q)
-    np.testing.assert_array_equal(got, ref)
-    # tuples of separate arrays (not `fibres.mvc.Planes`) map the same
-    monkeypatch.undo()
-    np.testing.assert_array_equal(morph_local(xy, w, h, tuple(map(np.array, P)),
-                                              tuple(map(np.array, Q))), got)
-
-
-def test_compiled_slice_maps_pass_on_random_contours():
-    # the compiled pass reuses the soft start's segment lengths for the rolled contours
-    # (where both ends are old vertices) and measures the new segments: the same P, Q,
-    # choice and anchors as the array steps, on random star contours of 3 to 40 vertices
-    # (several points on one segment, points on the closing segment, either orientation)
-    pytest.importorskip("numba")
-    from types import SimpleNamespace
-
-    from fibres.morph import _slice_maps_steps, slice_maps
-    from fibres.slicing import Sections
-
-    rng = np.random.default_rng(31)
-    m = np.r_[3, 3, 4, 5, rng.integers(3, 40, 36)]
-    start = np.concatenate([[0], np.cumsum(m)])
-    parts = []
-    for k, n in enumerate(m):
-        t = np.sort(rng.uniform(0, 2 * np.pi, n)) * (1 if k % 2 else -1)
-        r = 1.0 + 0.4 * rng.uniform(size=n)
-        parts.append(np.c_[0.5 + 0.4 * r * np.cos(t), 0.3 + 0.25 * r * np.sin(t)]
-                     + rng.normal(0, 0.2, 2))
-    pts = np.concatenate(parts)
-    sec = Sections(np.arange(m.size, dtype=float), pts, np.arange(pts.shape[0]),
-                   rng.uniform(0, 1, pts.shape[0]), start, np.arange(m.size), np.eye(4))
-    top = SimpleNamespace(edges=rng.integers(0, 1000, (pts.shape[0], 2)))
-    chosen = np.arange(m.size)
-    for ext in ([1.0, 0.6, 2.0], [0.2, 1.4, 1.0]):
-        got = slice_maps(sec, chosen, np.array(ext), topology=top)
-        ref = _slice_maps_steps(sec, chosen, np.array(ext), topology=top)
-        for a, b in zip(got[0] + got[1], ref[0] + ref[1]):
-            np.testing.assert_array_equal(a, b)
-        np.testing.assert_array_equal(got[2], ref[2])
-        for a, b in zip(got[3], ref[3]):
-            np.testing.assert_array_equal(a, b)
 
 
 def test_soft_start_float_modulo_is_pythons():

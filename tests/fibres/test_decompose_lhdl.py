@@ -303,21 +303,22 @@ def _winding_numbers(v, f, points, chunk=64):
     return np.concatenate(out)
 
 
-def test_containment_grid_labels_agree_with_the_winding_number(decomposed):
-    # the containment grid labels its empty cells inside/outside (fibres.surface_distance);
-    # an enclosed component takes the side of its first cell's centre by ray parity. The
-    # sign of the blended distance there (the former rule, a unit-weight normal vote) put 2
-    # inside cells of the psoas bent by 10.2 degrees outside, and the pull then skipped a
-    # fibre point 1.7 mm outside (a jump of its length between 10.1 and 10.2 degrees)
+def test_containment_inside_test_agrees_with_the_winding_number(decomposed):
+    # the containment pull skips points deeper than its band that are inside by ray parity
+    # (fibres.surface_distance.SurfaceGrid.inside). The sign of the blended distance (a
+    # unit-weight normal vote) put inside points of the psoas bent by 10.2 degrees outside,
+    # and the pull then skipped a fibre point 1.7 mm outside (a jump of its length between
+    # 10.1 and 10.2 degrees): parity must match the winding number on a lattice through it
     from fibres.surface_distance import SurfaceGrid
 
     surface, origin, insertion, _, _ = decomposed["psoas_r", "muscles_clean"]
     v, f = np.asarray(surface.vertices), np.asarray(surface.faces)
     vb = _bender(origin, insertion)(v, 10.2)
     grid = SurfaceGrid(vb, f, reach=8e-3)
-    label = grid.label.reshape(tuple(grid.dims))
-    cells = np.argwhere(label >= 2)
-    cells = cells[((cells > 0) & (cells < grid.dims - 1)).all(axis=1)]   # not the border layer
-    wind = _winding_numbers(vb, f, grid.lo + (cells + 0.5) * grid.cell)
-    assert len(cells) > 1000 and (label[tuple(cells.T)] == 3).sum() >= 3
-    np.testing.assert_array_equal(label[tuple(cells.T)] == 3, wind > 0.5)
+    lo, hi = vb.min(axis=0) - 2e-3, vb.max(axis=0) + 2e-3
+    axes = [np.linspace(lo[k], hi[k], n) for k, n in enumerate((14, 14, 40))]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    wind = _winding_numbers(vb, f, pts)
+    inside = grid.inside(pts)
+    assert inside.sum() > 150 and (~inside).sum() > 1000
+    np.testing.assert_array_equal(inside, wind > 0.5)

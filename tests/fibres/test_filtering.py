@@ -244,10 +244,9 @@ def test_recorded_choices_are_smooth_under_deformation(cube):
     assert np.abs(d1 - d2).max() <= 1e-6 * scale
 
 
-def test_compiled_region_equals_numpy_and_the_definition(cube, monkeypatch):
+def test_region_equals_the_definition(cube):
     # the attachment area by its definition (module docstring) with scipy's KD-tree: the
-    # compiled loops and the numpy fallback must give exactly it (no ties on this jittered
-    # cube)
+    # search must give exactly it (no ties on this jittered cube)
     from scipy.spatial import cKDTree
 
     import fibres.attachment_area as fl
@@ -264,38 +263,29 @@ def test_compiled_region_equals_numpy_and_the_definition(cube, monkeypatch):
     near = tree.query_ball_point(v[np.unique(nearest)], r=radius)
     ref = np.unique(np.concatenate([np.asarray(n, np.int64) for n in near] + [nearest]))
     assert 5 < ref.size < len(v) // 4                  # a real area, not one point or all
-    for kernels in ("compiled", "numpy"):
-        if kernels == "numpy":
-            monkeypatch.setattr(fl, "_KERNELS", [None])
-            monkeypatch.setattr(rt, "_KERNELS", [None])
-        np.testing.assert_array_equal(fl._region_indices(v, f, lms), ref)
-        # the area's triangles: the faces with all corners in it (definition), plus each
-        # area vertex on none of them as a point held by a face with that corner
-        corners, owner = rt.region_triangles(f, ref, len(v))
-        full = np.flatnonzero(np.isin(f, ref).all(axis=1))
-        np.testing.assert_array_equal(owner[:len(full)], full)
-        np.testing.assert_array_equal(corners[:len(full)], f[full])
-        lone = np.setdiff1d(ref, f[full])
-        np.testing.assert_array_equal(corners[len(full):], np.repeat(lone[:, None], 3, 1))
-        assert (f[owner[len(full):]] == lone[:, None]).any(axis=1).all()
-        # the mean edge (the area's minimum radius): summation order only, 1e-12 relative
-        edge = fl._mean_edge(np.ascontiguousarray(v.T), f)
-        assert edge == pytest.approx(np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean(),
-                                     rel=1e-12)
+    np.testing.assert_array_equal(fl._region_indices(v, f, lms), ref)
+    # the area's triangles: the faces with all corners in it (definition), plus each
+    # area vertex on none of them as a point held by a face with that corner
+    corners, owner = rt.region_triangles(f, ref, len(v))
+    full = np.flatnonzero(np.isin(f, ref).all(axis=1))
+    np.testing.assert_array_equal(owner[:len(full)], full)
+    np.testing.assert_array_equal(corners[:len(full)], f[full])
+    lone = np.setdiff1d(ref, f[full])
+    np.testing.assert_array_equal(corners[len(full):], np.repeat(lone[:, None], 3, 1))
+    assert (f[owner[len(full):]] == lone[:, None]).any(axis=1).all()
+    # the mean edge (the area's minimum radius): summation order only, 1e-12 relative
+    edge = fl._mean_edge(np.ascontiguousarray(v.T), f)
+    assert edge == pytest.approx(np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean(),
+                                 rel=1e-12)
 
 
 # --- the new end: the surface point of the area closest to the ray (paper §3.4) ----------
 
-@pytest.mark.parametrize("kernels", ["compiled", "numpy"])
-def test_closest_point_on_triangles_is_first_hit_or_nearest(kernels, monkeypatch):
+def test_closest_point_on_triangles_is_first_hit_or_nearest():
     # random triangles and rays: where a ray hits some triangle, the answer is the hit with
     # the smallest ray parameter (each hit solved independently as the 3x3 system
     # s + t d = a + u (b - a) + v (c - a)); otherwise no surface sample is closer to the ray
-    # (the compiled loop and the numpy fallback, each against this reference)
     import fibres.ray_triangles as rt
-
-    if kernels == "numpy":
-        monkeypatch.setattr(rt, "_KERNELS", [None])
 
     rng = np.random.default_rng(7)
     tv = rng.uniform(-1, 1, (30, 3, 3))
@@ -461,85 +451,13 @@ def test_plan_reuse_keeps_the_end_on_its_material_point():
     assert np.linalg.norm(out[:, 0] - rest[:, 0], axis=1).min() > 1e-3
 
 
-def test_compiled_resampling_record_equals_the_array_version(monkeypatch):
-    # fibres.resample does the array version's arithmetic point by point: pieces,
-    # parameters and the placed points bit for bit (tube case: both ends cut; wobbly fibres
-    # so that the kept points are not evenly spaced and pieces 0, 1 and 2 all occur)
-    import fibres.resample as rs
-    from fibres.filtering import apply_filter, filter_choices
-
-    if rs.resampling_kernel() is None:
-        pytest.skip("numba not installed")
-    v, f, fib, origin, insertion, _, _ = _tube_case()
-    rng = np.random.default_rng(5)
-    fib = fib + rng.normal(0.0, 0.05, fib.shape) * [1, 1, 0.3]
-    compiled = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
-    moved = fib + 0.01 * np.sin(fib[..., [2, 0, 1]])             # another frame
-    out = apply_filter(moved, v, origin, insertion, [0, 0, 1], compiled)[0]
-    monkeypatch.setattr(rs, "_KERNEL", [None])
-    plain = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
-    np.testing.assert_array_equal(out, apply_filter(moved, v, origin, insertion, [0, 0, 1],
-                                                    plain)[0])
-    assert compiled.cut.all()
-    np.testing.assert_array_equal(compiled.piece, plain.piece)
-    np.testing.assert_array_equal(compiled.param, plain.param)
-    assert set(np.unique(plain.piece)) == {0, 1, 2}
 
 
-def test_compiled_nearest_vertex_is_the_first_nearest():
-    # the block-pruned nearest-vertex search returns np.argmin's answer (first index among
-    # equal distances): random clouds in mesh order and shuffled (no spatial coherence),
-    # landmarks inside and far outside the cloud, and exact ties (repeated vertices)
-    import fibres.attachment_area as fl
-
-    kernels = fl._kernels()
-    if kernels is None:
-        pytest.skip("numba not installed")
-    rng = np.random.default_rng(11)
-    for n_v in (1, 63, 64, 65, 1000, 5000):
-        v = np.cumsum(rng.normal(size=(n_v, 3)), axis=0)           # a coherent walk
-        v = np.concatenate([v, v[rng.integers(0, n_v, n_v // 3 + 1)]])   # duplicates: ties
-        for order in (np.arange(len(v)), rng.permutation(len(v))):
-            vt = np.ascontiguousarray(v[order].T)
-            pts = np.concatenate([v[rng.integers(0, n_v, 5)],           # on a vertex (tie)
-                                  rng.normal(0, 30, (5, 3)), [[1e3, -1e3, 5e2]]])
-            d2 = ((vt.T[None] - pts[:, None]) ** 2).sum(-1)
-            np.testing.assert_array_equal(kernels[0](vt, pts, kernels[3](vt)),
-                                          np.argmin(d2, axis=1))
-
-
-def test_compiled_within_is_every_pair_measured():
-    # the block-pruned radius test marks exactly the vertices that measuring every
-    # (point, vertex) pair with the same arithmetic marks: coherent and shuffled clouds,
-    # radii from none to all, and vertices placed exactly on the radius (boundary ties)
-    import fibres.attachment_area as fl
-
-    kernels = fl._kernels()
-    if kernels is None:
-        pytest.skip("numba not installed")
-    rng = np.random.default_rng(12)
-    for n_v in (1, 63, 64, 65, 1000, 5000):
-        v = np.cumsum(rng.normal(size=(n_v, 3)), axis=0)
-        for order in (np.arange(n_v), rng.permutation(n_v)):
-            vt = np.ascontiguousarray(v[order].T)
-            pts = np.concatenate([v[rng.integers(0, n_v, 4)], rng.normal(0, 30, (3, 3))])
-            d2 = ((pts[:, 0, None] - vt[0]) ** 2 + (pts[:, 1, None] - vt[1]) ** 2) \
-                + (pts[:, 2, None] - vt[2]) ** 2                          # (K, V), the order
-            on = d2[0, rng.integers(0, n_v)]                # a radius met exactly by a vertex
-            for r2 in (0.0, 1.0, 25.0, on, 1e6):
-                ref = (d2 <= r2).any(axis=0)
-                got = kernels[1](vt, pts, r2, kernels[3](vt))
-                np.testing.assert_array_equal(got, ref)
-                if r2 == on:
-                    assert ref.any()
-
-
-def test_regions_triangles_is_region_triangles_of_each_area(monkeypatch):
+def test_regions_triangles_is_region_triangles_of_each_area():
     # regions_triangles marks each area's vertices with its own bit and collects the full
     # faces of all areas in one pass over the faces: for overlapping areas with lone
     # vertices (points on no full face) every area's corners and owning faces must be
-    # exactly region_triangles' (compiled and numpy fallback)
-    import fibres.attachment_area as aa
+    # exactly region_triangles'
     import fibres.ray_triangles as rt
 
     v, f = tube()
@@ -547,14 +465,11 @@ def test_regions_triangles_is_region_triangles_of_each_area(monkeypatch):
     areas = [np.flatnonzero(v[:, 2] < 1.0),                          # a cap and its rim
              np.flatnonzero((v[:, 2] > 0.5) & (v[:, 2] < 2.5)),      # overlaps the first
              np.sort(rng.choice(len(v), 40, replace=False))]         # scattered: lone points
-    for kernels in ("compiled", "numpy"):
-        if kernels == "numpy":
-            monkeypatch.setattr(aa, "_KERNELS", [None])
-        got = rt.regions_triangles(f, areas, len(v))
-        n_lone = 0
-        for area, (corners, face) in zip(areas, got):
-            ref_c, ref_f = rt.region_triangles(f, area, len(v))
-            np.testing.assert_array_equal(corners, ref_c)
-            np.testing.assert_array_equal(face, ref_f)
-            n_lone += int((corners[:, 0] == corners[:, 1]).sum())
-        assert n_lone > 10 and len(got[0][0]) > 20 and len(got[1][0]) > 20   # not vacuous
+    got = rt.regions_triangles(f, areas, len(v))
+    n_lone = 0
+    for area, (corners, face) in zip(areas, got):
+        ref_c, ref_f = rt.region_triangles(f, area, len(v))
+        np.testing.assert_array_equal(corners, ref_c)
+        np.testing.assert_array_equal(face, ref_f)
+        n_lone += int((corners[:, 0] == corners[:, 1]).sum())
+    assert n_lone > 10 and len(got[0][0]) > 20 and len(got[1][0]) > 20   # not vacuous

@@ -23,37 +23,6 @@ def _shapes():
     yield v, np.array([0.0, 0.0, 1.0])
 
 
-@pytest.mark.parametrize("reverse", [False, True])
-def test_cross_section_reference_compiled_equals_numpy(reverse, monkeypatch):
-    pytest.importorskip("numba")
-    for v, axis in _shapes():
-        v = v[::-1].copy() if reverse else v          # the vertex order fixes the sign
-        frame = fitting.principal_frame(v, v[:3], v[:3] + axis, axis="attachments")
-        got = decompose_module._cross_section_ref(v, frame)
-        with monkeypatch.context() as mp:
-            mp.setattr(fitting, "_FIT", [None])
-            want = decompose_module._cross_section_ref(v, frame)
-        if want is None:
-            assert got is None
-        else:
-            np.testing.assert_array_equal(got, want)
-
-
-def test_prepare_compiled_equals_numpy(monkeypatch):
-    pytest.importorskip("numba")
-    rng = np.random.default_rng(3)
-    for n in (1, 7, 15002):
-        v = rng.normal(size=(n, 3)) * 0.05 + 0.3
-        for arr in (v, np.asfortranarray(v)):
-            got = fitting.prepare(arr)
-            with monkeypatch.context() as mp:
-                mp.setattr(fitting, "_FIT", [None])
-                want = fitting.prepare(arr)
-            for x, y in zip(got, want):
-                np.testing.assert_array_equal(x, y)
-            np.testing.assert_array_equal(got.vt, arr.T)
-            np.testing.assert_array_equal(got.centroid, arr.mean(axis=0))
-
 
 def test_prepare_bounds_with_zero_and_signed_zero_coordinates(monkeypatch):
     pytest.importorskip("numba")
@@ -64,21 +33,3 @@ def test_prepare_bounds_with_zero_and_signed_zero_coordinates(monkeypatch):
     np.testing.assert_array_equal(got.lo, v.min(axis=0))
 
 
-def test_cross_section_reference_sign_near_zero_moment_falls_back_to_numpy(monkeypatch):
-    # a palindromic vertex order makes the sign moment (n + 1) / 2 sum_i x_i ~ 0 (the
-    # vertices are centred): the ordered sum cannot decide, numpy's dot does, as before
-    pytest.importorskip("numba")
-    rng = np.random.default_rng(6)
-    w = (rng.normal(size=(3000, 3)) * [0.02, 0.035, 0.12])
-    v = np.concatenate([w, w[::-1]])
-    frame = fitting.principal_frame(v, v[:3], v[:3] + [0.0, 0.0, 1.0], axis="attachments")
-    kernels = fitting._fit_kernels()
-    dt = kernels.section(np.ascontiguousarray(v.T), frame.centroid, frame.axis)
-    ref = decompose_module._cross_section_ref(v, frame)
-    s, a = kernels.moment(dt, np.ascontiguousarray(ref))
-    n = v.shape[0]
-    assert abs(s) <= 3 * n * 2.0 ** -53 / (1 - n * 2.0 ** -53) * a     # undecided
-    with monkeypatch.context() as mp:
-        mp.setattr(fitting, "_FIT", [None])
-        want = decompose_module._cross_section_ref(v, frame)
-    np.testing.assert_array_equal(ref, want)

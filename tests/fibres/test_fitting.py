@@ -201,19 +201,12 @@ def _shape_points(shape, rng, n=5000):
     }[shape]
 
 
-@pytest.mark.parametrize("compiled", [True, False])
 @pytest.mark.parametrize("shape", SHAPES)
-def test_support_screen_keeps_every_extreme_point(shape, compiled, monkeypatch):
+def test_support_screen_keeps_every_extreme_point(shape):
     # the screened box search must give bit-identical boxes: every vertex that attains a
-    # minimum or maximum of some projection survives the screen (brute force over all),
-    # with the compiled screen (polygon + sector hull) and with numpy's (three polygons)
-    from fibres import fitting
+    # minimum or maximum of some projection survives the screen (brute force over all)
     from fibres.fitting import _boxes, _support_candidates, _thetas
 
-    if compiled:
-        pytest.importorskip("numba")
-    else:
-        monkeypatch.setattr(fitting, "_FIT", [None])
     rng = np.random.default_rng(3)
     a, b = _shape_points(shape, rng)
     n = a.size
@@ -242,19 +235,6 @@ def test_support_screen_keeps_every_extreme_point(shape, compiled, monkeypatch):
     np.testing.assert_array_equal(ext[:, 1], pb.max(axis=1) - pb.min(axis=1))
 
 
-@pytest.mark.parametrize("shape", SHAPES)
-def test_hull_screen_is_effective_where_its_polygon_is_usable(shape):
-    # the compiled sector-hull screen after the first polygon keeps at most what the
-    # numpy three-polygon screen keeps plus a few, where it is used (not a fallback)
-    pytest.importorskip("numba")
-    from fibres import fitting
-
-    a, b = _shape_points(shape, np.random.default_rng(8))
-    a, b = a - a.mean(), b - b.mean()
-    fast, poly = fitting._support_candidates(a, b), fitting._polygon_screen(a, b)
-    if shape in ("disc", "ellipse", "blob", "spindle", "circle", "duplicates"):
-        assert fast.size <= 2 * poly.size + 16
-
 
 def test_mean_rows_is_numpy_mean_bit_for_bit():
     from fibres.fitting import _mean_rows
@@ -266,22 +246,6 @@ def test_mean_rows_is_numpy_mean_bit_for_bit():
         f = np.asfortranarray(v)                  # numpy sums columns pairwise here
         np.testing.assert_array_equal(_mean_rows(f), f.mean(axis=0))
 
-
-def test_polygon_screen_compiled_equals_numpy(monkeypatch):
-    pytest.importorskip("numba")
-    from fibres import fitting
-
-    rng = np.random.default_rng(4)
-    u, w = rng.uniform(size=(2, 4000))
-    flip = u + w > 1
-    u[flip], w[flip] = 1 - u[flip], 1 - w[flip]
-    shapes = [(rng.normal(size=4000) * 0.03, rng.normal(size=4000) * 0.01),
-              (u + 0.3 * w, w),                                 # a triangle: < 8 corners
-              _shape_points("square", rng), _shape_points("spindle", rng)]
-    compiled = [fitting._polygon_screen(a, b) for a, b in shapes]
-    monkeypatch.setattr(fitting, "_FIT", [None])
-    for (a, b), got in zip(shapes, compiled):
-        np.testing.assert_array_equal(got, fitting._polygon_screen(a, b))
 
 
 def _bent_spindle(n_z=24, n_t=32, length=0.2):
@@ -327,34 +291,6 @@ def test_pennate_tie_is_broken_by_the_shape_not_by_rounding():
         assert np.abs(nudged.axis - frame.axis).max() <= 1e-8
 
 
-@pytest.mark.parametrize("template", ["parallel", "pennate", "fanned"])
-@pytest.mark.parametrize("axis", ["auto", "covariance"])
-def test_compiled_fit_equals_numpy_bit_for_bit(template, axis, monkeypatch):
-    # the compiled screen, box extents, nearest-landmark distances and centring repeat the
-    # array version's operations, so frames, boxes and scores are identical bit for bit
-    # (which keeps the chosen rotation the same even where scores tie)
-    pytest.importorskip("numba")
-    from fibres import fitting
-
-    v, o, i = _bent_spindle(n_z=40, n_t=60)
-    rot = Rotation.from_euler("xyz", [0.3, -0.5, 1.1]).as_matrix()
-    v, o, i = v @ rot.T + 0.1, o @ rot.T + 0.1, i @ rot.T + 0.1
-    ref_dir = np.array([1.0, 0.3, 0.1])
-    runs = []
-    for kernels in (True, False):
-        with monkeypatch.context() as mp:
-            if not kernels:
-                mp.setattr(fitting, "_FIT", [None])
-            frame = principal_frame(v, o, i, axis=axis, template=template, v_ref=ref_dir)
-            box = fit_box(v, o, i, template, axis=axis, v_ref=ref_dir)
-            runs.append((frame, box))
-    (f1, b1), (f2, b2) = runs
-    for x, y in zip(f1[:4], f2[:4]):
-        np.testing.assert_array_equal(x, y)
-    for name in ("corner", "axes", "extents", "scores"):
-        np.testing.assert_array_equal(getattr(b1, name), getattr(b2, name))
-    assert b1.angle_index == b2.angle_index and b1.method == b2.method
-
 
 @pytest.mark.parametrize("template", ["parallel", "pennate"])
 @pytest.mark.parametrize("axis", ["auto", "covariance", "attachments"])
@@ -386,42 +322,6 @@ def test_prepared_vertices_give_the_same_frame_and_box_bit_for_bit(template, axi
             np.testing.assert_array_equal(getattr(b1, name), getattr(b, name))
         assert b.angle_index == b1.angle_index
 
-
-def test_compiled_closest_sum_equals_numpy_bit_for_bit(monkeypatch):
-    # one root per area point (the root of the smallest square) gives numpy's smallest
-    # root bit for bit: random areas, landmarks repeated (exact ties) and on area points
-    pytest.importorskip("numba")
-    from fibres import fitting
-
-    rng = np.random.default_rng(4)
-    area = rng.normal(size=(72, 25, 3))
-    lms = np.concatenate([rng.normal(size=(6, 3)), area[3, :2]])
-    lms = np.concatenate([lms, lms[:2]])
-    got = fitting._closest_sum(area, lms)
-    monkeypatch.setattr(fitting, "_FIT", [None])
-    np.testing.assert_array_equal(got, fitting._closest_sum(area, lms))
-
-
-def test_compiled_scores_equal_numpy_bit_for_bit(monkeypatch):
-    # the fused mapping + closest-landmark kernel does the array version's operations in
-    # its order: random boxes, landmarks on mapped area points (exact ties) and repeated
-    pytest.importorskip("numba")
-    from fibres import fitting
-    from fibres.templates import get_template
-
-    rng = np.random.default_rng(7)
-    tmpl = get_template("parallel")
-    axes = rng.normal(size=(72, 3, 3))
-    ext = rng.uniform(0.5, 3.0, size=(72, 3))
-    corner = rng.normal(size=(72, 3))
-    origin = rng.normal(size=(9, 3))
-    insertion = np.concatenate([rng.normal(size=(5, 3)), corner[:2]])
-    insertion = np.concatenate([insertion, insertion[:2]])
-    got = fitting._scores(tmpl, axes, corner, ext, origin, insertion)
-    monkeypatch.setattr(fitting, "_FIT", [None])
-    want = fitting._scores(tmpl, axes, corner, ext, origin, insertion)
-    np.testing.assert_array_equal(got, want)
-    assert np.all(np.isfinite(got))
 
 
 def test_auto_axis_without_covariance_decides_as_the_extent(monkeypatch):
@@ -458,31 +358,6 @@ def test_auto_axis_without_covariance_decides_as_the_extent(monkeypatch):
             if dist >= 0.25 * diag * (1 + 1e-8):
                 assert not calls                  # the covariance was not needed
 
-
-def test_compiled_boxes_equal_numpy_bit_for_bit(monkeypatch):
-    # one compiled pass (screen, extents, axes, corners: the array version's operations,
-    # incl. einsum's order of the corner sum) gives numpy's boxes exactly
-    pytest.importorskip("numba")
-    from fibres import fitting
-
-    rng = np.random.default_rng(21)
-    for k in range(6):
-        rot = Rotation.random(random_state=k).as_matrix()
-        v = (rng.normal(size=(3000, 3)) * [0.02, 0.03, 0.1]) @ rot.T + rng.normal(size=3)
-        c = v.mean(axis=0)
-        u, v0, w0 = rot[:, 2], rot[:, 0], rot[:, 1]
-        theta = fitting._thetas([5.0, 7.5, 45.0][k % 3])
-        for blas in (False, True):                 # fixed-order or BLAS projections
-            got = fitting._boxes(v, c, u, v0, w0, theta, blas=blas)
-            with monkeypatch.context() as mp:
-                mp.setattr(fitting, "_FIT", [None])
-                want = fitting._boxes(v, c, u, v0, w0, theta, blas=blas)
-            for x, y in zip(got, want):
-                np.testing.assert_array_equal(x, y)
-        # both are the boxes of all vertices up to the projections' rounding
-        for x, y in zip(fitting._boxes(v, c, u, v0, w0, theta),
-                        fitting._boxes(v, c, u, v0, w0, theta, blas=True)):
-            np.testing.assert_allclose(x, y, rtol=0, atol=1e-14)
 
 
 def test_norm_is_numpys_bit_for_bit():

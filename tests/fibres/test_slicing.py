@@ -125,45 +125,6 @@ def test_compiled_crossings_equal_the_array_version():
             np.testing.assert_array_equal(a, b)
 
 
-def test_compiled_topology_equals_the_array_version(monkeypatch):
-    # the compiled half-edge pairing must give the same tables as the array version, for
-    # a consistently and an inconsistently wound closed mesh
-    pytest.importorskip("numba")
-    from fibres import slicing
-
-    m = trimesh.creation.icosphere(subdivisions=3)
-    flipped = np.asarray(m.faces).copy()
-    flipped[::7] = flipped[::7, ::-1]
-    for faces in (np.asarray(m.faces), flipped):
-        got = mesh_topology(faces, len(m.vertices))
-        with monkeypatch.context() as mp:
-            mp.setattr(slicing, "_TOPOLOGY", [None])
-            ref = mesh_topology(faces, len(m.vertices))
-        for name in ("faces", "edges", "face_edges", "neighbours"):
-            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
-        assert got.oriented == ref.oriented == (faces is not flipped)
-
-
-def test_compiled_loop_order_equals_the_lexsort():
-    # nodes by plane, loop (smallest node) and position along the loop: the compiled walk
-    # with bucketing must equal the lexsort of the cycle labels, with several loops per plane
-    from fibres.slicing import _crossings, _loop_order
-
-    m = trimesh.creation.icosphere(subdivisions=3)
-    v = np.vstack([m.vertices, np.asarray(m.vertices) + [2.5, 0, 0]])
-    f = np.vstack([m.faces, np.asarray(m.faces) + len(m.vertices)])
-    topo = mesh_topology(f, len(v))
-    d = v @ np.array([0.1, 0.2, 0.97])
-    h = np.linspace(d.min() + 1e-6, d.max() - 1e-6, 20)
-    _, node_slice, _, nxt = _crossings(d, topo.faces, topo.neighbours, h)
-    order, loop_start = _loop_order(nxt, node_slice, h.size)
-    label, rank = _cycles(nxt)
-    ref = np.lexsort((rank, label, node_slice))
-    np.testing.assert_array_equal(order, ref)
-    first = np.flatnonzero(np.r_[True, label[ref][1:] != label[ref][:-1]])
-    np.testing.assert_array_equal(loop_start, np.r_[first, nxt.size])
-    assert loop_start.size - 1 > h.size                   # several loops on some planes
-
 
 def _circle(c, r, n, phase=0.0):
     t = phase - np.linspace(0, 2 * np.pi, n, endpoint=False)          # clockwise
@@ -209,52 +170,4 @@ def test_bridge_loops_is_continuous_through_a_pinch_and_an_island():
     assert np.abs(p1 - p2).max() <= 1e-5
 
 
-def test_compiled_topology_equals_the_array_version_on_shuffled_and_open_meshes(monkeypatch):
-    # vertex labels shuffled (edges sorted by their smaller vertex far from face order) and
-    # faces shuffled: the counting-sort kernel must give the array version's tables; an open
-    # mesh (a face removed) goes to the array version's refusal
-    pytest.importorskip("numba")
-    from fibres import slicing
 
-    rng = np.random.default_rng(7)
-    m = trimesh.creation.icosphere(subdivisions=3)
-    relabel = rng.permutation(len(m.vertices))
-    faces = relabel[np.asarray(m.faces)][rng.permutation(len(m.faces))]
-    faces = np.roll(faces, 1, axis=1)                      # same triangles, other first corner
-    got = mesh_topology(faces, len(m.vertices))
-    with monkeypatch.context() as mp:
-        mp.setattr(slicing, "_TOPOLOGY", [None])
-        ref = mesh_topology(faces, len(m.vertices))
-    for name in ("edges", "face_edges", "neighbours"):
-        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
-    assert got.oriented and ref.oriented
-    # every edge once in each direction: the neighbour across edge j of face t sees t back
-    t = np.arange(len(faces))[:, None]
-    back = got.face_edges[got.neighbours] == got.face_edges[:, :, None]
-    assert (got.neighbours[got.neighbours, np.argmax(back, axis=2)] == t).all()
-    with pytest.raises(ValueError, match="exactly two faces"):
-        mesh_topology(faces[1:], len(m.vertices))
-
-
-def test_compiled_section_points_equal_the_array_version(monkeypatch):
-    # slice_mesh's compiled tail (points, edges, edge parameters in loop order) must give
-    # the array version's sections bit for bit, on a twisted, tilted mesh with several
-    # loops per plane
-    pytest.importorskip("numba")
-    from fibres import slicing
-
-    m = trimesh.creation.icosphere(subdivisions=3)
-    v = np.vstack([m.vertices, np.asarray(m.vertices) * [1.0, 0.5, 1.3] + [2.2, 0, 0.1]])
-    f = np.vstack([m.faces, np.asarray(m.faces) + len(m.vertices)])
-    topo = mesh_topology(f, len(v))
-    tf = np.eye(4)
-    tf[:3, :3] = trimesh.transformations.rotation_matrix(0.4, [1, 2, 0.5])[:3, :3]
-    tf[:3, 3] = [0.1, -0.2, 0.05]
-    local = tf[:3, :3].T @ (v - tf[:3, 3]).T
-    h = np.linspace(local[2].min() + 1e-6, local[2].max() - 1e-6, 23)
-    got = slice_mesh(v, topo, tf, h)
-    monkeypatch.setattr(slicing, "_CROSSINGS", [None])
-    ref = slice_mesh(v, topo, tf, h)
-    for name in ("points", "edge", "t", "loop_start", "loop_slice"):
-        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
-    assert got.loop_start.size - 1 > h.size                   # several loops on some planes

@@ -85,20 +85,3 @@ def test_max_shift_bounds_every_displacement_softly():
         smooth(arc, max_shift=0.0)
 
 
-def test_compiled_steps_equal_the_array_steps(monkeypatch):
-    # the compiled loop does each step's arithmetic point by point from the previous step:
-    # bit for bit the array version (random bundles, with and without the shift bound)
-    import fibres.smoothing as sm
-
-    if sm._kernel() is None:
-        pytest.skip("numba not installed")
-    rng = np.random.default_rng(4)
-    pts = rng.normal(size=(17, 12, 3))
-    pts[3] *= 1e-3                                       # moves well below the bound
-    pts[4, :, 1] = -0.0                                  # signed zeros kept as numpy does
-    runs = [dict(iterations=1), dict(iterations=7, k=2.5), dict(iterations=5, max_shift=0.3),
-            dict(iterations=3, max_shift=1e-3)]
-    compiled = [sm.smooth(pts, **kw) for kw in runs]
-    monkeypatch.setattr(sm, "_KERNEL", [None])
-    for kw, got in zip(runs, compiled):
-        np.testing.assert_array_equal(got, sm.smooth(pts, **kw))

@@ -231,55 +231,6 @@ def test_fast_path_equals_the_repair(case):
     np.testing.assert_array_equal(s.faces, ref_f)
 
 
-@pytest.mark.parametrize("case", list(_imperfect_variants()))
-def test_compiled_geometry_check_equals_numpy(case, monkeypatch):
-    # the one-pass compiled face check and the component-wise numpy check make the same
-    # decision; the mean edge is the plain mean of the 3 T directed face edges (rounding:
-    # 1e-12 relative covers any summation order over ~4K terms)
-    import fibres.clean_check as fs
-
-    v, f = _imperfect_variants()[case]
-    f = np.asarray(f, np.int64)
-    top_c, edge_c = fs.clean_mesh_geometry(v, f)
-    monkeypatch.setattr(fs, "_GEOMETRY", [None])
-    top_n, edge_n = fs.clean_mesh_geometry(v, f)
-    assert (top_c is None) == (top_n is None) == (case != "clean")
-    if case == "clean":
-        ref = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=-1).mean()
-        assert edge_c == pytest.approx(ref, rel=1e-12)
-        assert edge_n == pytest.approx(ref, rel=1e-12)
-        np.testing.assert_array_equal(top_c.neighbours, top_n.neighbours)
-
-
-@pytest.mark.parametrize("case", list(_imperfect_variants()) + ["collapsed edge"])
-def test_topology_pass_measures_the_faces_as_the_geometry_loop(case):
-    # the clean check measures the faces (edge/height test, volume, edge-length sum, vertex
-    # bounds) inside the compiled topology pass: exactly _geometry_loop's numbers, bit for
-    # bit, wherever the topology pass gets through (the topology equal to the plain pass's)
-    pytest.importorskip("numba")
-    import fibres.clean_check as fs
-    from fibres.slicing import _closed_topology
-
-    if case == "collapsed edge":  # a clean topology with two zero-length edges: check fails
-        v, f = _imperfect_variants()["clean"]
-        v = v.copy()
-        v[f[0, 1]] = v[f[0, 0]]
-    else:
-        v, f = _imperfect_variants()[case]
-    v = np.ascontiguousarray(v, dtype=np.float64)
-    f = np.ascontiguousarray(f, dtype=np.int64)
-    with_geometry = _closed_topology(f, len(v), v, 2e-8)
-    plain = _closed_topology(f, len(v))
-    assert (with_geometry is None) == (plain is None)
-    if plain is None:
-        return
-    assert plain[3] is None and plain[1:3] == with_geometry[1:3]
-    np.testing.assert_array_equal(plain[0].neighbours, with_geometry[0].neighbours)
-    ref = fs._geometry_kernel()(v, f, 2e-8)
-    assert ref[0] == (case != "collapsed edge")
-    for got, want in zip(with_geometry[3], ref):
-        np.testing.assert_array_equal(got, want)
-
 
 def test_pieces_touching_at_one_vertex_are_not_clean():
     # two tetrahedra sharing one vertex: every edge is used twice and the winding is
@@ -297,66 +248,13 @@ def test_pieces_touching_at_one_vertex_are_not_clean():
     assert len(ref_f) == 4 and any("stray piece" in r for r in repairs)
 
 
-@pytest.mark.parametrize("n_pieces", [1, 2, 5])
-def test_compiled_pieces_count_equals_scipy(n_pieces):
-    # the compiled topology pass's flood fill counts the same edge-connected pieces as
-    # scipy's connected components (the path without it), with the pieces' faces
-    # interleaved in the face list
-    pytest.importorskip("numba")
-    import fibres.clean_check as fs
-    from fibres.slicing import _closed_topology, mesh_topology
-
-    m = trimesh.creation.icosphere(subdivisions=2)
-    v0, f0 = np.asarray(m.vertices), np.asarray(m.faces)
-    v = np.vstack([v0 + [3.0 * p, 0, 0] for p in range(n_pieces)])
-    f = np.vstack([f0 + p * len(v0) for p in range(n_pieces)]).astype(np.int64)
-    f = f[np.random.default_rng(n_pieces).permutation(len(f))]
-    nb = mesh_topology(f, len(v)).neighbours
-    assert fs._n_pieces(nb) == n_pieces
-    assert _closed_topology(np.ascontiguousarray(f), len(v))[1] == n_pieces
 
 
-def test_attachment_area_closest_points_compiled_equal_numpy(monkeypatch):
-    # fibres.ray_triangles (the attachment filter's new fibre ends on the area's surface):
-    # the compiled loop prunes pairs with exact lower bounds (bounding sphere, box and
-    # 2D distance across the ray) and evaluates the rest by increasing bound; rays grazing
-    # a curved patch (many nearly equidistant triangles, closest points on shared edges
-    # and vertices) and rays hitting it must give the unpruned numpy answer (the same
-    # point: 1e-12 of the unit-size coordinates covers rounding of the pair formulas)
-    pytest.importorskip("numba")
-    import fibres.ray_triangles as rt
-
-    m = trimesh.creation.icosphere(subdivisions=4)
-    v, f = np.asarray(m.vertices), np.asarray(m.faces)
-    cap = f[(v[f][:, :, 2] > 0.6).all(axis=1)]               # a spherical cap patch
-    tv = v[cap]
-    rng = np.random.default_rng(11)
-    n = 300
-    start = np.c_[rng.uniform(-1.2, 1.2, (n, 2)), rng.uniform(0.5, 1.5, n)]
-    direction = np.c_[rng.standard_normal((n, 2)), 0.3 * rng.standard_normal(n)]
-    direction[: n // 3, 2] = -1.0                            # some rays hit the cap
-    got_k, got_b = rt.closest_on_triangles(tv, start, direction)
-    monkeypatch.setattr(rt, "_KERNELS", [None])
-    ref_k, ref_b = rt.closest_on_triangles(tv, start, direction)
-    got = np.einsum("nk,nkc->nc", got_b, tv[got_k])
-    ref = np.einsum("nk,nkc->nc", ref_b, tv[ref_k])
-    np.testing.assert_allclose(got, ref, atol=1e-12)
-    # a point inside a triangle has one owner; on shared edges and vertices the owners may
-    # differ (the compiled loop ranks the most promising triangle first, numpy by index)
-    inside = (got_b > 1e-9).all(axis=1)
-    assert 20 < inside.sum() < n and (got_b.max(axis=1) > 1 - 1e-12).sum() > 20
-    np.testing.assert_array_equal(got_k[inside], ref_k[inside])
-
-
-@pytest.mark.parametrize("kernels", ["compiled", "numpy"])
-def test_closest_points_within_a_distance(kernels, monkeypatch):
+def test_closest_points_within_a_distance():
     # closest_on_triangles(..., within=w): rays that come within w of the cap (or touch it)
     # get exactly the unrestricted answer, the others index -1 -- checked against the
     # unrestricted distances (1e-9 relative: far above the rounding of the check itself)
     import fibres.ray_triangles as rt
-
-    if kernels == "numpy":
-        monkeypatch.setattr(rt, "_KERNELS", [None])
     m = trimesh.creation.icosphere(subdivisions=3)
     v, f = np.asarray(m.vertices), np.asarray(m.faces)
     tv = v[f[(v[f][:, :, 2] > 0.5).all(axis=1)]]
@@ -379,39 +277,3 @@ def test_closest_points_within_a_distance(kernels, monkeypatch):
         assert 0 < kept.sum() < n or w == 0.0
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_compiled_merge_test_equals_numpy(seed):
-    # the hash-table pass that rounds the rows itself answers as numpy's rows
-    # (v * scale).round().astype(int64) and the sort of their hashes: rows with and without
-    # one duplicate (placed anywhere), rows differing in one coordinate only, ties at .5
-    # (rounded half to even), -0.0 and 0.0; rows rounding beyond int64 are left to numpy
-    from fibres.clean_check import _duplicates_kernel, _has_duplicate_rows, _has_merged_vertices
-
-    pytest.importorskip("numba")
-    rng = np.random.default_rng(seed)
-    scale = 10 ** 8
-
-    def rows_of(v):
-        return (v * scale).round().astype(np.int64)
-
-    seen = set()
-    for n, span in ((1, 5), (2, 2), (50, 3), (3000, 10 ** 9), (3000, 40)):
-        q = rng.integers(-span, span, size=(n, 3)).astype(np.float64)
-        v = (q + rng.choice([-0.4, 0.0, 0.3, 0.5, -0.5], size=q.shape)) / scale
-        for x in (v, v[np.unique(rows_of(v), axis=0, return_index=True)[1]],
-                  np.vstack([v, v[rng.integers(0, n)] + 0.2 / scale])[::-1]):
-            x = np.ascontiguousarray(x)
-            expected = _has_duplicate_rows(rows_of(x))
-            seen.add(expected)
-            assert _duplicates_kernel()(x, float(scale)) == int(expected)
-            assert _has_merged_vertices(x, scale) == expected
-    assert seen == {False, True}                                 # not vacuous
-    line = np.zeros((500, 3))
-    line[:, 2] = np.arange(500) / scale                      # unique, one coordinate differs
-    assert _duplicates_kernel()(line, float(scale)) == 0
-    line[499, 2] = -0.3 / scale                               # rounds to -0.0: equals row 0
-    assert _duplicates_kernel()(line, float(scale)) == 1 and _has_duplicate_rows(rows_of(line))
-    huge = np.array([[1e12, 0.0, 0.0], [2e12, 0.0, 0.0]])    # beyond int64 once scaled
-    assert _duplicates_kernel()(huge, float(scale)) == -1
-    with np.errstate(invalid="ignore"):
-        assert _has_merged_vertices(huge, scale) == _has_duplicate_rows(rows_of(huge))

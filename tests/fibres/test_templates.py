@@ -204,22 +204,6 @@ def test_pennation_sets_the_fibre_angle():
         get_template("pennate", pennation=1.5)
 
 
-@pytest.mark.parametrize("degree", [0, 1, 2, 4])
-def test_bezier_evaluate_compiled_equals_numpy_bit_for_bit(degree, monkeypatch):
-    # the compiled weighted sum adds the control points in the array version's order
-    pytest.importorskip("numba")
-    from fibres import bezier
-
-    rng = np.random.default_rng(degree)
-    ctrl = rng.normal(size=(37, degree + 1, 3))
-    t = np.linspace(0.0, 1.0, 20)
-    got = evaluate(ctrl, t)
-    monkeypatch.setattr(bezier, "_KERNEL", [None])
-    want = evaluate(ctrl, t)
-    assert got.shape == want.shape == (37, 20, 3)
-    np.testing.assert_array_equal(got, want)
-    np.testing.assert_array_equal(evaluate(ctrl[:0], t), np.zeros((0, 20, 3)))
-
 
 @pytest.mark.parametrize("name", TEMPLATES)
 def test_offset_and_oblique_are_the_areas_centroid_shift(name):

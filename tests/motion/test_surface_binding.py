@@ -220,12 +220,9 @@ def test_smoothstep_is_c2_at_the_ends():
     assert np.abs(d1).max() < 1e-6
 
 
-def test_numpy_fallbacks_match_compiled_kernels(monkeypatch):
-    # numba is optional: the numpy paths must give the same surfaces (to round-off)
-    pytest.importorskip("numba")
-    import motion.surface.collision as collision
-    import motion.surface.volume as volume
-
+def test_obstacles_push_and_the_volume_is_kept():
+    # the obstacles (numpy: motion.surface.collision) move the surface; the volume correction
+    # (motion.surface.volume) still restores the rest volume
     verts, faces = capped_cylinder(n_around=16, n_rings=11)
     origin, insertion = np.zeros(3), np.array([LENGTH, 0.0, 0.0])
     binding = bind_surface(verts, faces, [np.array([origin, insertion])], np.eye(4), np.eye(4),
@@ -239,14 +236,10 @@ def test_numpy_fallbacks_match_compiled_kernels(monkeypatch):
     obstacles = [WrapObstacle("sphere", tf_obs, np.full(3, 0.02)),
                  WrapObstacle("ellipsoid", tf_obs, np.array([0.01, 0.025, 0.015]))]
     compiled = binding.deform([line], np.tile(np.eye(4), (3, 1, 1)), tf, obstacles=obstacles)
-    monkeypatch.setattr(volume, "_KERNELS", {"done": True})
-    monkeypatch.setattr(collision, "_PUSH", {"kernel": None})
-    plain = binding.deform([line], np.tile(np.eye(4), (3, 1, 1)), tf, obstacles=obstacles)
     free = binding.deform([line], np.tile(np.eye(4), (3, 1, 1)), tf)
     assert np.abs(compiled.vertices - free.vertices).max() > 1e-3   # the obstacles did push
     assert np.abs(compiled.volume_error).max() < 1e-6
-    np.testing.assert_allclose(plain.vertices, compiled.vertices, atol=1e-10)
-    np.testing.assert_allclose(plain.volume, compiled.volume, rtol=1e-9)
+    np.testing.assert_allclose(compiled.volume, free.volume, rtol=1e-6)
 
 
 def _squeeze_on_cylinder(h, t, y=0.005, radius=0.02, margin=5e-4):
@@ -289,10 +282,7 @@ def test_squeeze_flattens_layers_in_order_into_the_room_left():
         np.testing.assert_allclose(-out0[:, 0], [-0.005, h0 - margin, h0 - margin, h0 - margin], atol=1e-15)
 
 
-def test_squeeze_numpy_fallback_matches_compiled_kernel(monkeypatch):
-    pytest.importorskip("numba")
-    import motion.surface.collision as collision
-
+def test_squeeze_moves_offsets_on_every_obstacle_kind():
     rng = np.random.default_rng(3)
     tf = np.tile(np.eye(4), (2, 1, 1))
     tf[1] = rot_z([0.7])[0]
@@ -303,11 +293,8 @@ def test_squeeze_numpy_fallback_matches_compiled_kernel(monkeypatch):
                      WrapObstacle("sphere", tf, np.full(3, 0.02)),
                      WrapObstacle("ellipsoid", tf, np.array([0.01, 0.025, 0.015]))):
         compiled = obstacle.squeezer(centres)(offsets)
-        with monkeypatch.context() as m:
-            m.setattr(collision, "_PUSH", {"kernel": None})
-            plain = obstacle.squeezer(centres)(offsets)
         assert np.abs(compiled - offsets).max() > 1e-3        # something was squeezed
-        np.testing.assert_allclose(plain, compiled, atol=1e-15)
+        assert np.isfinite(compiled).all()
 
 
 def test_riders_must_be_trailing_face_less_vertices():
