@@ -67,7 +67,7 @@ SETTLE = {
             "analysis.vtk_files", "analysis.run_record", "analysis.out_folder", "analysis.budget",
             "motion.surface.rest", "fibres.decompose"),
     "lines": ("numpy", "pandas", "motion", "analysis.lines_tables"),
-    "decompose": ("numpy", "trimesh", "fibres", "fibres.decompose", "fibres.fitting"),
+    "decompose": ("numpy", "trimesh", "fibres", "fibres.decompose", "fibres.fit.fitting"),
     "study": ("numpy", "pandas", "motion", "fibres", "analysis.run", "analysis.study", "analysis.study_file",
               "analysis.study_folder", "analysis.study_tasks", "analysis.cli_run"),
 }

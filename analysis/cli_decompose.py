@@ -156,8 +156,8 @@ def execute(args) -> int:
     """Run ``fibres decompose``; returns the exit status (errors are raised as InputError)."""
     import fibres
     from fibres.decompose import decompose
-    from fibres.fitting import check_landmarks
-    from fibres.surface import SurfaceRepairWarning, as_points, check_muscle_scale
+    from fibres.fit.fitting import check_landmarks
+    from fibres.mesh.surface import SurfaceRepairWarning, as_points, check_muscle_scale
 
     from .spec import check_count
 

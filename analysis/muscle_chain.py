@@ -183,7 +183,7 @@ def run_muscle(ctx, mspec):
     quality = bundle0.quality
     problems = quality.problems() if quality is not None else []
     if problems:
-        from fibres.quality import FibreQualityWarning
+        from fibres.finishing.quality import FibreQualityWarning
 
         notes += (f"fibre quality below the usual limits: {'; '.join(problems)}",)
         warnings.warn(f"{mspec.name}: fibre quality below the usual limits: {'; '.join(problems)}"

@@ -49,7 +49,7 @@ class MuscleResult:
         int goes with it.
     notes : tuple of str
     quality : dict or None
-        `fibres.quality.FibreQuality` of the rest-pose fibres, as a dict.
+        `fibres.finishing.quality.FibreQuality` of the rest-pose fibres, as a dict.
     optimal_lengths : (N,) float or None
         Each fibre's optimal length l_opt (m) for ``normalized_lengths``, NaN where unknown
         (`analysis.run`: the OpenSim muscle's optimal_fiber_length; with a user mesh scaled by

@@ -244,9 +244,9 @@ def _select_muscles(spec, muscles, *, fibres, resolution, template, slicing=None
 
 
 def check_mesh_files(mspecs) -> None:
-    """Read every mesh and bone file of the muscles once (`fibres.surface.read_mesh`), so that a
+    """Read every mesh and bone file of the muscles once (`fibres.mesh.surface.read_mesh`), so that a
     damaged file is reported before any work or output folder (the run reads them again)."""
-    from fibres.surface import read_mesh
+    from fibres.mesh.surface import read_mesh
 
     for m in mspecs:
         for path in ([m.mesh] if m.mesh is not None else []) + [p for _, p in m.bones]:

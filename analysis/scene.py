@@ -55,9 +55,9 @@ def _find_geometry(model_file, name):
 
 def _read_mesh(path):
     """(V, 3) vertices, (T, 3) faces of a mesh file (.vtp, .vtk, .stl, .obj, .ply): read with
-    `fibres.surface.read_mesh`, which validates the file before use (model geometry is untrusted
+    `fibres.mesh.surface.read_mesh`, which validates the file before use (model geometry is untrusted
     input; VTK's own readers crash the process on damaged cell arrays)."""
-    from fibres.surface import read_mesh
+    from fibres.mesh.surface import read_mesh
 
     v, f = read_mesh(path)
     return np.asarray(v, dtype=float), np.asarray(f, dtype=np.int64)

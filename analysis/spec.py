@@ -88,7 +88,7 @@ MAX_FIBRES = 100_000
 #: Most segments per fibre. The surface is cut by one plane per fibre point (Kohout 2012: "the
 #: minimal number of slices used is equal to the specified resolution"); beyond 1000 planes the
 #: slices are finer than the triangles of any muscle mesh, and at 10,000 they would pass the end
-#: planes, which sit 1e-4 of the box height inside its ends (`fibres.morph.END_INSET`).
+#: planes, which sit 1e-4 of the box height inside its ends (`fibres.slicing.morph.END_INSET`).
 MAX_RESOLUTION = 1000
 #: Largest seed (the Sobol scrambling seed is a 32-bit unsigned integer in many tools)
 MAX_SEED = 2**32 - 1
@@ -541,11 +541,11 @@ def _read_points(ctx, file, table, where, unit):
             if k in table:
                 ctx.fail(f"{where}.{k}", "only allowed with a CSV file", f"Remove {k}.")
         from fibres.errors import InputError as MeshError
-        from fibres.surface import read_mesh
+        from fibres.mesh.surface import read_mesh
 
         try:
             pts, _ = read_mesh(file)
-        except MeshError as exc:   # untrusted file: read without VTK (fibres.vtk_reader)
+        except MeshError as exc:   # untrusted file: read without VTK (fibres.mesh.vtk_reader)
             ctx.fail(f"{where}.file", f"cannot read the point cloud {file.name} ({exc.problem})",
                      "Give a CSV with x,y,z columns or a VTK/VTP/PLY point cloud.")
         if pts.ndim != 2 or len(pts) == 0:

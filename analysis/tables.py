@@ -197,7 +197,7 @@ def result_long_frame(result):
 
 
 def fibre_quality_table(result):
-    """One row per muscle: the rest-pose fibres' quality (`fibres.quality.FibreQuality`)."""
+    """One row per muscle: the rest-pose fibres' quality (`fibres.finishing.quality.FibreQuality`)."""
     import pandas as pd
 
     rows = [dict(muscle=m.name, **(m.quality or {})) for m in result.muscles]

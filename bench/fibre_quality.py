@@ -2,7 +2,7 @@
 
     python bench/fibre_quality.py [--quality] [--moment-arms] [--speed] [--repeats N]
 
-``--quality``: `fibres.quality` of the four muscles (100 fibres x 15 segments), with the
+``--quality``: `fibres.finishing.quality` of the four muscles (100 fibres x 15 segments), with the
 templates of tests/data/lhdl_hip.toml and with ``parallel``, psoas with its own four lumbar
 origin clouds, for both slicings. ``--moment-arms``: `analysis.run` of the TOML over the
 dataset's flexion, adduction and rotation motions for both slicings; p5..p95 of the fibre

@@ -103,8 +103,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     import fibres
-    from fibres.containment import CONTAIN_SOFTNESS
-    from fibres.surface_distance import surface_distance
+    from fibres.finishing.containment import CONTAIN_SOFTNESS
+    from fibres.mesh.surface_distance import surface_distance
 
     args.out_dir.mkdir(parents=True, exist_ok=True)
     folder = LHDL / ("muscles_clean" if args.clean else "muscles")

@@ -5,13 +5,13 @@ Never imports ``motion`` or ``analysis``.
 from .bundle import FibreBundle
 from .decompose import DEFAULT_SLICING, SLICINGS, decompose, make_plan
 from .errors import InputError, MissingDependencyError
-from .mvc import mean_value_coordinates
+from .slicing.mvc import mean_value_coordinates
 from .plan import DecompositionPlan
-from .harmonic_slicing import HarmonicPlan
-from .quality import FibreQuality, FibreQualityWarning
-from .sampling import sobol_rs
-from .surface import Surface, as_surface
-from .templates import TEMPLATES, get_template
+from .slicing.harmonic import HarmonicPlan
+from .finishing.quality import FibreQuality, FibreQualityWarning
+from .template.sampling import sobol_rs
+from .mesh.surface import Surface, as_surface
+from .template.templates import TEMPLATES, get_template
 
 __all__ = ["InputError", "MissingDependencyError", "Surface", "as_surface", "sobol_rs", "get_template", "TEMPLATES",
            "decompose", "FibreBundle", "DecompositionPlan", "make_plan", "mean_value_coordinates",

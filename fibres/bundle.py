@@ -22,7 +22,7 @@ class FibreBundle:
         insertion. Fibre ``k`` comes from template parameters ``rs[k]``.
     rs : (N, 2) float
         Sobol template parameters of the fibres.
-    template : fibres.templates.Template
+    template : fibres.template.templates.Template
     plan : DecompositionPlan
         The discrete choices; pass it back (``decompose(..., plan=bundle.plan)``) to
         decompose a deformed copy of the same mesh consistently.
@@ -30,7 +30,7 @@ class FibreBundle:
         ``trimmed`` / ``reconstructed`` (attachment filtering, Kohout §3.4) and others.
     notes : tuple of str
         Decisions worth knowing (several loops in a slice, refined contours, repairs ...).
-    box : fibres.fitting.Box or None
+    box : fibres.fit.fitting.Box or None
         The fitted template box of this surface (planar slicing; None for harmonic).
     surface : (vertices (V, 3), faces (T, 3)) or None
         The surface the fibres were made in (what `quality` measures against).
@@ -84,13 +84,13 @@ class FibreBundle:
 
     @property
     def quality(self):
-        """`fibres.quality.FibreQuality` of these fibres in their surface (computed once, on
+        """`fibres.finishing.quality.FibreQuality` of these fibres in their surface (computed once, on
         first use: ~0.1 s for a real muscle). The attachment patches are the plan's
         (harmonic slicing) or made from the plan's rest landmarks
-        (`fibres.attachment_patch`); None without a surface."""
+        (`fibres.attachments.patch`); None without a surface."""
         cached = self.__dict__.get("_quality")
         if cached is None and self.surface is not None:
-            from .quality import fibre_quality
+            from .finishing.quality import fibre_quality
             v, f = self.surface
             of, if_ = _patch_faces(self.plan, f)
             cached = fibre_quality(self.points, v, f, of, if_)
@@ -110,8 +110,8 @@ def _patch_faces(plan, faces):
                      ((plan.origin_faces, plan.origin), (plan.insertion_faces, plan.insertion)))
     cache = plan.__dict__.get("_patch_faces")
     if cache is None:
-        from .attachment_patch import attachment_patches
-        from .harmonic_field import mesh_edges
+        from .attachments.patch import attachment_patches
+        from .slicing.harmonic_field import mesh_edges
         v = plan.rest_vertices
         edges, _ = mesh_edges(faces, len(v))
         p = attachment_patches(v, faces, plan.rest_origin, plan.rest_insertion, edges)

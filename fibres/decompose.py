@@ -3,19 +3,19 @@
 Kohout, Clapworthy, Martelli & Viceconti, "Muscle fibres modelling", GRAPP 2012, Fig. 3:
 
 1. the template (Blemker & Delp 2005) gives fibre polylines in the unit cube at Sobol
-   parameters (r, s) (§3.1; `fibres.templates`, `fibres.sampling`);
+   parameters (r, s) (§3.1; `fibres.template.templates`, `fibres.template.sampling`);
 2. the cube is fitted to the muscle as a principal-axis OBB whose attachment areas best
-   match the landmarks (§3.2; `fibres.fitting`);
+   match the landmarks (§3.2; `fibres.fit.fitting`);
 3. the fibres are morphed slice by slice into the muscle: planes perpendicular to the axis
    cut the box (a rectangle) and the surface (a contour), the rectangle is subdivided to
    correspond with the contour, and mean value coordinates (Hormann & Floater 2006) carry
-   each point from the rectangle to the contour (§3.3; `fibres.slicing`,
-   `fibres.contours`, `fibres.correspondence`, `fibres.mvc`, `fibres.morph`);
+   each point from the rectangle to the contour (§3.3; `fibres.slicing.planes`,
+   `fibres.slicing.contours`, `fibres.slicing.correspondence`, `fibres.slicing.mvc`, `fibres.slicing.morph`);
 4. the fibres are trimmed near the attachment areas and reconstructed to the surface
-   (§3.4; `fibres.filtering`), then smoothed (`fibres.smoothing`);
+   (§3.4; `fibres.attachments.filtering`), then smoothed (`fibres.finishing.smoothing`);
 5. (our addition) inner points left outside the surface by the straight reconstructed
    segments, the resampling chords and the morph's folds are pulled back in along their
-   shortest path, smoothly (`fibres.containment`).
+   shortest path, smoothly (`fibres.finishing.containment`).
 
 The discrete choices are recorded in a `DecompositionPlan` (`fibres.plan`) and can be
 reused for a deformed copy of the same mesh, so that fibre ``k`` stays the same fibre.
@@ -27,19 +27,19 @@ import dataclasses
 import numpy as np
 
 from .bundle import FibreBundle
-from .containment import contain as contain_points
-from .contours import choose_loops
+from .finishing.containment import contain as contain_points
+from .slicing.contours import choose_loops
 from .errors import InputError
-from .filtering import apply_filter, filter_choices
-from .fitting import fit_box, prepare, principal_frame, reference_frame
-from .harmonic_slicing import HarmonicPlan, harmonic_points, make_harmonic_plan
-from .morph import anchored_maps, morph_local, slice_fractions, slice_maps
+from .attachments.filtering import apply_filter, filter_choices
+from .fit.fitting import fit_box, prepare, principal_frame, reference_frame
+from .slicing.harmonic import HarmonicPlan, harmonic_points, make_harmonic_plan
+from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
-from .sampling import sobol_rs
-from .slicing import mesh_topology, slice_mesh
-from .smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth, smooth_taubin
-from .surface import Surface, as_points, as_surface, clean_mesh_geometry
-from .templates import Template, get_template
+from .template.sampling import sobol_rs
+from .slicing.planes import mesh_topology, slice_mesh
+from .finishing.smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth, smooth_taubin
+from .mesh.surface import Surface, as_points, as_surface, clean_mesh_geometry
+from .template.templates import Template, get_template
 from .threads import blas_single
 
 __all__ = ["decompose", "make_plan", "SLICINGS", "DEFAULT_SLICING"]
@@ -47,7 +47,7 @@ __all__ = ["decompose", "make_plan", "SLICINGS", "DEFAULT_SLICING"]
 _AXES = ("auto", "attachments", "covariance")
 
 #: cross-section methods: isolines of a harmonic field (Modenese & Kohout 2020,
-#: `fibres.harmonic_slicing`) or parallel planes (Kohout et al. 2012)
+#: `fibres.slicing.harmonic`) or parallel planes (Kohout et al. 2012)
 SLICINGS = ("harmonic", "planes")
 #: the default: fills real muscles better (README, "Slicing")
 DEFAULT_SLICING = "harmonic"
@@ -89,7 +89,7 @@ def _inputs(mesh, origin, insertion, units, plan):
 
 def _clean_tuple(mesh, units):
     """(vertices, faces, topology, mean_edge) of a (vertices, faces) tuple that `as_surface` would
-    return unchanged (`fibres.surface.clean_topology`: closed, manifold, consistently and
+    return unchanged (`fibres.mesh.surface.clean_topology`: closed, manifold, consistently and
     outward wound, one edge-connected piece, every vertex used, no vertices merged or
     triangles dropped by the repair), else None (then `as_surface` repairs or refuses it).
     Skips the general repair for the common clean input and keeps the topology it built."""
@@ -121,7 +121,7 @@ def _cross_section_ref(vertices, frame, vt=None):
     searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
     the major axis of the vertices' spread perpendicular to the principal axis, its sign
     fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
-    ``frame`` is the muscle's `fibres.fitting.principal_frame` (default v_ref).
+    ``frame`` is the muscle's `fibres.fit.fitting.principal_frame` (default v_ref).
 
     Returns None (the fitting's default, a world axis) when that spread is isotropic
     (eigenvalues within `ISOTROPIC` of each other: a circular cylinder, a cube), where no
@@ -166,7 +166,7 @@ SCORE_TIE = 1e-9
 def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_step_deg,
               topology=None, prepared=None):
     """Fit the box (§3.2) and record the choices known before slicing; ``prepared``:
-    `fibres.fitting.prepare` of the vertices when at hand."""
+    `fibres.fit.fitting.prepare` of the vertices when at hand."""
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
     prepared = prepare(vertices) if prepared is None else prepared
@@ -193,7 +193,7 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool,
     """Box, slicing and correspondence of every plane (§3.3); returns what morphing needs.
 
     ``fresh``: the paper's choices (and the plan's record of them); otherwise the plan's
-    anchors are carried along (`fibres.morph.anchored_maps`) -- except on the plan's own
+    anchors are carried along (`fibres.slicing.morph.anchored_maps`) -- except on the plan's own
     vertices, where the fresh choices are the plan's and are reproduced exactly. ``vt``:
     the (3, V) transposed vertices when at hand."""
     # fresh: the plan was made on these vertices (its rest copy is equal; no comparison)
@@ -215,7 +215,7 @@ def _sweep(plan: DecompositionPlan, vertices, origin, insertion, *, fresh: bool,
     uv = np.einsum("skn,dskn->dsk", plan.anchor_weights, local_t[:2, plan.anchor_vertices])
     anchors_uv = np.moveaxis(uv, 0, -1)                                     # (S, 4, 2)
     # with the plan: a plane that cut one loop at rest keeps its whole section (continuous
-    # through loops splitting/merging; see fibres.morph.anchored_maps)
+    # through loops splitting/merging; see fibres.slicing.morph.anchored_maps)
     P, Q, map_notes = anchored_maps(sections, chosen, box.extents, anchors_uv,
                                     topology=plan.topology, plan=plan)
     return box, heights, P, Q, None, notes + map_notes
@@ -232,7 +232,7 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
     mesh, origin, insertion, template, resolution, units, template_params
         As for `decompose`.
     axis : {"auto", "attachments", "covariance"}, keyword-only
-        Principal-axis rule (`fibres.fitting.principal_frame`).
+        Principal-axis rule (`fibres.fit.fitting.principal_frame`).
     angle_step_deg : float, keyword-only
         Rotation step of the OBB search (5 degrees in Kohout 2012).
 
@@ -344,9 +344,9 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         Parameters of the template (`fibres.get_template`).
     smoothing_iterations : int, keyword-only
         Planes: iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
-        harmonic: twice as many lambda|mu pairs of `fibres.smoothing.smooth_taubin`;
-        default `fibres.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Each point's
-        smoothing shift is softly bounded by `fibres.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm)
+        harmonic: twice as many lambda|mu pairs of `fibres.finishing.smoothing.smooth_taubin`;
+        default `fibres.finishing.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Each point's
+        smoothing shift is softly bounded by `fibres.finishing.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm)
         so that smoothing cannot pull fibres out through a concave wall.
     filter_attachments : bool, keyword-only
         Trim the fibres at the planes through the extreme landmarks and reconstruct their
@@ -354,25 +354,25 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     plan : DecompositionPlan, optional
         Choices from an earlier decomposition of the same mesh (same faces); the result is
         then consistent with it (no orientation, start-vertex or split flips, and the
-        attachment filter's trims and targets frozen, `fibres.filtering.apply_filter`).
+        attachment filter's trims and targets frozen, `fibres.attachments.filtering.apply_filter`).
         A plan from `make_plan`, or one made for other fibres (seed, template, resolution,
         fewer fibres), gets the filter's choices made once on its rest pose.
     axis : {"auto", "attachments", "covariance"}, keyword-only
         Principal-axis rule when no plan is given.
     contain : bool, keyword-only
         Finally pull every inner fibre point that lies outside the surface, or inside it
-        by less than 0.2 mm, smoothly in along the surface normal (`fibres.containment`;
+        by less than 0.2 mm, smoothly in along the surface normal (`fibres.finishing.containment`;
         our addition to the paper: its straight reconstructed end segments, resampling
         chords and mean value coordinates on non-convex contours leave points up to ~4 mm
         outside curved muscles). Points deeper than 0.2 mm are not moved; pulled points
         end inside, at least 0.1 mm deep. Every inner
         point is classified on every call (no choice is kept in the plan). Cost (one
         core, CPU): ~1.4 ms per call at 15K vertices x 100 fibres x 20 points, ~4.0 ms at
-        60K vertices (`fibres.containment`); False skips it.
+        60K vertices (`fibres.finishing.containment`); False skips it.
 
     slicing : {"harmonic", "planes"}, keyword-only
         Cross-sections: isolines of a harmonic field between the attachment patches
-        (default; Modenese & Kohout 2020, `fibres.harmonic_slicing`: the fibre ends cover
+        (default; Modenese & Kohout 2020, `fibres.slicing.harmonic`: the fibre ends cover
         the patches, no attachment filter is needed and ``filter_attachments`` and ``axis``
         do not apply) or the parallel planes of Kohout et al. 2012. A plan decides for
         itself.
@@ -382,7 +382,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     FibreBundle
         ``flags`` holds ``trimmed`` and ``reconstructed`` (attachment filter, planes) and
         ``contained`` (a point was pulled in); ``quality`` measures the result
-        (`fibres.quality`).
+        (`fibres.finishing.quality`).
     """
     if isinstance(n_fibres, bool) or not isinstance(n_fibres, (int, np.integer)) or n_fibres < 1:
         raise ValueError(f"n_fibres must be a positive integer, got {n_fibres!r}")
@@ -442,9 +442,9 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
 
 def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolution, seed,
                         smoothing_iterations, contain, plan):
-    """`decompose` by harmonic-field slicing (`fibres.harmonic_slicing`), then Taubin's
+    """`decompose` by harmonic-field slicing (`fibres.slicing.harmonic`), then Taubin's
     non-shrinking smoothing (2 x ``smoothing_iterations`` lambda|mu pairs,
-    `fibres.smoothing.smooth_taubin`) and the containment pull of the planar method."""
+    `fibres.finishing.smoothing.smooth_taubin`) and the containment pull of the planar method."""
     if plan is None:
         plan = make_harmonic_plan(v, faces, o, i)
         notes.extend(plan.notes)

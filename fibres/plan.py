@@ -3,7 +3,7 @@
 Kohout et al. (GRAPP 2012) make several discrete choices per decomposition: the 5-degree
 rotation of the box about the principal axis (§3.2), the planes of the sweep, the contour
 vertex closest to the rectangle's first vertex and the split of the contour into four
-parts (§3.3; here made continuous, see `fibres.correspondence`). Made afresh on every
+parts (§3.3; here made continuous, see `fibres.slicing.correspondence`). Made afresh on every
 frame of a motion (or on the poses q - h and q + h of a finite difference), any of them
 can flip and fibre ``k`` would jump. A
 `DecompositionPlan` records them on the rest-pose surface, in the muscle's own terms:
@@ -16,7 +16,7 @@ can flip and fibre ``k`` would jump. A
   and the same rotation applied, and the box is the vertices' bounding box in that frame;
 - the slicing planes as fractions of the box height;
 - per plane, the start point and the three split points of the contour (continuous
-  quantities, not vertex indices: `fibres.correspondence` puts them on the contour curve,
+  quantities, not vertex indices: `fibres.slicing.correspondence` puts them on the contour curve,
   at the soft closest point to the rectangle corner and at the perimeter ratios), each
   frozen as a material point of the surface: the point lies on a contour segment between
   two mesh-edge crossings, so it is ``sum_k w_k V_k`` over those two edges' four end
@@ -36,7 +36,7 @@ the vertex positions:
   edge's end points; a plane passing a mesh vertex changes the number of contour points
   but not the contour as a curve (a segment shrinks to zero length);
 - loop: where a plane cuts several loops, the loop carrying the plan's anchors (smallest
-  summed squared distance to them, `fibres.contours.anchored_loops`) -- this only changes
+  summed squared distance to them, `fibres.slicing.contours.anchored_loops`) -- this only changes
   where two loops are equally near the anchors;
 - correspondence points (`_soft_anchor_loop`, below): the anchors (material
   points, projected along the axis onto their planes) are placed on the contour at a *soft*
@@ -56,8 +56,8 @@ the vertex positions:
 Remaining discontinuities (measured on LHDL bend sweeps, ``tests/fibres/
 test_decompose_lhdl.py``): a plane whose section changes topology (two loops merging or
 splitting, an island appearing or vanishing, typically at the end planes).
-`fibres.morph.anchored_maps` follows the whole section through such events
-(`fibres.contours.bridge_loops`, for planes that cut one loop at rest,
+`fibres.slicing.morph.anchored_maps` follows the whole section through such events
+(`fibres.slicing.contours.bridge_loops`, for planes that cut one loop at rest,
 `rest_loop_counts`) when the plan is passed to it (``plan=``).
 
 Kohout's own software had the same idea: an optional rest-pose "InputTemplate".
@@ -69,9 +69,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .errors import InputError
-from .fitting import Box, _norm, cross3, principal_frame
-from .slicing import MeshTopology
-from .soft_anchor import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR,  # noqa: F401 - re-exported (old name)
+from .fit.fitting import Box, _norm, cross3, principal_frame
+from .slicing.planes import MeshTopology
+from .slicing.soft_anchor import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR,  # noqa: F401 - re-exported (old name)
                           SOFT_SPREAD, _erfcx, _gauss_segment, _order_arcs, _soft_anchor_loop,
                           anchor_kernel)
 
@@ -119,17 +119,17 @@ class DecompositionPlan:
         bound the contour segment carrying the point, weights ``(1 - tau)(1 - t_j)``,
         ``(1 - tau) t_j``, ``tau (1 - t_j+1)``, ``tau t_j+1``); on a deformed copy they are
         carried along with the vertices and re-inserted into the contours
-        (`fibres.morph.anchored_maps`).
-    template : fibres.templates.Template, optional
+        (`fibres.slicing.morph.anchored_maps`).
+    template : fibres.template.templates.Template, optional
         The template whose attachment areas oriented the box (oblique templates such as
-        pennate tilt the principal axis, `fibres.fitting.principal_frame`).
+        pennate tilt the principal axis, `fibres.fit.fitting.principal_frame`).
     rest_origin, rest_insertion : (K, 3) float, optional
         The landmarks of the rest pose (metres), to make the attachment filter's choices on
         the rest pose when `filter_choice` does not cover a request.
-    filter_choice : fibres.filtering.FilterChoice, optional
+    filter_choice : fibres.attachments.filtering.FilterChoice, optional
         The attachment filter's choices (Kohout 2012 §3.4) made on the rest pose for the
         fibres of the decomposition that made the plan; reapplied on deformed copies
-        (`fibres.filtering.apply_filter`) so that trimming and reconstruction do not flip.
+        (`fibres.attachments.filtering.apply_filter`) so that trimming and reconstruction do not flip.
     """
 
     topology: MeshTopology
@@ -201,7 +201,7 @@ def template_from_spec(spec):
     """The Template of `template_spec`'s description (or None)."""
     if spec is None:
         return None
-    from .templates import get_template
+    from .template.templates import get_template
 
     return get_template(spec[0], **spec[1])
 
@@ -271,7 +271,7 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion, *, vt=No
     box : Box
     local_t : (3, V) float
         Rows x, y, z of every vertex in the box frame (``corner`` at the origin), for
-        `fibres.slicing.slice_mesh` (rows keep the reductions over V contiguous).
+        `fibres.slicing.planes.slice_mesh` (rows keep the reductions over V contiguous).
     """
     v = np.asarray(vertices, dtype=np.float64)
     vt = np.ascontiguousarray(v.T) if vt is None else vt              # (3, V)
@@ -313,7 +313,7 @@ def _oblique(template) -> bool:
 
 
 def _complete_frame(u, v_ref):
-    """(v0, w0) completing u (the same rule as `fibres.fitting.principal_frame`: v_ref
+    """(v0, w0) completing u (the same rule as `fibres.fit.fitting.principal_frame`: v_ref
     projected perpendicular to u, a world axis if v_ref is nearly parallel to u)."""
     ref = np.asarray(v_ref, dtype=np.float64)
     if abs(ref @ u) > 0.999 * _norm(ref):
@@ -365,7 +365,7 @@ def rest_loop_counts(plan: DecompositionPlan):
 
     Where the rest plane cut one loop, the whole section of the muscle is that contour;
     on a deformed copy the same plane may cut several (the section pinches and splits, or
-    passes a saddle), and `fibres.morph.anchored_maps` then bridges all of them into one
+    passes a saddle), and `fibres.slicing.morph.anchored_maps` then bridges all of them into one
     contour, which is continuous through the topology change. Where the rest plane already
     cut several loops, only the one used at rest (and loops its anchors move onto) is
     followed."""
@@ -376,7 +376,7 @@ def rest_loop_counts(plan: DecompositionPlan):
     if plan.rest_origin is None or plan.rest_insertion is None:
         counts = np.full(n_s, -1, dtype=np.int64)
     else:
-        from .slicing import slice_mesh
+        from .slicing.planes import slice_mesh
 
         box, local_t = box_and_local(plan, plan.rest_vertices, plan.rest_origin,
                                      plan.rest_insertion)

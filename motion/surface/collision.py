@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fibres.closest_point import closest_points_on_triangles
+from fibres.mesh.closest_point import closest_points_on_triangles
 
 __all__ = ["WrapObstacle", "BoneDistance", "BoneObstacle", "soft_floor", "wrap_obstacle"]
 

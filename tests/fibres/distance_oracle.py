@@ -1,10 +1,10 @@
-"""Brute-force oracle for `fibres.surface_distance` (tests only): every point against every
+"""Brute-force oracle for `fibres.mesh.surface_distance` (tests only): every point against every
 triangle, the soft-min blend of the module docstring written on dense (points x triangles)
 arrays. The closest points use `np.select` over Ericson's cases (an independent writing of
-`fibres.closest_point`)."""
+`fibres.mesh.closest_point`)."""
 import numpy as np
 
-from fibres.surface_distance import KAPPA, OFFSET_FAR, OFFSET_NEAR
+from fibres.mesh.surface_distance import KAPPA, OFFSET_FAR, OFFSET_NEAR
 
 
 def closest_points(tri, p):

@@ -1,4 +1,4 @@
-"""fibres.containment (the smooth pull back inside) and fibres.surface_distance.
+"""fibres.finishing.containment (the smooth pull back inside) and fibres.mesh.surface_distance.
 
 Reference shapes with closed-form distances: a torus (a bent tube: its inner wall is concave)
 and an extruded V notch (two walls meeting in a concave edge). Mesh sagitta bounds the
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from fibres.containment import CONTAIN_MARGIN, CONTAIN_SOFTNESS, contain
-from fibres.surface_distance import KAPPA, SurfaceGrid, surface_distance
+from fibres.finishing.containment import CONTAIN_MARGIN, CONTAIN_SOFTNESS, contain
+from fibres.mesh.surface_distance import KAPPA, SurfaceGrid, surface_distance
 
 from distance_oracle import brute
 
@@ -201,7 +201,7 @@ def test_surface_distance_matches_the_torus(torus):
 
 
 def test_tree_search_equals_the_brute_force_oracle(torus):
-    # the k-d tree search (fibres.surface_distance) against every point x every triangle
+    # the k-d tree search (fibres.mesh.surface_distance) against every point x every triangle
     # (tests/fibres/distance_oracle.py): the same blend on the same triangle sets, equal to
     # rounding where both measure; the search leaves -inf only where the oracle finds the
     # point inside (deeper than watch) or nothing within reach

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from fibres.correspondence import (correspond, rectangle, split_chain, start_vertex,
+from fibres.slicing.correspondence import (correspond, rectangle, split_chain, start_vertex,
                                    subdivide_rectangle)
-from fibres.mvc import mean_value_coordinates
+from fibres.slicing.mvc import mean_value_coordinates
 
 
 def _brute_force(seg, sides):
@@ -85,14 +85,14 @@ def test_too_short_chain_refused():
 
 
 def test_all_planes_at_once_equals_plane_by_plane():
-    # fibres.morph.slice_maps (vectorised over planes) against correspond() per plane on
+    # fibres.slicing.morph.slice_maps (vectorised over planes) against correspond() per plane on
     # an irregular closed surface (a bumpy ellipsoid); and anchored_maps with the anchors
     # of the same surface reproduces the same correspondence
     import trimesh
 
-    from fibres.contours import choose_loops
-    from fibres.morph import _slice_maps_loop, anchored_maps, slice_maps
-    from fibres.slicing import mesh_topology, slice_mesh
+    from fibres.slicing.contours import choose_loops
+    from fibres.slicing.morph import _slice_maps_loop, anchored_maps, slice_maps
+    from fibres.slicing.planes import mesh_topology, slice_mesh
 
     m = trimesh.creation.icosphere(subdivisions=4)
     v = np.asarray(m.vertices) * [0.03, 0.015, 0.1]
@@ -129,10 +129,10 @@ def test_all_planes_at_once_equals_plane_by_plane():
 
 
 def test_compiled_roll_and_subdivide_equals_the_array_version():
-    # the compiled loops of fibres.morph must do the same arithmetic in the same order as
+    # the compiled loops of fibres.slicing.morph must do the same arithmetic in the same order as
     # the array expressions: identical P, Q, roll and split (fresh split and given split)
     pytest.importorskip("numba")
-    from fibres.morph import _roll_and_subdivide, _roll_and_subdivide_numpy
+    from fibres.slicing.morph import _roll_and_subdivide, _roll_and_subdivide_numpy
 
     rng = np.random.default_rng(9)
     m = rng.integers(4, 60, 12)
@@ -151,13 +151,13 @@ def test_compiled_roll_and_subdivide_equals_the_array_version():
 
 
 def test_soft_anchor_points():
-    # the anchor search of a plan (fibres.correspondence._soft_anchor_loop): anchors on the
+    # the anchor search of a plan (fibres.slicing.correspondence._soft_anchor_loop): anchors on the
     # contour give the hard closest point (the array version) to the Gaussian floor
     # (SOFT_FLOOR * L ~ 1e-9 m here); off the contour, a smooth function of the anchor
     # (central differences at two steps agree, where the hard argmin jumps); split points
     # in order after the start, ARC_GAP apart, inside their windows
     pytest.importorskip("numba")
-    from fibres.correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD,
+    from fibres.slicing.correspondence import (ARC_GAP, ARC_WINDOW, SOFT_FLOOR, SOFT_SPREAD,
                                        anchor_kernel, closest_points)
 
     rng = np.random.default_rng(12)
@@ -219,7 +219,7 @@ def test_order_arcs_is_the_bounded_isotonic_projection():
     # convex set), which is what keeps the anchored split points continuous
     from scipy.optimize import minimize
 
-    from fibres.correspondence import _order_arcs
+    from fibres.slicing.correspondence import _order_arcs
 
     rng = np.random.default_rng(5)
     A = np.array([[1.0, 0, 0], [-1, 1, 0], [0, -1, 1], [0, 0, -1]])
@@ -241,7 +241,7 @@ def test_anchor_search_respects_the_normals():
     # face but given the upper face's normal (+v) is matched on the upper face, 1.4 mm
     # away, not on the nearer lower face; without normals the nearer face is taken
     pytest.importorskip("numba")
-    from fibres.correspondence import (ARC_GAP, SOFT_FLOOR, SOFT_SPREAD,
+    from fibres.slicing.correspondence import (ARC_GAP, SOFT_FLOOR, SOFT_SPREAD,
                                        anchor_kernel)
 
     x = np.linspace(0.0, 0.05, 26)
@@ -288,7 +288,7 @@ def test_continuous_rule_is_independent_of_the_meshing():
     # segment); with the continuous rule the start and split points are the same points
     # of the curve, and mean value coordinates do not change when a vertex is inserted on
     # an edge along which P is linear in Q, so the maps agree to rounding.
-    from fibres.correspondence import correspond_continuous
+    from fibres.slicing.correspondence import correspond_continuous
 
     rng = np.random.default_rng(4)
     rect = rectangle(2.0, 1.2)
@@ -319,7 +319,7 @@ def test_continuous_rule_points():
     # split points at arc lengths a0 + f_k L with f = corner fractions of the perimeter, so
     # that the paper's part errors (side_j - k length_j)^2 all vanish; the rectangle's
     # corners correspond to the four points
-    from fibres.correspondence import correspond_continuous, split_fractions
+    from fibres.slicing.correspondence import correspond_continuous, split_fractions
 
     rng = np.random.default_rng(8)
     for _ in range(10):
@@ -354,7 +354,7 @@ def test_continuous_rule_points():
 def test_continuous_rule_on_the_rectangle_itself_is_the_identity():
     # a contour equal to the rectangle (sides subdivided unevenly, any start): P0 is Q0
     # itself, the splits land on the corners, so P = Q and the map is the identity
-    from fibres.correspondence import correspond_continuous
+    from fibres.slicing.correspondence import correspond_continuous
 
     rect = rectangle(2.0, 0.7)
     t = np.array([0.0, 0.3, 0.45, 0.8])
@@ -365,12 +365,12 @@ def test_continuous_rule_on_the_rectangle_itself_is_the_identity():
 
 
 def test_soft_start_is_the_closest_point_where_defined_and_continuous_where_not():
-    # fibres.correspondence.soft_start: on a finely meshed circle with Q0 outside in the
+    # fibres.slicing.correspondence.soft_start: on a finely meshed circle with Q0 outside in the
     # direction of a vertex, the weights are symmetric about that vertex, so the soft point
     # is the closest point itself (to rounding of the exact segment integrals); on a
     # dumbbell whose two lobes are equally near Q0 the hard closest point jumps from one
     # lobe to the other as Q0 moves, the soft one moves continuously (through the waist)
-    from fibres.correspondence import closest_points, soft_start
+    from fibres.slicing.correspondence import closest_points, soft_start
 
     n = 720
     circle = _circle(n, turn=np.pi / 4 + np.pi, c=(0.0, 0.0))                 # vertex 0 at 225 deg
@@ -402,7 +402,7 @@ def test_soft_start_is_the_closest_point_where_defined_and_continuous_where_not(
 def test_soft_start_compiled_equals_python():
     # the compiled start loop and the same loop run by Python: the same arithmetic
     pytest.importorskip("numba")
-    from fibres.correspondence import ratio_points, soft_start
+    from fibres.slicing.correspondence import ratio_points, soft_start
 
     rng = np.random.default_rng(17)
     m = rng.integers(3, 40, 7)
@@ -425,7 +425,7 @@ def test_ratio_points_with_fractions_per_plane():
     # (S, F) fractions: each plane's points are those of a one-plane call with its own row;
     # and each point lies at arc a0 + f L from the start (checked against the cumulated
     # segment lengths, to rounding: 1e-12 of the lengths, which are O(1))
-    from fibres.correspondence import ratio_points
+    from fibres.slicing.correspondence import ratio_points
 
     rng = np.random.default_rng(3)
     loops = []
@@ -456,7 +456,7 @@ def _lobed_stack(n_s=9, lobe_from=5, n=120):
     """Clockwise ellipses in the box [0, 3] x [0, 2], all alike except that planes
     ``>= lobe_from`` carry a lobe (a radial bump of 0.8) between the start (near Q0) and the
     first split point; with the start and split points of `soft_start`."""
-    from fibres.correspondence import soft_start, split_fractions
+    from fibres.slicing.correspondence import soft_start, split_fractions
 
     rect = rectangle(3.0, 2.0)
     th = -np.linspace(0, 2 * np.pi, n, endpoint=False)             # clockwise
@@ -474,7 +474,7 @@ def _lobed_stack(n_s=9, lobe_from=5, n=120):
 
 
 def test_split_smoothing_off_is_the_identity_and_alike_planes_stay():
-    from fibres.correspondence import SPLIT_SMOOTHING, smooth_split_points
+    from fibres.slicing.correspondence import SPLIT_SMOOTHING, smooth_split_points
 
     pts, m, offs, seg, tau, point = _lobed_stack()
     assert SPLIT_SMOOTHING["iterations"] == 0                  # off by default (docstring)
@@ -494,7 +494,7 @@ def test_split_smoothing_spreads_a_lobe_jump_and_keeps_the_order():
     # between planes 4 and 5; smoothed along the axis the split points' spatial step there
     # is spread over the neighbouring planes (measured: one step of 0.67 -> largest step
     # 0.19, box 3 x 2), the start is kept and the four points stay in clockwise order
-    from fibres.correspondence import smooth_split_points
+    from fibres.slicing.correspondence import smooth_split_points
 
     pts, m, offs, seg, tau, point = _lobed_stack()
     s3, t3, p3 = smooth_split_points(pts, m, offs, seg, tau, point, iterations=3)
@@ -525,7 +525,7 @@ def test_split_smoothing_straightens_the_lhdl_gluteus_medius(lhdl_dir, monkeypat
     import pandas as pd
 
     from fibres import as_surface, decompose
-    from fibres.correspondence import SPLIT_SMOOTHING
+    from fibres.slicing.correspondence import SPLIT_SMOOTHING
 
     tab = pd.read_csv(lhdl_dir / "attachments" / "attachment_landmarks.csv")
     rows = tab[tab.muscle == "glut_med_r"]
@@ -553,8 +553,8 @@ def test_split_smoothing_straightens_the_lhdl_gluteus_medius(lhdl_dir, monkeypat
 def _bumpy_sections(n_s=25, seed=None):
     import trimesh
 
-    from fibres.contours import choose_loops
-    from fibres.slicing import mesh_topology, slice_mesh
+    from fibres.slicing.contours import choose_loops
+    from fibres.slicing.planes import mesh_topology, slice_mesh
 
     m = trimesh.creation.icosphere(subdivisions=4)
     v = np.asarray(m.vertices) * [0.03, 0.015, 0.1]
@@ -576,7 +576,7 @@ def test_soft_start_float_modulo_is_pythons():
     # the soft start's `x % length` without fmod where |x| < length: Python's float modulo
     # bit for bit (signed zeros, the bounds, far outside, both signs)
     pytest.importorskip("numba")
-    from fibres import correspondence_kernels as ck
+    from fibres.slicing import correspondence_kernels as ck
 
     ck._start_kernel()
     rng = np.random.default_rng(4)

@@ -11,7 +11,7 @@ import trimesh
 from scipy.spatial.distance import pdist
 
 from fibres import decompose, mean_value_coordinates
-from fibres.containment import CONTAIN_MARGIN
+from fibres.finishing.containment import CONTAIN_MARGIN
 from fibres.decompose import _sweep
 
 # these tests pin the planar method of Kohout et al. 2012 (tests/fibres/test_harmonic.py has the
@@ -206,7 +206,7 @@ def test_general_cylinder_mesh_fibres_are_straight(cap_landmarks, name, mesh, sa
     # start and split points to contour vertices, which slide along the contour from plane
     # to plane (measured wobble 7.5e-3 L on the two-ring mesh, a sector chord); the
     # continuous rule (start at the soft closest point of the contour curve to Q0, split
-    # points at the perimeter-ratio arc positions, fibres.correspondence) does not.
+    # points at the perimeter-ratio arc positions, fibres.slicing.correspondence) does not.
     v, f = mesh
     o, i = cap_landmarks
     # the chain without the containment pull (which bends the fibres that run within its

@@ -8,7 +8,7 @@ plane; reconstructed ends land on the surface nearest to them).
 
 Measured with this code (mm, 100 fibres x 16 points, parallel template, default chain:
 attachment filter, 5 smoothing steps with each shift softly bounded by 1 mm, then the
-containment pull `fibres.containment`); "outside" is VTK's exact distance to the surface,
+containment pull `fibres.finishing.containment`); "outside" is VTK's exact distance to the surface,
 start/end is the distance from each fibre's first/last point to the nearest origin/insertion
 landmark (the landmarks lie on bone, a few mm off the muscle surface), "gap" is the largest
 distance from an origin landmark to the nearest fibre start (how much of the area is left
@@ -28,7 +28,7 @@ Every fibre point is inside the surface or less than 0.2 mm outside it (before t
 to 4.2 mm outside, 92-99.8 % within 1 mm: the straight reconstructed end segments and the
 resampling chords of Kohout §3.4 cut the concave walls; smoothing without its bound added up
 to 4 mm more). The "before" gaps are those of the paper's rays alone: the new ends now follow
-the template's own direction where that ray meets the area (`fibres.filtering`, "Rays"),
+the template's own direction where that ray meets the area (`fibres.attachments.filtering`, "Rays"),
 which spreads gluteus medius' fibres over the left end of the iliac crest.
 
 Original and clean meshes give the same numbers (the repair makes them identical).
@@ -55,7 +55,7 @@ END_MM = {"glut_max_r": (22.0, 18.0), "glut_med_r": (11.5, 7.0), "iliacus_r": (1
           "psoas_r": (3.0, 3.0)}
 # the largest origin landmark -> nearest fibre start distance, measured +~20 %
 ORIGIN_GAP_MM = {"glut_max_r": 53.0, "glut_med_r": 19.0, "iliacus_r": 23.0, "psoas_r": 13.5}
-# the containment pull leaves a point at most m = 0.2 mm outside (fibres.containment:
+# the containment pull leaves a point at most m = 0.2 mm outside (fibres.finishing.containment:
 # s' = m (1 - exp(-s / m)) < m, by the exact point-triangle distance that VTK also uses;
 # 0.05 mm for the soft blend over ties and rounding); the acceptance asks for 1 mm
 OUTSIDE_MM = 0.25
@@ -201,7 +201,7 @@ SWEEP_STEP_RATIO = {("glut_max_r", True): 2.7, ("glut_med_r", True): 4.6,
                     ("iliacus_r", True): 2.8, ("psoas_r", True): 5.5,
                     ("glut_max_r", False): 1.5, ("glut_med_r", False): 10.7,
                     ("iliacus_r", False): 20.6, ("psoas_r", False): 11.0}
-# (with the continuous start/split points of fibres.correspondence: filter on 1.36, 1.43,
+# (with the continuous start/split points of fibres.slicing.correspondence: filter on 1.36, 1.43,
 # 1.11, 4.53 (was 2.21, 1.48, 2.43, 4.72), off 1.09, 5.38, 16.2, 9.17 (was 1.12, 4.98,
 # 14.5, 6.45); psoas off is the same event, plane 6's horn merging with its second loop
 # at 2-3 degrees)
@@ -243,9 +243,9 @@ def test_lhdl_bend_sweep_plan_is_smooth(decomposed, muscle, filt):
     assert not any("afresh" in n for n in notes)
 
 
-# With the plan passed on to `fibres.morph.anchored_maps` (``plan=``; decompose does not
+# With the plan passed on to `fibres.slicing.morph.anchored_maps` (``plan=``; decompose does not
 # pass it yet, so the test wires it), planes that cut one loop at rest follow their whole
-# section through splits, merges and islands (`fibres.contours.bridge_loops`). Measured,
+# section through splits, merges and islands (`fibres.slicing.contours.bridge_loops`). Measured,
 # morph only: step ratios 1.12, 4.98, 14.5, 6.45 (glut_med 8.9 -> 5.0, iliacus 17.8 ->
 # 14.5 against the unwired path), h/2h agreement 1.0, 0.9995, 0.970, 1.0; bounds ~20 %
 # above the step ratios.
@@ -259,7 +259,7 @@ def test_lhdl_bend_sweep_with_the_whole_section(decomposed, muscle, monkeypatch)
     import functools
     import importlib
 
-    from fibres.morph import anchored_maps
+    from fibres.slicing.morph import anchored_maps
 
     surface, origin, insertion, _, core = decomposed[muscle, "muscles_clean"]
     monkeypatch.setattr(importlib.import_module("fibres.decompose"), "anchored_maps",
@@ -305,11 +305,11 @@ def _winding_numbers(v, f, points, chunk=64):
 
 def test_containment_inside_test_agrees_with_the_winding_number(decomposed):
     # the containment pull skips points deeper than its band that are inside by ray parity
-    # (fibres.surface_distance.SurfaceGrid.inside). The sign of the blended distance (a
+    # (fibres.mesh.surface_distance.SurfaceGrid.inside). The sign of the blended distance (a
     # unit-weight normal vote) put inside points of the psoas bent by 10.2 degrees outside,
     # and the pull then skipped a fibre point 1.7 mm outside (a jump of its length between
     # 10.1 and 10.2 degrees): parity must match the winding number on a lattice through it
-    from fibres.surface_distance import SurfaceGrid
+    from fibres.mesh.surface_distance import SurfaceGrid
 
     surface, origin, insertion, _, _ = decomposed["psoas_r", "muscles_clean"]
     v, f = np.asarray(surface.vertices), np.asarray(surface.faces)

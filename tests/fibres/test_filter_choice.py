@@ -1,9 +1,9 @@
-"""fibres.filtering.FilterChoice: the owned (read-only) choices of the attachment filter."""
+"""fibres.attachments.filtering.FilterChoice: the owned (read-only) choices of the attachment filter."""
 import numpy as np
 import pytest
 import trimesh
 
-from fibres.filtering import FilterChoice
+from fibres.attachments.filtering import FilterChoice
 
 from test_filtering import _tube_case
 

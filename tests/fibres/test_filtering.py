@@ -1,9 +1,9 @@
-"""fibres.filtering.trim_and_reconstruct: Kohout 2012 §3.4 on a box with known attachments."""
+"""fibres.attachments.filtering.trim_and_reconstruct: Kohout 2012 §3.4 on a box with known attachments."""
 import numpy as np
 import pytest
 import trimesh
 
-from fibres.filtering import attachment_region, trim_and_reconstruct
+from fibres.attachments.filtering import attachment_region, trim_and_reconstruct
 
 P = 40
 
@@ -91,7 +91,7 @@ def test_reference_rays_end_where_they_hit_the_area(cube):
     # where its ray from the cut hits the area: here a ray towards -x from every cut point
     # (z = 0.3, y in [0.38, 0.62]) hits the area on the wall x = 0 at (0, y, 0.3) -- inside
     # the area (landmarks y in [0.2, 0.8], z in [0, 0.3]): the new start is that hit point
-    from fibres.filtering import apply_filter, filter_choices
+    from fibres.attachments.filtering import apply_filter, filter_choices
 
     v, f = cube
     fib = _converging_fibres()
@@ -159,7 +159,7 @@ def test_fibre_ends_on_the_planes_are_not_trimmed(cube):
     # flat caps: the fibres run from the bottom face to the top face and the landmarks lie
     # on those faces, so every end is ON its plane; rounding noise of 1e-15 (far below the
     # tie tolerance TIE * diagonal = 1.7e-9) must not decide that they are beyond it
-    from fibres.filtering import TIE
+    from fibres.attachments.filtering import TIE
 
     v, f = cube
     xy = np.random.default_rng(1).uniform(0.1, 0.9, (20, 2))
@@ -182,7 +182,7 @@ def _wide_case(cube):
 
 
 def test_recorded_choices_reproduce_the_paper_filter_exactly(cube):
-    from fibres.filtering import apply_filter, filter_choices
+    from fibres.attachments.filtering import apply_filter, filter_choices
 
     v, f, fib, origin, insertion = _wide_case(cube)
     ref, trimmed, _ = trim_and_reconstruct(fib, (v, f), origin, insertion, [0, 0, 1])
@@ -206,7 +206,7 @@ def _rotation(a):
 
 def test_recorded_choices_move_rigidly(cube):
     # a rigid motion of fibres, surface, landmarks and axis moves the filtered fibres rigidly
-    from fibres.filtering import apply_filter, filter_choices
+    from fibres.attachments.filtering import apply_filter, filter_choices
 
     v, f, fib, origin, insertion = _wide_case(cube)
     choice = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
@@ -222,7 +222,7 @@ def test_recorded_choices_are_smooth_under_deformation(cube):
     # choices frozen the filtered fibres are a smooth function of e, so central differences
     # at h and 2h agree to O(h^2) (a flipped choice -- another target vertex, another cut
     # segment -- would make them differ by jump / h ~ 1e3)
-    from fibres.filtering import apply_filter, filter_choices
+    from fibres.attachments.filtering import apply_filter, filter_choices
 
     v, f, fib, origin, insertion = _wide_case(cube)
 
@@ -249,8 +249,8 @@ def test_region_equals_the_definition(cube):
     # search must give exactly it (no ties on this jittered cube)
     from scipy.spatial import cKDTree
 
-    import fibres.attachment_area as fl
-    import fibres.ray_triangles as rt
+    import fibres.attachments.area as fl
+    import fibres.attachments.ray_triangles as rt
 
     rng = np.random.default_rng(2)
     v = cube[0] + 1e-4 * rng.standard_normal(cube[0].shape)
@@ -285,7 +285,7 @@ def test_closest_point_on_triangles_is_first_hit_or_nearest():
     # random triangles and rays: where a ray hits some triangle, the answer is the hit with
     # the smallest ray parameter (each hit solved independently as the 3x3 system
     # s + t d = a + u (b - a) + v (c - a)); otherwise no surface sample is closer to the ray
-    import fibres.ray_triangles as rt
+    import fibres.attachments.ray_triangles as rt
 
     rng = np.random.default_rng(7)
     tv = rng.uniform(-1, 1, (30, 3, 3))
@@ -330,7 +330,7 @@ def test_closest_on_triangles_with_shared_corner_ids_is_the_same_answer():
     # corner_ids (the mesh's vertex indices) only let the compiled loop project each shared
     # corner once per ray: indices and barycentric coordinates are bit for bit those
     # without them, with and without `within` (rays towards and past a tube's wall)
-    import fibres.ray_triangles as rt
+    import fibres.attachments.ray_triangles as rt
 
     v, f = tube()
     rng = np.random.default_rng(3)
@@ -421,7 +421,7 @@ def test_plan_reuse_keeps_the_end_on_its_material_point():
     # material point -- the same cap triangle and barycentric coordinates. These are found
     # here from the rest-pose end (the cap-fan triangle containing it, 2-D solve), not read
     # from the choice.
-    from fibres.filtering import apply_filter, filter_choices
+    from fibres.attachments.filtering import apply_filter, filter_choices
 
     v, f, fib, origin, insertion, _, _ = _tube_case()
     choice = filter_choices(fib, (v, f), origin, insertion, [0, 0, 1])
@@ -458,7 +458,7 @@ def test_regions_triangles_is_region_triangles_of_each_area():
     # faces of all areas in one pass over the faces: for overlapping areas with lone
     # vertices (points on no full face) every area's corners and owning faces must be
     # exactly region_triangles'
-    import fibres.ray_triangles as rt
+    import fibres.attachments.ray_triangles as rt
 
     v, f = tube()
     rng = np.random.default_rng(5)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from fibres import fitting
+from fibres.fit import fitting
 
 decompose_module = importlib.import_module("fibres.decompose")
 

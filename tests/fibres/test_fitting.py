@@ -1,12 +1,12 @@
-"""fibres.fitting: principal axis and OBB fit after Kohout 2012 §3.2."""
+"""fibres.fit.fitting: principal axis and OBB fit after Kohout 2012 §3.2."""
 import numpy as np
 import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
 from fibres.errors import InputError
-from fibres.fitting import Box, fit_box, principal_frame
-from fibres.templates import get_template
+from fibres.fit.fitting import Box, fit_box, principal_frame
+from fibres.template.templates import get_template
 
 # an asymmetric template whose two area centroids lie on one z line (so the attachment axis is
 # the box's z axis): off-centre rectangles of the parallel template
@@ -136,7 +136,7 @@ def test_lhdl_landmarks_are_accepted(lhdl_dir):
     # real data: gluteus maximus insertion 2 lies ~310 mm off the muscle (README) and must pass
     import pandas as pd
 
-    from fibres.surface import as_surface
+    from fibres.mesh.surface import as_surface
 
     s = as_surface(lhdl_dir / "muscles_clean" / "glut_max_r.vtk", units="mm")
     tab = pd.read_csv(lhdl_dir / "attachments" / "attachment_landmarks.csv")
@@ -205,7 +205,7 @@ def _shape_points(shape, rng, n=5000):
 def test_support_screen_keeps_every_extreme_point(shape):
     # the screened box search must give bit-identical boxes: every vertex that attains a
     # minimum or maximum of some projection survives the screen (brute force over all)
-    from fibres.fitting import _boxes, _support_candidates, _thetas
+    from fibres.fit.fitting import _boxes, _support_candidates, _thetas
 
     rng = np.random.default_rng(3)
     a, b = _shape_points(shape, rng)
@@ -237,7 +237,7 @@ def test_support_screen_keeps_every_extreme_point(shape):
 
 
 def test_mean_rows_is_numpy_mean_bit_for_bit():
-    from fibres.fitting import _mean_rows
+    from fibres.fit.fitting import _mean_rows
 
     rng = np.random.default_rng(5)
     for n in (4, 999, 15002):
@@ -299,7 +299,7 @@ def test_prepared_vertices_give_the_same_frame_and_box_bit_for_bit(template, axi
     # for the stages of a decomposition: the frame and box must be exactly those made
     # without it (the same functions on the same vertices; prepared arrays read-only
     # inputs), and its arrays exactly numpy's (transpose, min/max, mean)
-    from fibres import fitting
+    from fibres.fit import fitting
 
     v, o, i = _bent_spindle(n_z=30, n_t=40)
     rot = Rotation.from_euler("xyz", [0.2, -0.7, 0.4]).as_matrix()
@@ -329,7 +329,7 @@ def test_auto_axis_without_covariance_decides_as_the_extent(monkeypatch):
     # bounding-box diagonal apart (the extent along any unit axis is at most the diagonal):
     # the method must be exactly the rule's on the covariance extent, also just around the
     # shortcut's threshold and the rule's own
-    from fibres import fitting
+    from fibres.fit import fitting
 
     rng = np.random.default_rng(11)
     calls = []
@@ -361,7 +361,7 @@ def test_auto_axis_without_covariance_decides_as_the_extent(monkeypatch):
 
 
 def test_norm_is_numpys_bit_for_bit():
-    from fibres.fitting import _norm
+    from fibres.fit.fitting import _norm
 
     rng = np.random.default_rng(13)
     m = rng.normal(size=(200, 3, 3)) * 10.0 ** rng.integers(-8, 8, size=(200, 1, 1))
@@ -371,7 +371,7 @@ def test_norm_is_numpys_bit_for_bit():
 
 
 def test_landmarks_in_the_box_are_accepted_without_measuring():
-    from fibres.fitting import _check_in_box
+    from fibres.fit.fitting import _check_in_box
 
     lo, hi = np.zeros(3), np.ones(3)
     _check_in_box(lo, hi, np.array([[5.0, 5.0, 5.0], [1.0, 0.0, 0.5]]), name="origin")

@@ -1,4 +1,4 @@
-"""Harmonic-field slicing (`fibres.harmonic_slicing`) and the fibre quality numbers.
+"""Harmonic-field slicing (`fibres.slicing.harmonic`) and the fibre quality numbers.
 
 Expected values are analytic (a cylinder's linear field, straight fibres, areas of disks),
 properties (single isoline loops, points inside), or the LHDL muscles' measured quality with
@@ -11,10 +11,10 @@ import pytest
 from test_decompose_analytic import arc, cap_ring, rotation, straight, tube
 
 from fibres import HarmonicPlan, decompose, make_plan
-from fibres.harmonic_field import harmonic_field, mesh_edges
-from fibres.inside import inside, inside_grid
-from fibres.isolines import isoline_loops
-from fibres.quality import fibre_quality
+from fibres.slicing.harmonic_field import harmonic_field, mesh_edges
+from fibres.mesh.inside import inside, inside_grid
+from fibres.slicing.isolines import isoline_loops
+from fibres.finishing.quality import fibre_quality
 
 RHO, L = 0.01, 0.1
 
@@ -133,7 +133,7 @@ def test_grid_area_map_uniform_is_the_identity_and_weights_move_the_quantiles():
     X = 1/2 goes to x = 1/3 and X = 3/4 (= F1(1/2)) to 1/2; rows equal: y = Y.
     Rows y < 1/4 of every column weigh 5 (the rest 1, total 5/4 + 3/4 = 2): the conditional
     F2(y) = 5y / 2 up to 1/4, so Y = 5/16 goes to y = 1/8; x stays X."""
-    from fibres.patch_map import grid_area_map
+    from fibres.attachments.patch_map import grid_area_map
     g = 8
     X = np.array([0.0, 0.1, 0.5, 0.77, 1.0])
     Y = np.array([0.3, 0.0, 0.9, 0.5, 1.0])
@@ -157,7 +157,7 @@ def test_kr_coordinates_of_a_uniform_rectangle_and_the_round_trip():
     rim (the measure is sampled at sub-triangle centroids, 8 x 8 per triangle here, and the
     conditional of y is a Gaussian window in x: exact to a few hundredths); `knothe_rosenblatt`
     maps the coordinates back to the points exactly (both use the same sampled measure)."""
-    from fibres.patch_map import knothe_rosenblatt, kr_coordinates
+    from fibres.attachments.patch_map import knothe_rosenblatt, kr_coordinates
     px = np.array([[0.0, 2.0, 2.0], [0.0, 2.0, 0.0]])
     py = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
     area = np.array([1.0, 1.0])
@@ -177,7 +177,7 @@ def test_lloyd_steps_spread_points_evenly_over_a_square_patch():
     the largest distance from the square's area to the nearest point falls (the optimal 4 x 4
     grid leaves sqrt(2) / 8 = 0.18; the crowded start leaves ~1.0; points snap to the area
     samples, 8 x 8 sub-triangles per triangle here, so below 0.4), and points stay on it."""
-    from fibres.patch_map import relax_on_patch
+    from fibres.attachments.patch_map import relax_on_patch
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
     f = np.array([[0, 1, 2], [0, 2, 3]])
     rng = np.random.default_rng(3)
@@ -209,7 +209,7 @@ def test_registered_seam_finds_the_same_material_start_on_a_renumbered_loop():
     by the point numbered (37 - 50) mod 200 = 187 of the next loop, whatever the starting
     guess, to within half the search step (shifts are tried every 1/8 of a sample spacing
     from the guess: 200 / 64 / 8 = 0.39 points)."""
-    from fibres.harmonic_sections import _registered_seam
+    from fibres.slicing.harmonic_sections import _registered_seam
     th = np.linspace(0.0, 2 * np.pi, 200, endpoint=False)
     prev = np.c_[3 * np.cos(th), np.sin(th), np.zeros_like(th)]
     nxt = np.roll(prev + [0.0, 0.0, 1.0], -50, axis=0)
@@ -222,7 +222,7 @@ def test_bending_measure_is_zero_on_a_line_and_counts_a_half_turn():
     """A straight path adds nothing. A semicircle of radius 1 (length pi, turning pi) adds
     weight * (pi / pi) * pi at its end, less the half step of turning lost at each end by
     the one-sided directions there: pi (1 - 1 / 47) for 48 samples."""
-    from fibres.harmonic_sections import bending_measure
+    from fibres.slicing.harmonic_sections import bending_measure
     s = np.linspace(0.0, 2.0, 30)
     line = np.c_[s, 0.5 * s, np.zeros_like(s)] / np.sqrt(1.25)
     np.testing.assert_allclose(bending_measure(s, line, 0.25), 0.0, atol=1e-12)
@@ -298,7 +298,7 @@ def test_lhdl_isolines_are_single_loops(lhdl_dir, muscle):
     origin is one patch (psoas: its four lumbar origin clouds are four pieces, whose saddles
     give several loops near the origin; tested with the iliacus-area origin of Modenese &
     Kohout 2020, as tests/data/lhdl_hip.toml does)."""
-    from fibres.harmonic_slicing import _levels
+    from fibres.slicing.harmonic import _levels
 
     s, o, i = _lhdl(lhdl_dir, muscle)
     if muscle == "psoas_r":

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from fibres import mvc
-from fibres.mvc import mean_value_coordinates
+from fibres.slicing import mvc
+from fibres.slicing.mvc import mean_value_coordinates
 
 
 @pytest.fixture(autouse=True)
@@ -108,7 +108,7 @@ def test_shapes_are_checked():
 
 
 def test_mvc_map_equals_coordinates_times_targets():
-    from fibres.mvc import mvc_map
+    from fibres.slicing.mvc import mvc_map
 
     rng = np.random.default_rng(5)
     polys = [SQUARE * 2.0, ARROW, ARROW[::-1] * 0.5]
@@ -135,7 +135,7 @@ def test_mvc_map_equals_coordinates_times_targets():
 def test_packed_planes_map_like_separate_polygons():
     # `planes` views of one array skip mvc_map's concatenation: the same result bit for bit
     # as the separate polygons (and the views are the rows they name)
-    from fibres.mvc import mvc_map, planes
+    from fibres.slicing.mvc import mvc_map, planes
 
     rng = np.random.default_rng(9)
     pts = rng.uniform(0.05, 0.95, (200, 2)) * [4, 3]

@@ -1,9 +1,9 @@
-"""fibres.sampling.sobol_rs: deterministic, prefix-stable, low-discrepancy (Joe & Kuo 2008)."""
+"""fibres.template.sampling.sobol_rs: deterministic, prefix-stable, low-discrepancy (Joe & Kuo 2008)."""
 import numpy as np
 import pytest
 from scipy.stats import qmc
 
-from fibres.sampling import sobol_rs
+from fibres.template.sampling import sobol_rs
 
 
 def test_deterministic_and_prefix_stable():

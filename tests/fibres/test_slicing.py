@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from fibres.contours import choose_loops, clockwise_contour, loop_areas
-from fibres.slicing import (_cycles, _cycles_doubling, _first_at_or_above, mesh_topology,
+from fibres.slicing.contours import choose_loops, clockwise_contour, loop_areas
+from fibres.slicing.planes import (_cycles, _cycles_doubling, _first_at_or_above, mesh_topology,
                             slice_mesh)
 
 
@@ -108,7 +108,7 @@ def test_clockwise_orientation_and_open_mesh_refused():
 def test_compiled_crossings_equal_the_array_version():
     # the compiled face-crossing enumeration must give the same integers as the array
     # expressions, including planes exactly through vertices and planes missing the mesh
-    from fibres.slicing import _crossings, _crossings_numpy, mesh_topology
+    from fibres.slicing.planes import _crossings, _crossings_numpy, mesh_topology
 
     m = trimesh.creation.icosphere(subdivisions=3)
     v = np.asarray(m.vertices) * [1.0, 0.7, 2.0]
@@ -136,7 +136,7 @@ def _no_material(n):
 
 
 def test_bridge_loops_is_continuous_through_a_pinch_and_an_island():
-    from fibres.contours import bridge_loops
+    from fibres.slicing.contours import bridge_loops
 
     a = _circle((0.0, 0.0), 1.0, 40)
     # two circles 2e-9 apart (just split): the bridge is the pinch point, 2e-9 long

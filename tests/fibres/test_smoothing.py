@@ -1,8 +1,8 @@
-"""fibres.smoothing.smooth: P'_i = (P_{i-1} + k P_i + P_{i+1}) / (k + 2), ends fixed."""
+"""fibres.finishing.smoothing.smooth: P'_i = (P_{i-1} + k P_i + P_{i+1}) / (k + 2), ends fixed."""
 import numpy as np
 import pytest
 
-from fibres.smoothing import smooth
+from fibres.finishing.smoothing import smooth
 
 
 def _noisy(n=30, p=20, seed=0):

@@ -1,4 +1,4 @@
-"""fibres.surface: loading, repair of the LHDL originals, refusals, units, all input kinds."""
+"""fibres.mesh.surface: loading, repair of the LHDL originals, refusals, units, all input kinds."""
 from __future__ import annotations
 
 import warnings
@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from fibres.errors import InputError
-from fibres.surface import Surface, SurfaceRepairWarning, as_points, as_surface, check_muscle_scale
+from fibres.mesh.surface import Surface, SurfaceRepairWarning, as_points, as_surface, check_muscle_scale
 
 MUSCLES = ["glut_max_r", "glut_med_r", "iliacus_r", "psoas_r"]
 # README of the LHDL folder: volumes of the cleaned surfaces, cm^3 (rounded to 1 cm^3)
@@ -208,7 +208,7 @@ def _imperfect_variants():
 def test_fast_path_equals_the_repair(case):
     # the validated fast path for clean meshes must return exactly what the full repair
     # returns, and every imperfect variant must still be repaired (one warning) or refused
-    from fibres.surface import _repair, clean_topology
+    from fibres.mesh.surface import _repair, clean_topology
 
     v, f = _imperfect_variants()[case]
     clean = clean_topology(v, f) is not None
@@ -236,7 +236,7 @@ def test_pieces_touching_at_one_vertex_are_not_clean():
     # two tetrahedra sharing one vertex: every edge is used twice and the winding is
     # consistent, but the face adjacency has two pieces -- trimesh's repair keeps one, so
     # the fast path must not accept it
-    from fibres.surface import _repair, clean_topology
+    from fibres.mesh.surface import _repair, clean_topology
 
     tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]) * 0.01
     ft = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
@@ -254,7 +254,7 @@ def test_closest_points_within_a_distance():
     # closest_on_triangles(..., within=w): rays that come within w of the cap (or touch it)
     # get exactly the unrestricted answer, the others index -1 -- checked against the
     # unrestricted distances (1e-9 relative: far above the rounding of the check itself)
-    import fibres.ray_triangles as rt
+    import fibres.attachments.ray_triangles as rt
     m = trimesh.creation.icosphere(subdivisions=3)
     v, f = np.asarray(m.vertices), np.asarray(m.faces)
     tv = v[f[(v[f][:, :, 2] > 0.5).all(axis=1)]]

@@ -1,11 +1,11 @@
-"""fibres.templates: Blemker & Delp (2005) style Bézier fibre families in the unit cube."""
+"""fibres.template.templates: Blemker & Delp (2005) style Bézier fibre families in the unit cube."""
 import numpy as np
 import pytest
 
-from fibres.bezier import bernstein, evaluate
+from fibres.template.bezier import bernstein, evaluate
 from fibres.errors import InputError
-from fibres.sampling import sobol_rs
-from fibres.templates import DEFAULTS, TEMPLATES, get_template
+from fibres.template.sampling import sobol_rs
+from fibres.template.templates import DEFAULTS, TEMPLATES, get_template
 
 RS = sobol_rs(512, seed=1)
 T = np.linspace(0.0, 1.0, 41)
@@ -207,7 +207,7 @@ def test_pennation_sets_the_fibre_angle():
 
 @pytest.mark.parametrize("name", TEMPLATES)
 def test_offset_and_oblique_are_the_areas_centroid_shift(name):
-    from fibres.fitting import template_offset
+    from fibres.fit.fitting import template_offset
 
     for tm in (get_template(name), get_template(name, **({"pennation": 0.3} if name in (
             "pennate", "bipennate") else {}))):

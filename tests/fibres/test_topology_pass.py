@@ -1,11 +1,11 @@
-"""`fibres.slicing.mesh_topology` against independent properties (closedness, orientation,
+"""`fibres.slicing.planes.mesh_topology` against independent properties (closedness, orientation,
 connected pieces by scipy), on meshes that stress its edge pairing: shuffled faces and vertex numbers (unsorted buckets, large valences), edges used
 once or three or four times, degenerate faces, inconsistent winding, several pieces."""
 import numpy as np
 import pytest
 import trimesh
 
-from fibres.slicing import mesh_topology
+from fibres.slicing.planes import mesh_topology
 
 
 def _meshes():

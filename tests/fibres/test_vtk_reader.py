@@ -1,4 +1,4 @@
-"""fibres.vtk_reader / fibres.vtk_xml: the same points and triangles as VTK itself reads, in every
+"""fibres.mesh.vtk_reader / fibres.mesh.vtk_xml: the same points and triangles as VTK itself reads, in every
 format and data mode VTK writes; damaged cell arrays are one-line InputErrors, never a crash."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fibres.errors import InputError
-from fibres.surface import read_mesh
+from fibres.mesh.surface import read_mesh
 
 pv = pytest.importorskip("pyvista")
 vtk = pytest.importorskip("vtk")

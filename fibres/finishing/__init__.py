@@ -1,0 +1,1 @@
+"""Step 5: smoothing, keeping fibres inside the surface, and the fibres' quality."""

@@ -1,0 +1,1 @@
+"""Surfaces as arrays: reading and safe repair, distances, closest points, inside tests."""
