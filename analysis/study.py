@@ -20,8 +20,8 @@ Engines. ``engine="dask"`` (the default when ``dask.distributed`` is installed):
 ``LocalCluster`` of ``workers`` processes (default: one per core) with one thread each, on the
 loopback (scheduler and dashboard on 127.0.0.1, free ports), or the scheduler at ``scheduler``
 (``tcp://host:port``; its workers must import this package and see the same paths). Processes,
-not threads: the library's numba kernels are compiled lazily and are not thread-safe, and a
-process per core keeps BLAS to one thread (Dask's nanny sets ``OMP_NUM_THREADS=1`` etc.). A task
+not threads: a trial is numpy code that holds the GIL between calls, a worker's crash stays its
+own, and a process per core keeps BLAS to one thread (Dask's nanny sets ``OMP_NUM_THREADS=1`` etc.). A task
 whose worker dies is rerun on another worker by the scheduler (``distributed.scheduler.allowed-
 failures``, default 3); its half-done trial left only a hidden staging folder, which the rerun
 removes (`fibres run`'s staging rule). Worker memory: LocalCluster's default limit (the machine's
