@@ -483,20 +483,8 @@ def _pick(options, idx) -> Dual:
 
 
 def wrap_ellipsoid(p1, p2, *, dimensions, quadrant="all", method="hybrid"):
-    """Wrap segments p1->p2 over a WrapEllipsoid; tangent points, lengths and exact gradients.
-
-    Parameters
-    ----------
-    p1, p2 : (F, 3) float
-        End points in the ellipsoid frame.
-    dimensions : (3,) float
-        Semi-axes.
-    quadrant : str
-    method : {"hybrid", "midpoint", "axial"}
-
-    Returns
-    -------
-    motion.wrapping.dual.SegmentWrap
-    """
+    """Wrap segments p1->p2 over a WrapEllipsoid; tangent points, lengths and exact gradients
+    (a `motion.wrapping.dual.SegmentWrap`); the arguments are those of `ellipsoid_wrap_line`,
+    with plain float (F, 3) end points."""
     return ad.segment_wrap(ellipsoid_wrap_line, p1, p2, dimensions=dimensions,
                            quadrant=quadrant, method=method)
