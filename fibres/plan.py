@@ -69,7 +69,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .errors import InputError
-from .fit.fitting import Box, _norm, cross3, principal_frame
+from .fit.fitting import Box, _frame_for, _norm, cross3, principal_frame
 from .slicing.planes import MeshTopology
 from .slicing.soft_anchor import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR,  # noqa: F401 - re-exported (old name)
                           SOFT_SPREAD, _erfcx, _gauss_segment, _order_arcs, _soft_anchor_loop,
@@ -289,7 +289,7 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion, *, vt=No
         dist = _norm(direction)
         if dist > 0:
             u = direction / dist
-            v0, w0 = _complete_frame(u, v_ref)
+            v0, w0 = _frame_for(u, v_ref)       # the rule of fibres.fit.fitting.principal_frame
     if u is None:
         frame = principal_frame(v, origin, insertion, axis=plan.axis_method, v_ref=v_ref,
                                 template=plan.template, angle_step_deg=plan.angle_step_deg,
@@ -310,17 +310,6 @@ def box_and_local(plan: DecompositionPlan, vertices, origin, insertion, *, vt=No
 def _oblique(template) -> bool:
     """Whether the template's attachment centroids are offset across the cube (pennate)."""
     return template is not None and template.oblique
-
-
-def _complete_frame(u, v_ref):
-    """(v0, w0) completing u (the same rule as `fibres.fit.fitting.principal_frame`: v_ref
-    projected perpendicular to u, a world axis if v_ref is nearly parallel to u)."""
-    ref = np.asarray(v_ref, dtype=np.float64)
-    if abs(ref @ u) > 0.999 * _norm(ref):
-        ref = np.eye(3)[int(np.argmin(np.abs(u)))]
-    v0 = ref - (ref @ u) * u
-    v0 /= _norm(v0)
-    return v0, cross3(u, v0)
 
 
 def rest_geometry(plan: DecompositionPlan):

@@ -202,10 +202,7 @@ def smooth_split_points(pts, m, offs, seg, tau, point, *, iterations=None, weigh
 
     Parameters
     ----------
-    pts : (K, 2) float
-        Closed contours back to back (plane ``s`` is ``pts[offs[s]:offs[s + 1]]``).
-    m : (S,) int
-    offs : (S + 1,) int
+    pts, m, offs : the packed contours (module docstring)
     seg, tau : (S, 4) int, float
         Start and split points (`soft_start` with `split_fractions`).
     point : (S, 4, 2) float

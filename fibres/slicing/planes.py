@@ -366,16 +366,6 @@ def _cycles_doubling(nxt):
 
 
 def _cycles(nxt):
-    """Cycle label (smallest member) and position after it, for a permutation.
-
-    By pointer doubling (`_cycles_doubling`).
-
-    Parameters
-    ----------
-    nxt : (n,) int64 permutation
-
-    Returns
-    -------
-    label, rank : (n,) int64
-    """
+    """Cycle label (smallest member) and position after it, for a permutation ``nxt`` (n,):
+    ``label, rank`` (n,) int64, by pointer doubling (`_cycles_doubling`)."""
     return _cycles_doubling(nxt)
