@@ -281,19 +281,29 @@ def body_pose_derivatives(model: Model, motion, *, derivatives: bool = True) -> 
     q_used : (F, C) float
     dq_dqk : (F, C, C) float
     """
+    return _poses(model, _assembled_q(model, motion), derivatives=derivatives)
+
+
+def _assembled_q(model: Model, motion) -> np.ndarray:
+    """(F, C) coordinate values of a motion, weld constraints assembled."""
     _, q = motion_coordinates(model, motion)
     if model.welds:
         q = _assemble_welds(model, coordinate_values(model, q)[0])
-    return _poses(model, q, derivatives=derivatives)
+    return q
 
 
-def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
+def _pose_start(model: Model, q: np.ndarray):
+    """q_used, dq_dqk, F, C, B, the coordinate index, and tf (F, B, 4, 4) with ground set."""
     q_used, jac = coordinate_values(model, q)
     n_frames, n_coords = q_used.shape
     n_bodies = len(model.bodies)
-    cidx = model._coord_index
     tf = np.zeros((n_frames, n_bodies, 4, 4))
     tf[:, 0] = np.eye(4)
+    return q_used, jac, n_frames, n_coords, n_bodies, model._coord_index, tf
+
+
+def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
+    q_used, jac, n_frames, n_coords, n_bodies, cidx, tf = _pose_start(model, q)
     dtf = np.zeros((n_frames, n_bodies, n_coords, 4, 4)) if derivatives else None
     # columns k where d tf_ground_body / dq_k may be nonzero (the others stay exactly 0)
     support = np.zeros((n_bodies, n_coords), dtype=bool)
@@ -337,15 +347,7 @@ def _pose_twists(model: Model, motion) -> tuple:
     q_used : (F, C) float
     dq_dqk : (F, C, C) float
     """
-    _, q = motion_coordinates(model, motion)
-    if model.welds:
-        q = _assemble_welds(model, coordinate_values(model, q)[0])
-    q_used, jac = coordinate_values(model, q)
-    n_frames, n_coords = q_used.shape
-    n_bodies = len(model.bodies)
-    cidx = model._coord_index
-    tf = np.zeros((n_frames, n_bodies, 4, 4))
-    tf[:, 0] = np.eye(4)
+    q_used, jac, n_frames, n_coords, n_bodies, cidx, tf = _pose_start(model, _assembled_q(model, motion))
     twist = np.zeros((n_bodies, n_coords, n_frames, 6))       # (B, C, F, 6) while building
     support = np.zeros((n_bodies, n_coords), dtype=bool)      # columns that may be nonzero
     for joint in model.joints:

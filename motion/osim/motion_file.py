@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, read_guarded
 from .motion_table import check_time, match_columns, model_name, read_labels, read_numbers
 
 __all__ = ["Motion", "MotionFileWarning", "load_motion", "write_sto"]
@@ -210,14 +210,9 @@ def load_motion(path, model) -> Motion:
         that disagree with the data, once for values far outside coordinate ranges (see module
         docstring).
     """
-    try:
-        return _load_motion(path, model)
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - bad input must not crash (MemoryError included)
-        raise InputError(f"cannot read the motion file ({type(exc).__name__}: {exc})", file=path,
-                         fix="Export the motion again from OpenSim (a header, 'endheader', labels, "
-                             "rows of numbers).") from None
+    return read_guarded(lambda: _load_motion(path, model), path, what="motion file",
+                        fix="Export the motion again from OpenSim (a header, 'endheader', labels, "
+                            "rows of numbers).")
 
 
 def _load_motion(path, model) -> Motion:

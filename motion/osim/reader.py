@@ -23,7 +23,7 @@ from .model import (Body, Coordinate, CouplerConstraint, Geometry, Joint, Model,
                     frame_transform)
 from .joints import JOINT_TYPES, coordinate_order, custom_joint_axes, joint_axes, motion_types
 from .paths import read_paths, read_wrap_objects
-from ..errors import InputError
+from ..errors import read_guarded
 from .xml_document import Node, function_child, parse_function, read_document
 
 __all__ = ["load_model", "ModelFileWarning"]
@@ -52,14 +52,8 @@ def load_model(path) -> Model:
         Anything unexpected that goes wrong while reading the file (a value of a type the
         reader did not foresee) is also reported as one InputError naming the file.
     """
-    try:
-        return _load_model(path)
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - bad input must not crash (RecursionError included)
-        raise InputError(f"cannot read the model ({type(exc).__name__}: {exc})", file=path,
-                         fix="check the file against an OpenSim 4.x/3.x model, or re-export it "
-                             "from OpenSim") from None
+    return read_guarded(lambda: _load_model(path), path, what="model",
+                        fix="check the file against an OpenSim 4.x/3.x model, or re-export it from OpenSim")
 
 
 def _load_model(path) -> Model:

@@ -62,6 +62,18 @@ def fusiform_radius(length: float, *, volume: float | None = None, max_isometric
     return 0.1 * length
 
 
+def _axis_samples(curve, n_rings, n_around, *, min_rings, what):
+    """``n_rings`` arc-length samples of the axis curve and its length; ValueError for a
+    degenerate axis or too few rings (``min_rings``) or vertices around (3)."""
+    c = resample_polylines(np.asarray(curve, dtype=float), int(n_rings))
+    length = float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)))
+    if length <= 0:
+        raise ValueError(f"{what} has zero length")
+    if n_rings < min_rings or n_around < 3:
+        raise ValueError(f"need n_rings >= {min_rings} and n_around >= 3")
+    return c, length
+
+
 def fusiform_surface(curve, *, max_radius: float | None = None, volume: float | None = None,
                      taper: float = 1.0, n_rings: int = 40, n_around: int = 24):
     """A closed, smooth, outward-oriented fusiform surface around a polyline.
@@ -87,12 +99,7 @@ def fusiform_surface(curve, *, max_radius: float | None = None, volume: float | 
     faces : (T, 3) int
         ``T = 2 n_around (n_rings - 2)``, counter-clockwise seen from outside.
     """
-    c = resample_polylines(np.asarray(curve, dtype=float), int(n_rings))
-    length = float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)))
-    if length <= 0:
-        raise ValueError("the action line has zero length")
-    if n_rings < 3 or n_around < 3:
-        raise ValueError("need n_rings >= 3 and n_around >= 3")
+    c, length = _axis_samples(curve, n_rings, n_around, min_rings=3, what="the action line")
     r_max = float(max_radius) if max_radius is not None else fusiform_radius(length, volume=volume, taper=taper)
     tan = curve_tangents(c[None])
     frames = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
@@ -171,12 +178,7 @@ def belly_surface(curve, *, volume: float | None = None, max_radius: float | Non
     origin, insertion : (9, 3) float
         Attachment landmarks on the two caps.
     """
-    c = resample_polylines(np.asarray(curve, dtype=float), int(n_rings))
-    length = float(np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)))
-    if length <= 0:
-        raise ValueError("the belly has zero length")
-    if n_rings < 2 or n_around < 3:
-        raise ValueError("need n_rings >= 2 and n_around >= 3")
+    c, length = _axis_samples(curve, n_rings, n_around, min_rings=2, what="the belly")
     r = belly_radius(length, volume=volume, max_radius=max_radius)
     slender = max_radius is None and volume is not None and r < math.sqrt(float(volume) / (math.pi * length))
     tan = curve_tangents(c[None])
