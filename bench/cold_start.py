@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LHDL = Path("/work/shared/muscles/LHDL_hip_r")
+LHDL = ROOT.parent / "shared" / "muscles" / "LHDL_hip_r"
 
 _CHILD = r"""
 import json, sys, time, warnings

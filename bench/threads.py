@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LHDL = Path("/work/shared/muscles/LHDL_hip_r")
+LHDL = ROOT.parent / "shared" / "muscles" / "LHDL_hip_r"
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 _DECOMPOSE = r"""
