@@ -153,6 +153,9 @@ def run_muscle(ctx, mspec):
     n_fib = bundle0.points.shape[0]
     lengths = np.empty((n_poses, n_f, n_fib))
     points = np.empty((n_f,) + bundle0.points.shape) if ctx.keep_points else None
+    # whether the +h / -h pose of each frame switches a conditional path point (K, F)
+    plus_switch = np.zeros((len(coord_idx), n_f), dtype=bool)
+    minus_switch = np.zeros_like(plus_switch)
     surfaces, chunk_notes, steps = [], [], None
     try:
         for rows in _chunks(n_f, n_poses):
@@ -167,13 +170,12 @@ def run_muscle(ctx, mspec):
             if ctx.keep_surfaces:
                 surfaces.append(got.surfaces[:n_c])
             chunk_notes.append(got.notes)
+            plus_switch[:, rows], minus_switch[:, rows] = active_set_changes(ctx.model, mspec, stacked.q, n_c)
     finally:
         if bar is not None:
             bar.close()
     with timed(timings, "moment_arms"):
-        full, steps, _ = stacked_motion(ctx.model, q, ctx.motion.source, coord_idx, ctx.step)
-        r = difference_quotients(lengths[0], lengths[1::2], lengths[2::2], steps,
-                                 *active_set_changes(ctx.model, mspec, full.q, n_f))
+        r = difference_quotients(lengths[0], lengths[1::2], lengths[2::2], steps, plus_switch, minus_switch)
     base = lengths[0]
     lines = ctx.lines
     al_len = np.asarray(lines.lengths)[:, line_rows]
