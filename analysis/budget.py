@@ -48,10 +48,8 @@ __all__ = ["parse_size", "default_budget", "format_size", "resident_bytes", "che
            "MOTION_PARSE_BYTES_PER_BYTE", "WRAP_COPIES"]
 
 MOTION_PARSE_BYTES_PER_BYTE = 20
-#: poses (frames x (1 + 2K)) a muscle carries through the wrapping at once. Also the fastest:
-#: a Gait2392 hip muscle (3 coordinates, 100 fibres x 19 segments) took 1.30 ms per pose in chunks
-#: of 448 poses, 2.0 ms in one batch of 1477 (caches) and 2.0 ms in chunks of 112 (the fixed cost
-#: of a wrap call, ~0.1 s); working arrays of a 512-pose chunk are about 0.2 GB
+#: poses (frames x (1 + 2K)) a muscle carries through the wrapping at once: bounded memory
+#: (about 0.2 GB of working arrays) and the fastest chunk measured (docs/decisions.md)
 POSES_PER_CHUNK = 512
 LINES_COPIES = 6
 WRAP_COPIES = 12

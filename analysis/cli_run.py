@@ -362,8 +362,8 @@ def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True):
     """The ``on_muscle`` hook of `analysis.run` for ``fibres run``: writes each muscle's 3D files
     (``fibres/``, `_write_vtk`) into ``staging`` as soon as the muscle is done, then keeps only
     what the scene needs of its fibre points and surfaces (the scene's frames,
-    `scene.scene_frames`; nothing without a scene). A whole model's points and surfaces are
-    so never in memory at once (Gait2392, 92 muscles x 211 frames: 1.4 GB otherwise)."""
+    `scene.scene_frames`; nothing without a scene), so a whole model's points and surfaces are
+    never in memory at once."""
     import dataclasses
 
     from . import vtk_files

@@ -91,7 +91,7 @@ def fibre_lengths(points) -> np.ndarray:
     """
     p = np.asarray(points, dtype=float)
     d = p[..., 1:, :] - p[..., :-1, :]
-    # einsum, not np.linalg.norm: one temporary fewer, 5x faster on (1024, 100, 37, 3)
+    # einsum, not np.linalg.norm: one temporary fewer
     return np.sqrt(np.einsum("...i,...i->...", d, d)).sum(-1)
 
 

@@ -223,9 +223,8 @@ def write_tables(result, out_dir, *, parquet: bool = True) -> list:
     beside it (``<name>.parquet``: the same columns, full float64 precision, pyarrow).
 
     The per-fibre and per-line tables (`PER_MUSCLE`) are built and appended one muscle at a
-    time (a Parquet row group per muscle), so a whole model's tables never sit in memory at once
-    (92 muscles x 211 frames x 100 fibres x 3 coordinates: 5.8 M rows, about 1.3 GB as one
-    DataFrame); the files are the same as if written at once. Returns the paths written."""
+    time (a Parquet row group per muscle), so a whole model's tables never sit in memory at once;
+    the files are the same as if written at once. Returns the paths written."""
     import dataclasses
     from pathlib import Path
 
