@@ -21,6 +21,14 @@ def _per_frame(frames, time, key, names) -> dict:
             key: np.tile(np.asarray(names, dtype=object), len(time))}
 
 
+def _shaped(values, shape, what, dims, dtype=float):
+    """``values`` as an array of ``shape``; a ValueError naming ``what`` and its ``dims`` if not."""
+    a = np.asarray(values, dtype=dtype)
+    if a.shape != shape:
+        raise ValueError(f"{what} must be {dims} = {shape}, got {a.shape}")
+    return a
+
+
 def _frame_index(time, frames):
     time = np.asarray(time, dtype=float).reshape(-1)
     frames = np.arange(time.shape[0]) if frames is None else np.asarray(frames).reshape(-1)
@@ -49,11 +57,8 @@ def body_poses_table(time, tf_ground_body, body_names, *, frames=None):
     import pandas as pd
 
     time, frames = _frame_index(time, frames)
-    tf = np.asarray(tf_ground_body, dtype=float)
     n_frames, n_bodies = time.shape[0], len(body_names)
-    if tf.shape != (n_frames, n_bodies, 4, 4):
-        raise ValueError(f"tf_ground_body must be (F, B, 4, 4) = ({n_frames}, {n_bodies}, 4, 4), "
-                         f"got {tf.shape}")
+    tf = _shaped(tf_ground_body, (n_frames, n_bodies, 4, 4), "tf_ground_body", "(F, B, 4, 4)")
     table = _per_frame(frames, time, "body", body_names)
     flat = tf.reshape(n_frames * n_bodies, 4, 4)
     for k, axis in enumerate("xyz"):
@@ -86,10 +91,8 @@ def action_lines_table(time, lengths, muscle_names, *, frames=None, action_lines
     import pandas as pd
 
     time, frames = _frame_index(time, frames)
-    lengths = np.asarray(lengths, dtype=float)
     n_frames, n_muscles = time.shape[0], len(muscle_names)
-    if lengths.shape != (n_frames, n_muscles):
-        raise ValueError(f"lengths must be (F, M) = ({n_frames}, {n_muscles}), got {lengths.shape}")
+    lengths = _shaped(lengths, (n_frames, n_muscles), "lengths", "(F, M)")
     table = _per_frame(frames, time, "muscle", muscle_names)
     if action_lines is not None:
         if len(action_lines) != n_muscles:
@@ -125,14 +128,9 @@ def moment_arms_table(time, moment_arms, spanned, muscle_names, coordinate_names
     import pandas as pd
 
     time, frames = _frame_index(time, frames)
-    arms = np.asarray(moment_arms, dtype=float)
-    spanned = np.asarray(spanned, dtype=bool)
     n_frames, n_muscles, n_coords = time.shape[0], len(muscle_names), len(coordinate_names)
-    if arms.shape != (n_frames, n_muscles, n_coords):
-        raise ValueError(f"moment_arms must be (F, M, C) = ({n_frames}, {n_muscles}, {n_coords}), "
-                         f"got {arms.shape}")
-    if spanned.shape != (n_muscles, n_coords):
-        raise ValueError(f"spanned must be (M, C) = ({n_muscles}, {n_coords}), got {spanned.shape}")
+    arms = _shaped(moment_arms, (n_frames, n_muscles, n_coords), "moment_arms", "(F, M, C)")
+    spanned = _shaped(spanned, (n_muscles, n_coords), "spanned", "(M, C)", dtype=bool)
     muscle_of, coord_of = np.nonzero(spanned)  # row-major: muscle order, then coordinate order
     n_pairs = muscle_of.shape[0]
     table = {

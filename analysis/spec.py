@@ -201,10 +201,11 @@ class FibreModelSpec:
         return tuple(m.name for m in self.muscles)
 
     def muscle(self, name: str) -> MuscleSpec:
-        for m in self.muscles:
-            if m.name == name:
-                return m
-        raise KeyError(name)
+        """The spec of muscle ``name`` (KeyError if the fibre model has none)."""
+        found = {m.name: m for m in self.muscles}
+        if name not in found:
+            raise KeyError(f"no muscle {name!r} in the fibre model; have {', '.join(found)}")
+        return found[name]
 
 
 # --------------------------------------------------------------------------- model accessors

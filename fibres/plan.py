@@ -79,12 +79,14 @@ __all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_loc
            "rest_geometry", "rest_loop_counts"]
 
 
-def _readonly(a):
-    """A read-only copy of ``a``; an array that is already read-only and owns its data (one
-    made here, passed on by `dataclasses.replace`) is kept as is."""
-    if isinstance(a, np.ndarray) and not a.flags.writeable and a.flags.owndata:
+def _readonly(a, dtype=None):
+    """A read-only copy of ``a`` (as ``dtype`` if given); an array that is already read-only,
+    owns its data and has that dtype (one made here, passed on by `dataclasses.replace`) is
+    kept as is."""
+    if (isinstance(a, np.ndarray) and not a.flags.writeable and a.flags.owndata
+            and (dtype is None or a.dtype == dtype)):
         return a
-    a = np.array(a, copy=True)
+    a = np.array(a, dtype=dtype, copy=True)
     a.flags.writeable = False
     return a
 

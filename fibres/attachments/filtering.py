@@ -87,6 +87,7 @@ import numpy as np
 from .filter_pieces import evaluate_pieces, record_resampling, untouched
 from .area import _mean_edge, _region_indices, attachment_region, regions_triangles
 from .ray_triangles import closest_on_triangles
+from ..plan import _readonly
 
 __all__ = ["trim_and_reconstruct", "attachment_region", "FilterChoice", "filter_choices",
            "apply_filter", "TIE"]
@@ -97,12 +98,6 @@ TIE = 1e-9
 #: fraction of the segment (extrapolated along it) -- a guard for segments turning parallel
 #: to the plane; the rest pose always has 0 <= s <= 1
 CUT_SLACK = 0.5
-
-
-def _readonly(a, dtype):
-    a = np.array(a, dtype=dtype, copy=True)
-    a.flags.writeable = False
-    return a
 
 
 @dataclass(frozen=True)

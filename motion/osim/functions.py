@@ -38,6 +38,12 @@ def _ro(a) -> np.ndarray:
     return arr
 
 
+def _freeze(obj, **arrays) -> None:
+    """Set each of ``arrays`` on the frozen dataclass ``obj`` as a read-only float copy."""
+    for name, a in arrays.items():
+        object.__setattr__(obj, name, _ro(a))
+
+
 @dataclass(frozen=True, eq=False)
 class Constant:
     """f(x) = value."""
@@ -158,20 +164,25 @@ def _segment(xk: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class SimmSpline:
-    """OpenSim's SimmSpline / NaturalCubicSpline (see the module docstring)."""
+class _KnotFunction:
+    """A function of knots (x, y): checked, frozen, with the coefficients of `_coefficients`."""
 
     x: np.ndarray
     y: np.ndarray
 
     def __post_init__(self):
-        x, y = _check_knots(self.x, self.y, "SimmSpline")
+        x, y = _check_knots(self.x, self.y, type(self).__name__)
+        _freeze(self, x=x, y=y, **self._coefficients(x, y))
+
+
+@dataclass(frozen=True, eq=False)
+class SimmSpline(_KnotFunction):
+    """OpenSim's SimmSpline / NaturalCubicSpline (see the module docstring)."""
+
+    @staticmethod
+    def _coefficients(x, y) -> dict:
         b, c, d = _fmm_coefficients(x, y)
-        object.__setattr__(self, "x", _ro(x))
-        object.__setattr__(self, "y", _ro(y))
-        object.__setattr__(self, "_b", _ro(b))
-        object.__setattr__(self, "_c", _ro(c))
-        object.__setattr__(self, "_d", _ro(d))
+        return {"_b": b, "_c": c, "_d": d}
 
     def value(self, t):
         t = np.asarray(t, dtype=float)
@@ -197,18 +208,13 @@ class SimmSpline:
 
 
 @dataclass(frozen=True, eq=False)
-class PiecewiseLinearFunction:
+class PiecewiseLinearFunction(_KnotFunction):
     """Linear interpolation between knots, linear extrapolation with the end slopes."""
 
-    x: np.ndarray
-    y: np.ndarray
-
-    def __post_init__(self):
-        x, y = _check_knots(self.x, self.y, "PiecewiseLinearFunction")
+    @staticmethod
+    def _coefficients(x, y) -> dict:
         slopes = np.diff(y) / np.maximum(np.diff(x), _TINY)
-        object.__setattr__(self, "x", _ro(x))
-        object.__setattr__(self, "y", _ro(y))
-        object.__setattr__(self, "_b", _ro(np.append(slopes, slopes[-1])))
+        return {"_b": np.append(slopes, slopes[-1])}
 
     def value(self, t):
         t = np.asarray(t, dtype=float)

@@ -339,6 +339,13 @@ class Model:
         object.__setattr__(self, "_path_index", {p.name: i for i, p in enumerate(self.paths)})
         object.__setattr__(self, "_wrap_index", {w.name: i for i, w in enumerate(self.wrap_objects)})
 
+    def _indexed(self, index: dict, name: str, kind: str) -> int:
+        """``index[name]``, or a KeyError naming the model and the missing ``kind``."""
+        try:
+            return index[name]
+        except KeyError:
+            raise KeyError(f"model {self.name!r} has no {kind} {name!r}") from None
+
     @property
     def constraints(self) -> tuple:
         """All constraints: couplers then welds."""
@@ -351,10 +358,7 @@ class Model:
 
     def coordinate_index(self, name: str) -> int:
         """Index of coordinate ``name`` in model order (KeyError if absent)."""
-        try:
-            return self._coord_index[name]
-        except KeyError:
-            raise KeyError(f"model {self.name!r} has no coordinate {name!r}") from None
+        return self._indexed(self._coord_index, name, "coordinate")
 
     @property
     def body_names(self) -> tuple:
@@ -363,10 +367,7 @@ class Model:
 
     def body_index(self, name: str) -> int:
         """Index of body ``name`` (KeyError if absent)."""
-        try:
-            return self._body_index[name]
-        except KeyError:
-            raise KeyError(f"model {self.name!r} has no body {name!r}") from None
+        return self._indexed(self._body_index, name, "body")
 
     @property
     def path_names(self) -> tuple:
@@ -375,17 +376,11 @@ class Model:
 
     def path(self, name: str) -> Path:
         """The path force called ``name`` (KeyError if absent)."""
-        try:
-            return self.paths[self._path_index[name]]
-        except KeyError:
-            raise KeyError(f"model {self.name!r} has no path force {name!r}") from None
+        return self.paths[self._indexed(self._path_index, name, "path force")]
 
     def wrap_object(self, name: str) -> WrapObject:
         """The wrap object called ``name`` (KeyError if absent)."""
-        try:
-            return self.wrap_objects[self._wrap_index[name]]
-        except KeyError:
-            raise KeyError(f"model {self.name!r} has no wrap object {name!r}") from None
+        return self.wrap_objects[self._indexed(self._wrap_index, name, "wrap object")]
 
     @property
     def coupled_coordinates(self) -> np.ndarray:
