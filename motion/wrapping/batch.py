@@ -169,10 +169,15 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
             for key in _ROW_OPTIONS.get(fn, ()):
                 row_opts.setdefault(key, np.empty(n_rows))[rows] = opts.pop(key)
         slots.append(WrapSlot(fn, opts, row_opts, bool(wo.active), tf_w, dtf_w, start, end))
-    from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module
-    length, order, mask, seen, _ = wrap_rows(pts, act, dpts, slots)
-    node_v = np.stack([n.v for n in seen], axis=1)                       # (N, P_max + 2 W, 3)
-    d_length = np.broadcast_to(length.d, (n_rows, d_max))
+    if all(slot.fn is cylinder_wrap_line for slot in slots):
+        from .cylinder_paths import wrap_cylinder_rows    # compiled; imports WrapSlot's users lazily
+        n_dirs = np.repeat([len(c) for c in columns], n_frames)
+        length_v, d_length, order, mask, node_v = wrap_cylinder_rows(pts, act, dpts, n_dirs, slots)
+    else:
+        from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module
+        length, order, mask, seen, _ = wrap_rows(pts, act, dpts, slots)
+        node_v = np.stack([n.v for n in seen], axis=1)                   # (N, P_max + 2 W, 3)
+        length_v, d_length = length.v, np.broadcast_to(length.d, (n_rows, d_max))
     n_wraps = len(slots)
     results = []
     for g, (path, cols) in enumerate(zip(paths, columns)):
@@ -186,6 +191,6 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
         for pw in path.wraps:
             labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
         ordr = new_id[order[rows]][:, :len(keep)]
-        results.append((length.v[rows], d_length[rows, :len(cols)],
+        results.append((length_v[rows], d_length[rows, :len(cols)],
                         np.where(msk[..., None], node_v[rows][:, keep], np.nan), msk, tuple(labels), ordr))
     return results
