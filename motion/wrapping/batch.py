@@ -35,7 +35,7 @@ from .ellipsoid import ellipsoid_wrap_line
 from .sphere import sphere_wrap_line
 from .torus import torus_wrap_line
 
-__all__ = ["wrap_paths", "WrapSlot", "wrap_range", "line_function"]
+__all__ = ["wrap_paths", "group_rows", "WrapSlot", "wrap_range", "line_function"]
 
 @dataclass(frozen=True)
 class WrapSlot:
@@ -135,8 +135,10 @@ def wrap_paths(paths, model, points, active, d_points, tf_ground_body, d_tf_grou
     return out
 
 
-def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> list:
-    """One `wrap_rows` call for paths of one signature; results split back per path."""
+def group_rows(paths, model, points, active, d_points, tf, dtf, columns) -> tuple:
+    """The rows (path, frame) of paths of one signature, as `motion.wrapping.path.wrap_rows` takes
+    them: points (N, P_max, 3), active (N, P_max), d_points (N, P_max, D_max, 3), the number of
+    directions of each row (N,) and the `WrapSlot` list (arguments as `wrap_paths`)."""
     n_frames = tf.shape[0]
     n_paths = len(paths)
     p_max = max(len(p.points) for p in paths)
@@ -169,9 +171,19 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
             for key in _ROW_OPTIONS.get(fn, ()):
                 row_opts.setdefault(key, np.empty(n_rows))[rows] = opts.pop(key)
         slots.append(WrapSlot(fn, opts, row_opts, bool(wo.active), tf_w, dtf_w, start, end))
+    n_dirs = np.repeat(np.array([len(c) for c in columns], dtype=np.int64), n_frames)
+    return pts, act, dpts, n_dirs, slots
+
+
+def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> list:
+    """One pass for paths of one signature (compiled for cylinders, `wrap_rows` otherwise);
+    results split back per path."""
+    n_frames = tf.shape[0]
+    p_max = max(len(p.points) for p in paths)
+    pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
+    n_rows, d_max = len(n_dirs), dpts.shape[2]
     if all(slot.fn is cylinder_wrap_line for slot in slots):
-        from .cylinder_paths import wrap_cylinder_rows    # compiled; imports WrapSlot's users lazily
-        n_dirs = np.repeat([len(c) for c in columns], n_frames)
+        from .cylinder_paths import wrap_cylinder_rows    # numba: imported on the first wrapped path
         length_v, d_length, order, mask, node_v = wrap_cylinder_rows(pts, act, dpts, n_dirs, slots)
     else:
         from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module
