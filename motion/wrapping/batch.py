@@ -1,11 +1,14 @@
 """Several wrapped paths in one pass: paths with the same kind of wraps share every array step.
 
-Contract: `wrap_paths` returns, for each path, exactly what `motion.wrapping.path.wrap_path`
-returns for it alone (length, dL/dq along the path's own coordinates, current points, mask,
-labels, order) -- the same algorithm on the same numbers, row by row.
+Contract: `wrap_paths` returns, for each path, what `motion.wrapping.path.wrap_path` returns
+for it alone (length, dL/dq along the path's own coordinates, current points, mask, labels,
+order) -- the same algorithm on the same numbers, row by row. Groups whose wraps are all
+WrapCylinders run the compiled kernel `motion.wrapping.cylinder_paths` (equal to the numpy
+`wrap_rows` to rounding); the others run `wrap_rows`.
 
 Method. `motion.wrapping.path.wrap_rows` runs OpenSim's applyWrapObjects on independent rows,
-and its cost is dominated by the number of numpy calls, not by the number of rows. Paths are
+and its cost is dominated by the number of numpy calls, not by the number of rows (the
+compiled kernel pays per row, and shares the rows' preparation, `group_rows`). Paths are
 therefore grouped by the *signature* of their wraps (per PathWrap: the wrap-line function,
 its options other than a cylinder's radius and length, and whether the object is active);
 the paths of one group become rows (path, frame) of one call:
@@ -31,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cylinder import cylinder_wrap_line
+from .cylinder_paths import wrap_cylinder_rows
 from .ellipsoid import ellipsoid_wrap_line
 from .sphere import sphere_wrap_line
 from .torus import torus_wrap_line
@@ -183,7 +187,6 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
     pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
     n_rows, d_max = len(n_dirs), dpts.shape[2]
     if all(slot.fn is cylinder_wrap_line for slot in slots):
-        from .cylinder_paths import wrap_cylinder_rows    # numba: imported on the first wrapped path
         length_v, d_length, order, mask, node_v = wrap_cylinder_rows(pts, act, dpts, n_dirs, slots)
     else:
         from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module

@@ -34,44 +34,44 @@ _NO, _INSIDE, _WRAPPED, _MANDATORY = NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_
 _Z3 = (0j, 0j, 0j)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def csqrt(a):
     """Square root of the value, derivative 1 / (2 sqrt) (0 at 0)."""
     s = math.sqrt(a.real) if a.real >= 0.0 else np.nan
     return complex(s, 0.5 / s * a.imag if s > 0.0 else 0.0)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def vsub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def vadd(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def vscale(a, s):
     return (a[0] * s, a[1] * s, a[2] * s)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def vdot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def vcross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def vnorm(a):
     return csqrt(vdot(a, a))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def vunit(a):
     """WrapMath's normalize: (unit vector, or the zero vector where |a| = 0; |a|)."""
     n = vnorm(a)
@@ -80,13 +80,13 @@ def vunit(a):
     return _Z3, n
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _dist2(a, b):
     x, y, z = a[0].real - b[0].real, a[1].real - b[1].real, a[2].real - b[2].real
     return x * x + y * y + z * z
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _angle(a, b):
     """Angle between two vectors (values), arccos of the clipped cosine."""
     c = vdot(a, b).real / (vnorm(a).real * vnorm(b).real)
@@ -143,7 +143,7 @@ def _slide(pt, x, y, z, w):
     return z + (zint - z) * 1.5, adjust and ok
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _spiral_point(x1, y1, z1, dz, angle, t):
     c = complex(math.cos(angle.real), -math.sin(angle.real) * angle.imag)
     s = complex(math.sin(angle.real), math.cos(angle.real) * angle.imag)
