@@ -30,7 +30,8 @@ active points of every path per frame (`motion.wrapping.path_points._polyline_ke
 `_polyline_numpy` is used without numba and is tested equal to it. Wrapped paths go through
 `motion.wrapping.batch.wrap_paths`: paths with the same kind of wraps share one pass of the
 wrap algorithm (rows = path x frame), each carrying derivatives only along its own spanned
-coordinates. Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
+coordinates; groups wrapped over cylinders only run compiled (`motion.wrapping.cylinder_paths`).
+Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
 """
 from __future__ import annotations
 
