@@ -103,6 +103,6 @@ def test_wrap_line_equals_numpy(quadrant, adjust):
             worst = max(worst, float(np.max(np.abs(d_got - d_ref) / (1.0 + np.abs(d_ref)))))
             assert abs(s_arc.real - arc.v[i]) < 1e-12
     assert {0, 1, 3} <= seen_codes
-    # relative to 1 + |d|: 6e-14 without the re-adjustment; with it, up to 2e-5 on a few random
-    # near-degenerate segments whose derivatives reach 5e6 (100 slides of 1.5x amplify rounding)
+    # relative to 1 + |d|: rounding alone without the re-adjustment; with it, up to 100 slides
+    # of 1.5x amplify rounding on near-degenerate random segments (derivatives of order 1e6)
     assert worst < (1e-4 if adjust else 1e-12)
