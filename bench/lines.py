@@ -17,13 +17,16 @@ coordinate) pair.
   wrapping, lengths and exact moment arms, vectorised over frames), divided by the number of
   frames. Warm: after one call on the same model (index plans cached); first call: a fresh
   Python process (``--first-call``: import, model and motion loading, then the first
-  ``action_lines``, each timed; nothing is compiled by the wrapping code).
+  ``action_lines``, each timed, wall clock and CPU; the first call loads, or with an empty numba
+  cache compiles, the polyline and cylinder-path kernels).
 - OpenSim: what ``../shared/tools/opensim_reference.py`` does per frame: ``Coordinate.setValue``
   for every coordinate + ``Model.assemble`` + ``realizePosition`` (pose), then
   ``GeometryPath.getLength`` per path and ``Muscle.computeMomentArm`` per spanned pair, in the
   same process.
 
-Each side is repeated ``--repeats`` times (default 5), interleaved (ours, OpenSim, ours, ...) so
+Both sides are timed in CPU seconds of this process (``time.process_time``; both are
+single-threaded), so that waiting for a core on a busy machine counts on neither side. Each
+side is repeated ``--repeats`` times (default 5), interleaved (ours, OpenSim, ours, ...) so
 that a busy machine slows both alike; the medians per frame are printed with the ratio
 OpenSim (lengths + moment arms) / ours. Both sides' lengths are compared (max |difference|) so
 that the timing is of the same result. Run from the repository root:
@@ -73,9 +76,9 @@ def time_ours(model, mot):
     """Seconds per frame of one ``action_lines`` call; the result."""
     from motion.wrapping.action_lines import action_lines
 
-    start = time.perf_counter()
+    start = time.process_time()
     lines = action_lines(model, mot)
-    return (time.perf_counter() - start) / mot.n_frames, lines
+    return (time.process_time() - start) / mot.n_frames, lines
 
 
 class OpenSimSide:
@@ -101,18 +104,18 @@ class OpenSimSide:
         model, state = self.model, self.state
         t_pose = t_len = t_arm = 0.0
         for f, row in enumerate(self.q):  # OpenSim works one frame at a time
-            a = time.perf_counter()
+            a = time.process_time()
             for coord, value in zip(self.coords, row):
                 coord.setValue(state, float(value), False)
             model.assemble(state)
             model.realizePosition(state)
-            b = time.perf_counter()
+            b = time.process_time()
             for k, path in enumerate(self.paths):
                 self.lengths[f, k] = path.getLength(state)
-            c = time.perf_counter()
+            c = time.process_time()
             for muscle, coord in self.pairs:
                 muscle.computeMomentArm(state, coord)
-            d = time.perf_counter()
+            d = time.process_time()
             t_pose, t_len, t_arm = t_pose + b - a, t_len + c - b, t_arm + d - c
         n = len(self.q)
         return t_pose / n, t_len / n, t_arm / n
@@ -124,10 +127,10 @@ def first_call(key) -> dict:
     from motion.wrapping.action_lines import action_lines
     t1 = time.perf_counter()
     model, mot = load(key)
-    t2 = time.perf_counter()
+    t2, c2 = time.perf_counter(), time.process_time()
     action_lines(model, mot)
-    t3 = time.perf_counter()
-    return {"import_s": t1 - t0, "load_s": t2 - t1, "first_call_s": t3 - t2}
+    t3, c3 = time.perf_counter(), time.process_time()
+    return {"import_s": t1 - t0, "load_s": t2 - t1, "first_call_s": t3 - t2, "first_call_cpu_s": c3 - c2}
 
 
 def _ms(values):
@@ -182,7 +185,7 @@ def main(argv=None) -> int:
         print("OpenSim: skipped (the opensim package is not installed: pip install opensim==4.6)")
     else:
         import opensim as osim
-    print(f"median per frame over {args.repeats} repeats (lengths + moment arms of every spanned pair)")
+    print(f"median CPU ms per frame over {args.repeats} repeats (lengths + moment arms of every spanned pair)")
     print("| model | frames | paths (wrapped) | pairs | ours (ms) | OpenSim (ms) | ratio | OpenSim pose (ms) "
           "| max dL (m) | first call (s) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -193,7 +196,8 @@ def main(argv=None) -> int:
             out = subprocess.run([sys.executable, __file__, "--child", key], capture_output=True, text=True,
                                  check=True, cwd=ROOT)
             fc = json.loads(out.stdout.strip().splitlines()[-1])
-            first = f"{fc['first_call_s']:.2f} (import {fc['import_s']:.2f}, load {fc['load_s']:.2f})"
+            first = (f"{fc['first_call_s']:.2f} ({fc.get('first_call_cpu_s', float('nan')):.2f} CPU; "
+                     f"import {fc['import_s']:.2f}, load {fc['load_s']:.2f})")
         osim_cols = (f"{row['opensim_ms']:.3f} | {row['ratio']:.1f}x | {row['opensim_pose_ms']:.3f} | "
                      f"{row['max_dl']:.1e}") if "ratio" in row else "- | - | - | -"
         print(f"| {key} | {row['frames']} | {row['paths']} ({row['wrapped']}) | {row['pairs']} | "

@@ -26,11 +26,12 @@ Speed: per model and path selection an index plan is built once and cached (`_pl
 unwrapped paths' points stacked, sorted by body, grouped in (body, path) pairs, and the
 (pair, spanned coordinate) terms of dL/dq. When no selected path wraps, the body twists come
 straight from the joint chain (no (F, B, C, 4, 4) derivative array). A numba kernel walks the
-active points of every path per frame (`motion.wrapping.path_points._polyline_kernel`); the numpy twin
-`_polyline_numpy` is used without numba and is tested equal to it. Wrapped paths go through
+active points of every path per frame (`motion.wrapping.path_points._polyline_kernel`; a numpy
+oracle of it is in ``tests/motion/polyline_oracle.py``). Wrapped paths go through
 `motion.wrapping.batch.wrap_paths`: paths with the same kind of wraps share one pass of the
 wrap algorithm (rows = path x frame), each carrying derivatives only along its own spanned
-coordinates. Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
+coordinates; groups wrapped over cylinders only run compiled (`motion.wrapping.cylinder_paths`).
+Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ import numpy as np
 from ..errors import InputError
 from ..osim.kinematics import _pose_twists, body_pose_derivatives, motion_coordinates
 from ..osim.model import Model, Path
-from .path_points import (_moving_local, _point_set, _point_set_active, _point_set_positions, _polyline_kernel,
+from .path_points import (_moving_local, _point_set, _point_set_active, _polyline_kernel,
                           path_points)
 
 __all__ = ["ActionLines", "action_lines", "spanned_coordinates", "polyline_length"]
@@ -306,7 +307,7 @@ def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, twist, out: tup
     twist: g . (omega x (p - t) + v) = omega . ((p - t) x g) + v . g, summed per (body, path)
     pair first, then one product per pair and spanned coordinate; moving points add
     g . R dp_body/dq. The compiled kernel (`motion.wrapping.path_points._polyline_kernel`) does the
-    polyline part; without numba (or with ``COMPILED = False``) the numpy `_polyline_numpy`.
+    polyline part (its numpy oracle is in ``tests/motion/polyline_oracle.py``).
     """
     lengths, dldq, points, mask, order = out
     ps = plan.points
@@ -314,71 +315,13 @@ def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, twist, out: tup
     locals_ = [_moving_local(pt, model, q_used, jac) for _, pt in ps.moving]     # few moving points
     moving_loc = np.stack([x[0] for x in locals_], axis=1) if locals_ else np.zeros((len(q_used), 0, 3))
     act = _point_set_active(ps, q_used)
-    kernel = _polyline_kernel() if COMPILED else None
-    if kernel is None:
-        p_n, arm = _point_set_positions(ps, tf, moving_loc)
-        length, g, pts, msk, ordr = _polyline_numpy(plan, p_n, arm, act, twist, dldq)
-        g_moving = g[:, [n for n, _ in ps.moving]]
-        lengths[:, plan.unwrapped] = length
-        points[:, plan.unwrapped, :n_slots] = pts
-        mask[:, plan.unwrapped, :n_slots] = msk
-        order[:, plan.unwrapped, :n_slots] = ordr
-    else:
-        g_moving = np.empty_like(moving_loc)
-        kernel(tf, ps.bodies, ps.loc, np.array([n for n, _ in ps.moving], dtype=np.int64), moving_loc, act,
-               plan.slot_point, n_slots, plan.pair_of, twist, *plan.terms, plan.unwrapped,
-               lengths, g_moving, dldq, points, mask, order)
+    g_moving = np.empty_like(moving_loc)
+    _polyline_kernel()(tf, ps.bodies, ps.loc, np.array([n for n, _ in ps.moving], dtype=np.int64), moving_loc,
+                       act, plan.slot_point, n_slots, plan.pair_of, twist, *plan.terms, plan.unwrapped,
+                       lengths, g_moving, dldq, points, mask, order)
     for i, (m, n, _) in enumerate(plan.moving):
         gr = np.einsum("fk,fkj->fj", g_moving[:, i], tf[:, ps.bodies[n], :3, :3])     # g . R
         dldq[:, m] += np.einsum("fj,fcj->fc", gr, locals_[i][1])
-
-
-def _polyline_numpy(plan: _Plan, p_n, arm, act, twist, dldq) -> tuple:
-    """The numpy twin of `motion.wrapping.path_points._polyline_kernel`: length (F, M_u), g (F, N, 3),
-    points, mask, order; adds the rigid-body terms to ``dldq`` (one matrix product per body)."""
-    ps = plan.points
-    n_paths, n_slots = ps.shape
-    n_frames, n_points = p_n.shape[:2]
-    act = act.reshape(n_frames, n_paths, n_slots)
-    slots = np.arange(n_slots)
-    base = (np.arange(n_paths) * n_slots)[:, None]
-    idx = np.where(act, slots, n_slots)
-    # next active point after i: running minimum from the right, shifted by one (grid slots)
-    nxt = np.minimum.accumulate(idx[..., ::-1], axis=2)[..., ::-1]
-    nxt = np.concatenate([nxt[..., 1:], np.full((n_frames, n_paths, 1), n_slots)], axis=2)
-    nxt = np.where(act & (nxt < n_slots), base + nxt, n_paths * n_slots)
-    prv = np.maximum.accumulate(np.where(act, slots, -1), axis=2)
-    prv = np.concatenate([np.full((n_frames, n_paths, 1), -1), prv[..., :-1]], axis=2)
-    prv = np.where(act & (prv >= 0), base + prv, n_paths * n_slots)
-    # as point indices n (N = none): the segment n -> nxt_n leaves n, prv_n -> n arrives at n
-    rows = (np.arange(n_frames) * (n_points + 1))[:, None]
-    nxt_n = plan.slot_point[nxt.reshape(n_frames, -1)[:, ps.flat]] + rows
-    prv_n = plan.slot_point[prv.reshape(n_frames, -1)[:, ps.flat]] + rows
-    valid = nxt_n - rows < n_points
-    ext = np.zeros((n_frames, n_points + 1, 3))
-    ext[:, :n_points] = p_n
-    seg = ext.reshape(-1, 3)[nxt_n] - p_n
-    seg_len = np.sqrt(np.einsum("fni,fni->fn", seg, seg))
-    grid = np.zeros((n_frames, n_paths * n_slots))
-    grid[:, ps.flat] = np.where(valid, seg_len, 0.0)
-    length = grid.reshape(n_frames, n_paths, n_slots).sum(axis=2)
-    ok = valid & (seg_len > 0)
-    ext[:, :n_points] = seg / np.where(ok, seg_len, 1.0)[..., None] * ok[..., None]     # unit, leaving n
-    g = ext.reshape(-1, 3)[prv_n] - ext[:, :n_points]
-    moment = np.empty((n_frames, n_points, 6))                       # (F, N, 6): (p - t) x g, g
-    moment[..., 0] = arm[..., 1] * g[..., 2] - arm[..., 2] * g[..., 1]
-    moment[..., 1] = arm[..., 2] * g[..., 0] - arm[..., 0] * g[..., 2]
-    moment[..., 2] = arm[..., 0] * g[..., 1] - arm[..., 1] * g[..., 0]
-    moment[..., 3:] = g
-    moment = np.add.reduceat(moment, plan.starts, axis=1)            # (F, J, 6) per (body, path)
-    for tw, pairs, paths, coords in plan.groups:                     # bodies in ascending order
-        dldq[:, paths[:, None], coords] += moment[:, pairs] @ np.swapaxes(twist[:, tw], 1, 2)
-    # active points keep their order; inactive ones move to the end as -1 (stable sort)
-    order = np.take_along_axis(np.where(act, slots, -1), np.argsort(~act, axis=2, kind="stable"), axis=2)
-    points = np.full((n_frames, n_paths * n_slots, 3), np.nan)
-    act = act.reshape(n_frames, -1)
-    points[:, ps.flat] = np.where(act[:, ps.flat, None], p_n, np.nan)
-    return length, g, points.reshape(n_frames, n_paths, n_slots, 3), act.reshape(n_frames, n_paths, n_slots), order
 
 
 def _wrap_module():
@@ -390,7 +333,6 @@ def _wrap_module():
     return path_wrapping
 
 
-COMPILED = True     # use the numba polyline kernel when numba is installed (tests switch it off)
 FRAME_BLOCK = 512   # frames per block in `action_lines` (bounds memory, keeps arrays vectorised)
 
 

@@ -1,11 +1,14 @@
 """Several wrapped paths in one pass: paths with the same kind of wraps share every array step.
 
-Contract: `wrap_paths` returns, for each path, exactly what `motion.wrapping.path.wrap_path`
-returns for it alone (length, dL/dq along the path's own coordinates, current points, mask,
-labels, order) -- the same algorithm on the same numbers, row by row.
+Contract: `wrap_paths` returns, for each path, what `motion.wrapping.path.wrap_path` returns
+for it alone (length, dL/dq along the path's own coordinates, current points, mask, labels,
+order) -- the same algorithm on the same numbers, row by row. Groups whose wraps are all
+WrapCylinders run the compiled kernel `motion.wrapping.cylinder_paths` (equal to the numpy
+`wrap_rows` to rounding); the others run `wrap_rows`.
 
 Method. `motion.wrapping.path.wrap_rows` runs OpenSim's applyWrapObjects on independent rows,
-and its cost is dominated by the number of numpy calls, not by the number of rows. Paths are
+and its cost is dominated by the number of numpy calls, not by the number of rows (the
+compiled kernel pays per row, and shares the rows' preparation, `group_rows`). Paths are
 therefore grouped by the *signature* of their wraps (per PathWrap: the wrap-line function,
 its options other than a cylinder's radius and length, and whether the object is active);
 the paths of one group become rows (path, frame) of one call:
@@ -31,11 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cylinder import cylinder_wrap_line
+from .cylinder_paths import wrap_cylinder_rows
 from .ellipsoid import ellipsoid_wrap_line
 from .sphere import sphere_wrap_line
 from .torus import torus_wrap_line
 
-__all__ = ["wrap_paths", "WrapSlot", "wrap_range", "line_function"]
+__all__ = ["wrap_paths", "group_rows", "WrapSlot", "wrap_range", "line_function"]
 
 @dataclass(frozen=True)
 class WrapSlot:
@@ -135,8 +139,10 @@ def wrap_paths(paths, model, points, active, d_points, tf_ground_body, d_tf_grou
     return out
 
 
-def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> list:
-    """One `wrap_rows` call for paths of one signature; results split back per path."""
+def group_rows(paths, model, points, active, d_points, tf, dtf, columns) -> tuple:
+    """The rows (path, frame) of paths of one signature, as `motion.wrapping.path.wrap_rows` takes
+    them: points (N, P_max, 3), active (N, P_max), d_points (N, P_max, D_max, 3), the number of
+    directions of each row (N,) and the `WrapSlot` list (arguments as `wrap_paths`)."""
     n_frames = tf.shape[0]
     n_paths = len(paths)
     p_max = max(len(p.points) for p in paths)
@@ -169,10 +175,24 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
             for key in _ROW_OPTIONS.get(fn, ()):
                 row_opts.setdefault(key, np.empty(n_rows))[rows] = opts.pop(key)
         slots.append(WrapSlot(fn, opts, row_opts, bool(wo.active), tf_w, dtf_w, start, end))
-    from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module
-    length, order, mask, seen, _ = wrap_rows(pts, act, dpts, slots)
-    node_v = np.stack([n.v for n in seen], axis=1)                       # (N, P_max + 2 W, 3)
-    d_length = np.broadcast_to(length.d, (n_rows, d_max))
+    n_dirs = np.repeat(np.array([len(c) for c in columns], dtype=np.int64), n_frames)
+    return pts, act, dpts, n_dirs, slots
+
+
+def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> list:
+    """One pass for paths of one signature (compiled for cylinders, `wrap_rows` otherwise);
+    results split back per path."""
+    n_frames = tf.shape[0]
+    p_max = max(len(p.points) for p in paths)
+    pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
+    n_rows, d_max = len(n_dirs), dpts.shape[2]
+    if all(slot.fn is cylinder_wrap_line for slot in slots):
+        length_v, d_length, order, mask, node_v = wrap_cylinder_rows(pts, act, dpts, n_dirs, slots)
+    else:
+        from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module
+        length, order, mask, seen, _ = wrap_rows(pts, act, dpts, slots)
+        node_v = np.stack([n.v for n in seen], axis=1)                   # (N, P_max + 2 W, 3)
+        length_v, d_length = length.v, np.broadcast_to(length.d, (n_rows, d_max))
     n_wraps = len(slots)
     results = []
     for g, (path, cols) in enumerate(zip(paths, columns)):
@@ -186,6 +206,6 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
         for pw in path.wraps:
             labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
         ordr = new_id[order[rows]][:, :len(keep)]
-        results.append((length.v[rows], d_length[rows, :len(cols)],
+        results.append((length_v[rows], d_length[rows, :len(cols)],
                         np.where(msk[..., None], node_v[rows][:, keep], np.nan), msk, tuple(labels), ordr))
     return results

@@ -204,29 +204,6 @@ def _point_set_active(ps: _PointSet, q_used: np.ndarray) -> np.ndarray:
     return act
 
 
-def _point_set_positions(ps: _PointSet, tf_ground_body: np.ndarray, moving_loc: np.ndarray) -> tuple:
-    """Ground positions (F, N, 3) of a `_PointSet`'s points and the same minus their body's
-    origin (F, N, 3); ``moving_loc`` (F, n_moving, 3) are the moving points' body positions.
-
-    Same arithmetic as `path_points`: ``p_body @ R^T + t`` per body for fixed points,
-    ``R p_body(q) + t`` for moving points.
-    """
-    n_frames = tf_ground_body.shape[0]
-    pts = np.empty((n_frames, len(ps.flat), 3))
-    for b, idx in ps.by_body:                          # a model has few bodies
-        rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
-        pts[:, idx] = ps.loc[idx] @ np.swapaxes(rot, 1, 2) + trans[:, None]
-    for i, (n, _) in enumerate(ps.moving):             # few moving points
-        b = ps.bodies[n]
-        rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
-        pts[:, n] = np.einsum("fij,fj->fi", rot, moving_loc[:, i]) + trans
-    arm = np.empty_like(pts)                           # p - t_body (moment arms about body origins)
-    for b in np.unique(ps.bodies):
-        on_b = slice(*np.searchsorted(ps.bodies, [b, b + 1]))
-        arm[:, on_b] = pts[:, on_b] - tf_ground_body[:, b, None, :3, 3]
-    return pts, arm
-
-
 def _polyline_kernel():
     """The compiled polyline kernel of a `_PointSet` (`_polyline_loop`: numba, module level,
     cached on disk; numba compiles a dispatcher once, thread-safely).

@@ -277,7 +277,9 @@ def test_compiled_kernel_equals_numpy_path(opensim_dir, monkeypatch, case):
     model = load_model(rc.model_file)
     q = rc.q_used(model)[:60]
     compiled = action_lines(model, q)
-    monkeypatch.setattr(al_mod, "COMPILED", False)
+    from polyline_oracle import unwrapped_paths_numpy   # tests/motion (rootdir-relative import)
+
+    monkeypatch.setattr(al_mod, "_unwrapped_paths", unwrapped_paths_numpy)
     plain = action_lines(model, q)
     for key in ("lengths", "moment_arms", "points"):
         np.testing.assert_allclose(getattr(compiled, key), getattr(plain, key), rtol=0, atol=1e-13, err_msg=key)

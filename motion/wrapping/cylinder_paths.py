@@ -1,0 +1,265 @@
+"""Paths wrapped over cylinders only: OpenSim's applyWrapObjects on rows, compiled.
+
+Contract: `wrap_cylinder_rows` returns, for rows whose wraps are all WrapCylinders, what
+`motion.wrapping.path.wrap_rows` returns for them (length and dL/dq along each row's own
+directions, the current path as node order, and the reported node positions), by the same
+algorithm step for step: OpenSim 4.6's GeometryPath::applyWrapObjects as documented in
+`motion.wrapping.path` (wrap passes, candidate segments, mandatory and least-change wraps,
+the swap rule, and the Stage::Position cache of tangent points' ground positions), with the
+segment over a cylinder from `motion.wrapping.cylinder_line`. ``tests/motion/
+test_cylinder_paths.py`` compares the two on real models.
+
+Method: one module-level numba kernel (`_cylinder_rows_kernel`) runs every row (one path at
+one frame) once per derivative direction with complex-step numbers (`motion.wrapping.
+cylinder_line`: the value and one directional derivative); the values, hence every branch,
+are the same in each run. Scratch arrays are allocated once per call, nothing per segment.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, quadrant_axis_sign
+from .cylinder_line import STEP, vnorm, vsub, wrap_line
+
+__all__ = ["wrap_cylinder_rows"]
+
+_CONVERGED = 0.0005                  # m, OpenSim's length-change criterion between passes
+_NO, _INSIDE, _WRAPPED, _MANDATORY = NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP
+
+
+@njit(cache=True, error_model="numpy")
+def _see(k, node, seen, ok):
+    """OpenSim's Point::getLocationInGround cache: the first read of a node is kept."""
+    if not ok[k]:
+        for i in range(3):
+            seen[k, i] = node[k, i]
+        ok[k] = True
+
+
+@njit(cache=True, error_model="numpy")
+def _path_length(order, node, seen, ok, arc, n_points):
+    """Length of the current path (calcLengthAfterPathComputation), reading the cache."""
+    total = 0j
+    for j in range(order.shape[0] - 1):
+        a, b = order[j], order[j + 1]
+        if a < 0 or b < 0:
+            break
+        if a >= n_points and b == a + 1 and (a - n_points) % 2 == 0:
+            total += arc[(a - n_points) // 2]
+        else:
+            _see(a, node, seen, ok)
+            _see(b, node, seen, ok)
+            total += vnorm((seen[b, 0] - seen[a, 0], seen[b, 1] - seen[a, 1], seen[b, 2] - seen[a, 2]))
+    return total
+
+
+@njit(cache=True, error_model="numpy")
+def _remove(order, i0, i1):
+    """Drop node ids i0, i1 from the current path, keeping the order."""
+    c = 0
+    for j in range(order.shape[0]):
+        if order[j] >= 0 and order[j] != i0 and order[j] != i1:
+            order[c] = order[j]
+            c += 1
+    for j in range(c, order.shape[0]):
+        order[j] = -1
+
+
+@njit(cache=True, error_model="numpy")
+def _to_wrap(node, k, f):
+    """R^T (p_k - o) for the wrap frame f = [R o] (complex, 4 x 4)."""
+    x, y, z = node[k, 0] - f[0, 3], node[k, 1] - f[1, 3], node[k, 2] - f[2, 3]
+    return (f[0, 0] * x + f[1, 0] * y + f[2, 0] * z, f[0, 1] * x + f[1, 1] * y + f[2, 1] * z,
+            f[0, 2] * x + f[1, 2] * y + f[2, 2] * z)
+
+
+@njit(cache=True, error_model="numpy")
+def _to_ground(r, f):
+    """R r + o for the wrap frame f = [R o]."""
+    return (f[0, 0] * r[0] + f[0, 1] * r[1] + f[0, 2] * r[2] + f[0, 3],
+            f[1, 0] * r[0] + f[1, 1] * r[1] + f[1, 2] * r[2] + f[1, 3],
+            f[2, 0] * r[0] + f[2, 1] * r[1] + f[2, 2] * r[2] + f[2, 3])
+
+
+@njit(cache=True, error_model="numpy")
+def _wrap_one(n, w, active, frame, wstart, wend, wradius, wlength, waxis, wsign, wadjust, order, node, seen, ok,
+              arc):
+    """Try wrap w on every eligible segment of the current path, insert the best; its code.
+
+    ``frame`` (4, 4) complex: the wrap frame in ground with its derivative along this direction.
+    """
+    n_points = active.shape[1]
+    jf, jr = -1, -1
+    for j in range(max(wstart[w, n], 0), min(wend[w, n], n_points - 1) + 1):
+        if active[n, j]:
+            if jf < 0:
+                jf = j
+            jr = j
+    if jf < 0:
+        return _NO
+    pos_s, pos_e = 0, 0
+    for j in range(order.shape[0] - 1, -1, -1):
+        if order[j] == jf:
+            pos_s = j
+        if order[j] == jr:
+            pos_e = j
+    result = _NO
+    best = -1
+    min_change = np.inf
+    best_r1 = best_r2 = (0j, 0j, 0j)
+    best_arc = 0j
+    for j in range(pos_s, min(pos_e, order.shape[0] - 1)):
+        a, b = order[j], order[j + 1]
+        if a < 0 or b < 0 or (a >= n_points and b >= n_points and (a - n_points) // 2 == (b - n_points) // 2):
+            continue
+        pa = _to_wrap(node, a, frame)
+        pb = _to_wrap(node, b, frame)
+        code, r1, r2, arc_ab = wrap_line(pa, pb, wradius[w, n], wlength[w, n], waxis[w], wsign[w],
+                                         wadjust[w])
+        result = code
+        if code < _WRAPPED:
+            continue
+        g1, g2 = _to_ground(r1, frame), _to_ground(r2, frame)
+        if code == _WRAPPED:     # calcPathLengthChange reads the end points' cached positions
+            _see(a, node, seen, ok)
+            _see(b, node, seen, ok)
+        sa = (seen[a, 0], seen[a, 1], seen[a, 2])
+        sb = (seen[b, 0], seen[b, 1], seen[b, 2])
+        change = (vnorm(vsub(g1, sa)).real + arc_ab.real + vnorm(vsub(sb, g2)).real
+                  - vnorm(vsub(sb, sa)).real)
+        if code == _MANDATORY or change < min_change:
+            best = j
+            if code != _MANDATORY:
+                min_change = change
+            best_r1, best_r2, best_arc = g1, g2, arc_ab
+        if code == _MANDATORY:
+            break
+    if best >= 0:
+        k = n_points + 2 * w
+        for j in range(order.shape[0] - 1, best + 2, -1):
+            order[j] = order[j - 2]
+        order[best + 1] = k
+        order[best + 2] = k + 1
+        for i in range(3):
+            node[k, i] = best_r1[i]
+            node[k + 1, i] = best_r2[i]
+        arc[w] = best_arc
+    return result
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _cylinder_rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wradius, wlength, waxis,
+                          wsign, wadjust, wactive, out_length, out_dlength, out_order, out_seen):
+    """applyWrapObjects on every row along every direction: length, dL, order, reported nodes."""
+    n_rows, n_points = active.shape
+    n_wraps = wtf.shape[0]
+    n_nodes = n_points + 2 * n_wraps
+    order = np.empty(n_nodes, dtype=np.int64)
+    node = np.empty((n_nodes, 3), dtype=np.complex128)
+    seen = np.empty((n_nodes, 3), dtype=np.complex128)
+    ok = np.empty(n_nodes, dtype=np.bool_)
+    arc = np.empty(n_wraps, dtype=np.complex128)
+    frames = np.empty((n_wraps, 4, 4), dtype=np.complex128)
+    wrap_order = np.empty(n_wraps, dtype=np.int64)
+    result = np.empty(n_wraps, dtype=np.int64)
+    for n in range(n_rows):
+        for e in range(max(n_dirs[n], 1)):
+            has_d = e < n_dirs[n]
+            for k in range(n_nodes):        # the defined points, tangent points absent (NaN)
+                for i in range(3):
+                    if k < n_points:
+                        node[k, i] = complex(points[n, k, i], STEP * d_points[n, k, e, i] if has_d else 0.0)
+                    else:
+                        node[k, i] = complex(np.nan, 0.0)
+                    seen[k, i] = node[k, i]
+                ok[k] = k < n_points
+                order[k] = -1
+            for w in range(n_wraps):
+                arc[w] = 0j
+                wrap_order[w] = w
+                for i in range(4):
+                    for j in range(4):
+                        frames[w, i, j] = complex(wtf[w, n, i, j], STEP * wdtf[w, n, e, i, j] if has_d else 0.0)
+            c = 0
+            for k in range(n_points):
+                if active[n, k]:
+                    order[c] = k
+                    c += 1
+            last = np.inf
+            for kk in range(1 if n_wraps < 2 else 8):
+                if n_wraps == 0:
+                    break
+                for i in range(n_wraps):
+                    result[i] = _NO
+                for i in range(n_wraps):
+                    w = wrap_order[i]
+                    _remove(order, n_points + 2 * w, n_points + 2 * w + 1)
+                    if wactive[w]:
+                        result[i] = _wrap_one(n, w, active, frames[w], wstart, wend, wradius, wlength, waxis, wsign,
+                                              wadjust, order, node, seen, ok, arc)
+                length = _path_length(order, node, seen, ok, arc, n_points)
+                if abs(length.real - last) < _CONVERGED:
+                    break
+                last = length.real
+                if kk == 0 and n_wraps > 1 and result[0] == _NO and result[1] == _INSIDE:
+                    wrap_order[0], wrap_order[1] = wrap_order[1], wrap_order[0]
+                    _remove(order, n_points, n_points + 1)    # OpenSim removes wrap object 0's points
+            length = _path_length(order, node, seen, ok, arc, n_points)
+            if has_d:
+                out_dlength[n, e] = length.imag / STEP
+        out_length[n] = length.real
+        for k in range(n_nodes):
+            out_order[n, k] = order[k]
+            for i in range(3):
+                out_seen[n, k, i] = seen[k, i].real
+
+
+def wrap_cylinder_rows(points, active, d_points, n_dirs, slots) -> tuple:
+    """`motion.wrapping.path.wrap_rows` for rows whose wraps are all cylinders, compiled.
+
+    Parameters
+    ----------
+    points : (N, P, 3) float; active : (N, P) bool; d_points : (N, P, D, 3) float
+        As `wrap_rows`.
+    n_dirs : (N,) int
+        Directions each row needs (its first ``n_dirs`` of D; the others are returned as 0).
+    slots : sequence of `motion.wrapping.batch.WrapSlot` whose ``fn`` is the cylinder's.
+
+    Returns
+    -------
+    length (N,), d_length (N, D), order (N, P + 2 W) int, mask (N, P + 2 W) bool,
+    seen (N, P + 2 W, 3) float: as `wrap_rows` (values of its Duals).
+    """
+    n_rows, n_points = np.shape(active)
+    n_wraps = len(slots)
+    n_d = d_points.shape[2]
+
+    def per_row(slot, key):
+        return np.broadcast_to(np.asarray(slot.row_opts[key] if key in slot.row_opts else slot.opts[key],
+                                          dtype=float), (n_rows,))
+
+    wtf = np.ascontiguousarray(np.stack([s.tf for s in slots]) if slots else np.zeros((0, n_rows, 4, 4)))
+    wdtf = np.ascontiguousarray(np.stack([s.dtf for s in slots]) if slots else np.zeros((0, n_rows, n_d, 4, 4)))
+    wstart = np.array([s.start for s in slots], dtype=np.int64).reshape(n_wraps, n_rows)
+    wend = np.array([s.end for s in slots], dtype=np.int64).reshape(n_wraps, n_rows)
+    wradius = np.array([per_row(s, "radius") for s in slots]).reshape(n_wraps, n_rows)
+    wlength = np.array([per_row(s, "length") for s in slots]).reshape(n_wraps, n_rows)
+    axis_sign = [quadrant_axis_sign(s.opts["quadrant"]) for s in slots]
+    waxis = np.array([a for a, _ in axis_sign], dtype=np.int64)
+    wsign = np.array([s for _, s in axis_sign], dtype=np.int64)
+    wadjust = np.array([bool(s.opts["adjust_tangents"]) for s in slots], dtype=np.bool_)
+    wactive = np.array([bool(s.active) for s in slots], dtype=np.bool_)
+    n_nodes = n_points + 2 * n_wraps
+    length = np.empty(n_rows)
+    d_length = np.zeros((n_rows, n_d))
+    order = np.empty((n_rows, n_nodes), dtype=np.int64)
+    seen = np.empty((n_rows, n_nodes, 3))
+    _cylinder_rows_kernel(np.ascontiguousarray(points, dtype=float), np.ascontiguousarray(active, dtype=np.bool_),
+                          np.ascontiguousarray(d_points, dtype=float),
+                          np.asarray(n_dirs, dtype=np.int64), wtf, wdtf, wstart, wend, wradius, wlength, waxis,
+                          wsign, wadjust, wactive, length, d_length, order, seen)
+    mask = np.zeros((n_rows, n_nodes), dtype=bool)
+    rows, cols = np.nonzero(order >= 0)
+    mask[rows, order[rows, cols]] = True
+    return length, d_length, order, mask, seen
