@@ -22,7 +22,8 @@ Per muscle (one muscle = its action lines, loops over muscles only):
    `motion.osim.muscle_parameters`) it is the belly only: a straight flat-capped tube of the rest
    belly length ``L - l_ts`` (`motion.surface.generate.belly_surface`), bound to the straightened
    rest belly line and bent onto the belly piece ``[l_ts / 2, L - l_ts / 2]`` of the current line
-   in every frame; its landmarks (the caps) ride the belly. Without one, a fusiform surface around
+   in every frame; its landmarks (the caps) ride the belly, and its end cross-sections turn with
+   the bones the caps lie over (`motion.surface.caps`). Without one, a fusiform surface around
    the first action line (`motion.surface.generate.fusiform_surface`). Volume from ``spec.volume``
    or the muscle's max isometric force and optimal fibre length.
 3. Current action lines per frame, including the arc over every wrap object between its two
@@ -370,11 +371,8 @@ def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: 
                     getattr(poses, "tf_ground_body", poses), dtype=float)
     needed = list(dict.fromkeys(n for spec in muscles for n in spec.action_lines))
     current = _current_polylines(model, motion, needed, lines, tf)
-    out = []
-    for spec in muscles:  # loop over muscles
-        out.append(_wrap_one(model, spec, tf, current, n_samples=n_samples, margin=margin,
-                             bone_spacing=bone_spacing, rigid_radius=rigid_radius, blend_radius=blend_radius))
-    return tuple(out)
+    return tuple(_wrap_one(model, spec, tf, current, n_samples=n_samples, margin=margin, bone_spacing=bone_spacing,
+                           rigid_radius=rigid_radius, blend_radius=blend_radius) for spec in muscles)
 
 
 def _rest_lines(model, spec, tf_rest_actual, rest_motion):
@@ -423,10 +421,9 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
             curves[k], short = belly_polylines(curves[k], slack, corner_radius=rounding)
             at_rest.append(belly_polylines(full_rest[k][None], slack, corner_radius=rounding)[0])
             if short_rest.any() or short.any():
-                n_short = int(short.sum())
                 notes.append(f"action line {name}: the path is shorter than its tendon slack length "
                              f"{slack:.4g} m + {BELLY_MIN_FRACTION:.0%} of the path "
-                             f"({'at the rest pose and ' if short_rest.any() else ''}in {n_short} of "
+                             f"({'at the rest pose and ' if short_rest.any() else ''}in {int(short.sum())} of "
                              f"{len(short)} frames): the belly is kept at least {BELLY_MIN_FRACTION:.0%} "
                              "of the path long there, the tendons take the rest")
         rest_anchors = [None] * len(rest_curves)
@@ -473,10 +470,9 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         binding = replace(binding, caps=cap_turning(binding, at_rest, CAP_BLEND * half))
     obstacles = muscle_obstacles(model, spec, tf, rest, vertices, rest_curves, n_v - spec.riders,
                            n_samples=n_samples, margin=margin, bone_spacing=bone_spacing)
-    tf_o_body = tf[:, b_o].copy()
-    tf_i_body = tf[:, b_i].copy()
-    tf_o = tf_o_body @ np.linalg.inv(rest.tf_ground_body[b_o])
-    tf_i = tf_i_body @ np.linalg.inv(rest.tf_ground_body[b_i])
+    tf_o_body, tf_i_body = tf[:, b_o].copy(), tf[:, b_i].copy()
+    tf_o, tf_i = (tf_o_body @ np.linalg.inv(rest.tf_ground_body[b_o]),
+                  tf_i_body @ np.linalg.inv(rest.tf_ground_body[b_i]))
     if not tendons:
         # landmarks at a MovingPathPoint end of the first line follow that point's own motion
         moved = end_point_offsets(model, spec.action_lines[0], curves[0], full_rest[0], tf, tf_rest_actual[0])
