@@ -7,15 +7,21 @@ dTheta/dq``. Where a line starts to wrap, ``dTheta/dq`` jumps from 0 to about 1 
 fibre's moment arm, by its offset (docs/decisions.md, 12 c).
 
 Rule: each cap turns with one body (`cap_bodies`): the frames at the belly's ends are tilted from
-the line's end tangents onto the body-carried rest end tangents, and the tilt fades along the
-belly over ``blend`` (arc length at rest, `CapTurning`), so the cross-sections in between turn
-with the line. To first order in the offsets a fibre's length is then ``b - x Phi``, ``Phi`` the
-caps' relative rotation (the bodies'): a straight belly's fibre at offset x towards a joint axis
-has moment arm ``r_line - x`` (its own distance from the axis, as a fibre attached to its bones
+the line's end tangents onto the body-carried rest end tangents, and each cap's tilt fades
+smoothly over its half of the belly (`cap_turning`), so the middle cross-section turns with the
+line. To first order in the offsets a fibre's length is then ``b - x Phi``, ``Phi`` the caps'
+relative rotation (the bodies'): a straight belly's fibre at offset x towards a joint axis has
+moment arm ``r_line - x`` (its own distance from the axis, as a fibre attached to its bones
 through the aponeuroses), a belly wrapped on a cylinder about the axis ``R - x``; both continuous
 in the poses, since the bodies' rotations are. The median fibre (x = 0) keeps the line's.
 Physically the caps stand for the aponeuroses, sheets that lie on a bone and through which the
 fibres pull on their tendons.
+
+Why half the belly: a tilt alpha faded over a length lambda bends a fibre at offset x by
+x alpha / lambda there and lengthens it by about x^2 alpha^2 / (2 lambda), the same for fibres on
+both sides, so the median fibre's moment arm moves off the line's; where a cap's bone turns much
+more than the line (a belly ending near a joint it crosses) that bias is smallest with lambda as
+long as it can be without the two caps' tilts overlapping.
 """
 from __future__ import annotations
 
@@ -27,12 +33,7 @@ from ..osim.muscle_parameters import belly_span
 from .binding import smoothstep
 from .curves import closest_on_polyline
 
-__all__ = ["CapTurning", "cap_bodies", "cap_turning", "tilt_frames", "CAP_BLEND"]
-
-#: A cap's tilt fades over this many belly half-thicknesses (`cap_turning`'s ``blend``): the
-#: cross-sections turn by the tilt over one diameter, as they turn over corners
-#: (`motion.surface.obstacles.TANGENT_SMOOTHING`).
-CAP_BLEND = 2.0
+__all__ = ["CapTurning", "cap_bodies", "cap_turning", "tilt_frames"]
 
 
 def _body_chain(model, first: str, last: str) -> tuple:
@@ -105,7 +106,7 @@ def tilt_frames(frames, target, weight) -> np.ndarray:
 class CapTurning:
     """The cap rule of one bound surface: per action line the rest end tangents ``(t_o, t_i)``
     (ground, at rest) and the two weight profiles over the line samples (1 at the cap, fading
-    to 0 over ``blend``)."""
+    to 0 at the belly's middle)."""
 
     tangents: tuple
     weights: tuple
@@ -118,16 +119,13 @@ class CapTurning:
         return tilt_frames(fr, np.einsum("fij,j->fi", rot_insertion, t_i), w_i)
 
 
-def cap_turning(binding, rest_curves, blend: float) -> CapTurning:
+def cap_turning(binding, rest_curves) -> CapTurning:
     """The `CapTurning` of ``binding`` (`motion.surface.binding.SurfaceBinding`, bound with the cap
     bodies' rest poses): ``rest_curves`` the current lines at the rest pose (their end tangents
-    are the caps' rest orientation), ``blend`` (m) the arc length over which a cap's tilt fades
-    (at most half the belly)."""
+    are the caps' rest orientation); each tilt fades over half the belly (module docstring)."""
     _, frames = binding.line_frames(rest_curves, binding.tf_rest_origin, binding.tf_rest_insertion)
     u = np.asarray(binding.arc_fraction)
-    tangents, weights = [], []
-    for line, length in enumerate(binding.rest_lengths):   # loop over lines (few)
-        width = min(float(blend) / float(length), 0.5)
-        tangents.append((frames[0, line, 0, :, 2].copy(), frames[0, line, -1, :, 2].copy()))
-        weights.append((1.0 - smoothstep(u / width), 1.0 - smoothstep((1.0 - u) / width)))
-    return CapTurning(tuple(tangents), tuple(weights))
+    fade = (1.0 - smoothstep(2.0 * u), 1.0 - smoothstep(2.0 * (1.0 - u)))
+    tangents = tuple((frames[0, line, 0, :, 2].copy(), frames[0, line, -1, :, 2].copy())
+                     for line in range(frames.shape[1]))
+    return CapTurning(tangents, (fade,) * len(tangents))

@@ -44,7 +44,7 @@ import numpy as np
 
 from ..errors import InputError
 from .binding import bind_surface
-from .caps import CAP_BLEND, cap_bodies, cap_turning
+from .caps import cap_bodies, cap_turning
 from ..osim.muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
 from .generate import belly_surface, fusiform_surface
 from .rest import rest_pose
@@ -467,7 +467,7 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
                            *ends, n_samples=n_samples, rigid_radius=rigid_radius, blend_radius=blend_radius,
                            rest_anchors=rest_anchors, free_vertices=free, tangent_smoothing=smoothing)
     if tendons:
-        binding = replace(binding, caps=cap_turning(binding, at_rest, CAP_BLEND * half))
+        binding = replace(binding, caps=cap_turning(binding, at_rest))
     obstacles = muscle_obstacles(model, spec, tf, rest, vertices, rest_curves, n_v - spec.riders,
                            n_samples=n_samples, margin=margin, bone_spacing=bone_spacing)
     tf_o_body, tf_i_body = tf[:, b_o].copy(), tf[:, b_i].copy()
