@@ -33,7 +33,12 @@ from ..osim.muscle_parameters import belly_span
 from .binding import smoothstep
 from .curves import closest_on_polyline
 
-__all__ = ["CapTurning", "cap_bodies", "cap_turning", "tilt_frames"]
+__all__ = ["CapTurning", "cap_bodies", "cap_turning", "tilt_frames", "TILT_LINEAR", "TILT_MAX"]
+
+#: A cap's tilt off its line (rad) is the body's up to TILT_LINEAR, then saturates smoothly
+#: towards TILT_MAX (`saturated_tilt`; module docstring).
+TILT_LINEAR = 0.3
+TILT_MAX = 0.6
 
 
 def _body_chain(model, first: str, last: str) -> tuple:
@@ -83,16 +88,24 @@ def cap_bodies(model, path_name: str, rest_curve, tf_rest_ground_body, slack: fl
     return tuple(model.body_index(bodies[int(np.sum(at < s))]) for s in (float(start[0]), float(stop[0])))
 
 
+def saturated_tilt(angle) -> np.ndarray:
+    """``angle`` (rad, >= 0) up to `TILT_LINEAR`; beyond it ``a1 + (a2 - a1) tanh((angle - a1) /
+    (a2 - a1))`` (``a1``, ``a2`` = `TILT_LINEAR`, `TILT_MAX`): C1, increasing, below `TILT_MAX`."""
+    a = np.asarray(angle, dtype=float)
+    a1, a2 = TILT_LINEAR, TILT_MAX
+    return np.where(a <= a1, a, a1 + (a2 - a1) * np.tanh((a - a1) / (a2 - a1)))
+
+
 def tilt_frames(frames, target, weight) -> np.ndarray:
     """Frames (F, n, 3, 3) (columns normal, binormal, tangent) rotated about the axis of the
     minimal rotation that takes the tangent at the sample where ``weight`` (n,) is largest onto
-    ``target`` (F, 3), each by ``weight`` times its angle (Rodrigues' formula); weight 1 puts
-    that sample's tangent exactly on ``target``."""
+    ``target`` (F, 3), each by ``weight`` times its angle made `saturated_tilt` (Rodrigues'
+    formula); weight 1 and an angle up to `TILT_LINEAR` put that sample's tangent on ``target``."""
     fr = np.asarray(frames, dtype=float)
     a = fr[:, int(np.argmax(weight)), :, 2]
     axis = np.cross(a, target)
     sin = np.linalg.norm(axis, axis=-1)
-    angle = np.arctan2(sin, np.sum(a * target, axis=-1))
+    angle = saturated_tilt(np.arctan2(sin, np.sum(a * target, axis=-1)))
     k = axis / np.maximum(sin, 1e-300)[:, None]                                   # (F, 3)
     phi = angle[:, None] * np.asarray(weight, dtype=float)[None, :]               # (F, n)
     c, s = np.cos(phi)[..., None, None], np.sin(phi)[..., None, None]
