@@ -148,6 +148,7 @@ class SurfaceBinding:
     anchor_fractions: tuple = ()     # per line: (K,) rest arc fractions of the anchors, or None
     frame_matrix: sp.csr_matrix | None = None   # (V, n L): belly weights of the line frames
     tangent_sigma: float = 0.0       # Gaussian smoothing of the line tangents, in samples
+    caps: object | None = None       # end cross-sections turning with the bodies (`motion.surface.caps`)
 
     @property
     def n_lines(self) -> int:
@@ -187,6 +188,8 @@ class SurfaceBinding:
             angle = twist_angle(fr[:, -1, :, 0], want, tan[:, -1])
             # zero at rest: the rest frames are this same construction with identity rotations
             fr = twist_frames(fr, angle, self.arc_fraction)
+            if self.caps is not None:
+                fr = self.caps.turn(fr, rot_o, rot_i, l)
             centres.append(c)
             frames.append(fr)
         return np.stack(centres, axis=1), np.stack(frames, axis=1)

@@ -12,8 +12,10 @@ point (and per carried fibre point) the inset is
     inset = min(h(s), INSET_MAX_FRACTION * smallest radius of the object),
 
 ``h(s)`` the largest distance from the rest action line of the surface vertices whose nearest
-line station is ``s`` (a max over the cross-section, widened by one station on each side so
-the profile has no holes; the nearest of several action lines decides). The cap keeps the
+line station is ``s`` (a max over the cross-section; stations that no surface vertex is nearest
+to, as between the rings of a generated belly on a finely sampled line, interpolated from their
+neighbours; then widened by one station on each side; the nearest of several action lines
+decides). The cap keeps the
 derived bone at least half the wrap object's size: a muscle thicker than its wrap object
 allows is flattened against that smaller bone by the push-out, not let through the object.
 """
@@ -55,6 +57,10 @@ def local_half_thickness(vertices, n_surface: int, rest_curves, *, n_samples: in
         j, _, d = closest_on_polyline(verts, c)
         profile = np.zeros(len(c) - 1)
         np.maximum.at(profile, j[:n_surface], d[:n_surface])
+        seen = np.zeros(len(profile), dtype=bool)
+        seen[j[:n_surface]] = True
+        if seen.any() and not seen.all():   # stations between rings: interpolated, not 0
+            profile = np.interp(np.arange(len(profile)), np.nonzero(seen)[0], profile[seen])
         widened = profile.copy()
         widened[1:] = np.maximum(widened[1:], profile[:-1])
         widened[:-1] = np.maximum(widened[:-1], profile[1:])

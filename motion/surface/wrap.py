@@ -22,7 +22,8 @@ Per muscle (one muscle = its action lines, loops over muscles only):
    `motion.osim.muscle_parameters`) it is the belly only: a straight flat-capped tube of the rest
    belly length ``L - l_ts`` (`motion.surface.generate.belly_surface`), bound to the straightened
    rest belly line and bent onto the belly piece ``[l_ts / 2, L - l_ts / 2]`` of the current line
-   in every frame; its landmarks (the caps) ride the belly. Without one, a fusiform surface around
+   in every frame; its landmarks (the caps) ride the belly, and its end cross-sections turn with
+   the bones the caps lie over (`motion.surface.caps`). Without one, a fusiform surface around
    the first action line (`motion.surface.generate.fusiform_surface`). Volume from ``spec.volume``
    or the muscle's max isometric force and optimal fibre length.
 3. Current action lines per frame, including the arc over every wrap object between its two
@@ -37,12 +38,13 @@ Per muscle (one muscle = its action lines, loops over muscles only):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import InputError
 from .binding import bind_surface
+from .caps import cap_bodies, cap_turning
 from ..osim.muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
 from .generate import belly_surface, fusiform_surface
 from .rest import rest_pose
@@ -369,11 +371,8 @@ def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: 
                     getattr(poses, "tf_ground_body", poses), dtype=float)
     needed = list(dict.fromkeys(n for spec in muscles for n in spec.action_lines))
     current = _current_polylines(model, motion, needed, lines, tf)
-    out = []
-    for spec in muscles:  # loop over muscles
-        out.append(_wrap_one(model, spec, tf, current, n_samples=n_samples, margin=margin,
-                             bone_spacing=bone_spacing, rigid_radius=rigid_radius, blend_radius=blend_radius))
-    return tuple(out)
+    return tuple(_wrap_one(model, spec, tf, current, n_samples=n_samples, margin=margin, bone_spacing=bone_spacing,
+                           rigid_radius=rigid_radius, blend_radius=blend_radius) for spec in muscles)
 
 
 def _rest_lines(model, spec, tf_rest_actual, rest_motion):
@@ -413,17 +412,18 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
             from .generate import SPECIFIC_TENSION
 
             volume = fmax / SPECIFIC_TENSION * lopt
+    at_rest = []   # with tendons: the belly pieces of the current lines at the rest pose
     if tendons:
         for k, (name, slack) in enumerate(zip(spec.action_lines, slacks)):  # loop over lines (few)
             belly, short_rest = belly_polylines(rest_curves[k][None], slack)
             rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
-            curves[k], short = belly_polylines(curves[k], slack, corner_radius=corner_radius(
-                rest_curves[k], n_samples, volume if spec.generated else None))
+            rounding = corner_radius(rest_curves[k], n_samples, volume if spec.generated else None)
+            curves[k], short = belly_polylines(curves[k], slack, corner_radius=rounding)
+            at_rest.append(belly_polylines(full_rest[k][None], slack, corner_radius=rounding)[0])
             if short_rest.any() or short.any():
-                n_short = int(short.sum())
                 notes.append(f"action line {name}: the path is shorter than its tendon slack length "
                              f"{slack:.4g} m + {BELLY_MIN_FRACTION:.0%} of the path "
-                             f"({'at the rest pose and ' if short_rest.any() else ''}in {n_short} of "
+                             f"({'at the rest pose and ' if short_rest.any() else ''}in {int(short.sum())} of "
                              f"{len(short)} frames): the belly is kept at least {BELLY_MIN_FRACTION:.0%} "
                              "of the path long there, the tendons take the rest")
         rest_anchors = [None] * len(rest_curves)
@@ -461,15 +461,18 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
         rest_curves, rest_anchors = round_sliding_corners(rest_curves, rest_anchors, rest_sliding, half)
         curves, anchors = round_sliding_corners(curves, anchors, [current[n][2] for n in spec.action_lines],
                                                 half)
-    binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[b_o], rest.tf_ground_body[b_i],
+    f_o, f_i = (cap_bodies(model, spec.action_lines[0], full_rest[0], tf_rest_actual[0], slacks[0]) if tendons
+                else (b_o, b_i))   # with tendons the frames' ends turn with the caps' bones (`.caps`)
+    binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[f_o], rest.tf_ground_body[f_i],
                            *ends, n_samples=n_samples, rigid_radius=rigid_radius, blend_radius=blend_radius,
                            rest_anchors=rest_anchors, free_vertices=free, tangent_smoothing=smoothing)
+    if tendons:
+        binding = replace(binding, caps=cap_turning(binding, at_rest))
     obstacles = muscle_obstacles(model, spec, tf, rest, vertices, rest_curves, n_v - spec.riders,
                            n_samples=n_samples, margin=margin, bone_spacing=bone_spacing)
-    tf_o_body = tf[:, b_o].copy()
-    tf_i_body = tf[:, b_i].copy()
-    tf_o = tf_o_body @ np.linalg.inv(rest.tf_ground_body[b_o])
-    tf_i = tf_i_body @ np.linalg.inv(rest.tf_ground_body[b_i])
+    tf_o_body, tf_i_body = tf[:, b_o].copy(), tf[:, b_i].copy()
+    tf_o, tf_i = (tf_o_body @ np.linalg.inv(rest.tf_ground_body[b_o]),
+                  tf_i_body @ np.linalg.inv(rest.tf_ground_body[b_i]))
     if not tendons:
         # landmarks at a MovingPathPoint end of the first line follow that point's own motion
         moved = end_point_offsets(model, spec.action_lines[0], curves[0], full_rest[0], tf, tf_rest_actual[0])
@@ -477,7 +480,8 @@ def _wrap_one(model, spec, tf, current, *, n_samples, margin, bone_spacing, rigi
             if b == (b_o if end == "origin" else b_i):
                 for t in ((tf_o_body, tf_o) if end == "origin" else (tf_i_body, tf_i)):
                     t[:, :3, 3] += offset
-    res = binding.deform(curves, tf_o_body, tf_i_body, anchors=anchors, obstacles=obstacles,
+    res = binding.deform(curves, *((tf[:, f_o], tf[:, f_i]) if tendons else (tf_o_body, tf_i_body)),
+                         anchors=anchors, obstacles=obstacles,
                          rider_frames=0 if tendons else spec.riders)
     if tendons:
         out_v = res.vertices[:, :n_v]
