@@ -37,7 +37,7 @@ from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_ma
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .template.sampling import sobol_rs
 from .slicing.planes import mesh_topology, slice_mesh
-from .finishing.fairing import spread_pull
+from .finishing.fairing import PULL_ROUNDS, spread_pull
 from .finishing.smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .mesh.surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .template.templates import Template, get_template
@@ -460,10 +460,12 @@ def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolu
     notes.extend(slice_notes)
     flags = {}
     if contain:
-        pulled, first = contain_points(pts, v, faces, mean_edge=mean_edge)
-        if np.any(first):
-            pulled, again = contain_points(spread_pull(pts, pulled), v, faces,
-                                           mean_edge=mean_edge)
-            first = np.asarray(first) | np.asarray(again)
-        pts, flags["contained"] = pulled, first
+        pulled, moved = contain_points(pts, v, faces, mean_edge=mean_edge)
+        for _ in range(PULL_ROUNDS):
+            if not np.any(pulled != pts):
+                break
+            pts = spread_pull(pts, pulled)
+            pulled, again = contain_points(pts, v, faces, mean_edge=mean_edge)
+            moved = np.asarray(moved) | np.asarray(again)
+        pts, flags["contained"] = pulled, moved
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))

@@ -26,9 +26,12 @@ material fibre in every frame). The two end points (on the attachment patches) a
 
 `spread_pull` smooths the containment pull (`fibres.finishing.containment`) along each fibre:
 a point pulled in by ``d`` while its neighbours stay put makes a kink of about
-``2 atan(|d| / h)`` (segment length h). Its displacement is added to its neighbours with
-weights `SPREAD` (a tent over two joints each side), and the pull is then applied again to
-the spread fibres, so the fibre moves in as a smooth bump and no point stays outside.
+``2 atan(|d| / h)`` (segment length h). The displacements are spread to the neighbours with
+the tent weights `SPREAD` (four joints each side) and divided by the summed weight of the
+pulled points around (a Shepard-style normalisation: a run of pulled points moves by their
+own displacement, not by its sum, which would push a thin muscle's fibres through the
+opposite wall). The pull is then applied again to the spread fibres (`PULL_ROUNDS` rounds in
+`fibres.decompose`), so the fibre moves in as a smooth bump and no point stays outside.
 """
 from __future__ import annotations
 
@@ -39,14 +42,18 @@ from scipy.interpolate import CubicSpline
 from .smoothing import smooth_taubin
 
 __all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "DENSE", "TURNING",
-           "SPREAD"]
+           "SPREAD", "PULL_ROUNDS", "PULLED"]
 
 #: spline points per fibre segment on which the resampling measure is taken
 DENSE = 8
 #: weight of a half-turn (pi) against the fibre's whole length in the resampling measure
 TURNING = 3.0
-#: weights of a pulled point's displacement added to its neighbours 1, 2 joints away
-SPREAD = (0.5, 0.25)
+#: weights of a pulled point's displacement given to its neighbours 1, 2, 3, 4 joints away
+SPREAD = (0.8, 0.6, 0.4, 0.2)
+#: rounds of spreading and pulling again (`fibres.decompose`)
+PULL_ROUNDS = 2
+#: a displacement larger than this (metres) counts as a pull in `spread_pull`
+PULLED = 1e-5
 
 
 def _taubin_matrix(p, iterations):
@@ -103,17 +110,24 @@ def fairing_operator(points, *, iterations, turning=TURNING, dense=DENSE):
     return sp.block_diag(list(mats), format="csr")
 
 
+def _along(a, weights):
+    """``a`` (N, P, K) plus its neighbours' values along each fibre times ``weights``."""
+    out = a.copy()
+    for k, w in enumerate(weights, start=1):
+        if k >= a.shape[1]:
+            break
+        out[:, k:] += w * a[:, :-k]
+        out[:, :-k] += w * a[:, k:]
+    return out
+
+
 def spread_pull(before, after):
     """Fibres ``before`` (N, P, 3) moved by their pull's displacement ``after - before``
     spread along each fibre (module docstring); ends unchanged. Pull the result again."""
     b = np.asarray(before, dtype=np.float64)
     d = np.asarray(after, dtype=np.float64) - b
-    e = d.copy()
-    for k, w in enumerate(SPREAD, start=1):
-        if k >= b.shape[1]:
-            break
-        e[:, k:] += w * d[:, :-k]
-        e[:, :-k] += w * d[:, k:]
+    moved = (np.einsum("npk,npk->np", d, d) > PULLED ** 2).astype(np.float64)[..., None]
+    e = _along(d, SPREAD) / np.maximum(1.0, _along(moved, SPREAD))
     e[:, 0] = 0.0
     e[:, -1] = 0.0
     return b + e
