@@ -78,7 +78,7 @@ def quality():
                                   slicing=slicing)
                 q = b.quality
                 print(f"| {muscle} | {template} | {slicing} | {q.empty_5mm:.1%} | "
-                      f"{q.empty_spacing:.1%} | {q.turn_max:.0f} | {q.turn_p95:.0f} | "
+                      f"{q.empty_spacing:.1%} | {q.turn_max:.1f} | {q.turn_p95:.1f} | "
                       f"{q.origin_covered:.0%} | {q.insertion_covered:.0%} | {q.outside} |")
 
 

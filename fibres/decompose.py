@@ -345,8 +345,9 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         Parameters of the template (`fibres.get_template`).
     smoothing_iterations : int, keyword-only
         Planes: iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
-        harmonic: twice as many lambda|mu pairs of `fibres.finishing.smoothing.smooth_taubin`,
-        before the turn-aware resampling of `fibres.finishing.fairing`;
+        harmonic: `fibres.finishing.fairing.taubin_pairs` lambda|mu pairs of
+        `fibres.finishing.smoothing.smooth_taubin`, before the turn-aware resampling of
+        `fibres.finishing.fairing`;
         default `fibres.finishing.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Planes:
         each point's smoothing shift is softly bounded by
         `fibres.finishing.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm) so that smoothing cannot pull
@@ -446,7 +447,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
 def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolution, seed,
                         smoothing_iterations, contain, plan):
     """`decompose` by harmonic-field slicing (`fibres.slicing.harmonic`, with its fairing:
-    2 x ``smoothing_iterations`` lambda|mu pairs of Taubin's non-shrinking smoothing and the
+    lambda|mu pairs of Taubin's non-shrinking smoothing (`fibres.finishing.fairing.taubin_pairs`
+    of ``smoothing_iterations``) and the
     turn-aware resampling of `fibres.finishing.fairing`, both in the plan's linear map), then
     the containment pull of the planar method, its displacement spread along each fibre
     (`fibres.finishing.fairing.spread_pull`) and pulled again."""

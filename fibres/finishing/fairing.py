@@ -42,10 +42,12 @@ from scipy.interpolate import CubicSpline
 from .smoothing import smooth_taubin
 
 __all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "DENSE", "TURNING",
-           "SPREAD", "PULL_ROUNDS", "PULLED"]
+           "SPREAD", "PULL_ROUNDS", "PULLED", "PAIRS_PER_ITERATION", "taubin_pairs"]
 
 #: spline points per fibre segment on which the resampling measure is taken
 DENSE = 8
+#: lambda|mu pairs of Taubin smoothing per smoothing iteration of `fibres.decompose`
+PAIRS_PER_ITERATION = 1.4
 #: weight of a half-turn (pi) against the fibre's whole length in the resampling measure
 TURNING = 3.0
 #: weights of a pulled point's displacement given to its neighbours 1, 2, 3, 4 joints away
@@ -54,6 +56,14 @@ SPREAD = (0.8, 0.6, 0.4, 0.2)
 PULL_ROUNDS = 2
 #: a displacement larger than this (metres) counts as a pull in `spread_pull`
 PULLED = 1e-5
+
+
+def taubin_pairs(smoothing_iterations) -> int:
+    """Taubin lambda|mu pairs for ``smoothing_iterations`` of `fibres.decompose`
+    (`PAIRS_PER_ITERATION` each, rounded): more pairs smooth the slices' noise, fewer keep
+    fibres that bend round a concave wall (the psoas tendon) off it, so the pull has less to
+    do (docs/decisions.md)."""
+    return int(round(PAIRS_PER_ITERATION * int(smoothing_iterations)))
 
 
 def _taubin_matrix(p, iterations):

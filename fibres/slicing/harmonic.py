@@ -86,7 +86,7 @@ from .harmonic_field import harmonic_field, mesh_edges
 from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
 from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patch
-from ..finishing.fairing import fairing_operator
+from ..finishing.fairing import fairing_operator, taubin_pairs
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
@@ -366,7 +366,7 @@ def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed, smoothing):
         mat = _fibre_matrix(plan, slices, tmpl, rs, int(resolution))
         rest = (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
                                       plan.rest_vertices])).reshape(len(rs), -1, 3)
-        fair = fairing_operator(rest, iterations=2 * int(smoothing))
+        fair = fairing_operator(rest, iterations=taubin_pairs(smoothing))
         plan._cache[key] = (slices, mat, fair, rs)
         return plan._cache[key]
 
@@ -374,7 +374,8 @@ def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed, smoothing):
 def harmonic_points(plan: HarmonicPlan, vertices, tmpl, n_fibres, resolution, seed,
                     smoothing=0):
     """Fibre points (N, R + 1, 3) of the surface ``vertices`` (the plan's rest pose or a
-    deformed copy), faired (step 8: ``smoothing`` lambda|mu pairs of Taubin smoothing, then
+    deformed copy), faired (step 8: Taubin smoothing, `fibres.finishing.fairing.taubin_pairs`
+    of ``smoothing``, then
     the turn-aware resampling of `fibres.finishing.fairing`, frozen at rest) but not yet
     contained; also returns rs (N, 2) and notes."""
     slices, mat, fair, rs = _maps(plan, tmpl, n_fibres, resolution, seed, smoothing)
