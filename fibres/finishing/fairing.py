@@ -94,7 +94,8 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
         step = np.diff(curve, axis=0)
         ds = np.linalg.norm(step, axis=1)
         unit = step / np.maximum(ds, 1e-300)[:, None]
-        theta = np.arccos(np.clip(np.einsum("ij,ij->i", unit[1:], unit[:-1]), -1.0, 1.0))
+        theta = np.arctan2(np.linalg.norm(np.cross(unit[:-1], unit[1:]), axis=1),
+                           np.einsum("ij,ij->i", unit[1:], unit[:-1]))
         share = np.zeros(m - 1)
         share[:-1] += 0.5 * theta
         share[1:] += 0.5 * theta
