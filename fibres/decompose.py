@@ -462,12 +462,19 @@ def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolu
     notes.extend(slice_notes)
     flags = {}
     if contain:
-        pulled, moved = contain_points(pts, v, faces, mean_edge=mean_edge)
+        # the pull, then PULL_ROUNDS rounds of spreading each pulled fibre's displacement
+        # along it and pulling that fibre again (fibres are pulled independently, so only the
+        # fibres pulled in the last round take part in the next)
+        out, moved = contain_points(pts, v, faces, mean_edge=mean_edge)
+        moved = np.array(moved, dtype=bool)
+        todo, before = np.flatnonzero(moved), pts
         for _ in range(PULL_ROUNDS):
-            if not np.any(pulled != pts):
+            if not todo.size:
                 break
-            pts = spread_pull(pts, pulled)
-            pulled, again = contain_points(pts, v, faces, mean_edge=mean_edge)
-            moved = np.asarray(moved) | np.asarray(again)
-        pts, flags["contained"] = pulled, moved
+            spread = spread_pull(before[todo], out[todo])
+            again_pts, again = contain_points(spread, v, faces, mean_edge=mean_edge)
+            before, out = before.copy(), out.copy()
+            before[todo], out[todo] = spread, again_pts
+            todo = todo[np.asarray(again, dtype=bool)]
+        pts, flags["contained"] = out, moved
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))
