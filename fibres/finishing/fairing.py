@@ -37,11 +37,10 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.interpolate import CubicSpline
 
 from .smoothing import smooth_taubin
 
-__all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "DENSE", "TURNING",
+__all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "natural_spline_matrix", "DENSE", "TURNING",
            "SPREAD", "PULL_ROUNDS", "PULLED", "PAIRS_PER_ITERATION", "taubin_pairs"]
 
 #: spline points per fibre segment on which the resampling measure is taken
@@ -66,6 +65,34 @@ def taubin_pairs(smoothing_iterations) -> int:
     return int(round(PAIRS_PER_ITERATION * int(smoothing_iterations)))
 
 
+def natural_spline_matrix(knots, t):
+    """(M, P) matrix ``U`` of the natural cubic spline through P values at ``knots``
+    (increasing), evaluated at ``t``: ``U @ y`` are the spline's values (de Boor 1978; the
+    second derivatives ``m`` solve the tridiagonal system
+    ``h_{i-1} m_{i-1} + 2 (h_{i-1} + h_i) m_i + h_i m_{i+1} = 6 (dy_i / h_i - dy_{i-1} / h_{i-1})``
+    with ``m_0 = m_{P-1} = 0``)."""
+    s = np.asarray(knots, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    p = len(s)
+    h = np.diff(s)
+    eye = np.eye(p)
+    second = np.zeros((p, p))                 # m = second @ y
+    if p > 2:
+        a = np.zeros((p - 2, p - 2))
+        i = np.arange(p - 2)
+        a[i, i] = 2.0 * (h[:-1] + h[1:])
+        a[i[1:], i[1:] - 1] = h[1:-1]
+        a[i[:-1], i[:-1] + 1] = h[1:-1]
+        slope = (eye[1:] - eye[:-1]) / h[:, None]            # (P - 1, P): dy_i / h_i
+        second[1:-1] = np.linalg.solve(a, 6.0 * (slope[1:] - slope[:-1]))
+    k = np.clip(np.searchsorted(s, t, side="right") - 1, 0, p - 2)
+    hk = h[k][:, None]
+    b = (t[:, None] - s[k][:, None]) / hk
+    a_ = 1.0 - b
+    return (a_ * eye[k] + b * eye[k + 1]
+            + ((a_ ** 3 - a_) * second[k] + (b ** 3 - b) * second[k + 1]) * hk ** 2 / 6.0)
+
+
 def _taubin_matrix(p, iterations):
     """(P, P) matrix of `smooth_taubin` with ``iterations`` lambda|mu pairs."""
     eye = np.eye(p)[None]                     # P "coordinates": the columns of the identity
@@ -83,13 +110,12 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     taubin = _taubin_matrix(p, iterations) if iterations else np.eye(p)
     smoothed = np.einsum("ij,njk->nik", taubin, pts)
     out = np.empty((n, p, p))
-    eye = np.eye(p)
     m = (p - 1) * int(dense) + 1
     for k in range(n):          # one spline per fibre: its knots are the fibre's own chords
         seg = np.linalg.norm(np.diff(smoothed[k], axis=0), axis=1)
         knots = np.concatenate([[0.0], np.cumsum(np.maximum(seg, 1e-12 * max(seg.sum(), 1e-300)))])
         t = np.linspace(0.0, knots[-1], m)
-        up = CubicSpline(knots, eye, bc_type="natural")(t)          # (M, P): dense = up @ x
+        up = natural_spline_matrix(knots, t)                        # (M, P): dense = up @ x
         curve = up @ smoothed[k]
         step = np.diff(curve, axis=0)
         ds = np.linalg.norm(step, axis=1)

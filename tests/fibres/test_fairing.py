@@ -105,3 +105,17 @@ def test_spread_pull_of_an_isolated_point_is_a_tent():
         expected[5 - k] = expected[5 + k] = w * 0.5
     expected[0] = expected[-1] = 0.0
     np.testing.assert_allclose(moved, expected, atol=1e-15)
+
+
+def test_natural_spline_matrix_matches_scipy():
+    """The spline matrix against scipy's natural cubic spline (the oracle) on uneven knots."""
+    from scipy.interpolate import CubicSpline
+
+    from fibres.finishing.fairing import natural_spline_matrix
+
+    rng = np.random.default_rng(3)
+    knots = np.cumsum(rng.uniform(0.2, 2.0, 9))
+    y = rng.normal(size=(9, 3))
+    t = np.linspace(knots[0], knots[-1], 57)
+    np.testing.assert_allclose(natural_spline_matrix(knots, t) @ y,
+                               CubicSpline(knots, y, bc_type="natural")(t), atol=1e-12)
