@@ -8,9 +8,9 @@ origin clouds, for both slicings. ``--moment-arms``: `analysis.run` of the TOML 
 dataset's flexion, adduction and rotation motions for both slicings; p5..p95, min..max and
 mean of the fibre moment arms over all fibres and frames, and the overlap (intersection over
 union) of p5..p95 and of min..max with the ranges of Modenese & Kohout 2020, Table 2 (which
-are peak values: the minimum and maximum over all fibres and poses). ``--speed``: medians of the rest-pose
-decomposition (incl. patches and the harmonic solve) and of a frame with the plan, one
-thread, warm process: wall-clock time and process CPU time (the CPU time is the fairer figure on
+are peak values: the minimum and maximum over all fibres and poses). ``--speed``: medians of
+the rest-pose decomposition (incl. patches and the harmonic solve) and of a frame with the
+plan, one thread, warm process: wall-clock time and process CPU time (the CPU time is the fairer figure on
 a shared, loaded machine). Default: all three.
 """
 from __future__ import annotations
@@ -112,11 +112,13 @@ def moment_arms():
                 r = m.fibre_moment_arms[:, :, c] * 100
                 lo, hi = np.percentile(r, [5, 95])
                 al = m.action_line_moment_arms[:, :, c] * 100
-                line = (f"  {task:9s} {m.name:11s} {lo:6.2f} .. {hi:6.2f}   min..max {r.min():6.2f} .. "
-                        f"{r.max():6.2f}  mean {r.mean():5.2f}   lines {al.min():6.2f} .. {al.max():6.2f}")
                 paper = PAPER_CM[task][m.name]
-                line += (f"   paper {paper[0]:.1f} .. {paper[1]:.1f} mean {paper[2]:.1f}  IoU p5..p95 "
-                         f"{_iou((lo, hi), paper):.2f}, min..max {_iou((r.min(), r.max()), paper):.2f}")
+                line = (f"  {task:9s} {m.name:11s} {lo:6.2f} .. {hi:6.2f}   min..max "
+                        f"{r.min():6.2f} .. {r.max():6.2f}  mean {r.mean():5.2f}   lines "
+                        f"{al.min():6.2f} .. {al.max():6.2f}   paper {paper[0]:.1f} .. "
+                        f"{paper[1]:.1f} mean {paper[2]:.1f}  IoU p5..p95 "
+                        f"{_iou((lo, hi), paper):.2f}, min..max "
+                        f"{_iou((r.min(), r.max()), paper):.2f}")
                 print(line)
 
 

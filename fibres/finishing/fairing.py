@@ -1,11 +1,11 @@
 """Fair fibres: smoothing and turn-aware resampling as one linear map, and a smooth pull.
 
 A fibre of resolution R is judged by the turns between its consecutive segments. Points at
-equal arc-length steps spend as many points on a straight stretch as on a bend, so a muscle
+equal arc-length steps spend as many points on a straight stretch as on a bend, so a fibre
 that bends over a short length (the psoas tendon round the pelvic brim, gluteus maximus
-fibres converging on their insertion strip) turns by 30-45 degrees at one or two joints
-while the rest of the fibre hardly turns. `fairing_matrices` makes, per fibre, the (P, P)
-matrix ``F = S_R U T`` that maps the fibre's P points to P faired points:
+fibres converging on their insertion strip) turns sharply at one or two joints while the rest
+of it hardly turns. `fairing_matrices` makes, per fibre, the (P, P) matrix ``F = S_R U T``
+that maps the fibre's P points to P faired points:
 
 1. ``T``: Taubin's lambda|mu smoothing (`fibres.finishing.smoothing.smooth_taubin`, linear in
    the points, so it is written as its matrix): takes out the one-joint kinks, keeps the bends.
@@ -40,8 +40,9 @@ import scipy.sparse as sp
 
 from .smoothing import smooth_taubin
 
-__all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "natural_spline_matrix", "DENSE", "TURNING",
-           "SPREAD", "PULL_ROUNDS", "PULLED", "PAIRS_PER_ITERATION", "taubin_pairs"]
+__all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "natural_spline_matrix",
+           "taubin_pairs", "DENSE", "TURNING", "SPREAD", "PULL_ROUNDS", "PULLED",
+           "PAIRS_PER_ITERATION"]
 
 #: spline points per fibre segment on which the resampling measure is taken
 DENSE = 8
