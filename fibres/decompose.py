@@ -37,7 +37,8 @@ from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_ma
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .template.sampling import sobol_rs
 from .slicing.planes import mesh_topology, slice_mesh
-from .finishing.smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth, smooth_taubin
+from .finishing.fairing import PULL_ROUNDS, spread_pull
+from .finishing.smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .mesh.surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .template.templates import Template, get_template
 from .threads import blas_single
@@ -344,10 +345,13 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         Parameters of the template (`fibres.get_template`).
     smoothing_iterations : int, keyword-only
         Planes: iterations of the smoothing ``P'_i = (P_{i-1} + 4 P_i + P_{i+1}) / 6`` (§3.4;
-        harmonic: twice as many lambda|mu pairs of `fibres.finishing.smoothing.smooth_taubin`;
-        default `fibres.finishing.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Each point's
-        smoothing shift is softly bounded by `fibres.finishing.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm)
-        so that smoothing cannot pull fibres out through a concave wall.
+        harmonic: `fibres.finishing.fairing.taubin_pairs` lambda|mu pairs of
+        `fibres.finishing.smoothing.smooth_taubin`, before the turn-aware resampling of
+        `fibres.finishing.fairing`;
+        default `fibres.finishing.smoothing.DEFAULT_ITERATIONS`); 0 switches it off. Planes:
+        each point's smoothing shift is softly bounded by
+        `fibres.finishing.smoothing.DECOMPOSE_MAX_SHIFT` (1 mm) so that smoothing cannot pull
+        fibres out through a concave wall.
     filter_attachments : bool, keyword-only
         Trim the fibres at the planes through the extreme landmarks and reconstruct their
         ends on the attachment areas (§3.4).
@@ -442,19 +446,35 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
 
 def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolution, seed,
                         smoothing_iterations, contain, plan):
-    """`decompose` by harmonic-field slicing (`fibres.slicing.harmonic`), then Taubin's
-    non-shrinking smoothing (2 x ``smoothing_iterations`` lambda|mu pairs,
-    `fibres.finishing.smoothing.smooth_taubin`) and the containment pull of the planar method."""
+    """`decompose` by harmonic-field slicing (`fibres.slicing.harmonic`, with its fairing:
+    lambda|mu pairs of Taubin's non-shrinking smoothing (`fibres.finishing.fairing.taubin_pairs`
+    of ``smoothing_iterations``) and the
+    turn-aware resampling of `fibres.finishing.fairing`, both in the plan's linear map), then
+    the containment pull of the planar method, its displacement spread along each fibre
+    (`fibres.finishing.fairing.spread_pull`) and pulled again."""
     if plan is None:
         plan = make_harmonic_plan(v, faces, o, i)
         notes.extend(plan.notes)
     else:
         plan.check_mesh(v, faces)
-    pts, rs, slice_notes = harmonic_points(plan, v, tmpl, n_fibres, resolution, seed)
+    pts, rs, slice_notes = harmonic_points(plan, v, tmpl, n_fibres, resolution, seed,
+                                           int(smoothing_iterations))
     notes.extend(slice_notes)
     flags = {}
-    if smoothing_iterations:
-        pts = smooth_taubin(pts, iterations=2 * int(smoothing_iterations))
     if contain:
-        pts, flags["contained"] = contain_points(pts, v, faces, mean_edge=mean_edge)
+        # the pull, then PULL_ROUNDS rounds of spreading each pulled fibre's displacement
+        # along it and pulling that fibre again (fibres are pulled independently, so only the
+        # fibres pulled in the last round take part in the next)
+        out, moved = contain_points(pts, v, faces, mean_edge=mean_edge)
+        moved = np.array(moved, dtype=bool)
+        todo, before = np.flatnonzero(moved), pts
+        for _ in range(PULL_ROUNDS):
+            if not todo.size:
+                break
+            spread = spread_pull(before[todo], out[todo])
+            again_pts, again = contain_points(spread, v, faces, mean_edge=mean_edge)
+            before, out = before.copy(), out.copy()
+            before[todo], out[todo] = spread, again_pts
+            todo = todo[np.asarray(again, dtype=bool)]
+        pts, flags["contained"] = out, moved
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))

@@ -61,10 +61,16 @@ CAGD 22, 2005). Here, step by step:
    then comes from the patches: aponeurosis landmarks). Template heights below the first or
    above the last inner slice are clamped onto it.
 
+8. **Fairing** (`fibres.finishing.fairing`): Taubin's lambda|mu smoothing, a cubic spline
+   through the smoothed points and P points on it at equal steps of arc length plus turning
+   (a bend gets points in proportion to how much it turns), a (P, P) matrix per fibre
+   measured at rest.
+
 Every fibre point is then a fixed linear combination of the vertices (loop samples are
-edge points, ends are points of patch triangles, bending and resampling are fixed blends),
-frozen in the plan: ``points = W V`` on any deformed copy. Smoothing and the containment
-pull (`fibres.finishing.containment`) follow as for the planar method.
+edge points, ends are points of patch triangles, bending, smoothing and resampling are fixed
+blends), frozen in the plan: ``points = F W V`` on any deformed copy. The containment pull
+(`fibres.finishing.containment`) follows, its displacement spread along each fibre
+(`fibres.finishing.fairing.spread_pull`) and pulled again.
 """
 from __future__ import annotations
 
@@ -80,6 +86,7 @@ from .harmonic_field import harmonic_field, mesh_edges
 from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
 from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patch
+from ..finishing.fairing import fairing_operator, taubin_pairs
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
 
@@ -339,13 +346,14 @@ def _even(points):
                          shape=(n * p, n * p))
 
 
-def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed):
-    """(slices, fibre matrix, rs) for these fibres, made once per plan and cached."""
+def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed, smoothing):
+    """(slices, fibre matrix, fairing matrix, rs) for these fibres, made once per plan and
+    cached."""
     from ..plan import template_spec
     from ..template.sampling import sobol_rs
     spec = template_spec(tmpl)
     key = (spec[0], repr(sorted(dict(spec[1]).items())), int(n_fibres), int(resolution),
-           int(seed))
+           int(seed), int(smoothing))
     with plan._lock:
         hit = plan._cache.get(key)
         if hit is not None:
@@ -356,15 +364,22 @@ def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed):
             plan._cache[("slices", int(resolution))] = slices
         rs = sobol_rs(int(n_fibres), seed=seed)
         mat = _fibre_matrix(plan, slices, tmpl, rs, int(resolution))
-        plan._cache[key] = (slices, mat, rs)
+        rest = (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
+                                      plan.rest_vertices])).reshape(len(rs), -1, 3)
+        fair = fairing_operator(rest, iterations=taubin_pairs(smoothing))
+        plan._cache[key] = (slices, mat, fair, rs)
         return plan._cache[key]
 
 
-def harmonic_points(plan: HarmonicPlan, vertices, tmpl, n_fibres, resolution, seed):
+def harmonic_points(plan: HarmonicPlan, vertices, tmpl, n_fibres, resolution, seed,
+                    smoothing=0):
     """Fibre points (N, R + 1, 3) of the surface ``vertices`` (the plan's rest pose or a
-    deformed copy), before smoothing; also returns rs (N, 2) and notes."""
-    slices, mat, rs = _maps(plan, tmpl, n_fibres, resolution, seed)
+    deformed copy), faired (step 8: Taubin smoothing, `fibres.finishing.fairing.taubin_pairs`
+    of ``smoothing``, then
+    the turn-aware resampling of `fibres.finishing.fairing`, frozen at rest) but not yet
+    contained; also returns rs (N, 2) and notes."""
+    slices, mat, fair, rs = _maps(plan, tmpl, n_fibres, resolution, seed, smoothing)
     v = np.asarray(vertices, dtype=np.float64)
     basis = np.concatenate([slices.samples @ v, v])
-    pts = (mat @ basis).reshape(len(rs), int(resolution) + 1, 3)
+    pts = (fair @ (mat @ basis)).reshape(len(rs), int(resolution) + 1, 3)
     return pts, rs, slices.notes
