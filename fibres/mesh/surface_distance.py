@@ -162,47 +162,32 @@ def _parity(x, pv, faces, frame, origin, cell, dims, start, items):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _signed_distances(x, inside, vertices, faces, origin, cell, dims, start, items, tau, watch,
-                      reach, offset):
-    """(s (n,), direction (n, 3)) of points x (n, 3) with their parity labels `inside` (n,):
-    the grid search and the blend of the module docstring (`SurfaceGrid.signed_distance`) on
-    the triangles (vertices, faces) and their 3-d grid (`_bin_triangles`, axes x, y, z).
-    The closest point of a triangle: Ericson 2005 §5.1.5, the regions A, B, edge AB, C, edge
-    AC, edge BC, face in this order (the first wins on a border, as
-    `fibres.mesh.closest_point`; a zero denominator takes the edge's first end)."""
-    n = x.shape[0]
-    s = np.empty(n)
-    g = np.empty((n, 3))
-    n_tri = faces.shape[0]
-    seen = np.empty(n_tri, np.int64)             # the last point that measured a triangle
-    for t in range(n_tri):
-        seen[t] = -1
-    dist = np.empty(n_tri)                       # the triangles measured for this point:
-    diff = np.empty((n_tri, 3))                  # distances, point minus closest point,
-    nrm = np.empty((n_tri, 3))                   # unit outward normals
+def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, tau, reach):
+    """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
+    (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of `_bin_triangles`:
+    rows ``[sum w, sum w d, sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]`` (n, 9), zero
+    where no triangle lies within ``limits[i]``. The closest point c of a triangle to x: the
+    projection of x on its plane when inside it, else the nearest of the three edges' closest
+    points (the closest point of a convex set is unique: Ericson 2005 §5.1.5 finds the same)."""
+    sums = np.zeros((x.shape[0], 9))
+    seen = np.empty(faces.shape[0], np.int64)    # the last point that measured a triangle
+    seen[:] = -1
+    found = np.empty((faces.shape[0], 7))        # per triangle measured: d, x - c, unit normal
     home = np.empty(3, np.int64)                 # the point's cell
     lo = np.empty(3, np.int64)                   # the ring's cell range
     hi = np.empty(3, np.int64)
-    box = np.empty(3)                            # point to cell, per axis
     ab = np.empty(3)
     ac = np.empty(3)
     ap = np.empty(3)
-    bp = np.empty(3)
-    cp = np.empty(3)
-    v = np.empty(3)
-    nn = np.empty(3)
     keep = KAPPA * tau
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
-    for i in range(n):
+    for i in range(x.shape[0]):
         p = x[i]
-        limit = reach
-        if inside[i]:
-            limit = min(watch, reach)
         for k in range(3):            # int() truncates towards 0: the same after clamping
             home[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)
         m = 0
         dmin = np.inf
-        bound = limit                 # triangles farther than bound are not needed
+        bound = limits[i]             # the triangles farther than bound are not needed
         for ring in range(max(dims[0], dims[1], dims[2])):   # cells at Chebyshev distance ring
             for k in range(3):
                 lo[k] = max(home[k] - ring, 0)
@@ -211,17 +196,13 @@ def _signed_distances(x, inside, vertices, faces, origin, cell, dims, start, ite
                 for cj in range(lo[1], hi[1] + 1):
                     face = abs(ci - home[0]) == ring or abs(cj - home[1]) == ring
                     for ck in range(lo[2], hi[2] + 1):
-                        if not face and ck != home[2] - ring and ck != home[2] + ring:
+                        if not face and abs(ck - home[2]) != ring:
                             continue
-                        box[0] = origin[0] + ci * cell - p[0]
-                        box[1] = origin[1] + cj * cell - p[1]
-                        box[2] = origin[2] + ck * cell - p[2]
                         gap = 0.0             # squared distance from the point to the cell
-                        for k in range(3):
-                            if box[k] > 0.0:
-                                gap += box[k] * box[k]
-                            elif box[k] + cell < 0.0:
-                                gap += (box[k] + cell) * (box[k] + cell)
+                        for k, c in ((0, ci), (1, cj), (2, ck)):
+                            y = origin[k] + c * cell - p[k]
+                            gap += y * y if y > 0.0 else (0.0 if y + cell >= 0.0 else
+                                                          (y + cell) * (y + cell))
                         if gap > (bound + slack) * (bound + slack):
                             continue
                         q = (ci * dims[1] + cj) * dims[2] + ck
@@ -230,59 +211,55 @@ def _signed_distances(x, inside, vertices, faces, origin, cell, dims, start, ite
                             if seen[t] == i:
                                 continue
                             seen[t] = i
-                            a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
                             for k in range(3):
-                                ab[k] = vertices[b, k] - vertices[a, k]
-                                ac[k] = vertices[c, k] - vertices[a, k]
-                                ap[k] = p[k] - vertices[a, k]
-                                bp[k] = p[k] - vertices[b, k]
-                                cp[k] = p[k] - vertices[c, k]
+                                ab[k] = vertices[faces[t, 1], k] - vertices[faces[t, 0], k]
+                                ac[k] = vertices[faces[t, 2], k] - vertices[faces[t, 0], k]
+                                ap[k] = p[k] - vertices[faces[t, 0], k]
+                            d00 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]
+                            d01 = ab[0] * ac[0] + ab[1] * ac[1] + ab[2] * ac[2]
+                            d11 = ac[0] * ac[0] + ac[1] * ac[1] + ac[2] * ac[2]
                             d1 = ab[0] * ap[0] + ab[1] * ap[1] + ab[2] * ap[2]
                             d2 = ac[0] * ap[0] + ac[1] * ap[1] + ac[2] * ap[2]
-                            d3 = ab[0] * bp[0] + ab[1] * bp[1] + ab[2] * bp[2]
-                            d4 = ac[0] * bp[0] + ac[1] * bp[1] + ac[2] * bp[2]
-                            d5 = ab[0] * cp[0] + ab[1] * cp[1] + ab[2] * cp[2]
-                            d6 = ac[0] * cp[0] + ac[1] * cp[1] + ac[2] * cp[2]
-                            va = d3 * d6 - d5 * d4
-                            vb = d5 * d2 - d1 * d6
-                            vc = d1 * d4 - d3 * d2
-                            u = 0.0                              # q = a + u ab + w ac
-                            w = 0.0
-                            if d1 <= 0.0 and d2 <= 0.0:
-                                pass
-                            elif d3 >= 0.0 and d4 <= d3:
-                                u = 1.0
-                            elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-                                if d1 - d3 != 0.0:
-                                    u = d1 / (d1 - d3)
-                            elif d6 >= 0.0 and d5 <= d6:
-                                w = 1.0
-                            elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-                                if d2 - d6 != 0.0:
-                                    w = d2 / (d2 - d6)
-                            elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
-                                if (d4 - d3) + (d5 - d6) != 0.0:
-                                    w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                                u = 1.0 - w
-                            elif va + vb + vc > 0.0:
-                                u = vb / (va + vb + vc)
-                                w = vc / (va + vb + vc)
-                            for k in range(3):
-                                diff[m, k] = ap[k] - u * ab[k] - w * ac[k]
-                            d = math.sqrt(diff[m, 0] * diff[m, 0] + diff[m, 1] * diff[m, 1]
-                                          + diff[m, 2] * diff[m, 2])
-                            dist[m] = d
-                            nrm[m, 0] = ab[1] * ac[2] - ab[2] * ac[1]
-                            nrm[m, 1] = ab[2] * ac[0] - ab[0] * ac[2]
-                            nrm[m, 2] = ab[0] * ac[1] - ab[1] * ac[0]
-                            size = math.sqrt(nrm[m, 0] * nrm[m, 0] + nrm[m, 1] * nrm[m, 1]
-                                             + nrm[m, 2] * nrm[m, 2])
-                            for k in range(3):
-                                nrm[m, k] = nrm[m, k] / size if size > 0.0 else 0.0
+                            den = d00 * d11 - d01 * d01
+                            u = (d11 * d1 - d01 * d2) / den if den > 0.0 else -1.0
+                            w = (d00 * d2 - d01 * d1) / den if den > 0.0 else -1.0
+                            d = np.inf
+                            if u >= 0.0 and w >= 0.0 and u + w <= 1.0:
+                                for k in range(3):
+                                    found[m, 1 + k] = ap[k] - u * ab[k] - w * ac[k]
+                                d = math.sqrt(found[m, 1] ** 2 + found[m, 2] ** 2
+                                              + found[m, 3] ** 2)
+                            else:
+                                for j in range(3):            # edge (corner j, corner j + 1)
+                                    e0, e1 = faces[t, j], faces[t, (j + 1) % 3]
+                                    num = 0.0
+                                    length = 0.0
+                                    for k in range(3):
+                                        num += (p[k] - vertices[e0, k]) \
+                                            * (vertices[e1, k] - vertices[e0, k])
+                                        length += (vertices[e1, k] - vertices[e0, k]) ** 2
+                                    f = min(max(num / length, 0.0), 1.0) if length > 0.0 else 0.0
+                                    r = 0.0
+                                    for k in range(3):
+                                        r += (p[k] - vertices[e0, k] - f * (vertices[e1, k]
+                                                                            - vertices[e0, k])) ** 2
+                                    if math.sqrt(r) < d:
+                                        d = math.sqrt(r)
+                                        for k in range(3):
+                                            found[m, 1 + k] = p[k] - vertices[e0, k] \
+                                                - f * (vertices[e1, k] - vertices[e0, k])
+                            found[m, 0] = d
+                            found[m, 4] = ab[1] * ac[2] - ab[2] * ac[1]
+                            found[m, 5] = ab[2] * ac[0] - ab[0] * ac[2]
+                            found[m, 6] = ab[0] * ac[1] - ab[1] * ac[0]
+                            size = math.sqrt(found[m, 4] ** 2 + found[m, 5] ** 2
+                                             + found[m, 6] ** 2)
+                            for k in range(4, 7):
+                                found[m, k] = found[m, k] / size if size > 0.0 else 0.0
                             m += 1
                             if d < dmin:
                                 dmin = d
-                                if dmin <= limit:
+                                if dmin <= limits[i]:
                                     bound = min(dmin + keep, reach)
             # every triangle not met is beyond the faces of the ring's box (none beyond the
             # grid's border): stop once they are all farther than bound
@@ -294,55 +271,41 @@ def _signed_distances(x, inside, vertices, faces, origin, cell, dims, start, ite
                     beyond = min(beyond, origin[k] + (home[k] + ring + 1) * cell - p[k])
             if beyond > bound + slack:
                 break
-        s[i] = -np.inf
-        for k in range(3):
-            g[i, k] = 0.0
-        if not dmin <= limit:
-            continue                  # nothing within reach, or inside deeper than watch
-        sw = 0.0
-        sd = 0.0
-        vote = 0.0
-        for k in range(3):
-            v[k] = 0.0       # sum w (x - c_t), then the direction
-            nn[k] = 0.0      # sum w n_t
-        for j in range(m):
-            delta = dist[j] - dmin
-            if dist[j] > reach or not delta <= keep:
-                continue
-            f = (keep - delta) / tau
-            w = math.exp(-delta / tau)
-            if f < 1.0:
-                w *= f * f * (3.0 - 2.0 * f)
-            sw += w
-            sd += w * dist[j]
-            for k in range(3):
-                vote += w * diff[j, k] * nrm[j, k]
-                v[k] += w * diff[j, k]
-                nn[k] += w * nrm[j, k]
-        sign = 0.0
-        if vote > 0.0:
-            sign = 1.0
-        elif vote < 0.0:
-            sign = -1.0
-        for k in range(3):
-            v[k] = sign * v[k] / sw + tau * nn[k] / sw
-        s[i] = sign * sd / sw
-        if offset:   # near the surface the normal offset and normal, far out the distance
-            lam = min(max((sd / sw - OFFSET_NEAR * tau) / ((OFFSET_FAR - OFFSET_NEAR) * tau),
-                          0.0), 1.0)
-            lam = lam * lam * (3.0 - 2.0 * lam)
-            s[i] = (1.0 - lam) * vote / sw + lam * s[i]
-            size_n = math.sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2])
-            size_v = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-            for k in range(3):
-                v[k] = (1.0 - lam) * (nn[k] / size_n if size_n > 0.0 else nn[k]) \
-                    + lam * (v[k] / size_v if size_v > 0.0 else v[k])
-        elif inside[i]:               # inside by parity: negative whatever the blend's vote
-            s[i] = -abs(s[i])
-        size_v = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        for k in range(3):
-            g[i, k] = v[k] / size_v if size_v > 0.0 else v[k]
-    return s, g
+        for j in range(m if dmin <= limits[i] else 0):
+            delta = found[j, 0] - dmin
+            if found[j, 0] <= reach and delta <= keep:
+                f = (keep - delta) / tau
+                w = math.exp(-delta / tau) * (f * f * (3.0 - 2.0 * f) if f < 1.0 else 1.0)
+                sums[i, 0] += w
+                sums[i, 1] += w * found[j, 0]
+                for k in range(3):
+                    sums[i, 2] += w * found[j, 1 + k] * found[j, 4 + k]
+                    sums[i, 3 + k] += w * found[j, 1 + k]
+                    sums[i, 6 + k] += w * found[j, 4 + k]
+    return sums
+
+
+def _unit_rows(x):
+    norm = np.sqrt(np.einsum("ij,ij->i", x, x))[:, None]
+    return np.where(norm > 0, x / np.where(norm > 0, norm, 1.0), x)
+
+
+def _blend(sums, tau, offset):
+    """(s (n,), direction (n, 3)) from the blend's sums (`_blend_sums`; module docstring)."""
+    sw = sums[:, 0]
+    ok = sw > 0.0
+    safe = np.where(ok, sw, 1.0)
+    dist, vote = sums[:, 1] / safe, sums[:, 2]
+    v, nn = sums[:, 3:6] / safe[:, None], sums[:, 6:9] / safe[:, None]
+    sign = np.sign(vote)
+    g = _unit_rows(sign[:, None] * v + tau * nn)
+    s = sign * dist
+    if offset:   # near the surface the normal offset and normal, far out the distance
+        lam = np.clip((dist - OFFSET_NEAR * tau) / ((OFFSET_FAR - OFFSET_NEAR) * tau), 0, 1)
+        lam = lam * lam * (3.0 - 2.0 * lam)
+        s = (1.0 - lam) * vote / safe + lam * s
+        g = _unit_rows((1.0 - lam)[:, None] * _unit_rows(nn) + lam[:, None] * g)
+    return np.where(ok, s, -np.inf), np.where(ok[:, None], g, 0.0)
 
 
 #: cells per triangle of the search grid and of the parity grid
@@ -409,8 +372,12 @@ class SurfaceGrid:
         if len(x) == 0 or len(self.faces) == 0:
             return np.full(len(x), -np.inf), np.zeros((len(x), 3))
         inside = self.inside(x)
-        return _signed_distances(x, inside, self.vertices, self.faces, *self._grid, float(tau),
-                                 watch, self.reach, bool(offset))
+        limits = np.where(inside, min(watch, self.reach), self.reach)
+        s, g = _blend(_blend_sums(x, limits, self.vertices, self.faces, *self._grid, float(tau),
+                                  self.reach), float(tau), bool(offset))
+        if not offset:   # inside by parity: negative whatever the blend's vote
+            s = np.where(inside & np.isfinite(s), -np.abs(s), s)
+        return s, g
 
 
 def surface_distance(points, vertices, faces, *, reach: float, softness: float):
