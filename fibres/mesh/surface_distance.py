@@ -1,10 +1,10 @@
 """Signed distance to a closed triangle surface, soft-blended over the nearest triangles.
 
-For `fibres.finishing.containment` (and tests): exact point-triangle distances (Ericson, Real-Time
-Collision Detection 2005, §5.1.5, closest point on a triangle by its Voronoi regions), blended
-over the nearest triangles with soft-min weights ``w_t = exp(-(d_t - d_min) / tau)``, which
-keeps distance and direction continuous where two walls are equally near (the medial surface
-of a concave valley, where the single closest triangle jumps from one wall to the other):
+For `fibres.finishing.containment` (and tests): exact point-triangle distances (the closest
+point of a triangle, Ericson, Real-Time Collision Detection 2005, §5.1.5), blended over the
+nearest triangles with soft-min weights ``w_t = exp(-(d_t - d_min) / tau)``, which keeps
+distance and direction continuous where two walls are equally near (the medial surface of a
+concave valley, where the single closest triangle jumps from one wall to the other):
 
 - distance ``D = sum w d / sum w``;
 - sign of ``sum w (x - c_t) . n_t`` (c_t the closest point of triangle t, n_t its unit outward
@@ -24,18 +24,21 @@ the triangles of its own column, each crossed when the point's (y, z) lies in it
 (three edge functions of one sign) beyond the point along x.
 
 Search: the triangles are binned by their bounding boxes in a uniform 3-d grid (CSR arrays:
-cell start, triangle items; cells about one mean edge). Every triangle within distance r of a
-point meets the ball of radius r, hence the cube of half-side r about the point, hence is
-binned in a cell that the cube overlaps. Per point, cubes of growing half-side r (doubling from
-half a cell, at most ``limit``) are scanned and each triangle met for the first time is
-measured exactly; once the nearest distance found is <= r it is d_min, and the cube of half-side
-``min(d_min + KAPPA tau, reach)`` gives every triangle of the blend. ``limit`` is ``reach`` for
-a point outside and ``min(watch, reach)`` for one inside: a point with no triangle within its
-limit gets ``s = -inf`` (no triangle in reach, or inside deeper than ``watch``).
+cell start, triangle items; about `SEARCH_DENSITY` cells per triangle over the vertices'
+bounding box). Per point, the cells are visited ring by ring about the point's own cell (ring r:
+the cells at Chebyshev distance r); a cell farther from the point than the current bound is
+passed over, every other triangle is measured once, exactly. The bound starts at ``limit``
+and becomes ``min(d + KAPPA tau, reach)`` once a triangle at d <= limit is found; the search
+stops when the ring's box is farther than the bound on every side (a triangle not met lies
+beyond a face of that box, or beyond the grid, where there are none), so every triangle of
+the blend has been measured. ``limit`` is ``reach`` for a point outside and ``min(watch,
+reach)`` for one inside: a point with no triangle within its limit gets ``s = -inf`` (no
+triangle in reach, or inside deeper than ``watch``).
 
-The parity test, the search, the exact distances and the blend run in one compiled loop over the
-points (`_signed_distances`, numba, module level, cached on disk; the grids are built by
-`_bin_boxes`); `tests/fibres/distance_oracle.py` is the brute-force numpy oracle it is tested
+Compiled: the grids' binning (`_bin_triangles`), the parity test (`_parity`) and the search
+with the blend's per-point sums (`_blend_sums`) are loops over triangles and points in numba
+(module level, ``cache=True``: compiled once per environment); the blend is finished in numpy
+(`_blend`). `tests/fibres/distance_oracle.py` is the brute-force numpy oracle they are tested
 against.
 """
 from __future__ import annotations
