@@ -186,12 +186,17 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
     for i in range(x.shape[0]):
         p = x[i]
+        gap = 0.0                     # squared distance from the point to the grid's box
+        for k in range(3):
+            y = max(origin[k] - p[k], p[k] - origin[k] - dims[k] * cell, 0.0)
+            gap += y * y
+        rings = max(dims[0], dims[1], dims[2]) if gap <= limits[i] * limits[i] else 0
         for k in range(3):            # int() truncates towards 0: the same after clamping
             home[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)
         m = 0
         dmin = np.inf
         bound = limits[i]             # the triangles farther than bound are not needed
-        for ring in range(max(dims[0], dims[1], dims[2])):   # cells at Chebyshev distance ring
+        for ring in range(rings):     # the cells at Chebyshev distance ring from home
             for k in range(3):
                 lo[k] = max(home[k] - ring, 0)
                 hi[k] = min(home[k] + ring, dims[k] - 1)
