@@ -410,3 +410,23 @@ def test_grid_search_equals_the_oracle_on_an_lhdl_muscle(lhdl_dir):
         assert (~np.isfinite(s2[~both]) | (s2[~both] < 0)).all()
         if watch is not None:
             assert (s2[~both & np.isfinite(s2)] < -M).all()
+
+
+def test_degenerate_triangles_are_measured_like_the_oracle(torus):
+    # zero-area triangles (three collinear corners, a repeated corner, a single point) have no
+    # plane: their closest point is on an edge or the point itself. Added to the torus (they
+    # cross no parity ray), the search and the oracle must still agree to rounding
+    v, f = torus
+    extra = np.array([[0, 0, 1], [5, 5, 5], [7, 8, 7]])
+    line = len(v) + np.arange(3)                         # three collinear new vertices
+    v2 = np.concatenate([v, v[[0]] + np.outer([0.0, 0.5, 1.0], v[1] - v[0])])
+    f2 = np.concatenate([f, extra, line[None]])
+    rng = np.random.default_rng(13)
+    x = np.concatenate([v[[0, 5, 7, 8]] + rng.normal(0, 5e-4, (4, 3)),
+                        rng.uniform(-1, 1, (300, 3)) * [R + 2 * RHO, R + 2 * RHO, 2 * RHO]])
+    s1, n1 = SurfaceGrid(v2, f2, reach=0.008).signed_distance(x, tau=CONTAIN_SOFTNESS)
+    s2, n2 = brute(x, v2, f2, 0.008, CONTAIN_SOFTNESS)
+    both = np.isfinite(s1)
+    assert both[:4].all() and both.sum() > 100
+    np.testing.assert_allclose(s1[both], s2[both], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(n1[both], n2[both], rtol=0, atol=1e-9)
