@@ -370,9 +370,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         chords and mean value coordinates on non-convex contours leave points up to ~4 mm
         outside curved muscles). Points deeper than 0.2 mm are not moved; pulled points
         end inside, at least 0.1 mm deep. Every inner
-        point is classified on every call (no choice is kept in the plan). Cost (one
-        core, CPU): ~1.4 ms per call at 15K vertices x 100 fibres x 20 points, ~4.0 ms at
-        60K vertices (`fibres.finishing.containment`); False skips it.
+        point is classified on every call (no choice is kept in the plan; timings in
+        bench/README.md); False skips it.
 
     slicing : {"harmonic", "planes"}, keyword-only
         Cross-sections: isolines of a harmonic field between the attachment patches

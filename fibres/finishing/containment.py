@@ -35,26 +35,13 @@ Every inner point is measured on every call (each frame of a motion): no points 
 the rest pose and skipped later, because fibres slide along the surface as it deforms (on the
 LHDL bend sweeps of tests/fibres/test_decompose_lhdl.py a point's depth changes by up to 8 mm
 over 20 degrees, and points 3.5 mm deep at rest end up outside). Points with no triangle within
-`reach` (8 mm) are taken as inside (the chain's excursions are a few mm). Only the points
-outside or in the band are measured: a point in an empty grid cell takes the cell's
-inside/outside label, a point in a cell holding triangles is classified by ray parity along
-the grid, and an inside point looks for triangles within ``b`` only (then, when one is
-nearer, for the others of its blend; `fibres.mesh.surface_distance`, ``watch``).
+`reach` (8 mm) are taken as inside (the chain's excursions are a few mm). Every point is
+classified by ray parity; a point inside looks for triangles within ``watch = max(b, OFFSET_FAR
+tau)`` only (then, when one is nearer, for the others of its blend), so the deep points cost a
+parity test and a look at the cells around them (`fibres.mesh.surface_distance`).
 
-Cost (one core, CPU): the grid and its cell labels are built per call, O(T); the inside test
-of a point is a label look-up or a short parity walk, the distance search runs for outside
-points only (the triangles' normals and bounding spheres are made only then). Measured per
-call (median CPU time on a shared 2-core machine, where the earlier figures 0.8/1.4/4.6 ms
-measured 2.0/2.0/5.8 ms) on the bench meshes (100 fibres x 20 points): 1.6 ms (1K vertices),
-1.4 ms (15K), 4.0 ms (60K); LHDL muscles (100 x 16) 1.5-4.7 ms. Tried and dropped:
-candidate triangles or watched points chosen on the rest pose and frozen in the plan (cheap per
-frame, but wrong on deformed frames: fibres slide along the surface, see above); each
-triangle's box in eighth-cells kept by the grid, to pass over triangles before reading their
-vertices (15K: the searches 0.09 ms faster, the grid as much slower); the own cell's vertex
-box tests made during the parity test (no faster); classifying every point first by one pass
-over the triangles, building the grid only for points near the surface or outside (saves the
-grid only when no point is near, as on the 15K bench; the 1K and 60K bench meshes and the
-LHDL muscles always have some).
+Cost: the surface's grids are built per call, O(T), by compiled loops; the search per point
+visits the cells near it (timings: bench/README.md; what was tried: docs/decisions.md).
 """
 from __future__ import annotations
 
@@ -113,10 +100,9 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     iterations : int, keyword-only
         Pull steps (>= 1): the first moves by ``s - s'`` along the shortest path, the
         others correct towards the same ``s'`` from the new closest point.
-    mean_edge : float, optional
-        The faces' mean edge length when known (sizes the search grid; measured otherwise).
-    bounds : ((3,) float, (3,) float), optional
-        The vertices' coordinate-wise minimum and maximum when known (else measured).
+    mean_edge, bounds
+        Accepted for the callers of an earlier grid search; unused (the grids are sized by
+        the vertices' bounding box, measured in the compiled binning).
 
     Returns
     -------
@@ -133,16 +119,12 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     n, p = out.shape[:2]
     if n == 0 or p < 3:
         return out, np.zeros(n, bool)
-    grid = SurfaceGrid(vertices, faces, reach=reach, mean_edge=mean_edge, bounds=bounds)
+    grid = SurfaceGrid(vertices, faces, reach=reach)
     # inside points deeper than the band are not measured: they look for triangles within
     # `watch` only (and, when one is nearer, for every triangle of their blend); beyond
     # OFFSET_FAR tau the offset measure is the blended distance (>= d_min), so an inside
     # point farther than watch from every triangle is deeper than the band: not pulled.
-    # The grid's one-cell depth rule needs watch <= cell (cells are >= reach / 8).
     watch = max(margin, OFFSET_FAR * softness)
-    if grid.cell is not None and watch > grid.cell:
-        raise ValueError(f"margin and {OFFSET_FAR:g} softness ({watch:g}) must not exceed the "
-                         f"grid cell ({grid.cell:g}); raise reach or lower margin/softness")
     # the inner points, fibre by fibre (the flat rows `_inner`; a strided copy)
     s, d = grid.signed_distance(out[:, 1:-1].reshape(-1, 3), tau=softness, watch=watch,
                                 offset=True)

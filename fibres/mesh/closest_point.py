@@ -10,9 +10,10 @@ Ericson's order (A, B, edge AB, C, edge AC, edge BC, face), so that on a region'
 first one wins, as in his scalar code. A degenerate triangle (zero area) falls into one of its
 vertex or edge regions: no division by zero reaches the result.
 
-Used by `fibres.mesh.surface_distance` (signed distance to a muscle surface), `fibres.attachments.ray_triangles`
-and `motion.surface.collision` (bone meshes): `motion` imports this geometry from `fibres`
-(docs/DESIGN.md, "Layering").
+Used by `motion.surface.collision` (bone meshes): `motion` imports this geometry from `fibres`
+(docs/DESIGN.md, "Layering"). The compiled search of `fibres.mesh.surface_distance` measures
+its pairs in its own loop (one point against the triangles it meets); the tests compare both
+with the brute-force oracle of tests/fibres/distance_oracle.py.
 """
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
 """Signed distance to a closed triangle surface, soft-blended over the nearest triangles.
 
-For `fibres.finishing.containment` (and tests): exact point-triangle distances (Ericson, Real-Time
-Collision Detection 2005, §5.1.5, closest point on a triangle by its Voronoi regions), blended
-over the nearest triangles with soft-min weights ``w_t = exp(-(d_t - d_min) / tau)``, which
-keeps distance and direction continuous where two walls are equally near (the medial surface
-of a concave valley, where the single closest triangle jumps from one wall to the other):
+For `fibres.finishing.containment` (and tests): exact point-triangle distances (the closest
+point of a triangle, Ericson, Real-Time Collision Detection 2005, §5.1.5), blended over the
+nearest triangles with soft-min weights ``w_t = exp(-(d_t - d_min) / tau)``, which keeps
+distance and direction continuous where two walls are equally near (the medial surface of a
+concave valley, where the single closest triangle jumps from one wall to the other):
 
 - distance ``D = sum w d / sum w``;
 - sign of ``sum w (x - c_t) . n_t`` (c_t the closest point of triangle t, n_t its unit outward
@@ -16,31 +16,37 @@ of a concave valley, where the single closest triangle jumps from one wall to th
 Weights fade to exactly 0 between ``delta = (KAPPA - 1) tau`` and ``KAPPA tau`` (smoothstep),
 so only triangles within ``d_min + KAPPA tau`` count.
 
-Search (numpy and scipy, no compiled code). The triangles' centroids go into a k-d tree
-(``scipy.spatial.cKDTree``) with each triangle's bounding radius r_t about its centroid
-(R = max r_t): a triangle within distance d of a point has its centroid within d + R of it.
-For each point: the exact distance d0 to the triangle of its nearest centroid bounds the
-nearest distance from above, so the centroids within ``min(d0, reach) + R`` hold every nearest
-triangle; their exact distances give d_min and the tie set. Every point is first classified
-by ray parity (`SurfaceGrid.inside`: a uniform 2-d grid of the triangles seen along the ray;
-the unit-weight vote of the nearest triangles can be wrong at a mesh vertex). An inside point
-deeper than ``watch`` gets ``s = -inf`` and is not measured further (deeper by the centroid
-bound ``dc - R > watch`` before any search, else by d_min); every other point within `reach`
-gathers the centroids within
-``min(d_min + KAPPA tau, reach) + R`` and is blended over them. The candidate pairs are
-flattened (point, triangle) and measured at once by
-`fibres.mesh.closest_point.closest_points_on_triangles`; the per-point sums of the blend are
-``np.bincount`` over the point index. A point whose nearest centroid is farther than
-``reach + R`` has no triangle within `reach`: ``s = -inf`` at the cost of one tree query.
+Inside or outside: every point is classified by ray parity (the ray from the point along a
+fixed generic direction `RAY` crosses the surface an odd number of times; the unit-weight vote
+of the nearest triangles can be wrong at a mesh vertex). In the frame whose x axis is the ray,
+the triangles are binned by their (y, z) bounding boxes in a uniform 2-d grid; a point meets
+the triangles of its own column, each crossed when the point's (y, z) lies in its projection
+(three edge functions of one sign) beyond the point along x.
+
+Search: the triangles are binned by their bounding boxes in a uniform 3-d grid (CSR arrays:
+cell start, triangle items; about `SEARCH_DENSITY` cells per triangle over the vertices'
+bounding box). Per point, the cells are visited ring by ring about the point's own cell (ring r:
+the cells at Chebyshev distance r); a cell farther from the point than the current bound is
+passed over, every other triangle is measured once, exactly. The bound starts at ``limit``
+and becomes ``min(d + KAPPA tau, reach)`` once a triangle at d <= limit is found; the search
+stops when the ring's box is farther than the bound on every side (a triangle not met lies
+beyond a face of that box, or beyond the grid, where there are none), so every triangle of
+the blend has been measured. ``limit`` is ``reach`` for a point outside and ``min(watch,
+reach)`` for one inside: a point with no triangle within its limit gets ``s = -inf`` (no
+triangle in reach, or inside deeper than ``watch``).
+
+Compiled: the grids' binning (`_bin_triangles`), the parity test (`_parity`) and the search
+with the blend's per-point sums (`_blend_sums`) are loops over triangles and points in numba
+(module level, ``cache=True``: compiled once per environment); the blend is finished in numpy
+(`_blend`). `tests/fibres/distance_oracle.py` is the brute-force numpy oracle they are tested
+against.
 """
 from __future__ import annotations
 
-from itertools import chain
+import math
 
 import numpy as np
-from scipy.spatial import cKDTree
-
-from .closest_point import closest_points_on_triangles
+from numba import njit
 
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
 
@@ -50,15 +56,8 @@ KAPPA = 8.0
 #: distance beyond OFFSET_FAR tau, smoothstep between (the blend's vote, which signs the
 #: distance, and the exact inside test disagree only within ~0.9 tau: tests)
 OFFSET_NEAR, OFFSET_FAR = 2.0, 4.0
-
-
-def _unit_rows(x):
-    norm = np.sqrt(np.einsum("ij,ij->i", x, x))[:, None]
-    return np.where(norm > 0, x / np.where(norm > 0, norm, 1.0), x)
-
-
-#: the direction of the parity rays of `SurfaceGrid.inside` (generic: no mesh edge is parallel
-#: to it by construction of a muscle scan)
+#: the direction of the parity rays (generic: no mesh edge is parallel to it by construction
+#: of a muscle scan)
 RAY = np.array([0.8660254037844386, 0.3535533905932738, 0.3535533905932738])
 
 
@@ -70,200 +69,242 @@ def _ray_basis():
     return np.stack([u, v, np.cross(u, v)])
 
 
-def _ray_grid(a, b, c):
-    """The triangles (a, b, c) in the ray frame (`_ray_basis`) and binned by their (y, z)
-    bounding boxes: (basis, corners (T, 3, 3), grid origin (2,), cell, dims (2,), CSR start
-    (cells + 1,), triangle items). Cells about twice the median (y, z) extent of a triangle,
-    at most ~4 cells per triangle in all."""
-    basis = _ray_basis()
-    corners = np.stack([a, b, c], 1) @ basis.T                         # (T, 3, 3)
-    yz = corners[..., 1:]
-    tlo, thi = yz.min(axis=1), yz.max(axis=1)                            # (T, 2)
-    lo, hi = tlo.min(axis=0), thi.max(axis=0)
-    span = np.maximum(hi - lo, 1e-300)
-    cell = max(2.0 * float(np.median((thi - tlo).max(axis=1))) if len(yz) else 1.0,
-               float(np.sqrt(span[0] * span[1] / (4.0 * len(yz) + 1.0))), 1e-300)
-    dims = (np.floor(span / cell).astype(np.int64) + 1)
-    i0 = np.clip(((tlo - lo) / cell).astype(np.int64), 0, dims - 1)
-    i1 = np.clip(((thi - lo) / cell).astype(np.int64), 0, dims - 1)
-    ni, nj = i1[:, 0] - i0[:, 0] + 1, i1[:, 1] - i0[:, 1] + 1
-    n = ni * nj
-    tri = np.repeat(np.arange(len(yz)), n)
-    k = np.arange(len(tri)) - np.repeat(np.cumsum(n) - n, n)
-    ci = i0[tri, 0] + k // nj[tri]
-    cj = i0[tri, 1] + k % nj[tri]
-    key = ci * dims[1] + cj
-    order = np.argsort(key, kind="stable")
-    start = np.zeros(int(dims[0] * dims[1]) + 1, np.int64)
-    np.cumsum(np.bincount(key, minlength=int(dims[0] * dims[1])), out=start[1:])
-    return basis, corners, lo, cell, dims, start, tri[order]
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bin_triangles(vertices, faces, frame, n_axes, density):
+    """The triangles (vertices, faces) binned by their bounding boxes in a uniform grid along
+    the first ``n_axes`` (2 or 3) rows of ``frame`` (3, 3) (a further axis: one cell), of about
+    ``density`` cells per triangle over the vertices' bounding box (a side thinner than 1e-3
+    of the widest counts as 1e-3 of it). Returns (the vertices in the frame (V, 3),
+    origin (3,), cell, dims (3,), start, items):
+    cell (i, j, k) spans ``origin + cell * [i, i + 1)`` etc. along the frame's axes; the
+    triangles meeting it are ``items[start[q]:start[q + 1]]``, ``q = (i * dims[1] + j) *
+    dims[2] + k``, in increasing order (CSR)."""
+    pv = np.empty((vertices.shape[0], 3))       # the vertices in the frame
+    origin = np.zeros(3)
+    top = np.zeros(3)
+    for k in range(3):
+        if k < n_axes:
+            origin[k] = np.inf
+            top[k] = -np.inf
+        for v in range(vertices.shape[0]):
+            pv[v, k] = frame[k, 0] * vertices[v, 0] + frame[k, 1] * vertices[v, 1] \
+                + frame[k, 2] * vertices[v, 2]
+            if k < n_axes:
+                origin[k] = min(origin[k], pv[v, k])
+                top[k] = max(top[k], pv[v, k])
+    widest = 0.0
+    for k in range(n_axes):
+        widest = max(widest, top[k] - origin[k])
+    volume = 1.0
+    for k in range(n_axes):
+        volume *= max(top[k] - origin[k], 1e-3 * widest)
+    cell = (volume / (density * faces.shape[0])) ** (1.0 / n_axes)
+    if not cell > 0.0:
+        cell = 1.0                   # every vertex at one point
+    dims = np.empty(3, np.int64)
+    for k in range(3):
+        dims[k] = int((top[k] - origin[k]) / cell) + 1
+    span = np.empty((faces.shape[0], 6), np.int64)     # the cells of each triangle's box
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
+    for t in range(faces.shape[0]):
+        for k in range(3):            # int() truncates towards 0: the same after clamping
+            span[t, k] = 0
+            span[t, k + 3] = 0
+            if k < n_axes:
+                y0 = min(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
+                y1 = max(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
+                span[t, k] = min(max(int((y0 - origin[k]) / cell), 0), dims[k] - 1)
+                span[t, k + 3] = min(max(int((y1 - origin[k]) / cell), 0), dims[k] - 1)
+    items = np.empty(0, np.int64)
+    for fill in range(2):            # count the triangles of each cell, then place them
+        if fill == 1:
+            for q in range(1, start.shape[0]):
+                start[q] += start[q - 1]
+            items = np.empty(start[-1], np.int64)
+        for t in range(faces.shape[0]):
+            for i in range(span[t, 0], span[t, 3] + 1):
+                for j in range(span[t, 1], span[t, 4] + 1):
+                    for k in range(span[t, 2], span[t, 5] + 1):
+                        q = (i * dims[1] + j) * dims[2] + k
+                        if fill == 1:
+                            items[start[q]] = t
+                        start[q + 1 - fill] += 1
+    for q in range(start.shape[0] - 1, 0, -1):   # the fill advanced start[q] to start[q + 1]
+        start[q] = start[q - 1]
+    start[0] = 0
+    return pv, origin, cell, dims, start, items
 
 
-def _pairs(tree, x, radius):
-    """(point index, triangle index) of every centroid within radius[i] of x[i], grouped by
-    point in increasing order."""
-    if len(x) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    lists = tree.query_ball_point(x, radius, return_sorted=False)
-    counts = np.fromiter(map(len, lists), np.int64, len(lists))
-    tri = np.fromiter(chain.from_iterable(lists), np.int64, int(counts.sum()))
-    return np.repeat(np.arange(len(x)), counts), tri
+@njit(cache=True, nogil=True, error_model="numpy")
+def _parity(x, pv, faces, frame, origin, cell, dims, start, items):
+    """Whether each point x (n, 3) is inside by ray parity (module docstring): frame (3, 3)
+    rows (y, z, ray), pv (V, 3) the vertices in it, the triangles binned by their (y, z)
+    bounding boxes in the 2-d grid (origin, cell, dims, start, items) of `_bin_triangles`."""
+    inside = np.empty(x.shape[0], np.bool_)
+    for i in range(x.shape[0]):
+        py = frame[0, 0] * x[i, 0] + frame[0, 1] * x[i, 1] + frame[0, 2] * x[i, 2]
+        pz = frame[1, 0] * x[i, 0] + frame[1, 1] * x[i, 1] + frame[1, 2] * x[i, 2]
+        px = frame[2, 0] * x[i, 0] + frame[2, 1] * x[i, 1] + frame[2, 2] * x[i, 2]
+        q = min(max(int((py - origin[0]) / cell), 0), dims[0] - 1) * dims[1] \
+            + min(max(int((pz - origin[1]) / cell), 0), dims[1] - 1)
+        hits = 0
+        for m in range(start[q], start[q + 1]):
+            a, b, c = faces[items[m], 0], faces[items[m], 1], faces[items[m], 2]
+            e0 = (pv[b, 0] - pv[a, 0]) * (pz - pv[a, 1]) \
+                - (pv[b, 1] - pv[a, 1]) * (py - pv[a, 0])
+            e1 = (pv[c, 0] - pv[b, 0]) * (pz - pv[b, 1]) \
+                - (pv[c, 1] - pv[b, 1]) * (py - pv[b, 0])
+            e2 = (pv[a, 0] - pv[c, 0]) * (pz - pv[c, 1]) \
+                - (pv[a, 1] - pv[c, 1]) * (py - pv[c, 0])
+            if (e0 > 0.0 and e1 > 0.0 and e2 > 0.0) or (e0 < 0.0 and e1 < 0.0 and e2 < 0.0):
+                # the crossing's ray coordinate: barycentric in the (y, z) edge functions
+                if (e1 * pv[a, 2] + e2 * pv[b, 2] + e0 * pv[c, 2]) / (e0 + e1 + e2) > px:
+                    hits += 1
+        inside[i] = hits % 2 == 1
+    return inside
 
 
-class SurfaceGrid:
-    """A closed surface prepared for signed-distance queries (module docstring): a k-d tree of
-    its triangles' centroids, their bounding radii and unit outward normals.
-
-    Parameters
-    ----------
-    vertices : (V, 3) float
-    faces : (T, 3) int
-        Closed, consistently and outward wound.
-    reach : float
-        Points with no triangle within this distance get ``s = -inf``.
-    cell, labelled, mean_edge, bounds
-        Accepted for the callers of the earlier grid search; unused (the k-d tree needs no
-        cell size). ``cell`` is None.
-    """
-
-    def __init__(self, vertices, faces, *, reach: float, cell: float | None = None,
-                 labelled: bool = True, mean_edge: float | None = None, bounds=None):
-        self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
-        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
-        self.reach = float(reach)
-        self.cell = None
-        tri = self.vertices[self.faces]                                       # (T, 3, 3)
-        self.a, self.b, self.c = (np.ascontiguousarray(tri[:, k]) for k in range(3))
-        self.centre = tri.mean(axis=1)
-        self.radius_max = float(np.sqrt(((tri - self.centre[:, None]) ** 2).sum(-1)).max()) \
-            if len(tri) else 0.0
-        self.nrm = _unit_rows(np.cross(self.b - self.a, self.c - self.a))
-        self.tree = cKDTree(self.centre)
-        self._ray = None
-
-    def inside(self, points):
-        """Whether each point (n, 3) is inside the closed surface, by ray parity: the ray from
-        the point along a fixed generic direction (`RAY`; ties on edges have measure zero)
-        crosses the surface an odd number of times. In the frame whose x axis is the ray, the
-        triangles are binned by their (y, z) bounding boxes in a uniform 2-d grid (CSR arrays);
-        a point meets the triangles of its own cell, and each is crossed when the point's
-        (y, z) lies in its projection (three edge functions of one sign) beyond the point
-        along x."""
-        x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-        if self._ray is None:
-            self._ray = _ray_grid(self.a, self.b, self.c)
-        basis, corners, lo, cell, dims, start, items = self._ray
-        p = x @ basis.T
-        cy = np.clip(((p[:, 1] - lo[0]) / cell).astype(np.int64), 0, dims[0] - 1)
-        cz = np.clip(((p[:, 2] - lo[1]) / cell).astype(np.int64), 0, dims[1] - 1)
-        key = cy * dims[1] + cz
-        first, counts = start[key], start[key + 1] - start[key]
-        pi = np.repeat(np.arange(len(p)), counts)
-        local = np.arange(len(pi)) - np.repeat(np.cumsum(counts) - counts, counts)
-        ti = items[first[pi] + local]
-        c = corners[ti]
-        py, pz = p[pi, 1], p[pi, 2]
-        y, z = c[..., 1], c[..., 2]
-        # edge functions of the projected triangle at the point (signed double areas)
-        e = [(y[:, (k + 1) % 3] - y[:, k]) * (pz - z[:, k])
-             - (z[:, (k + 1) % 3] - z[:, k]) * (py - y[:, k]) for k in range(3)]
-        area = e[0] + e[1] + e[2]
-        hit = ((e[0] > 0) & (e[1] > 0) & (e[2] > 0)) | ((e[0] < 0) & (e[1] < 0) & (e[2] < 0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xs = (e[1] * c[:, 0, 0] + e[2] * c[:, 1, 0] + e[0] * c[:, 2, 0]) / area
-        hit &= xs > p[pi, 0]
-        return np.bincount(pi[hit], minlength=len(p)) % 2 == 1
-
-    def _measure(self, x, radius):
-        """Every (point, triangle) pair with the centroid within radius of the point: point
-        index, triangle index, exact distance, point minus closest point."""
-        pi, ti = _pairs(self.tree, x, radius)
-        diff = x[pi] - closest_points_on_triangles(x[pi], self.a[ti], self.b[ti], self.c[ti])
-        return pi, ti, np.sqrt(np.einsum("ij,ij->i", diff, diff)), diff
-
-    def signed_distance(self, points, *, tau: float, watch: float | None = None,
-                        offset: bool = False, lazy: bool | None = None):
-        """(s (n,), outward direction (n, 3)) of points (n, 3) (module docstring).
-
-        ``watch``: how far a point inside looks (default `reach`): a point farther than
-        ``watch`` from every triangle whose nearest triangles vote "inside" gets ``-inf``
-        (``watch = 0``: every inside point not on the surface).
-
-        ``offset``: instead of the signed blended distance and the shortest path's
-        direction, the blended signed normal offset ``sum w (x - c_t) . n_t / sum w`` and the
-        blended face normal ``sum w n_t`` (normalised), smoothstepped into the signed distance
-        between OFFSET_NEAR tau and OFFSET_FAR tau. Both are continuous everywhere, through
-        the surface too; on a flat piece of surface the offset is the exact signed distance.
-
-        ``lazy`` is accepted for the earlier grid search's callers and ignored."""
-        x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-        tau = float(tau)
-        watch = self.reach if watch is None else float(watch)
-        n_pts = len(x)
-        s, g = np.full(n_pts, -np.inf), np.zeros((n_pts, 3))
-        if n_pts == 0 or len(self.faces) == 0:
-            return s, g
-        keep = KAPPA * tau
-        big_r = self.radius_max
-        dc, t0 = self.tree.query(x)
-        near = np.flatnonzero(dc - big_r <= self.reach)      # others: no triangle in reach
-        if len(near) == 0:
-            return s, g
-        xn, dcn = x[near], dc[near]
-        enclosed = self.inside(xn)
-        # the nearest centroid bounds the nearest distance from below (d >= dc - R): a point
-        # with dc - R > watch is deeper than watch if inside (-inf, no search) and measured
-        # in full if outside
-        deep = enclosed & (dcn - big_r > watch)
-        look = np.flatnonzero(~deep)
-        dmin = np.full(len(xn), np.inf)
-        if len(look):
-            xl, tl = xn[look], t0[near[look]]
-            q0 = closest_points_on_triangles(xl, self.a[tl], self.b[tl], self.c[tl])
-            d0 = np.sqrt(((xl - q0) ** 2).sum(1))
-            # pass 1: the nearest triangles (every triangle within d0 >= the nearest distance)
-            pi, ti, d, diff = self._measure(xl, np.minimum(d0, self.reach) + big_r)
-            dl = np.full(len(xl), np.inf)
-            np.minimum.at(dl, pi, d)
-            dmin[look] = dl
-        deep |= (dmin > watch) & enclosed
-        go = np.flatnonzero((dmin <= self.reach) & ~deep)
-        if len(go) == 0:
-            return s, g
-        # pass 2: every triangle of the blend (within d_min + KAPPA tau)
-        xg = xn[go]
-        pi, ti, d, diff = self._measure(xg, np.minimum(dmin[go] + keep, self.reach) + big_r)
-        ok = d <= self.reach
-        pi, ti, d, diff = pi[ok], ti[ok], d[ok], diff[ok]
-        sg, gg = _blend(pi, ti, d, diff, self.nrm, len(xg), tau, offset)
-        if not offset:   # inside by parity: negative whatever the blend's vote
-            sg = np.where(enclosed[go] & np.isfinite(sg), -np.abs(sg), sg)
-        s[near[go]], g[near[go]] = sg, gg
-        return s, g
+@njit(cache=True, nogil=True, error_model="numpy")
+def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, tau, reach):
+    """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
+    (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of `_bin_triangles`:
+    rows ``[sum w, sum w d, sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]`` (n, 9), zero
+    where no triangle lies within ``limits[i]``. The closest point c of a triangle to x: the
+    projection of x on its plane when inside it, else the nearest of the three edges' closest
+    points (the closest point of a convex set is unique: Ericson 2005 §5.1.5 finds the same)."""
+    sums = np.zeros((x.shape[0], 9))
+    seen = np.empty(faces.shape[0], np.int64)    # the last point that measured a triangle
+    seen[:] = -1
+    found = np.empty((faces.shape[0], 7))        # per triangle measured: d, x - c, unit normal
+    home = np.empty(3, np.int64)                 # the point's cell
+    lo = np.empty(3, np.int64)                   # the ring's cell range
+    hi = np.empty(3, np.int64)
+    ab = np.empty(3)
+    ac = np.empty(3)
+    ap = np.empty(3)
+    keep = KAPPA * tau
+    slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
+    for i in range(x.shape[0]):
+        p = x[i]
+        gap = 0.0                     # squared distance from the point to the grid's box
+        for k in range(3):
+            y = max(origin[k] - p[k], p[k] - origin[k] - dims[k] * cell, 0.0)
+            gap += y * y
+        rings = max(dims[0], dims[1], dims[2]) if gap <= limits[i] * limits[i] else 0
+        for k in range(3):            # int() truncates towards 0: the same after clamping
+            home[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)
+        m = 0
+        dmin = np.inf
+        bound = limits[i]             # the triangles farther than bound are not needed
+        for ring in range(rings):     # the cells at Chebyshev distance ring from home
+            for k in range(3):
+                lo[k] = max(home[k] - ring, 0)
+                hi[k] = min(home[k] + ring, dims[k] - 1)
+            for ci in range(lo[0], hi[0] + 1):
+                for cj in range(lo[1], hi[1] + 1):
+                    face = abs(ci - home[0]) == ring or abs(cj - home[1]) == ring
+                    for ck in range(lo[2], hi[2] + 1):
+                        if not face and abs(ck - home[2]) != ring:
+                            continue
+                        gap = 0.0             # squared distance from the point to the cell
+                        for k, c in ((0, ci), (1, cj), (2, ck)):
+                            y = origin[k] + c * cell - p[k]
+                            gap += y * y if y > 0.0 else (0.0 if y + cell >= 0.0 else
+                                                          (y + cell) * (y + cell))
+                        if gap > (bound + slack) * (bound + slack):
+                            continue
+                        q = (ci * dims[1] + cj) * dims[2] + ck
+                        for e in range(start[q], start[q + 1]):
+                            t = items[e]
+                            if seen[t] == i:
+                                continue
+                            seen[t] = i
+                            for k in range(3):
+                                ab[k] = vertices[faces[t, 1], k] - vertices[faces[t, 0], k]
+                                ac[k] = vertices[faces[t, 2], k] - vertices[faces[t, 0], k]
+                                ap[k] = p[k] - vertices[faces[t, 0], k]
+                            d00 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]
+                            d01 = ab[0] * ac[0] + ab[1] * ac[1] + ab[2] * ac[2]
+                            d11 = ac[0] * ac[0] + ac[1] * ac[1] + ac[2] * ac[2]
+                            d1 = ab[0] * ap[0] + ab[1] * ap[1] + ab[2] * ap[2]
+                            d2 = ac[0] * ap[0] + ac[1] * ap[1] + ac[2] * ap[2]
+                            den = d00 * d11 - d01 * d01
+                            u = (d11 * d1 - d01 * d2) / den if den > 0.0 else -1.0
+                            w = (d00 * d2 - d01 * d1) / den if den > 0.0 else -1.0
+                            d = np.inf
+                            if u >= 0.0 and w >= 0.0 and u + w <= 1.0:
+                                for k in range(3):
+                                    found[m, 1 + k] = ap[k] - u * ab[k] - w * ac[k]
+                                d = math.sqrt(found[m, 1] ** 2 + found[m, 2] ** 2
+                                              + found[m, 3] ** 2)
+                            else:
+                                for j in range(3):            # edge (corner j, corner j + 1)
+                                    e0, e1 = faces[t, j], faces[t, (j + 1) % 3]
+                                    num = 0.0
+                                    length = 0.0
+                                    for k in range(3):
+                                        num += (p[k] - vertices[e0, k]) \
+                                            * (vertices[e1, k] - vertices[e0, k])
+                                        length += (vertices[e1, k] - vertices[e0, k]) ** 2
+                                    f = min(max(num / length, 0.0), 1.0) if length > 0.0 else 0.0
+                                    r = 0.0
+                                    for k in range(3):
+                                        r += (p[k] - vertices[e0, k] - f * (vertices[e1, k]
+                                                                            - vertices[e0, k])) ** 2
+                                    if math.sqrt(r) < d:
+                                        d = math.sqrt(r)
+                                        for k in range(3):
+                                            found[m, 1 + k] = p[k] - vertices[e0, k] \
+                                                - f * (vertices[e1, k] - vertices[e0, k])
+                            found[m, 0] = d
+                            found[m, 4] = ab[1] * ac[2] - ab[2] * ac[1]
+                            found[m, 5] = ab[2] * ac[0] - ab[0] * ac[2]
+                            found[m, 6] = ab[0] * ac[1] - ab[1] * ac[0]
+                            size = math.sqrt(found[m, 4] ** 2 + found[m, 5] ** 2
+                                             + found[m, 6] ** 2)
+                            for k in range(4, 7):
+                                found[m, k] = found[m, k] / size if size > 0.0 else 0.0
+                            m += 1
+                            if d < dmin:
+                                dmin = d
+                                if dmin <= limits[i]:
+                                    bound = min(dmin + keep, reach)
+            # every triangle not met is beyond the faces of the ring's box (none beyond the
+            # grid's border): stop once they are all farther than bound
+            beyond = np.inf
+            for k in range(3):
+                if home[k] - ring > 0:
+                    beyond = min(beyond, p[k] - (origin[k] + (home[k] - ring) * cell))
+                if home[k] + ring < dims[k] - 1:
+                    beyond = min(beyond, origin[k] + (home[k] + ring + 1) * cell - p[k])
+            if beyond > bound + slack:
+                break
+        for j in range(m if dmin <= limits[i] else 0):
+            delta = found[j, 0] - dmin
+            if found[j, 0] <= reach and delta <= keep:
+                f = (keep - delta) / tau
+                w = math.exp(-delta / tau) * (f * f * (3.0 - 2.0 * f) if f < 1.0 else 1.0)
+                sums[i, 0] += w
+                sums[i, 1] += w * found[j, 0]
+                for k in range(3):
+                    sums[i, 2] += w * found[j, 1 + k] * found[j, 4 + k]
+                    sums[i, 3 + k] += w * found[j, 1 + k]
+                    sums[i, 6 + k] += w * found[j, 4 + k]
+    return sums
 
 
-def _blend(pi, ti, d, diff, nrm, n_pts, tau, offset):
-    """Soft-min blend (module docstring) of the measured pairs (point pi, triangle ti, distance
-    d, point minus closest point diff) into (s (n_pts,), direction (n_pts, 3))."""
-    best = np.full(n_pts, np.inf)
-    np.minimum.at(best, pi, d)
-    delta = d - best[pi]
-    use = delta <= KAPPA * tau
-    f = (KAPPA * tau - delta) / tau
-    w = np.where(use, np.exp(-np.where(use, delta, 0.0) / tau)
-                 * np.where(f < 1.0, f * f * (3.0 - 2.0 * f), 1.0), 0.0)
-    nt = nrm[ti]
+def _unit_rows(x):
+    norm = np.sqrt(np.einsum("ij,ij->i", x, x))[:, None]
+    return np.where(norm > 0, x / np.where(norm > 0, norm, 1.0), x)
 
-    def total(values):
-        return np.bincount(pi, values, n_pts)
 
-    sw = total(w)
+def _blend(sums, tau, offset):
+    """(s (n,), direction (n, 3)) from the blend's sums (`_blend_sums`; module docstring)."""
+    sw = sums[:, 0]
     ok = sw > 0.0
     safe = np.where(ok, sw, 1.0)
-    dist = total(w * d) / safe
-    v = np.stack([total(w * diff[:, k]) for k in range(3)], 1) / safe[:, None]
-    nn = np.stack([total(w * nt[:, k]) for k in range(3)], 1) / safe[:, None]
-    vote = total(w * np.einsum("ij,ij->i", diff, nt))
+    dist, vote = sums[:, 1] / safe, sums[:, 2]
+    v, nn = sums[:, 3:6] / safe[:, None], sums[:, 6:9] / safe[:, None]
     sign = np.sign(vote)
     g = _unit_rows(sign[:, None] * v + tau * nn)
     s = sign * dist
@@ -273,6 +314,78 @@ def _blend(pi, ti, d, diff, nrm, n_pts, tau, offset):
         s = (1.0 - lam) * vote / safe + lam * s
         g = _unit_rows((1.0 - lam)[:, None] * _unit_rows(nn) + lam[:, None] * g)
     return np.where(ok, s, -np.inf), np.where(ok[:, None], g, 0.0)
+
+
+#: cells per triangle of the search grid and of the parity grid
+SEARCH_DENSITY, PARITY_DENSITY = 4.0, 0.5
+
+
+class SurfaceGrid:
+    """A closed surface prepared for signed-distance queries (module docstring): its
+    triangles binned in a uniform 3-d grid and (at the first query) in the 2-d grid of the
+    parity test.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+    faces : (T, 3) int
+        Closed, consistently and outward wound.
+    reach : float
+        Points with no triangle within this distance get ``s = -inf``.
+    cell, labelled, mean_edge, bounds
+        Accepted for the callers of an earlier grid search; unused (the grids are sized by
+        the vertices' bounding box and the number of triangles). The attribute ``cell`` is
+        the search grid's cell side.
+    """
+
+    def __init__(self, vertices, faces, *, reach: float, cell: float | None = None,
+                 labelled: bool = True, mean_edge: float | None = None, bounds=None):
+        self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
+        self.reach = float(reach)
+        self._grid = _bin_triangles(self.vertices, self.faces, np.eye(3), 3,
+                                    SEARCH_DENSITY)[1:] if len(self.faces) else None
+        self.cell = None if self._grid is None else self._grid[1]
+        self._ray = None
+
+    def inside(self, points):
+        """Whether each point (n, 3) is inside the closed surface, by ray parity along `RAY`
+        (module docstring; ties on edges have measure zero)."""
+        x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        if len(self.faces) == 0:
+            return np.zeros(len(x), bool)
+        if self._ray is None:
+            frame = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])      # rows y, z, ray
+            pv, *grid = _bin_triangles(self.vertices, self.faces, frame, 2, PARITY_DENSITY)
+            self._ray = (pv, self.faces, frame, *grid)
+        return _parity(x, *self._ray)
+
+    def signed_distance(self, points, *, tau: float, watch: float | None = None,
+                        offset: bool = False, lazy: bool | None = None):
+        """(s (n,), outward direction (n, 3)) of points (n, 3) (module docstring).
+
+        ``watch``: how far a point inside looks (default `reach`): a point inside by parity
+        with no triangle within ``watch`` gets ``-inf`` (``watch = 0``: every inside point
+        not on the surface). Without ``offset`` an inside point's distance is negative.
+
+        ``offset``: instead of the signed blended distance and the shortest path's
+        direction, the blended signed normal offset ``sum w (x - c_t) . n_t / sum w`` and the
+        blended face normal ``sum w n_t`` (normalised), smoothstepped into the signed distance
+        between OFFSET_NEAR tau and OFFSET_FAR tau. Both are continuous everywhere, through
+        the surface too; on a flat piece of surface the offset is the exact signed distance.
+
+        ``lazy`` is accepted for the callers of an earlier grid search and ignored."""
+        x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        watch = self.reach if watch is None else float(watch)
+        if len(x) == 0 or len(self.faces) == 0:
+            return np.full(len(x), -np.inf), np.zeros((len(x), 3))
+        inside = self.inside(x)
+        limits = np.where(inside, min(watch, self.reach), self.reach)
+        s, g = _blend(_blend_sums(x, limits, self.vertices, self.faces, *self._grid, float(tau),
+                                  self.reach), float(tau), bool(offset))
+        if not offset:   # inside by parity: negative whatever the blend's vote
+            s = np.where(inside & np.isfinite(s), -np.abs(s), s)
+        return s, g
 
 
 def surface_distance(points, vertices, faces, *, reach: float, softness: float):

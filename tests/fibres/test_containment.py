@@ -335,3 +335,98 @@ def test_pull_is_continuous_through_the_surface_near_an_edge():
     assert np.abs(np.diff(s_off)).max() <= 2 * (z[1] - z[0])
     # not vacuous: the signed blended distance jumps here
     assert np.abs(np.diff(s_blend)).max() > 1e-6
+
+
+def _sphere(radius, subdivisions):
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    assert m.is_watertight and m.volume > 0
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def test_signed_distance_of_a_sphere_is_radial_within_the_tessellation_error():
+    # an icosphere's vertices lie on the sphere |x| = r and each face is the chord plane of
+    # its circumcircle (circumradius rc): the face lies in the shell between r - h and r with
+    # h = r - sqrt(r^2 - rc^2), and each sphere point is within h of the mesh (radially), so
+    # the Hausdorff distance of mesh and sphere is <= h and the exact distances to them differ
+    # by <= h everywhere. The blend adds 0 .. KAPPA tau (a weighted mean of distances in
+    # [d_min, d_min + KAPPA tau]); with tau = 1 um that is 8 um.
+    r, tau = 0.02, 1e-6
+    v, f = _sphere(r, 4)
+    a, b, c = (v[f[:, k]] for k in range(3))
+    la, lb, lc = (np.linalg.norm(y, axis=1) for y in (b - c, c - a, a - b))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    rc = (la * lb * lc / (4 * area)).max()
+    h = r - np.sqrt(r * r - rc * rc)
+    assert 1e-6 < h < 3e-5                     # the mesh is fine enough for the check to bite
+    rng = np.random.default_rng(11)
+    u = rng.standard_normal((3000, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    radial = rng.uniform(-6e-3, 6e-3, 3000)    # within reach (8 mm) of the surface
+    x = u * (r + radial)[:, None]
+    s, n = surface_distance(x, v, f, reach=8e-3, softness=tau)
+    assert np.isfinite(s).all()
+    np.testing.assert_allclose(s, radial, rtol=0, atol=h + KAPPA * tau)
+    # the direction of the shortest path is radial up to the facets' tilt (away from the
+    # shell, where the nearest point may be a facet's edge or vertex)
+    far = np.abs(radial) > 1e-3
+    assert (np.einsum("ij,ij->i", n[far], u[far]) > 0.99).all()
+    # the parity test: inside exactly below the shell
+    grid = SurfaceGrid(v, f, reach=8e-3)
+    clear = np.abs(radial) > h
+    np.testing.assert_array_equal(grid.inside(x)[clear], radial[clear] < 0)
+
+
+def test_grid_search_equals_the_oracle_on_an_lhdl_muscle(lhdl_dir):
+    # the real mesh (iliacus: 4K vertices, 8K triangles, edges up to 11 mm) against the brute
+    # force oracle, for points on both sides of the surface and deep inside: the same blend on
+    # the same triangle sets, equal to rounding where the search measures (the closest points
+    # are computed in two ways: the kernel's plane projection or nearest edge, the oracle's
+    # Voronoi regions)
+    import warnings
+
+    from fibres import as_surface
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        surf = as_surface(lhdl_dir / "muscles_clean" / "iliacus_r.vtk", units="mm")
+    v, f = np.asarray(surf.vertices), np.asarray(surf.faces)
+    rng = np.random.default_rng(12)
+    tri = v[f[rng.choice(len(f), 300, replace=False)]]                  # (300, 3, 3)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    x = np.concatenate([tri.mean(axis=1) + normal * rng.uniform(-3e-3, 3e-3, (300, 1)),
+                        rng.uniform(v.min(axis=0), v.max(axis=0), (200, 3))])
+    grid = SurfaceGrid(v, f, reach=0.008)
+    for offset, watch in ((False, None), (True, M)):
+        s1, n1 = grid.signed_distance(x, tau=CONTAIN_SOFTNESS, watch=watch, offset=offset)
+        s2, n2 = brute(x, v, f, 0.008, CONTAIN_SOFTNESS, offset=offset)
+        both = np.isfinite(s1)
+        # watch = M: the inside points deeper than M are not measured
+        assert both.sum() > (250 if watch is None else 150)
+        np.testing.assert_allclose(s1[both], s2[both], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(n1[both], n2[both], rtol=0, atol=1e-9)
+        # -inf only where the oracle finds nothing within reach or (watch) an inside point
+        # deeper than the band
+        assert (~np.isfinite(s2[~both]) | (s2[~both] < 0)).all()
+        if watch is not None:
+            assert (s2[~both & np.isfinite(s2)] < -M).all()
+
+
+def test_degenerate_triangles_are_measured_like_the_oracle(torus):
+    # zero-area triangles (three collinear corners, a repeated corner, a single point) have no
+    # plane: their closest point is on an edge or the point itself. Added to the torus (they
+    # cross no parity ray), the search and the oracle must still agree to rounding
+    v, f = torus
+    extra = np.array([[0, 0, 1], [5, 5, 5], [7, 8, 7]])
+    line = len(v) + np.arange(3)                         # three collinear new vertices
+    v2 = np.concatenate([v, v[[0]] + np.outer([0.0, 0.5, 1.0], v[1] - v[0])])
+    f2 = np.concatenate([f, extra, line[None]])
+    rng = np.random.default_rng(13)
+    x = np.concatenate([v[[0, 5, 7, 8]] + rng.normal(0, 5e-4, (4, 3)),
+                        rng.uniform(-1, 1, (300, 3)) * [R + 2 * RHO, R + 2 * RHO, 2 * RHO]])
+    s1, n1 = SurfaceGrid(v2, f2, reach=0.008).signed_distance(x, tau=CONTAIN_SOFTNESS)
+    s2, n2 = brute(x, v2, f2, 0.008, CONTAIN_SOFTNESS)
+    both = np.isfinite(s1)
+    assert both[:4].all() and both.sum() > 100
+    np.testing.assert_allclose(s1[both], s2[both], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(n1[both], n2[both], rtol=0, atol=1e-9)
