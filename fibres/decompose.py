@@ -27,7 +27,8 @@ import dataclasses
 import numpy as np
 
 from .bundle import FibreBundle
-from .finishing.containment import contain as contain_points
+from .finishing.containment import CONTAIN_REACH, contain as contain_points
+from .mesh.surface_distance import SurfaceGrid
 from .slicing.contours import choose_loops
 from .errors import InputError
 from .attachments.filtering import apply_filter, filter_choices
@@ -464,14 +465,15 @@ def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolu
         # the pull, then PULL_ROUNDS rounds of spreading each pulled fibre's displacement
         # along it and pulling that fibre again (fibres are pulled independently, so only the
         # fibres pulled in the last round take part in the next)
-        out, moved = contain_points(pts, v, faces, mean_edge=mean_edge)
+        grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)     # one binning for every round
+        out, moved = contain_points(pts, v, faces, grid=grid)
         moved = np.array(moved, dtype=bool)
         todo, before = np.flatnonzero(moved), pts
         for _ in range(PULL_ROUNDS):
             if not todo.size:
                 break
             spread = spread_pull(before[todo], out[todo])
-            again_pts, again = contain_points(spread, v, faces, mean_edge=mean_edge)
+            again_pts, again = contain_points(spread, v, faces, grid=grid)
             before, out = before.copy(), out.copy()
             before[todo], out[todo] = spread, again_pts
             todo = todo[np.asarray(again, dtype=bool)]

@@ -79,7 +79,8 @@ def _inner(n, p):
 
 def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
             softness: float = CONTAIN_SOFTNESS, reach: float = CONTAIN_REACH,
-            iterations: int = 2, mean_edge: float | None = None, bounds=None):
+            iterations: int = 2, mean_edge: float | None = None, bounds=None,
+            grid: SurfaceGrid | None = None):
     """Pull the inner fibre points that lie outside a closed surface back in (module
     docstring).
 
@@ -103,6 +104,9 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     mean_edge, bounds
         Accepted for the callers of an earlier grid search; unused (the grids are sized by
         the vertices' bounding box, measured in the compiled binning).
+    grid : SurfaceGrid, keyword-only
+        The surface already prepared with this ``reach`` (several pulls on one surface bin
+        its triangles once); ``vertices`` and ``faces`` must be the grid's.
 
     Returns
     -------
@@ -119,7 +123,10 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     n, p = out.shape[:2]
     if n == 0 or p < 3:
         return out, np.zeros(n, bool)
-    grid = SurfaceGrid(vertices, faces, reach=reach)
+    if grid is None:
+        grid = SurfaceGrid(vertices, faces, reach=reach)
+    elif grid.reach != float(reach):
+        raise ValueError(f"the grid's reach {grid.reach} is not the pull's {reach}")
     # inside points deeper than the band are not measured: they look for triangles within
     # `watch` only (and, when one is nearer, for every triangle of their blend); beyond
     # OFFSET_FAR tau the offset measure is the blended distance (>= d_min), so an inside
