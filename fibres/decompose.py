@@ -121,7 +121,10 @@ def _cross_section_ref(vertices, frame, vt=None):
     searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
     the major axis of the vertices' spread perpendicular to the principal axis, its sign
     fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
-    ``frame`` is the muscle's `fibres.fit.fitting.principal_frame` (default v_ref).
+    ``frame`` is the muscle's `fibres.fit.fitting.principal_frame` without a template: its
+    axis depends on the muscle only (with an oblique template the axis depends on v_ref,
+    by default a world axis, and a reference taken about it would turn with the model's
+    frame).
 
     Returns None (the fitting's default, a world axis) when that spread is isotropic
     (eigenvalues within `ISOTROPIC` of each other: a circular cylinder, a cube), where no
@@ -170,8 +173,11 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
     prepared = prepare(vertices) if prepared is None else prepared
-    frame = principal_frame(vertices, origin, insertion, axis=axis, template=tmpl,
-                            prepared=prepared)
+    # the frame without the template: for an oblique template the axis depends on v_ref
+    # (the rotations searched start at v0), so the reference is taken about the axis that
+    # does not (the attachment or covariance axis), and the template's axis is then found
+    # from it (`reference_frame` returns None; `fit_box` iterates with v_ref=ref)
+    frame = principal_frame(vertices, origin, insertion, axis=axis, prepared=prepared)
     ref = _cross_section_ref(vertices, frame, prepared.vt)
     box = fit_box(vertices, origin, insertion, tmpl, angle_step_deg=angle_step_deg, axis=axis,
                   v_ref=ref, frame=reference_frame(frame, ref, tmpl), prepared=prepared)

@@ -94,7 +94,7 @@ def _levels(plan, resolution: int) -> np.ndarray:
     ahead = np.einsum("ij,ij->i", step, centre[-1] - centre[:-1]) > 0
     ds = np.where(ahead, np.linalg.norm(step, axis=1), 0.0)
     s = np.concatenate([[0.0], np.cumsum(ds)])
-    s = s + 1e-12 * np.arange(s.size)                     # strictly increasing
+    s = s + 1e-12 * max(s[-1], 1e-300) * np.arange(s.size) / s.size    # strictly increasing
     s = s + bending_measure(s, centre, BENDING)
     levels = np.interp(np.linspace(0.0, s[-1], resolution + 1), s, cand)
     levels[0], levels[-1] = _RIM, 1.0 - _RIM

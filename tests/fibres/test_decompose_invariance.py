@@ -1,0 +1,74 @@
+"""Invariances of the decomposition, for every template and both slicings.
+
+The fibres are a geometric construction on the surface and its attachments, so they must
+not depend on where the muscle stands or on how its mesh is numbered:
+
+- a rigid motion of mesh and landmarks moves the fibres by the same motion;
+- a uniform scale of mesh and landmarks scales the fibres (without the containment pull,
+  whose band and reach are absolute lengths in metres by design);
+- renumbering the vertices and reordering the faces (and the landmarks) gives the same fibres.
+
+Shape: the bent tube of `test_decompose_analytic` (a curved muscle, the case where slicing
+choices matter most). Tolerance: 1e-7 of the tube's length; the constructions are
+sequences of linear solves and smooth maps of the coordinates, so a change of frame or of
+numbering changes the results only by rounding (~1e-13 relative), and a discrete choice
+flipped by a rounding tie would move fibres by a fraction of a fibre spacing (~1e-3 L).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fibres import SLICINGS, TEMPLATES, decompose
+
+from test_decompose_analytic import L, _bent, rotation
+
+TOL = 1e-7 * L
+CASES = [(t, s) for t in TEMPLATES for s in SLICINGS]
+IDS = [f"{t}-{s}" for t, s in CASES]
+
+
+@pytest.fixture(scope="module")
+def bent():
+    return _bent()
+
+
+def _fibres(v, f, o, i, template, slicing, **kw):
+    return decompose((v, f), o, i, template=template, slicing=slicing, n_fibres=24, resolution=10,
+                     **kw).points
+
+
+@pytest.mark.parametrize("template, slicing", CASES, ids=IDS)
+def test_rigid_motion_moves_the_fibres_rigidly(bent, template, slicing):
+    v, f, o, i = bent
+    rot, t = rotation([0.3, -1.0, 0.5], 1.1), np.array([0.2, 0.05, -0.4])
+
+    def move(x):
+        return x @ rot.T + t
+
+    ref = _fibres(v, f, o, i, template, slicing)
+    moved = _fibres(move(v), f, move(o), move(i), template, slicing)
+    assert np.abs(moved - move(ref)).max() <= TOL
+
+
+@pytest.mark.parametrize("template, slicing", CASES, ids=IDS)
+def test_uniform_scale_scales_the_fibres(bent, template, slicing):
+    v, f, o, i = bent
+    s = 1.7
+    ref = _fibres(v, f, o, i, template, slicing, contain=False)
+    scaled = _fibres(s * v, f, s * o, s * i, template, slicing, contain=False)
+    assert np.abs(scaled - s * ref).max() <= s * TOL
+
+
+@pytest.mark.parametrize("template, slicing", CASES, ids=IDS)
+def test_renumbered_mesh_gives_the_same_fibres(bent, template, slicing):
+    v, f, o, i = bent
+    rng = np.random.default_rng(7)
+    perm = rng.permutation(len(v))            # new vertex k is old vertex perm[k]
+    new_index = np.empty_like(perm)
+    new_index[perm] = np.arange(len(v))
+    faces = new_index[f][rng.permutation(len(f))]
+    faces = np.roll(faces, 1, axis=1)         # same orientation, another first corner
+    ref = _fibres(v, f, o, i, template, slicing)
+    again = _fibres(v[perm], faces, o[::-1], i[::-1], template, slicing)
+    assert np.abs(again - ref).max() <= TOL
