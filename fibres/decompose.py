@@ -31,6 +31,7 @@ from .finishing.containment import contain as contain_points
 from .slicing.contours import choose_loops
 from .errors import InputError
 from .attachments.filtering import apply_filter, filter_choices
+from .fit.box import shape_sign
 from .fit.fitting import fit_box, prepare, principal_frame, reference_frame
 from .slicing.harmonic import HarmonicPlan, harmonic_points, make_harmonic_plan
 from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_maps
@@ -120,7 +121,10 @@ def _cross_section_ref(vertices, frame, vt=None):
     """A reference direction for v0 derived from the muscle itself, so that the rotations
     searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
     the major axis of the vertices' spread perpendicular to the principal axis, its sign
-    fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
+    fixed by the muscle's shape (`fibres.fit.box.shape_sign`: the box search's ties between
+    rotations half a turn apart, which a symmetric template leaves, are broken by the
+    lowest rotation from v0, so the sign decides them) or, for a symmetric shape, by the
+    vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
     ``frame`` is the muscle's `fibres.fit.fitting.principal_frame` without a template: its
     axis depends on the muscle only (with an oblique template the axis depends on v_ref,
     by default a world axis, and a reference taken about it would turn with the model's
@@ -137,9 +141,9 @@ def _cross_section_ref(vertices, frame, vt=None):
     u = frame.axis
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
     dt = vt - frame.centroid[:, None]                                   # (3, V)
-    along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
+    axial = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
     for c in range(3):  # coordinates
-        dt[c] -= u[c] * along
+        dt[c] -= u[c] * axial
     gram = np.empty((3, 3))
     for r in range(3):  # coordinates
         for c in range(r, 3):
@@ -148,11 +152,11 @@ def _cross_section_ref(vertices, frame, vt=None):
     if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
         return None
     ref = vecs[:, -1]
-    n = dt.shape[1]
-    along = ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]
-    if np.dot(np.arange(1.0, n + 1.0), along) < 0:
-        ref = -ref
-    return ref
+    sign = shape_sign(dt, axial, u, ref)
+    if sign == 0:  # a symmetric muscle: the vertex order decides
+        along = ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]
+        sign = -1 if np.dot(np.arange(1.0, dt.shape[1] + 1.0), along) < 0 else 1
+    return sign * ref
 
 
 

@@ -265,43 +265,67 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     pts = np.einsum("sk,tkd->tsd", sub, tri).reshape(-1, 3)
     w = np.repeat(area / len(sub), len(sub))
     p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
+    patch = _Patch(tri, pts)
     for _ in range(int(iterations)):
         owner = cKDTree(p).query(pts)[1]
         mass = np.bincount(owner, w, len(p))
         has = mass > 0
         c = np.stack([np.bincount(owner, w * pts[:, d], len(p)) for d in range(3)], axis=1)
         sel = np.flatnonzero(has)
-        pick, b, q = _onto_patch(tri, pts, c[sel] / mass[sel, None])
+        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None])
         face[sel], bary[sel], p[sel] = idx[pick], b, q
     return face, bary
 
 
-def _onto_patch(tri, samples, c):
-    """The point of the triangles ``tri`` (Tp, 3, 3) nearest each point ``c`` (M, 3): its
-    triangle (index into ``tri``), barycentric weights and position.
+class _Patch:
+    """A patch's triangles ``tri`` (Tp, 3, 3) and area samples (points of the patch) with the
+    k-d trees and bound that `_onto_patch` needs, built once for all Lloyd steps."""
 
-    Exact among all triangles: a sample (a point of the patch, ``samples``) at distance
-    ``d0`` from c bounds the distance to the patch, so only triangles whose centroid lies
-    within ``d0`` plus the largest centroid-to-corner distance can hold a nearer point; the
-    nearest point of each is found by `fibres.mesh.closest_point.closest_points_on_triangles`.
-    Where two triangles hold the same nearest point (their shared edge or corner), either
-    gives the same position on any deformed copy."""
-    from scipy.spatial import cKDTree
+    def __init__(self, tri, samples):
+        from scipy.spatial import cKDTree
+
+        self.tri = tri
+        cen = tri.mean(axis=1)
+        self.cen = cen
+        self.radius = np.sqrt(((tri - cen[:, None]) ** 2).sum(axis=2).max(axis=1))   # (Tp,)
+        self.reach = float(self.radius.max())
+        self.samples = cKDTree(samples)
+        self.centroids = cKDTree(cen)
+
+
+def _onto_patch(patch: _Patch, c):
+    """The point of the patch's triangles nearest each point ``c`` (M, 3): its triangle
+    (index into ``patch.tri``), barycentric weights and position.
+
+    Exact among all triangles: a sample (a point of the patch) at distance ``d0`` from c
+    bounds the distance to the patch, so only triangles whose centroid lies within ``d0``
+    plus their centroid-to-corner distance can hold a nearer point (those within ``d0`` plus
+    the largest such distance are found by a k-d tree, then filtered); the nearest point of
+    each is found by `fibres.mesh.closest_point.closest_points_on_triangles`. Where two
+    triangles hold the same nearest point (their shared edge or corner), either gives the
+    same position on any deformed copy."""
+    from itertools import chain
 
     from ..mesh.closest_point import closest_points_on_triangles
 
-    cen = tri.mean(axis=1)
-    reach = float(np.sqrt(((tri - cen[:, None]) ** 2).sum(axis=2).max()))
-    d0 = cKDTree(samples).query(c)[0]
-    near = cKDTree(cen).query_ball_point(c, d0 * (1.0 + 1e-9) + reach * (1.0 + 1e-9))
-    pick = np.empty(len(c), dtype=np.int64)
-    out = np.empty((len(c), 3))
-    for m, cand in enumerate(near):
-        cand = np.asarray(cand, dtype=np.int64)
-        t = tri[cand]
-        q = closest_points_on_triangles(c[m], t[:, 0], t[:, 1], t[:, 2])
-        k = int(np.argmin(np.einsum("kd,kd->k", q - c[m], q - c[m])))
-        pick[m], out[m] = cand[k], q[k]
+    tri = patch.tri
+    d0 = patch.samples.query(c)[0]
+    near = patch.centroids.query_ball_point(c, (d0 + patch.reach) * (1.0 + 1e-9),
+                                            return_sorted=False)
+    count = np.fromiter(map(len, near), dtype=np.int64, count=len(c))
+    cand = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))
+    who = np.repeat(np.arange(len(c)), count)                          # (pairs,)
+    # a triangle's points lie within its own radius of its centroid
+    gap = patch.cen[cand] - c[who]
+    keep = np.einsum("kd,kd->k", gap, gap) <= ((d0[who] + patch.radius[cand]) * (1.0 + 1e-9)) ** 2
+    cand, who = cand[keep], who[keep]
+    count = np.bincount(who, minlength=len(c))
+    t = tri[cand]
+    p = c[who]
+    q = closest_points_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
+    d2 = np.einsum("kd,kd->k", q - p, q - p)
+    best = np.lexsort((d2, who))[np.concatenate([[0], np.cumsum(count)[:-1]])]
+    pick, out = cand[best], q[best]
     return pick, _barycentric_3d(tri[pick], out), out
 
 
