@@ -333,6 +333,16 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
               contain: bool = True, slicing: str = DEFAULT_SLICING) -> FibreBundle:
     """Decompose a closed muscle surface into fibres (Kohout et al., GRAPP 2012).
 
+    The fibres depend on the muscle, not on how it is given: a rigid motion of the mesh and
+    landmarks moves them alike, and renumbering the vertices or reordering the faces or
+    landmarks leaves them unchanged, up to rounding (orientations are fixed by the shape,
+    `fibres.fit.box.shape_sign`; only an exactly symmetric muscle falls back to a world
+    axis or the vertex order). Two lengths are absolute, in metres, by design (anatomy-scale
+    choices, docs/decisions.md): the bound on the planar smoothing's shift
+    (`fibres.finishing.smoothing.DECOMPOSE_MAX_SHIFT`, 1 mm) and the containment band
+    (``contain``); a uniformly scaled muscle gets uniformly scaled fibres only with those
+    scaled too (`tests/fibres/test_decompose_invariance.py`).
+
     Parameters
     ----------
     mesh : (vertices (V, 3), faces (T, 3)) tuple, Surface, trimesh/pyvista mesh or path

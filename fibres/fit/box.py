@@ -35,10 +35,10 @@ def shape_sign(q, a, u, e) -> int:
     2. the tilt ``t = sum_k a_k q_k`` (which way the muscle slants or bends along the axis).
 
     For the first moment that is not zero (relative to ``sum |q|^3``, resp.
-    ``sum |a| |q|``, by `SHAPE_TIE`), ``s`` makes it point along ``s e`` or, where it is
-    perpendicular to ``e``, along ``u x (s e)`` (a handedness, which tells the two
-    directions apart also on a muscle that is mirror-symmetric about the plane normal to
-    e). Sums over the points: unchanged by their order (up to rounding), by a rigid motion
+    ``sum |a| |q|``, by `SHAPE_TIE`), ``s`` makes its larger component point along ``s e``
+    or, where that is the one along ``u x e``, along ``u x (s e)`` (a handedness, which tells
+    the two directions apart also on a muscle that is mirror-symmetric about the plane
+    normal to e; the larger component, so that a small asymmetry does not decide). Sums over the points: unchanged by their order (up to rounding), by a rigid motion
     of the points with u and e, and by a uniform scale -- unlike a rule on the vertex
     numbering, which a mesh exporter's renumbering flips."""
     e2 = np.array([u[1] * e[2] - u[2] * e[1], u[2] * e[0] - u[0] * e[2],
@@ -47,10 +47,10 @@ def shape_sign(q, a, u, e) -> int:
     r = np.sqrt(r2)
     for w, scale in ((r2, float(np.dot(r2, r))), (a, float(np.dot(np.abs(a), r)))):
         m = np.array([np.dot(w, q[c]) for c in range(3)])  # coordinates
-        for d in (e, e2):
-            x = float(m @ d)
-            if abs(x) > SHAPE_TIE * scale:
-                return 1 if x > 0 else -1
+        x1, x2 = float(m @ e), float(m @ e2)
+        x = x1 if abs(x1) >= abs(x2) else x2
+        if abs(x) > SHAPE_TIE * scale:
+            return 1 if x > 0 else -1
     return 0
 
 
