@@ -317,7 +317,8 @@ def _onto_patch(patch: _Patch, c):
     who = np.repeat(np.arange(len(c)), count)                          # (pairs,)
     # a triangle's points lie within its own radius of its centroid
     gap = patch.cen[cand] - c[who]
-    keep = np.einsum("kd,kd->k", gap, gap) <= ((d0[who] + patch.radius[cand]) * (1.0 + 1e-9)) ** 2
+    bound = (d0[who] + patch.radius[cand]) * (1.0 + 1e-9)
+    keep = np.einsum("kd,kd->k", gap, gap) <= bound * bound
     cand, who = cand[keep], who[keep]
     count = np.bincount(who, minlength=len(c))
     t = tri[cand]

@@ -38,8 +38,10 @@ def shape_sign(q, a, u, e) -> int:
     ``sum |a| |q|``, by `SHAPE_TIE`), ``s`` makes its larger component point along ``s e``
     or, where that is the one along ``u x e``, along ``u x (s e)`` (a handedness, which tells
     the two directions apart also on a muscle that is mirror-symmetric about the plane
-    normal to e; the larger component, so that a small asymmetry does not decide). Sums over the points: unchanged by their order (up to rounding), by a rigid motion
-    of the points with u and e, and by a uniform scale -- unlike a rule on the vertex
+    normal to e; the larger component, so that a small asymmetry does not decide).
+
+    Sums over the points: unchanged by their order (up to rounding), by a rigid motion of
+    the points with u and e, and by a uniform scale -- unlike a rule on the vertex
     numbering, which a mesh exporter's renumbering flips."""
     e2 = np.array([u[1] * e[2] - u[2] * e[1], u[2] * e[0] - u[0] * e[2],
                    u[0] * e[1] - u[1] * e[0]])

@@ -87,3 +87,33 @@ def test_renumbered_mesh_gives_the_same_fibres(bent, template, slicing):
         faces = np.roll(faces, 1, axis=1)         # same orientation, another first corner
         again = _fibres(v[perm], faces, o[::-1], i[::-1], template, slicing)
         assert np.abs(again - ref).max() <= TOL, seed
+
+
+def test_shape_sign_reads_the_shape_not_the_frame_or_the_order():
+    """`fibres.fit.box.shape_sign` on a half disk in the plane z = 0 (axis u = z), bulk
+    towards +y: along e = y the skew points along e (+1), against -y (-1); along e = x the
+    shape is mirror-symmetric about the plane x = 0 and the handedness decides (u x e = y:
+    +1; e = -x: -1). A rotation of points and directions, a uniform scale or a permutation
+    of the points leaves the answer; a full disk (symmetric) gives 0."""
+    from fibres.fit.box import shape_sign
+
+    r, th = np.meshgrid(np.linspace(0.1, 1.0, 7), np.linspace(0.0, np.pi, 13))
+    half = np.c_[r.ravel() * np.cos(th.ravel()), r.ravel() * np.sin(th.ravel()),
+                 np.zeros(r.size)]
+    z = np.array([0.0, 0.0, 1.0])
+
+    def sign(points, u, e):
+        c = points.mean(axis=0)
+        dt = (points - c).T
+        axial = u @ dt
+        return shape_sign(dt - np.outer(u, axial), axial, u, e)
+
+    x, y = np.eye(3)[0], np.eye(3)[1]
+    cases = [(y, 1), (-y, -1), (x, 1), (-x, -1)]
+    assert [sign(half, z, e) for e, _ in cases] == [s for _, s in cases]
+    rot = rotation([0.3, -1.0, 0.5], 1.1)
+    perm = np.random.default_rng(1).permutation(len(half))
+    for e, s in cases:
+        assert sign(2.5 * half[perm] @ rot.T + [1.0, 2.0, 3.0], rot @ z, rot @ e) == s
+    full = np.vstack([half, -half])
+    assert sign(full, z, x) == 0 and sign(full, z, y) == 0
