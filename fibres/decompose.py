@@ -32,6 +32,7 @@ from .mesh.surface_distance import SurfaceGrid
 from .slicing.contours import choose_loops
 from .errors import InputError
 from .attachments.filtering import apply_filter, filter_choices
+from .fit.box import shape_sign
 from .fit.fitting import fit_box, prepare, principal_frame, reference_frame
 from .slicing.harmonic import HarmonicPlan, harmonic_points, make_harmonic_plan
 from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_maps
@@ -122,8 +123,14 @@ def _cross_section_ref(vertices, frame, vt=None):
     """A reference direction for v0 derived from the muscle itself, so that the rotations
     searched in §3.2 move rigidly with the muscle (any v0 is allowed by Kohout 2012 §3.2):
     the major axis of the vertices' spread perpendicular to the principal axis, its sign
-    fixed by the vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
-    ``frame`` is the muscle's `fibres.fit.fitting.principal_frame` (default v_ref).
+    fixed by the muscle's shape (`fibres.fit.box.shape_sign`: the box search's ties between
+    rotations half a turn apart, which a symmetric template leaves, are broken by the
+    lowest rotation from v0, so the sign decides them) or, for a symmetric shape, by the
+    vertex order (``sum_k (k + 1) (V_k - c) . v > 0``), which rides along.
+    ``frame`` is the muscle's `fibres.fit.fitting.principal_frame` without a template: its
+    axis depends on the muscle only (with an oblique template the axis depends on v_ref,
+    by default a world axis, and a reference taken about it would turn with the model's
+    frame).
 
     Returns None (the fitting's default, a world axis) when that spread is isotropic
     (eigenvalues within `ISOTROPIC` of each other: a circular cylinder, a cube), where no
@@ -136,9 +143,9 @@ def _cross_section_ref(vertices, frame, vt=None):
     u = frame.axis
     vt = np.ascontiguousarray(vertices.T) if vt is None else vt
     dt = vt - frame.centroid[:, None]                                   # (3, V)
-    along = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
+    axial = u[0] * dt[0] + u[1] * dt[1] + u[2] * dt[2]
     for c in range(3):  # coordinates
-        dt[c] -= u[c] * along
+        dt[c] -= u[c] * axial
     gram = np.empty((3, 3))
     for r in range(3):  # coordinates
         for c in range(r, 3):
@@ -147,11 +154,11 @@ def _cross_section_ref(vertices, frame, vt=None):
     if vals[2] <= vals[1] * (1.0 + ISOTROPIC):
         return None
     ref = vecs[:, -1]
-    n = dt.shape[1]
-    along = ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]
-    if np.dot(np.arange(1.0, n + 1.0), along) < 0:
-        ref = -ref
-    return ref
+    sign = shape_sign(dt, axial, u, ref)
+    if sign == 0:  # a symmetric muscle: the vertex order decides
+        along = ref[0] * dt[0] + ref[1] * dt[1] + ref[2] * dt[2]
+        sign = -1 if np.dot(np.arange(1.0, dt.shape[1] + 1.0), along) < 0 else 1
+    return sign * ref
 
 
 
@@ -172,8 +179,11 @@ def _new_plan(vertices, faces, origin, insertion, tmpl, resolution, axis, angle_
     if axis not in _AXES:
         raise ValueError(f"axis must be one of {_AXES}, got {axis!r}")
     prepared = prepare(vertices) if prepared is None else prepared
-    frame = principal_frame(vertices, origin, insertion, axis=axis, template=tmpl,
-                            prepared=prepared)
+    # the frame without the template: for an oblique template the axis depends on v_ref
+    # (the rotations searched start at v0), so the reference is taken about the axis that
+    # does not (the attachment or covariance axis), and the template's axis is then found
+    # from it (`reference_frame` returns None; `fit_box` iterates with v_ref=ref)
+    frame = principal_frame(vertices, origin, insertion, axis=axis, prepared=prepared)
     ref = _cross_section_ref(vertices, frame, prepared.vt)
     box = fit_box(vertices, origin, insertion, tmpl, angle_step_deg=angle_step_deg, axis=axis,
                   v_ref=ref, frame=reference_frame(frame, ref, tmpl), prepared=prepared)
@@ -324,6 +334,16 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
               plan: DecompositionPlan | HarmonicPlan | None = None, axis: str = "auto",
               contain: bool = True, slicing: str = DEFAULT_SLICING) -> FibreBundle:
     """Decompose a closed muscle surface into fibres (Kohout et al., GRAPP 2012).
+
+    The fibres depend on the muscle, not on how it is given: a rigid motion of the mesh and
+    landmarks moves them alike, and renumbering the vertices or reordering the faces or
+    landmarks leaves them unchanged, up to rounding (orientations are fixed by the shape,
+    `fibres.fit.box.shape_sign`; only an exactly symmetric muscle falls back to a world
+    axis or the vertex order). Two lengths are absolute, in metres, by design (anatomy-scale
+    choices, docs/decisions.md): the bound on the planar smoothing's shift
+    (`fibres.finishing.smoothing.DECOMPOSE_MAX_SHIFT`, 1 mm) and the containment band
+    (``contain``); a uniformly scaled muscle gets uniformly scaled fibres only with those
+    scaled too (`tests/fibres/test_decompose_invariance.py`).
 
     Parameters
     ----------

@@ -234,11 +234,17 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
 
     The patch's area is sampled at the centroids of each triangle's split into n^2 equal
     parts (about ``samples`` in all); each step gives every sample to its nearest point and
-    moves each point to the sample nearest the area-weighted centroid of its own samples
-    (so it stays on the patch, at a known face and barycentric weights). A point moves by
-    at most about half its distance to its neighbours per step and keeps its place among
-    them (order is kept but for local swaps), while the holes of a quasi-random set (Sobol
-    ends leave ~15 % of a patch more than half a spacing from any end) close.
+    moves each point to the patch point nearest the area-weighted centroid of its own samples
+    (`_onto_patch`: a face and barycentric weights, continuous in the centroid). A point
+    moves by at most about half its distance to its neighbours per step and keeps its place
+    among them (order is kept but for local swaps), while the holes of a quasi-random set
+    (Sobol ends leave ~15 % of a patch more than half a spacing from any end) close.
+
+    Every step is a continuous function of the points and of the patch's coordinates, and
+    none depends on the frame, the scale or the numbering of the mesh: a rigid motion, a
+    uniform scale or a renumbering of the mesh moves the relaxed points alike, up to
+    rounding. (Snapping each point to its nearest *sample* instead is not: where the
+    centroid lies midway between two samples, as on a symmetric patch, rounding picks one.)
 
     Returns
     -------
@@ -258,19 +264,83 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     sub = _sub_centroids(n)                                          # (S, 3)
     pts = np.einsum("sk,tkd->tsd", sub, tri).reshape(-1, 3)
     w = np.repeat(area / len(sub), len(sub))
-    s_face = np.repeat(idx, len(sub))
-    s_bary = np.tile(sub, (len(idx), 1))
-    tree = cKDTree(pts)
     p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
+    patch = _Patch(tri, pts)
     for _ in range(int(iterations)):
         owner = cKDTree(p).query(pts)[1]
         mass = np.bincount(owner, w, len(p))
         has = mass > 0
         c = np.stack([np.bincount(owner, w * pts[:, d], len(p)) for d in range(3)], axis=1)
-        c[has] /= mass[has, None]
-        pick = tree.query(c[has])[1]
         sel = np.flatnonzero(has)
-        face[sel], bary[sel] = s_face[pick], s_bary[pick]
-        p[sel] = pts[pick]
+        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None])
+        face[sel], bary[sel], p[sel] = idx[pick], b, q
     return face, bary
 
+
+class _Patch:
+    """A patch's triangles ``tri`` (Tp, 3, 3) and area samples (points of the patch) with the
+    k-d trees and bound that `_onto_patch` needs, built once for all Lloyd steps."""
+
+    def __init__(self, tri, samples):
+        from scipy.spatial import cKDTree
+
+        self.tri = tri
+        cen = tri.mean(axis=1)
+        self.cen = cen
+        self.radius = np.sqrt(((tri - cen[:, None]) ** 2).sum(axis=2).max(axis=1))   # (Tp,)
+        self.reach = float(self.radius.max())
+        self.samples = cKDTree(samples)
+        self.centroids = cKDTree(cen)
+
+
+def _onto_patch(patch: _Patch, c):
+    """The point of the patch's triangles nearest each point ``c`` (M, 3): its triangle
+    (index into ``patch.tri``), barycentric weights and position.
+
+    Exact among all triangles: a sample (a point of the patch) at distance ``d0`` from c
+    bounds the distance to the patch, so only triangles whose centroid lies within ``d0``
+    plus their centroid-to-corner distance can hold a nearer point (those within ``d0`` plus
+    the largest such distance are found by a k-d tree, then filtered); the nearest point of
+    each is found by `fibres.mesh.closest_point.closest_points_on_triangles`. Where two
+    triangles hold the same nearest point (their shared edge or corner), either gives the
+    same position on any deformed copy."""
+    from itertools import chain
+
+    from ..mesh.closest_point import closest_points_on_triangles
+
+    tri = patch.tri
+    d0 = patch.samples.query(c)[0]
+    near = patch.centroids.query_ball_point(c, (d0 + patch.reach) * (1.0 + 1e-9),
+                                            return_sorted=False)
+    count = np.fromiter(map(len, near), dtype=np.int64, count=len(c))
+    cand = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))
+    who = np.repeat(np.arange(len(c)), count)                          # (pairs,)
+    # a triangle's points lie within its own radius of its centroid
+    gap = patch.cen[cand] - c[who]
+    bound = (d0[who] + patch.radius[cand]) * (1.0 + 1e-9)
+    keep = np.einsum("kd,kd->k", gap, gap) <= bound * bound
+    cand, who = cand[keep], who[keep]
+    count = np.bincount(who, minlength=len(c))
+    t = tri[cand]
+    p = c[who]
+    q = closest_points_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
+    d2 = np.einsum("kd,kd->k", q - p, q - p)
+    best = np.lexsort((d2, who))[np.concatenate([[0], np.cumsum(count)[:-1]])]
+    pick, out = cand[best], q[best]
+    return pick, _barycentric_3d(tri[pick], out), out
+
+
+def _barycentric_3d(tri, q):
+    """(M, 3) barycentric weights of the points ``q`` (M, 3) of the triangles ``tri``
+    (M, 3, 3) (points of the closed triangle: the weights are clipped at 0 and normalised
+    against rounding)."""
+    e1, e2, d = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], q - tri[:, 0]
+    g11, g12, g22 = (np.einsum("md,md->m", x, y) for x, y in ((e1, e1), (e1, e2), (e2, e2)))
+    r1, r2 = np.einsum("md,md->m", d, e1), np.einsum("md,md->m", d, e2)
+    det = g11 * g22 - g12 * g12
+    ok = det > 0
+    det = np.where(ok, det, 1.0)
+    l1 = np.where(ok, (g22 * r1 - g12 * r2) / det, 0.0)
+    l2 = np.where(ok, (g11 * r2 - g12 * r1) / det, 0.0)
+    bary = np.clip(np.stack([1.0 - l1 - l2, l1, l2], axis=1), 0.0, None)
+    return bary / np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)

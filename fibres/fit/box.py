@@ -4,6 +4,8 @@
 orthonormal axes (z the principal axis, origin to insertion) and the edge lengths, with the maps
 between unit-cube and world coordinates. `check_landmarks` refuses landmarks that miss the
 surface by orders of magnitude and names a metres/millimetres mix-up where that explains it.
+`shape_sign` orients a cross-section direction by the muscle's shape (the box's v0 here, the
+harmonic slicing's cross-section axis in `fibres.slicing.harmonic_sections`).
 """
 from __future__ import annotations
 
@@ -13,7 +15,45 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Box", "check_landmarks"]
+__all__ = ["Box", "check_landmarks", "shape_sign", "SHAPE_TIE"]
+
+#: relative size below which a shape moment counts as zero (`shape_sign`): far above the
+#: rounding of the sums (~1e-13 relative for 1e5 points), far below a real asymmetry
+SHAPE_TIE = 1e-9
+
+
+def shape_sign(q, a, u, e) -> int:
+    """+1 or -1: the sign ``s`` that makes ``s e`` point the muscle's way, told by its shape
+    alone; 0 where the shape is symmetric enough not to tell.
+
+    ``e`` is a unit direction perpendicular to the unit axis ``u``, and the points (the
+    vertices) are given about a centre as their along-axis offsets ``a`` (V,) and in-plane
+    parts ``q`` (3, V). Two moments of the points, in order:
+
+    1. the in-plane skew ``m = sum_k |q_k|^2 q_k`` (which side of the cross-section the bulk
+       leans to: the outer side of a bent muscle, the thick edge of a wedge);
+    2. the tilt ``t = sum_k a_k q_k`` (which way the muscle slants or bends along the axis).
+
+    For the first moment that is not zero (relative to ``sum |q|^3``, resp.
+    ``sum |a| |q|``, by `SHAPE_TIE`), ``s`` makes its larger component point along ``s e``
+    or, where that is the one along ``u x e``, along ``u x (s e)`` (a handedness, which tells
+    the two directions apart also on a muscle that is mirror-symmetric about the plane
+    normal to e; the larger component, so that a small asymmetry does not decide).
+
+    Sums over the points: unchanged by their order (up to rounding), by a rigid motion of
+    the points with u and e, and by a uniform scale -- unlike a rule on the vertex
+    numbering, which a mesh exporter's renumbering flips."""
+    e2 = np.array([u[1] * e[2] - u[2] * e[1], u[2] * e[0] - u[0] * e[2],
+                   u[0] * e[1] - u[1] * e[0]])
+    r2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
+    r = np.sqrt(r2)
+    for w, scale in ((r2, float(np.dot(r2, r))), (a, float(np.dot(np.abs(a), r)))):
+        m = np.array([np.dot(w, q[c]) for c in range(3)])  # coordinates
+        x1, x2 = float(m @ e), float(m @ e2)
+        x = x1 if abs(x1) >= abs(x2) else x2
+        if abs(x) > SHAPE_TIE * scale:
+            return 1 if x > 0 else -1
+    return 0
 
 
 def check_landmarks(vertices, points, *, name: str = "landmarks", file=None):

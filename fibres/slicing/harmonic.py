@@ -19,8 +19,9 @@ CAGD 22, 2005). Here, step by step:
    patch in several pieces), the longest is kept and a note says so.
 4. **Cross-section frame**: each loop's centroid ``c`` and unit normal ``n`` (its vector
    area; loops of a field turn the same way round it, so all normals point towards the
-   insertion). The axis ``e1`` is the major axis of the middle loop (its sign by a rule on
-   the vertex numbering, so it is material), carried to the other loops by parallel
+   insertion). The axis ``e1`` is the major axis of the middle loop (its sign by the
+   muscle's shape, `fibres.fit.box.shape_sign`, so that neither the frame nor the mesh's
+   numbering changes it; the plan keeps it), carried to the other loops by parallel
    transport (projection onto each next loop's plane); ``e2 = n x e1``.
 5. **Square <-> loop**: each loop is sampled at `SAMPLES` points of equal arc length from a
    *seam*: on the middle loop, its point towards the square's corner (0, 0) in the frame

@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..fit.box import shape_sign
 from .isolines import isoline_loops, isoline_moments
 
 __all__ = ["SAMPLES"]
@@ -94,7 +95,7 @@ def _levels(plan, resolution: int) -> np.ndarray:
     ahead = np.einsum("ij,ij->i", step, centre[-1] - centre[:-1]) > 0
     ds = np.where(ahead, np.linalg.norm(step, axis=1), 0.0)
     s = np.concatenate([[0.0], np.cumsum(ds)])
-    s = s + 1e-12 * np.arange(s.size)                     # strictly increasing
+    s = s + 1e-12 * max(s[-1], 1e-300) * np.arange(s.size) / s.size    # strictly increasing
     s = s + bending_measure(s, centre, BENDING)
     levels = np.interp(np.linspace(0.0, s[-1], resolution + 1), s, cand)
     levels[0], levels[-1] = _RIM, 1.0 - _RIM
@@ -115,15 +116,20 @@ def _loop_frame(points):
     return c, n, seg
 
 
-def _major_axis(points, c, n, loop):
+def _major_axis(points, c, n, loop, vertices):
+    """The loop's major axis in its plane; its sign from the muscle's shape about the loop
+    (`fibres.fit.box.shape_sign` of the vertices, so that a renumbered mesh gets the same
+    axis), else from the vertex numbering (a symmetric muscle)."""
     d = points - c
     d = d - np.outer(d @ n, n)
     vals, vecs = np.linalg.eigh(d.T @ d)
     e1 = vecs[:, -1]
-    # material sign: the vertex numbering rides along with a deformed copy
-    if np.dot((loop.a + 1.0), d @ e1) < 0:
-        e1 = -e1
-    return e1
+    dt = (vertices - c).T
+    axial = n @ dt
+    sign = shape_sign(dt - np.outer(n, axial), axial, n, e1)
+    if sign == 0 and np.dot((loop.a + 1.0), d @ e1) < 0:
+        sign = -1
+    return e1 if sign >= 0 else -e1
 
 
 def _transport(e1, n):
@@ -257,7 +263,7 @@ def _slices(plan, resolution: int) -> _Slices:
     normals = np.array([f[1] for f in frames])
     mid = len(loops) // 2
     axes = np.zeros_like(centres)
-    axes[mid] = _major_axis(pts[mid], centres[mid], normals[mid], loops[mid])
+    axes[mid] = _major_axis(pts[mid], centres[mid], normals[mid], loops[mid], v)
     for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
         prev = mid
         for j in rng:

@@ -285,9 +285,10 @@ def test_bent_tube_inside_and_never_crossing():
     v, f, o, i = _bent()
     # the morph plus attachment filtering, and the paper's smoothing (default 5 steps):
     # every fibre point inside (1e-9 L: the ends lie on the caps)
+    # Sobol scrambling 3 puts fibres near the concave wall (raw crossings below), 0 does not
     h = None
-    for n in (0, 5):
-        b = decompose((v, f), o, i, smoothing_iterations=n)
+    for n, seed in ((0, 0), (5, 0), (0, 3), (5, 3)):
+        b = decompose((v, f), o, i, smoothing_iterations=n, seed=seed)
         sd = signed_distance(v, f, b.points.reshape(-1, 3))
         assert sd.min() >= -1e-9 * L
         # no segment crosses the concave wall of the bend: a straight segment of length h
@@ -297,10 +298,11 @@ def test_bent_tube_inside_and_never_crossing():
         assert crossings(v, f, b.points, eps=1e-9 * L) == 0
         h = np.linalg.norm(np.diff(b.points, axis=1), axis=2).max()
         assert h**2 / (BEND_R - RHO) / 8 < CONTAIN_MARGIN / 2
-        if n == 0:
-            raw = decompose((v, f), o, i, smoothing_iterations=n, contain=False).points
-    # not vacuous: without the pull, segments do cross (measured 4 with n = 0) and the
-    # smoothing cuts the concave wall
+        if n == 0 and seed == 3:
+            raw = decompose((v, f), o, i, smoothing_iterations=n, contain=False,
+                            seed=seed).points
+    # not vacuous: without the pull, segments do cross (measured 26 with n = 0, seed 3) and
+    # the smoothing cuts the concave wall
     assert crossings(v, f, raw, eps=1e-9 * L) > 0
     smoothed = decompose((v, f), o, i, contain=False).points
     assert signed_distance(v, f, smoothed.reshape(-1, 3)).min() < 0

@@ -197,9 +197,13 @@ def test_lhdl_bend_sweep_with_the_plan_gives_smooth_fibre_lengths(decomposed, mu
 # morph itself); glut_max 1.71 -> 2.23 came with the template-direction rays: fibre 11's
 # longer insertion segment lengthens by 0.32 mm per 0.1 degree at 13-14 degrees, steadily
 # (checked in 0.1-degree steps: 0.316-0.336 mm), not a jump.
+# (with the box's reference oriented by the muscle's shape, not the vertex numbering,
+# gluteus maximus takes the other of two boxes half a turn apart that score the same:
+# morph only 1.09 -> 2.06, fibre 21 shortening steadily by 0.23-0.50 mm per 0.1 degree at
+# 15-18 degrees (checked in 0.1-degree steps), not a jump; docs/decisions.md)
 SWEEP_STEP_RATIO = {("glut_max_r", True): 2.7, ("glut_med_r", True): 4.6,
                     ("iliacus_r", True): 2.8, ("psoas_r", True): 5.5,
-                    ("glut_max_r", False): 1.5, ("glut_med_r", False): 10.7,
+                    ("glut_max_r", False): 2.5, ("glut_med_r", False): 10.7,
                     ("iliacus_r", False): 20.6, ("psoas_r", False): 11.0}
 # (with the continuous start/split points of fibres.slicing.correspondence: filter on 1.36, 1.43,
 # 1.11, 4.53 (was 2.21, 1.48, 2.43, 4.72), off 1.09, 5.38, 16.2, 9.17 (was 1.12, 4.98,
@@ -251,7 +255,8 @@ def test_lhdl_bend_sweep_plan_is_smooth(decomposed, muscle, filt):
 # above the step ratios.
 # (with the continuous start/split points: iliacus 14.5 -> 16.2, psoas 6.45 -> 9.17; since
 # decompose passes the plan itself these equal the morph-only ratios above)
-WIRED_STEP_RATIO = {"glut_max_r": 1.35, "glut_med_r": 6.0, "iliacus_r": 19.4, "psoas_r": 11.0}
+# (gluteus maximus 2.06 with the other tied box, as above)
+WIRED_STEP_RATIO = {"glut_max_r": 2.5, "glut_med_r": 6.0, "iliacus_r": 19.4, "psoas_r": 11.0}
 
 
 @pytest.mark.parametrize("muscle", MUSCLES)

@@ -175,8 +175,9 @@ def test_lloyd_steps_spread_points_evenly_over_a_square_patch():
     """A flat unit square patch (two triangles) and 16 points crowded in its lower-left
     quarter: after Lloyd steps every point has moved towards its Voronoi cell's centroid, so
     the largest distance from the square's area to the nearest point falls (the optimal 4 x 4
-    grid leaves sqrt(2) / 8 = 0.18; the crowded start leaves ~1.0; points snap to the area
-    samples, 8 x 8 sub-triangles per triangle here, so below 0.4), and points stay on it."""
+    grid leaves sqrt(2) / 8 = 0.18; the crowded start leaves ~0.85; the cells' centroids are
+    measured on the area samples, 8 x 8 sub-triangles per triangle here, so the steps stop
+    short of the optimum: 0.25 measured, below 0.3), and points stay on it."""
     from fibres.attachments.patch_map import relax_on_patch
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
     f = np.array([[0, 1, 2], [0, 2, 3]])
@@ -199,7 +200,7 @@ def test_lloyd_steps_spread_points_evenly_over_a_square_patch():
     before = worst(face, bary)
     fc, bc = relax_on_patch(v, f, np.ones(2, dtype=bool), face, bary, iterations=30)
     assert before > 0.8
-    assert worst(fc, bc) < 0.4
+    assert worst(fc, bc) < 0.3
     assert np.all(bc >= -1e-12) and np.allclose(bc.sum(axis=1), 1.0)
 
 
