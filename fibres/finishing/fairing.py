@@ -49,7 +49,7 @@ DENSE = 8
 #: lambda|mu pairs of Taubin smoothing per smoothing iteration of `fibres.decompose`
 PAIRS_PER_ITERATION = 1.4
 #: weight of a half-turn (pi) against the fibre's whole length in the resampling measure
-TURNING = 3.0
+TURNING = 4.0
 #: weights of a pulled point's displacement given to its neighbours 1, 2, 3, 4 joints away
 SPREAD = (0.8, 0.6, 0.4, 0.2)
 #: rounds of spreading and pulling again (`fibres.decompose`)

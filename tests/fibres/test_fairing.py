@@ -56,13 +56,13 @@ def _bend(p=17, r=0.2):
 @pytest.mark.parametrize("shape, iterations", [(_bend, 0), (_bend, 7), (_l_shape, 7)])
 def test_a_bend_is_spread_over_many_joints(shape, iterations):
     """A right-angle bend over one or two joints (before: up to 41 and 90 degrees at a joint):
-    the measure's turning part is TURNING * (pi/2) / pi = 1.5 against the length part 1, so
-    each of the 16 segments gets 2.5 / 16 of the measure and a joint in the bend turns by
-    about (2.5 / 16) / TURNING * 180 = 9.4 degrees; the spline's overshoot beside the bend and
+    the measure's turning part is TURNING * (pi/2) / pi = 2 against the length part 1, so
+    each of the 16 segments gets 3 / 16 of the measure and a joint in the bend turns by
+    about (3 / 16) / TURNING * 180 = 8.4 degrees; the spline's overshoot beside the bend and
     the dense sampling add a few degrees (bound: 12). A corner at one joint is rounded by the
     Taubin smoothing first (without it the interpolating spline keeps a curvature spike at
     the corner point that 8 dense points per segment do not resolve)."""
-    assert TURNING == 3.0
+    assert TURNING == 4.0
     pts = shape()[None]
     assert _turns(pts[0]).max() >= 40.0
     q = fairing_matrices(pts, iterations=iterations)[0] @ pts[0]
