@@ -24,6 +24,7 @@ import numpy as np
 __all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "solve_radial_scale"]
 
 _CHUNK = 8  # frames per numpy chunk: bounds the temporaries to a few (8, T, 3) arrays
+_CHUNK_VF = 16  # frames per chunk of `volume_cubic_vf` (a few (3, 16, T) temporaries)
 
 
 def _as_frames(vertices) -> tuple[np.ndarray, bool]:
@@ -115,22 +116,49 @@ def _dot(u, v):
 def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
     """`volume_cubic` for vertex-major arrays ``(V, F, 3)`` (the binding's internal layout).
 
+    Only the vertices the faces use enter the sums: trailing face-less vertices (riders such
+    as fibre points) are neither copied nor read. Each chunk of frames is turned component-major
+    once, ``(3, C, V_used)``, and its face corners taken from that.
+
     Returns
     -------
     (F, 4) float
     """
-    p = np.ascontiguousarray(p_vf, dtype=float)
-    q = np.ascontiguousarray(q_vf, dtype=float)
-    f = _check_faces(faces, p.shape[0])
-    return volume_cubic(p.transpose(1, 0, 2), q.transpose(1, 0, 2), f)
+    p_vf = np.asarray(p_vf, dtype=float)
+    q_vf = np.asarray(q_vf, dtype=float)
+    if p_vf.shape != q_vf.shape or p_vf.ndim != 3 or p_vf.shape[-1] != 3:
+        raise ValueError(f"p and q must be the same (V, F, 3), got {p_vf.shape} and {q_vf.shape}")
+    f = _check_faces(faces, p_vf.shape[0])
+    n_f = p_vf.shape[1]
+    out = np.zeros((n_f, 4))
+    if not f.size:
+        return out
+    n_used = int(f.max()) + 1
+    corners = [np.ascontiguousarray(f[:, i]) for i in range(3)]
+    for s in range(0, n_f, _CHUNK_VF):
+        pt = np.ascontiguousarray(p_vf[:n_used, s:s + _CHUNK_VF].transpose(2, 1, 0))   # (3, C, V_used)
+        qt = np.ascontiguousarray(q_vf[:n_used, s:s + _CHUNK_VF].transpose(2, 1, 0))
+        p0, p1, p2 = (np.take(pt, c, axis=2) for c in corners)                      # (3, C, T)
+        q0, q1, q2 = (np.take(qt, c, axis=2) for c in corners)
+        a = _cross(p1, p2)
+        b = _cross(p1, q2)
+        b += _cross(q1, p2)
+        c = _cross(q1, q2)
+        out[s:s + _CHUNK_VF] = np.stack(
+            [_dot(p0, a), _dot(q0, a) + _dot(p0, b), _dot(q0, b) + _dot(p0, c), _dot(q0, c)],
+            axis=-1) / 6.0
+    return out
 
 
 def combine_vf(p_vf, q_vf, k) -> np.ndarray:
     """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)."""
-    p = np.ascontiguousarray(p_vf, dtype=float)
-    q = np.ascontiguousarray(q_vf, dtype=float)
-    k = np.ascontiguousarray(k, dtype=float)
-    return np.ascontiguousarray((p + k[None, :, None] * q).transpose(1, 0, 2))
+    p = np.asarray(p_vf, dtype=float)
+    q = np.asarray(q_vf, dtype=float)
+    k = np.asarray(k, dtype=float)
+    out = np.empty((p.shape[1], p.shape[0], 3))
+    np.multiply(q.transpose(1, 0, 2), k[:, None, None], out=out)
+    out += p.transpose(1, 0, 2)
+    return out
 
 
 def solve_radial_scale(coefficients, target, *, start=None, bounds=(0.25, 4.0), iterations=30) -> np.ndarray:
