@@ -247,7 +247,7 @@ def write_tables(result, out_dir, *, parquet: bool = True) -> list:
     return written
 
 
-def _write_streamed(parts, csv_path, parquet_path, *, float_format="%.12g"):
+def _write_streamed(parts, csv_path, parquet_path):
     """Append DataFrames of the same columns to one CSV (one header) and one Parquet file,
     each atomically (`output_files.atomic_path`)."""
     import contextlib
@@ -255,19 +255,20 @@ def _write_streamed(parts, csv_path, parquet_path, *, float_format="%.12g"):
     import pyarrow as pa
     import pyarrow.parquet as papq
 
+    from .csv_text import write_csv_part
     from .output_files import atomic_path
 
     with contextlib.ExitStack() as stack:
         csv_tmp = stack.enter_context(atomic_path(csv_path))
         pq_tmp = stack.enter_context(atomic_path(parquet_path)) if parquet_path is not None else None
         writer, first, empty = None, True, None
-        with open(csv_tmp, "w", newline="") as fh:
+        with open(csv_tmp, "wb") as fh:
             for part in parts:
                 if part.empty:
                     empty = part if empty is None else empty
                     if not first:
                         continue
-                part.to_csv(fh, index=False, header=first, float_format=float_format)
+                write_csv_part(part, fh, header=first)
                 first = False
                 if pq_tmp is not None and not part.empty:
                     table = pa.Table.from_pandas(part, preserve_index=False)

@@ -8,8 +8,10 @@ index, zero-padded to 4 digits.
 
 Written by hand in VTK's XML format (VTK file formats, "XML File Formats": PolyData with
 ``<AppendedData encoding="raw">``, each array preceded by its UInt64 byte count), little-endian,
-float64 points, int64 topology; every file is written atomically. No VTK import is needed to
-write; pyvista/VTK read them (tested).
+float32 points (``POINT_TYPE``: a relative precision of 6e-8, 0.06 um at 1 m from the origin,
+for drawing; the numbers themselves are in the tables at full precision), int32 topology
+(int64 beyond 2^31 points), cell data as given (float64 lengths); every file is written
+atomically. No VTK import is needed to write; pyvista/VTK read them (tested).
 """
 from __future__ import annotations
 
@@ -23,6 +25,8 @@ from .output_files import atomic_path
 __all__ = ["write_polylines_vtp", "write_surface_vtp", "write_pvd", "write_fibre_frames",
            "write_surface_frames", "frame_file_name"]
 
+#: the type of the points written (module docstring)
+POINT_TYPE = np.dtype("<f4")
 _TYPES = {np.dtype("<f8"): "Float64", np.dtype("<f4"): "Float32", np.dtype("<i8"): "Int64",
           np.dtype("<i4"): "Int32", np.dtype("<u1"): "UInt8"}
 
@@ -70,12 +74,13 @@ def _write_polydata(path, points, *, lines=None, polys=None, cell_data=None, poi
         for name, values in cell_data.items():
             array(cd, name, np.asarray(values))
     pts = ET.SubElement(piece, "Points")
-    array(pts, "Points", _le(points, "<f8").reshape(-1, 3), ncomp=3)
+    array(pts, "Points", _le(points, POINT_TYPE).reshape(-1, 3), ncomp=3)
     for tag, topo in (("Lines", lines), ("Polys", polys)):
         if topo is not None:
             el = ET.SubElement(piece, tag)
-            array(el, "connectivity", _le(topo[0], "<i8"))
-            array(el, "offsets", _le(topo[1], "<i8"))
+            index = "<i4" if max(len(points), len(topo[0])) < 2**31 - 1 else "<i8"
+            array(el, "connectivity", _le(topo[0], index))
+            array(el, "offsets", _le(topo[1], index))
     ET.SubElement(root, "AppendedData", encoding="raw").text = "_"
     head = ET.tostring(root, encoding="unicode")
     marker = '<AppendedData encoding="raw">_'
