@@ -53,6 +53,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from numba import njit
 
 from . import interrupts
 
@@ -68,9 +69,10 @@ LENGTH_SUBDIVISION = 2
 
 @dataclasses.dataclass
 class Carried:
-    """The fibres at a batch of poses: ``points`` (F, N, P, 3) as reported, ``lengths`` (F, N)
-    (measured as the module docstring says), ``surfaces`` (F, V, 3) the wrapped surface and the
-    wrapping's ``notes``."""
+    """The fibres at a batch of poses: ``points`` (K, N, P, 3) as reported at the first K poses
+    (``carry(stacked, keep=K)``; all poses by default), ``lengths`` (F, N) (measured as the
+    module docstring says), ``surfaces`` (F, V, 3) the wrapped surface and the wrapping's
+    ``notes``."""
 
     points: np.ndarray
     lengths: np.ndarray
@@ -119,33 +121,91 @@ def _subdivided(points, m: int) -> np.ndarray:
     return np.concatenate([inner.reshape(p.shape[0], -1, 3), p[:, -1:]], axis=1)
 
 
-def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None):
-    """Fibres carried by the belly deformation (F, N, P, 3), corrected so that their ends are
+def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None, *, keep=0,
+                            every=LENGTH_SUBDIVISION):
+    """Fibres carried by the belly deformation (F, N, Q, 3), corrected so that their ends are
     ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the residuals
-    spread linearly in each rest fibre's (N, P, 3) arc-length fraction (module docstring).
+    spread linearly in each rest fibre's (N, Q, 3) arc-length fraction (module docstring), and
+    measured: returns the lengths (F, N) of the corrected polylines and their every ``every``-th
+    point (``keep``, N, Q', 3) at the first ``keep`` poses (the reported polylines).
 
-    ``frames`` (F, N, P, 3, 3), the belly's line frames at the fibre points (columns normal,
+    ``frames`` (F, N, Q, 3, 3), the belly's line frames at the fibre points (columns normal,
     binormal, tangent; `motion.WrappedSurface.rider_frames`): each end residual is then held in
     the frame at its end and carried along the fibre with the frames, so over a pulley a
     residual across the muscle stays across it instead of a fixed ground vector (where the
-    frames are constant, on a straight line, it is the same correction)."""
-    seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, P-1)
+    frames are constant, on a straight line, it is the same correction).
+
+    One pass over the points (`_carry_loop`, compiled): the corrected points of the
+    perturbed poses are never stored, only their lengths."""
+    seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, Q-1)
     u = np.concatenate([np.zeros((rest.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
-    u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, P)
-    e0 = origin_ends - carried[:, :, 0]
-    e1 = insertion_ends - carried[:, :, -1]
-    if frames is not None:
-        local0 = np.einsum("fnji,fnj->fni", frames[:, :, 0], e0)       # e0 in the frame at the end
-        local1 = np.einsum("fnji,fnj->fni", frames[:, :, -1], e1)
-        mix = local0[:, :, None] + u[None, :, :, None] * (local1 - local0)[:, :, None]   # (F, N, P, 3)
-        out = carried + np.einsum("fnpij,fnpj->fnpi", frames, mix)   # (faster than batched 3x3 matmul)
-        # the ends exactly (the interpolated frames there are those used for local0/local1)
-        out[:, :, 0] = origin_ends
-        out[:, :, -1] = insertion_ends
-        return out
-    out = carried + e0[:, :, None]                       # = ... + (1 - u) e0 + u e1, two temporaries
-    out += u[None, :, :, None] * (e1 - e0)[:, :, None]
-    return out
+    u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, Q)
+    n_f, n_n, n_q = carried.shape[:3]
+    lengths = np.empty((n_f, n_n))
+    points = np.empty((int(keep), n_n, (n_q - 1) // every + 1, 3))
+    use = frames is not None
+    dummy = np.zeros((1, 1, 1, 3, 3))
+    _carry_loop(carried, np.asarray(origin_ends, dtype=float), np.asarray(insertion_ends, dtype=float), u,
+                frames if use else dummy, use, int(every), lengths, points)
+    return lengths, points
+
+
+@njit(cache=True, nogil=True)
+def _carry_loop(x, ends0, ends1, u, frames, use_frames, every, lengths, points):  # pragma: no cover
+    """`_ends_ride_their_bodies` per pose and fibre: the end residuals (in the line frames at the
+    ends when ``use_frames``), the corrected points, their polyline length, and the kept points
+    of the first ``points.shape[0]`` poses."""
+    n_f, n_n, n_q = x.shape[0], x.shape[1], x.shape[2]
+    keep = points.shape[0]
+    y = np.empty(3)
+    prev = np.empty(3)
+    e0 = np.empty(3)
+    e1 = np.empty(3)
+    m = np.empty(3)
+    for f in range(n_f):
+        for n in range(n_n):
+            last = n_q - 1
+            for a in range(3):
+                e0[a] = ends0[f, n, a] - x[f, n, 0, a]
+                e1[a] = ends1[f, n, a] - x[f, n, last, a]
+            if use_frames:           # residuals in the frames at the ends: local = R^T e
+                l0 = np.empty(3)
+                l1 = np.empty(3)
+                for a in range(3):
+                    l0[a] = frames[f, n, 0, 0, a] * e0[0] + frames[f, n, 0, 1, a] * e0[1] + frames[f, n, 0, 2, a] * e0[2]
+                    l1[a] = (frames[f, n, last, 0, a] * e1[0] + frames[f, n, last, 1, a] * e1[1]
+                             + frames[f, n, last, 2, a] * e1[2])
+                for a in range(3):
+                    e0[a] = l0[a]
+                    e1[a] = l1[a]
+            total = 0.0
+            for j in range(n_q):
+                if j == 0:
+                    for a in range(3):
+                        y[a] = ends0[f, n, a]
+                elif j == last:
+                    for a in range(3):
+                        y[a] = ends1[f, n, a]
+                else:
+                    w = u[n, j]
+                    for a in range(3):
+                        m[a] = e0[a] + w * (e1[a] - e0[a])
+                    if use_frames:
+                        for a in range(3):
+                            y[a] = x[f, n, j, a] + (frames[f, n, j, a, 0] * m[0] + frames[f, n, j, a, 1] * m[1]
+                                                    + frames[f, n, j, a, 2] * m[2])
+                    else:
+                        for a in range(3):
+                            y[a] = x[f, n, j, a] + m[a]
+                if j > 0:
+                    d0, d1, d2 = y[0] - prev[0], y[1] - prev[1], y[2] - prev[2]
+                    total += np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                if f < keep and j % every == 0:
+                    for a in range(3):
+                        points[f, n, j // every, a] = y[a]
+                for a in range(3):
+                    prev[a] = y[a]
+            lengths[f, n] = total
 
 
 def bind_transport(model, sspec, rest, bundle0):
@@ -176,15 +236,16 @@ def bind_transport(model, sspec, rest, bundle0):
         end: _with_points(getattr(sspec, end), p_ground, pose0, model, tf_data_ground)
         for end, p_ground in ends.items()})
 
-    def carry(stacked) -> Carried:
+    def carry(stacked, keep=None) -> Carried:
         (wrapped,) = wrap_surfaces(model, stacked, [bound])
         n_all = wrapped.vertices.shape[0]
         frames = getattr(wrapped, "rider_frames", None)
-        carried = _ends_ride_their_bodies(
+        lengths, points = _ends_ride_their_bodies(
             wrapped.vertices[:, n_v:].reshape((n_all,) + fine.shape), fine,
             wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:],
-            None if frames is None else frames.reshape((n_all,) + fine.shape[:2] + (3, 3)))
-        return Carried(points=carried[:, :, ::LENGTH_SUBDIVISION], lengths=fibre_lengths(carried),
+            None if frames is None else frames.reshape((n_all,) + fine.shape[:2] + (3, 3)),
+            keep=n_all if keep is None else keep)
+        return Carried(points=points, lengths=lengths,
                        surfaces=wrapped.vertices[:, :n_v], notes=tuple(getattr(wrapped, "notes", ())))
 
     return carry
@@ -198,7 +259,7 @@ def decompose_transport(model, sspec, bundle0, options, bar):
     from fibres import decompose
     from motion import wrap_surfaces
 
-    def carry(stacked) -> Carried:
+    def carry(stacked, keep=None) -> Carried:
         (wrapped,) = wrap_surfaces(model, stacked, [sspec])
         points = np.empty((wrapped.vertices.shape[0],) + bundle0.points.shape)
         for f in range(len(points)):  # one decomposition per (perturbed) frame, the plan frozen
@@ -207,7 +268,7 @@ def decompose_transport(model, sspec, bundle0, options, bar):
                           plan=bundle0.plan, **options)
             points[f] = b.points
             bar.update(1)
-        return Carried(points=points, lengths=fibre_lengths(points), surfaces=wrapped.vertices,
+        return Carried(points=points[:keep], lengths=fibre_lengths(points), surfaces=wrapped.vertices,
                        notes=tuple(getattr(wrapped, "notes", ())))
 
     return carry

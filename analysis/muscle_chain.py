@@ -162,7 +162,7 @@ def run_muscle(ctx, mspec):
             interrupts.check()
             stacked, steps, n_c = stacked_motion(ctx.model, q[rows], ctx.motion.source, coord_idx, ctx.step)
             with timed(timings, stage):
-                got = carry(stacked)
+                got = carry(stacked, keep=n_c if points is not None else 0)
             with timed(timings, "lengths"):
                 lengths[:, rows] = got.lengths.reshape(n_poses, n_c, n_fib)
             if points is not None:

@@ -153,12 +153,9 @@ def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
 def combine_vf(p_vf, q_vf, k) -> np.ndarray:
     """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)."""
     p = np.asarray(p_vf, dtype=float)
-    q = np.asarray(q_vf, dtype=float)
-    k = np.asarray(k, dtype=float)
-    out = np.empty((p.shape[1], p.shape[0], 3))
-    np.multiply(q.transpose(1, 0, 2), k[:, None, None], out=out)
-    out += p.transpose(1, 0, 2)
-    return out
+    w = np.asarray(q_vf, dtype=float) * np.asarray(k, dtype=float)[None, :, None]
+    w += p
+    return np.ascontiguousarray(w.transpose(1, 0, 2))
 
 
 def solve_radial_scale(coefficients, target, *, start=None, bounds=(0.25, 4.0), iterations=30) -> np.ndarray:
