@@ -123,13 +123,14 @@ def _subdivided(points, m: int) -> np.ndarray:
 
 def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None, *, keep=0,
                             every=LENGTH_SUBDIVISION):
-    """Fibres carried by the belly deformation (F, N, Q, 3), corrected so that their ends are
-    ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the residuals
-    spread linearly in each rest fibre's (N, Q, 3) arc-length fraction (module docstring), and
-    measured: returns the lengths (F, N) of the corrected polylines and their every ``every``-th
-    point (``keep``, N, Q', 3) at the first ``keep`` poses (the reported polylines).
+    """Fibres carried by the belly deformation, rider-major (N, Q, F, 3), corrected so that their
+    ends are ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the
+    residuals spread linearly in each rest fibre's (N, Q, 3) arc-length fraction (module
+    docstring), and measured: returns the lengths (F, N) of the corrected polylines and their
+    every ``every``-th point (``keep``, N, Q', 3) at the first ``keep`` poses (the reported
+    polylines).
 
-    ``frames`` (F, N, Q, 3, 3), the belly's line frames at the fibre points (columns normal,
+    ``frames`` (N, Q, F, 3, 3), the belly's line frames at the fibre points (columns normal,
     binormal, tangent; `motion.WrappedSurface.rider_frames`): each end residual is then held in
     the frame at its end and carried along the fibre with the frames, so over a pulley a
     residual across the muscle stays across it instead of a fixed ground vector (where the
@@ -140,7 +141,7 @@ def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=N
     seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, Q-1)
     u = np.concatenate([np.zeros((rest.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
     u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, Q)
-    n_f, n_n, n_q = carried.shape[:3]
+    n_n, n_q, n_f = carried.shape[:3]
     lengths = np.empty((n_f, n_n))
     points = np.empty((int(keep), n_n, (n_q - 1) // every + 1, 3))
     use = frames is not None
@@ -152,34 +153,35 @@ def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=N
 
 @njit(cache=True, nogil=True)
 def _carry_loop(x, ends0, ends1, u, frames, use_frames, every, lengths, points):  # pragma: no cover
-    """`_ends_ride_their_bodies` per pose and fibre: the end residuals (in the line frames at the
-    ends when ``use_frames``), the corrected points, their polyline length, and the kept points
-    of the first ``points.shape[0]`` poses."""
-    n_f, n_n, n_q = x.shape[0], x.shape[1], x.shape[2]
+    """`_ends_ride_their_bodies` fibre by fibre, point by point, all poses at once (rider-major
+    input read in order): the end residuals (in the line frames at the ends when
+    ``use_frames``), the corrected points, their polyline lengths, and the kept points of the
+    first ``points.shape[0]`` poses."""
+    n_n, n_q, n_f = x.shape[0], x.shape[1], x.shape[2]
     keep = points.shape[0]
+    last = n_q - 1
+    e0 = np.empty((n_f, 3))
+    e1 = np.empty((n_f, 3))
+    prev = np.empty((n_f, 3))
+    total = np.empty(n_f)
     y = np.empty(3)
-    prev = np.empty(3)
-    e0 = np.empty(3)
-    e1 = np.empty(3)
     m = np.empty(3)
-    for f in range(n_f):
-        for n in range(n_n):
-            last = n_q - 1
+    for n in range(n_n):
+        for f in range(n_f):
             for a in range(3):
-                e0[a] = ends0[f, n, a] - x[f, n, 0, a]
-                e1[a] = ends1[f, n, a] - x[f, n, last, a]
+                e0[f, a] = ends0[f, n, a] - x[n, 0, f, a]
+                e1[f, a] = ends1[f, n, a] - x[n, last, f, a]
             if use_frames:           # residuals in the frames at the ends: local = R^T e
-                l0 = np.empty(3)
-                l1 = np.empty(3)
+                r0, r1, r2 = e0[f, 0], e0[f, 1], e0[f, 2]
+                s0, s1, s2 = e1[f, 0], e1[f, 1], e1[f, 2]
                 for a in range(3):
-                    l0[a] = frames[f, n, 0, 0, a] * e0[0] + frames[f, n, 0, 1, a] * e0[1] + frames[f, n, 0, 2, a] * e0[2]
-                    l1[a] = (frames[f, n, last, 0, a] * e1[0] + frames[f, n, last, 1, a] * e1[1]
-                             + frames[f, n, last, 2, a] * e1[2])
-                for a in range(3):
-                    e0[a] = l0[a]
-                    e1[a] = l1[a]
-            total = 0.0
-            for j in range(n_q):
+                    e0[f, a] = frames[n, 0, f, 0, a] * r0 + frames[n, 0, f, 1, a] * r1 + frames[n, 0, f, 2, a] * r2
+                    e1[f, a] = (frames[n, last, f, 0, a] * s0 + frames[n, last, f, 1, a] * s1
+                                + frames[n, last, f, 2, a] * s2)
+            total[f] = 0.0
+        for j in range(n_q):
+            w = u[n, j]
+            for f in range(n_f):
                 if j == 0:
                     for a in range(3):
                         y[a] = ends0[f, n, a]
@@ -187,25 +189,25 @@ def _carry_loop(x, ends0, ends1, u, frames, use_frames, every, lengths, points):
                     for a in range(3):
                         y[a] = ends1[f, n, a]
                 else:
-                    w = u[n, j]
                     for a in range(3):
-                        m[a] = e0[a] + w * (e1[a] - e0[a])
+                        m[a] = e0[f, a] + w * (e1[f, a] - e0[f, a])
                     if use_frames:
                         for a in range(3):
-                            y[a] = x[f, n, j, a] + (frames[f, n, j, a, 0] * m[0] + frames[f, n, j, a, 1] * m[1]
-                                                    + frames[f, n, j, a, 2] * m[2])
+                            y[a] = x[n, j, f, a] + (frames[n, j, f, a, 0] * m[0] + frames[n, j, f, a, 1] * m[1]
+                                                    + frames[n, j, f, a, 2] * m[2])
                     else:
                         for a in range(3):
-                            y[a] = x[f, n, j, a] + m[a]
+                            y[a] = x[n, j, f, a] + m[a]
                 if j > 0:
-                    d0, d1, d2 = y[0] - prev[0], y[1] - prev[1], y[2] - prev[2]
-                    total += np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                    d0, d1, d2 = y[0] - prev[f, 0], y[1] - prev[f, 1], y[2] - prev[f, 2]
+                    total[f] += np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
                 if f < keep and j % every == 0:
                     for a in range(3):
                         points[f, n, j // every, a] = y[a]
                 for a in range(3):
-                    prev[a] = y[a]
-            lengths[f, n] = total
+                    prev[f, a] = y[a]
+        for f in range(n_f):
+            lengths[f, n] = total[f]
 
 
 def bind_transport(model, sspec, rest, bundle0):
@@ -215,8 +217,8 @@ def bind_transport(model, sspec, rest, bundle0):
 
     ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its surface wrapped at one
     frame (its rest geometry in ground), ``bundle0`` the rest-pose `fibres.FibreBundle`."""
-    from motion import wrap_surfaces
     from motion.surface.rest import rest_pose
+    from motion.surface.wrap import SurfaceWrapper
 
     shape = bundle0.points.shape                                  # (N, P, 3)
     n_v = rest.rest_vertices.shape[0]
@@ -236,17 +238,19 @@ def bind_transport(model, sspec, rest, bundle0):
         end: _with_points(getattr(sspec, end), p_ground, pose0, model, tf_data_ground)
         for end, p_ground in ends.items()})
 
+    wrapper = SurfaceWrapper(model, bound)
+
     def carry(stacked, keep=None) -> Carried:
-        (wrapped,) = wrap_surfaces(model, stacked, [bound])
+        wrapped = wrapper(stacked)
         n_all = wrapped.vertices.shape[0]
-        frames = getattr(wrapped, "rider_frames", None)
+        frames = wrapped.rider_frames
         lengths, points = _ends_ride_their_bodies(
-            wrapped.vertices[:, n_v:].reshape((n_all,) + fine.shape), fine,
+            wrapped.riders.reshape(fine.shape[:2] + (n_all, 3)), fine,
             wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:],
-            None if frames is None else frames.reshape((n_all,) + fine.shape[:2] + (3, 3)),
+            None if frames is None else frames.reshape(fine.shape[:2] + (n_all, 3, 3)),
             keep=n_all if keep is None else keep)
-        return Carried(points=points, lengths=lengths,
-                       surfaces=wrapped.vertices[:, :n_v], notes=tuple(getattr(wrapped, "notes", ())))
+        return Carried(points=points, lengths=lengths, surfaces=wrapped.vertices,
+                       notes=tuple(getattr(wrapped, "notes", ())))
 
     return carry
 

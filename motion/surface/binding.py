@@ -93,7 +93,11 @@ class SurfaceFrames:
     rest_volume : float
     rider_frames : (F, R, 3, 3) float or None
         With ``deform(..., rider_frames=R)``: the line frames (columns normal, binormal,
-        tangent) interpolated at the last ``R`` vertices (the riders), as the belly carries them.
+        tangent) interpolated at the last ``R`` vertices (the riders), as the belly carries them;
+        rider-major, (R, F, 3, 3), with ``riders_apart``.
+    riders : (A, F, 3) float or None
+        With ``deform(..., riders_apart=A)``: the last ``A`` (face-less) vertices, rider-major
+        (each one's path over the frames contiguous); ``vertices`` then holds the others.
     """
 
     vertices: np.ndarray
@@ -101,15 +105,18 @@ class SurfaceFrames:
     volume: np.ndarray
     rest_volume: float
     rider_frames: np.ndarray | None = None
+    riders: np.ndarray | None = None
 
     def __post_init__(self):
-        if self.rider_frames is not None:
-            arr = np.asarray(self.rider_frames, dtype=float)
+        for name in ("rider_frames", "riders"):
+            if getattr(self, name) is None:
+                continue
+            arr = np.asarray(getattr(self, name), dtype=float)
             if arr.flags.writeable and arr.flags.owndata:
                 arr.setflags(write=False)   # built here: freeze without copying
             else:
                 arr = _ro(arr)
-            object.__setattr__(self, "rider_frames", arr)
+            object.__setattr__(self, name, arr)
         for name in ("vertices", "radial_scale", "volume"):
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.flags.writeable and arr.flags.owndata:
@@ -192,14 +199,16 @@ class SurfaceBinding:
         return np.stack(centres, axis=1), np.stack(frames, axis=1)
 
     # ------------------------------------------------------------------------- deform
-    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None, *, riders: int = 0):
+    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None, *, riders: int = 0,
+                     rider_major: bool = False):
         """The two parts of ``v(k) = P + k Q`` for every frame, vertex-major.
 
         Returns
         -------
         p, q : (V, F, 3) float
         rider_frames : (F, R, 3, 3) float, only with ``riders = R > 0``
-            The line frames interpolated at the last R vertices (`SurfaceFrames.rider_frames`).
+            The line frames interpolated at the last R vertices (`SurfaceFrames.rider_frames`);
+            (R, F, 3, 3) with ``rider_major``.
         """
         centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
         if riders:
@@ -207,7 +216,7 @@ class SurfaceBinding:
             feat = np.ascontiguousarray(frames.reshape(f_n, -1, 9).transpose(1, 0, 2)).reshape(-1, f_n * 9)
             at = np.asarray(self.frame_matrix[-int(riders):] @ feat).reshape(int(riders), f_n, 3, 3)
             return self._affine(centres, frames, tf_origin, tf_insertion) + (
-                np.ascontiguousarray(at.transpose(1, 0, 2, 3)),)
+                at if rider_major else np.ascontiguousarray(at.transpose(1, 0, 2, 3)),)
         return self._affine(centres, frames, tf_origin, tf_insertion)
 
     def _affine(self, centres, frames, tf_origin, tf_insertion):
@@ -230,7 +239,7 @@ class SurfaceBinding:
         return p, q
 
     def deform(self, curves, tf_origin, tf_insertion, *, anchors=None, obstacles=(), preserve_volume: bool = True,
-               push_iterations: int = 5, rider_frames: int = 0) -> SurfaceFrames:
+               push_iterations: int = 5, rider_frames: int = 0, riders_apart: int = 0) -> SurfaceFrames:
         """Deform the rest surface for every frame of a motion.
 
         Parameters
@@ -253,6 +262,11 @@ class SurfaceBinding:
             Secant updates of ``k`` after the obstacles pushed vertices out.
         rider_frames : int, keyword-only
             Also return the line frames at the last this many vertices (`SurfaceFrames`).
+        riders_apart : int, keyword-only
+            Return the last this many vertices (face-less riders) apart and rider-major,
+            ``SurfaceFrames.riders`` (A, F, 3), and the rider frames rider-major too: the
+            caller that walks each rider's frames (fibre lengths) reads them contiguously and
+            no frame-major copy of them is made.
 
         Returns
         -------
@@ -261,8 +275,12 @@ class SurfaceBinding:
         if len(curves) != self.n_lines:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
         at = None
+        apart = int(riders_apart)
+        if apart and (self.faces.size and int(self.faces.max()) >= len(self.rest_vertices) - apart):
+            raise ValueError(f"riders_apart={apart}: the faces use some of the last {apart} vertices")
         if rider_frames:
-            p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames)
+            p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames,
+                                         rider_major=bool(apart))
         else:
             p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
         target = self.rest_volume
@@ -272,12 +290,17 @@ class SurfaceBinding:
         else:
             k = np.ones(p.shape[1])
         if not obstacles:
-            vertices = combine_vf(p, q, k)
+            n_s = p.shape[0] - apart
+            vertices = combine_vf(p[:n_s], q[:n_s], k)
+            riders = None
+            if apart:
+                riders = q[n_s:] * k[None, :, None]
+                riders += p[n_s:]
             if preserve_volume:
                 volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
             else:
                 volume = mesh_volume(vertices, self.faces)
-            return SurfaceFrames(vertices, k, volume, target, at)
+            return SurfaceFrames(vertices, k, volume, target, at, riders)
         p = np.ascontiguousarray(p.transpose(1, 0, 2))
         q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
@@ -325,6 +348,9 @@ class SurfaceBinding:
                 k_prev, g_prev = k, g
                 k = np.clip(k_next, 0.25, 4.0)
             vertices, volume = (pusher(p, q, obstacles) if split else pushed)(k)
+        if apart:
+            n_s = vertices.shape[1] - apart
+            return SurfaceFrames(vertices[:, :n_s], k, volume, target, at, vertices[:, n_s:].transpose(1, 0, 2))
         return SurfaceFrames(vertices, k, volume, target, at)
 
 
