@@ -37,8 +37,8 @@ line are the rotation-minimising frames of Wang et al., ACM TOG 2008):
    All steps are smooth functions of the body poses and the line points, so finite
    differences of anything measured on the surface are meaningful.
 
-The linear part is precomputed as sparse (V, n L) matrices, so a frame costs a few sparse
-products, one cubic volume sum and a Newton solve.
+The linear part is precomputed as sparse (V, n L) matrices: a frame costs a few sparse products,
+one cubic volume sum and a Newton solve.
 """
 from __future__ import annotations
 
@@ -47,9 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline,
-                             resample_polylines, smoothed_tangents,
-                             rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
+from .curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline, resample_polylines,
+                     smoothed_tangents, rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
 from .volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
 __all__ = ["SurfaceBinding", "SurfaceFrames", "bind_surface", "smoothstep"]
@@ -93,11 +92,10 @@ class SurfaceFrames:
     rest_volume : float
     rider_frames : (F, R, 3, 3) float or None
         With ``deform(..., rider_frames=R)``: the line frames (columns normal, binormal,
-        tangent) interpolated at the last ``R`` vertices (the riders), as the belly carries them;
-        rider-major, (R, F, 3, 3), with ``riders_apart``.
+        tangent) at the last ``R`` vertices (the riders); (R, F, 3, 3) with ``riders_apart``.
     riders : (A, F, 3) float or None
-        With ``deform(..., riders_apart=A)``: the last ``A`` (face-less) vertices, rider-major
-        (each one's path over the frames contiguous); ``vertices`` then holds the others.
+        With ``deform(..., riders_apart=A)``: the last ``A`` vertices, rider-major; ``vertices``
+        then holds the others.
     """
 
     vertices: np.ndarray
@@ -108,16 +106,9 @@ class SurfaceFrames:
     riders: np.ndarray | None = None
 
     def __post_init__(self):
-        for name in ("rider_frames", "riders"):
+        for name in ("vertices", "radial_scale", "volume", "rider_frames", "riders"):
             if getattr(self, name) is None:
                 continue
-            arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.flags.writeable and arr.flags.owndata:
-                arr.setflags(write=False)   # built here: freeze without copying
-            else:
-                arr = _ro(arr)
-            object.__setattr__(self, name, arr)
-        for name in ("vertices", "radial_scale", "volume"):
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.flags.writeable and arr.flags.owndata:
                 arr.setflags(write=False)   # built here: freeze without copying
@@ -263,10 +254,8 @@ class SurfaceBinding:
         rider_frames : int, keyword-only
             Also return the line frames at the last this many vertices (`SurfaceFrames`).
         riders_apart : int, keyword-only
-            Return the last this many vertices (face-less riders) apart and rider-major,
-            ``SurfaceFrames.riders`` (A, F, 3), and the rider frames rider-major too: the
-            caller that walks each rider's frames (fibre lengths) reads them contiguously and
-            no frame-major copy of them is made.
+            Return the last this many (face-less) vertices apart, rider-major
+            (``SurfaceFrames.riders``), and the rider frames rider-major: no frame-major copies.
 
         Returns
         -------
@@ -276,7 +265,7 @@ class SurfaceBinding:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
         at = None
         apart = int(riders_apart)
-        if apart and (self.faces.size and int(self.faces.max()) >= len(self.rest_vertices) - apart):
+        if apart and int(self.faces.max()) >= len(self.rest_vertices) - apart:
             raise ValueError(f"riders_apart={apart}: the faces use some of the last {apart} vertices")
         if rider_frames:
             p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames,
@@ -292,10 +281,7 @@ class SurfaceBinding:
         if not obstacles:
             n_s = p.shape[0] - apart
             vertices = combine_vf(p[:n_s], q[:n_s], k)
-            riders = None
-            if apart:
-                riders = q[n_s:] * k[None, :, None]
-                riders += p[n_s:]
+            riders = combine_vf(p[n_s:], q[n_s:], k, rider_major=True) if apart else None
             if preserve_volume:
                 volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
             else:
@@ -348,10 +334,9 @@ class SurfaceBinding:
                 k_prev, g_prev = k, g
                 k = np.clip(k_next, 0.25, 4.0)
             vertices, volume = (pusher(p, q, obstacles) if split else pushed)(k)
-        if apart:
-            n_s = vertices.shape[1] - apart
-            return SurfaceFrames(vertices[:, :n_s], k, volume, target, at, vertices[:, n_s:].transpose(1, 0, 2))
-        return SurfaceFrames(vertices, k, volume, target, at)
+        n_s = vertices.shape[1] - apart     # riders apart: a rider-major copy of the last ones
+        return SurfaceFrames(vertices[:, :n_s] if apart else vertices, k, volume, target, at,
+                             vertices[:, n_s:].transpose(1, 0, 2) if apart else None)
 
 
 def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,

@@ -150,12 +150,13 @@ def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
     return out
 
 
-def combine_vf(p_vf, q_vf, k) -> np.ndarray:
-    """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)."""
+def combine_vf(p_vf, q_vf, k, *, rider_major: bool = False) -> np.ndarray:
+    """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)
+    (``rider_major``: left vertex-major, (V, F, 3))."""
     p = np.asarray(p_vf, dtype=float)
     w = np.asarray(q_vf, dtype=float) * np.asarray(k, dtype=float)[None, :, None]
     w += p
-    return np.ascontiguousarray(w.transpose(1, 0, 2))
+    return w if rider_major else np.ascontiguousarray(w.transpose(1, 0, 2))
 
 
 def solve_radial_scale(coefficients, target, *, start=None, bounds=(0.25, 4.0), iterations=30) -> np.ndarray:
