@@ -63,10 +63,12 @@ def current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
         from ..osim.kinematics import body_pose_derivatives
         from ..wrapping.path_points import path_points
 
-        tf, dtf, q_used, jac = body_pose_derivatives(model, motion, derivatives=True)
+        # the pose derivatives only where a wrap object needs them (the tangent points' solve)
+        need_d = any(model.path(n).wraps for n in missing)
+        tf, dtf, q_used, jac = body_pose_derivatives(model, motion, derivatives=need_d)
         for name in missing:  # loop over paths (few)
             path = model.path(name)
-            pp = path_points(path, model, q_used, tf, jac=jac, d_tf_ground_body=dtf)
+            pp = path_points(path, model, q_used, tf, jac=jac if need_d else None, d_tf_ground_body=dtf)
             if path.wraps:
                 from ..wrapping.path import wrap_path
 
