@@ -2,8 +2,9 @@
 
 Files (docs/INTERFACE.md): ``fibres/<muscle>.pvd`` (a ParaView collection, ``timestep`` = the
 motion's time) and ``fibres/<muscle>_<frame>.vtp`` per frame: one polyline cell per fibre, in fibre
-order, with cell data ``fibre`` (its id). Optionally ``<muscle>_surface.pvd`` and
-``<muscle>_surface_<frame>.vtp`` (the wrapped muscle surface). ``<frame>`` is the 0-based frame
+order, with cell data ``fibre`` (its id). `write_surface_frames` writes ``<muscle>_surface.pvd``
+and ``<muscle>_surface_<frame>.vtp`` (a wrapped muscle surface; ``fibres run`` leaves the surfaces
+to its scene). ``<frame>`` is the 0-based frame
 index, zero-padded to 4 digits.
 
 Written by hand in VTK's XML format (VTK file formats, "XML File Formats": PolyData with
@@ -41,9 +42,11 @@ def _le(a, dtype):
     return np.ascontiguousarray(a, dtype=np.dtype(dtype).newbyteorder("<"))
 
 
-def _write_polydata(path, points, *, lines=None, polys=None, cell_data=None, point_data=None):
-    """Write one VTK XML PolyData file with raw appended arrays (atomic)."""
-    blobs, offset = [], 0
+def _polydata(points, *, lines=None, polys=None, cell_data=None, point_data=None):
+    """One VTK XML PolyData file with raw appended arrays, in three parts: the XML before the
+    appended data, the arrays in the order they are appended (each to be preceded by its UInt64
+    byte count), and the XML after. Frames of the same shape share the two XML parts."""
+    arrays, offset = [], 0
 
     def array(parent, name, a, ncomp=1):
         nonlocal offset
@@ -53,9 +56,8 @@ def _write_polydata(path, points, *, lines=None, polys=None, cell_data=None, poi
         if ncomp != 1:
             attrs["NumberOfComponents"] = str(ncomp)
         ET.SubElement(parent, "DataArray", attrs)
-        raw = a.tobytes()
-        blobs.append(np.uint64(len(raw)).astype("<u8").tobytes() + raw)
-        offset += 8 + len(raw)
+        arrays.append(a)
+        offset += 8 + a.nbytes
 
     root = ET.Element("VTKFile", type="PolyData", version="1.0", byte_order="LittleEndian",
                       header_type="UInt64")
@@ -85,12 +87,23 @@ def _write_polydata(path, points, *, lines=None, polys=None, cell_data=None, poi
     head = ET.tostring(root, encoding="unicode")
     marker = '<AppendedData encoding="raw">_'
     cut = head.index(marker) + len(marker)
-    data = (b'<?xml version="1.0"?>\n' + head[:cut].encode("ascii") + b"".join(blobs)
-            + head[cut:].encode("ascii") + b"\n")
+    return (b'<?xml version="1.0"?>\n' + head[:cut].encode("ascii"), arrays,
+            head[cut:].encode("ascii") + b"\n")
+
+
+def _write_parts(path, head, arrays, tail) -> Path:
+    """Write the parts of `_polydata` as one file (atomic)."""
+    blobs = [b for a in arrays for b in (np.uint64(a.nbytes).astype("<u8").tobytes(), a.tobytes())]
     path = Path(path)
     with atomic_path(path) as tmp:
-        Path(tmp).write_bytes(data)
+        Path(tmp).write_bytes(b"".join([head, *blobs, tail]))
     return path
+
+
+def _write_polydata(path, points, *, lines=None, polys=None, cell_data=None, point_data=None):
+    """Write one VTK XML PolyData file with raw appended arrays (atomic)."""
+    return _write_parts(path, *_polydata(points, lines=lines, polys=polys, cell_data=cell_data,
+                                         point_data=point_data))
 
 
 def write_polylines_vtp(path, points, *, cell_data=None) -> Path:
@@ -108,6 +121,11 @@ def write_polylines_vtp(path, points, *, cell_data=None) -> Path:
     -------
     Path
     """
+    return _write_parts(path, *_polylines(points, cell_data))
+
+
+def _polylines(points, cell_data):
+    """`_polydata` parts of `write_polylines_vtp`."""
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 3 or pts.shape[2] != 3 or pts.shape[1] < 2:
         raise ValueError(f"points must be (N, P, 3) with P >= 2, got shape {pts.shape}")
@@ -122,7 +140,7 @@ def write_polylines_vtp(path, points, *, cell_data=None) -> Path:
         data[name] = values.astype(np.int64 if values.dtype.kind in "iub" else np.float64)
     conn = np.arange(n * p, dtype=np.int64)
     offsets = p * np.arange(1, n + 1, dtype=np.int64)
-    return _write_polydata(path, pts.reshape(-1, 3), lines=(conn, offsets), cell_data=data)
+    return _polydata(pts.reshape(-1, 3), lines=(conn, offsets), cell_data=data)
 
 
 def write_surface_vtp(path, vertices, faces) -> Path:
@@ -193,8 +211,16 @@ def write_fibre_frames(out_dir, muscle: str, fibre_points, *, times, frames=None
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     names = [frame_file_name(muscle, f) for f in fr]
+    head = tail = layout = None
     for i, name in enumerate(names):                      # one file per frame (I/O loop)
-        write_polylines_vtp(out / name, pts[i], cell_data={k: v[i] for k, v in extra.items()})
+        cells = {k: v[i] for k, v in extra.items()}
+        if head is None:    # the XML of the first frame serves them all (same shapes and types)
+            head, layout, tail = _polylines(pts[i], cells)
+            arrays = layout
+        else:               # the arrays in `_polylines`' order: fibre, cell data, points, topology
+            arrays = [layout[0], *(_le(np.asarray(v), layout[1 + j].dtype) for j, v in enumerate(cells.values())),
+                      _le(pts[i], POINT_TYPE).reshape(-1, 3), *layout[-2:]]
+        _write_parts(out / name, head, arrays, tail)
     return write_pvd(out / f"{muscle}.pvd", names, t)
 
 
@@ -210,6 +236,12 @@ def write_surface_frames(out_dir, muscle: str, vertices, faces, *, times, frames
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     names = [frame_file_name(muscle, f, "surface") for f in fr]
+    head = tail = layout = None
     for i, name in enumerate(names):
-        write_surface_vtp(out / name, v[i], faces)
+        if head is None:    # the XML and topology of the first frame serve them all
+            write_surface_vtp(out / name, v[i], faces)
+            head, layout, tail = _polydata(v[i], polys=(np.asarray(faces).reshape(-1),
+                                                        3 * np.arange(1, len(faces) + 1, dtype=np.int64)))
+        else:
+            _write_parts(out / name, head, [_le(v[i], POINT_TYPE), *layout[1:]], tail)
     return write_pvd(out / f"{muscle}_surface.pvd", names, t)
