@@ -46,7 +46,7 @@ def _conditional(path, ids: np.ndarray) -> np.ndarray:
     return kinds[np.where((ids >= 0) & (ids < len(path.points)), ids, -1)]
 
 
-def current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
+def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) -> dict:
     """Mapping path name -> ((F, N, 3) current polyline with wrap arcs, NaN-padded;
     (F, K) anchor positions or None; (F, N) bool, the points that are ConditionalPathPoints)."""
     out = {}
@@ -65,7 +65,10 @@ def current_polylines(model, motion, names, lines, tf_ground_body) -> dict:
 
         # the pose derivatives only where a wrap object needs them (the tangent points' solve)
         need_d = any(model.path(n).wraps for n in missing)
-        tf, dtf, q_used, jac = body_pose_derivatives(model, motion, derivatives=need_d)
+        if need_d or q_used is None:
+            tf, dtf, q_used, jac = body_pose_derivatives(model, motion, derivatives=need_d)
+        else:       # the poses and assembled coordinates the caller has
+            tf, dtf, jac = np.asarray(tf_ground_body, dtype=float), None, None
         for name in missing:  # loop over paths (few)
             path = model.path(name)
             pp = path_points(path, model, q_used, tf, jac=jac if need_d else None, d_tf_ground_body=dtf)

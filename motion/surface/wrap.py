@@ -197,10 +197,10 @@ def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: 
 
     muscles = tuple(muscles)
     _check_lines(model, muscles)
-    tf = np.asarray(body_poses(model, motion).tf_ground_body if poses is None else
-                    getattr(poses, "tf_ground_body", poses), dtype=float)
+    poses = body_poses(model, motion) if poses is None else poses
+    tf = np.asarray(getattr(poses, "tf_ground_body", poses), dtype=float)
     needed = list(dict.fromkeys(n for spec in muscles for n in spec.action_lines))
-    current = current_polylines(model, motion, needed, lines, tf)
+    current = current_polylines(model, motion, needed, lines, tf, getattr(poses, "q", None))
     return tuple(SurfaceWrapper(model, spec, n_samples=n_samples, margin=margin, bone_spacing=bone_spacing,
                                 rigid_radius=rigid_radius, blend_radius=blend_radius).wrap(tf, current)
                  for spec in muscles)   # loop over muscles
@@ -315,9 +315,10 @@ class SurfaceWrapper:
         """The surface over ``motion`` (see `wrap_surfaces` for ``lines`` and ``poses``)."""
         from ..osim.kinematics import body_poses
 
-        tf = np.asarray(body_poses(self.model, motion).tf_ground_body if poses is None else
-                        getattr(poses, "tf_ground_body", poses), dtype=float)
-        return self.wrap(tf, current_polylines(self.model, motion, list(self.spec.action_lines), lines, tf))
+        poses = body_poses(self.model, motion) if poses is None else poses
+        tf = np.asarray(getattr(poses, "tf_ground_body", poses), dtype=float)
+        return self.wrap(tf, current_polylines(self.model, motion, list(self.spec.action_lines), lines, tf,
+                                               getattr(poses, "q", None)))
 
     def wrap(self, tf, current) -> WrappedSurface:
         """The surface at the body poses ``tf`` (F, B, 4, 4), its lines ``current``
