@@ -211,9 +211,11 @@ def _carry_loop(x, ends0, ends1, u, frames, use_frames, every, lengths, points):
 
 
 def bind_transport(model, sspec, rest, bundle0):
-    """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked)`` wraps the
-    rest surface with the rest fibres' material points as riders at every pose of ``stacked``
-    (a `motion.Motion`) and returns a `Carried`.
+    """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked, keep=None)``
+    wraps the rest surface with the rest fibres' material points as riders at every pose of
+    ``stacked`` (a `motion.Motion`) and returns a `Carried` (the polylines of the first ``keep``
+    poses). The muscle is bound once (`motion.surface.SurfaceWrapper`), whatever the number of
+    calls.
 
     ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its surface wrapped at one
     frame (its rest geometry in ground), ``bundle0`` the rest-pose `fibres.FibreBundle`."""
