@@ -49,7 +49,7 @@ import scipy.sparse as sp
 
 from .curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline, resample_polylines,
                      smoothed_tangents, rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
-from .volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
+from .volume import combine_into_q, combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
 __all__ = ["SurfaceBinding", "SurfaceFrames", "bind_surface", "smoothstep"]
 
@@ -110,11 +110,10 @@ class SurfaceFrames:
             if getattr(self, name) is None:
                 continue
             arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.flags.writeable and arr.flags.owndata:
-                arr.setflags(write=False)   # built here: freeze without copying
-            else:
-                arr = _ro(arr)
-            object.__setattr__(self, name, arr)
+            if arr.flags.writeable:   # own data: frozen without copying; a view: a frozen copy
+                arr = arr if arr.flags.owndata else _ro(arr)
+                arr.setflags(write=False)
+            object.__setattr__(self, name, arr)    # read-only already: frozen by `deform`
 
     @property
     def volume_error(self) -> np.ndarray:
@@ -281,7 +280,7 @@ class SurfaceBinding:
         if not obstacles:
             n_s = p.shape[0] - apart
             vertices = combine_vf(p[:n_s], q[:n_s], k)
-            riders = combine_vf(p[n_s:], q[n_s:], k, rider_major=True) if apart else None
+            riders = combine_into_q(p[n_s:], q[n_s:], k) if apart else None   # q: this call's own
             if preserve_volume:
                 volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
             else:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "solve_radial_scale"]
+__all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "combine_into_q", "solve_radial_scale"]
 
 _CHUNK = 8  # frames per numpy chunk of `mesh_volume`: a few (8, T, 3) temporaries
 
@@ -135,13 +135,21 @@ def _cubic_loop(p, q, faces, out):  # pragma: no cover
             out[f, 3] += q0x * cx + q0y * cy + q0z * cz
 
 
-def combine_vf(p_vf, q_vf, k, *, rider_major: bool = False) -> np.ndarray:
-    """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)
-    (``rider_major``: left vertex-major, (V, F, 3))."""
+def combine_vf(p_vf, q_vf, k) -> np.ndarray:
+    """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)."""
     p = np.asarray(p_vf, dtype=float)
     w = np.asarray(q_vf, dtype=float) * np.asarray(k, dtype=float)[None, :, None]
     w += p
-    return w if rider_major else np.ascontiguousarray(w.transpose(1, 0, 2))
+    return np.ascontiguousarray(w.transpose(1, 0, 2))
+
+
+def combine_into_q(p_vf, q_vf, k) -> np.ndarray:
+    """``Q <- P + k Q`` in place, vertex-major (V, F, 3) (no new array: the caller's ``Q`` is
+    its own and not needed after); returns ``Q``, read-only."""
+    q_vf *= np.asarray(k, dtype=float)[None, :, None]
+    q_vf += p_vf
+    q_vf.setflags(write=False)
+    return q_vf
 
 
 def solve_radial_scale(coefficients, target, *, start=None, bounds=(0.25, 4.0), iterations=30) -> np.ndarray:
