@@ -214,7 +214,7 @@ def bind_transport(model, sspec, rest, bundle0):
     """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked, keep=None)``
     wraps the rest surface with the rest fibres' material points as riders at every pose of
     ``stacked`` (a `motion.Motion`) and returns a `Carried` (the polylines of the first ``keep``
-    poses). The muscle is bound once (`motion.surface.SurfaceWrapper`), whatever the number of
+    poses). The muscle is bound once (`motion.surface.wrap.SurfaceWrapper`), whatever the number of
     calls.
 
     ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its surface wrapped at one
