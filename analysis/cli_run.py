@@ -242,32 +242,32 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     timings = {}
     try:
         with confined_to(staging):
-            with timed(timings, "write_tables"):
+            with timed(timings, "write_tables", process=True):
                 write_tables(result, staging)
             interrupts.check()
             if sto:
-                with timed(timings, "write_sto"):
+                with timed(timings, "write_sto", process=True):
                     write_sto_files(result, staging, per_fibre=sto_fibres, muscle_stems=stems,
                                     coordinate_stems=coord_stems)
             if plots:
-                with timed(timings, "plots"):
+                with timed(timings, "plots", process=True):
                     _write_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
             interrupts.check()
             if vtk and not streamed and any(m.fibre_points is not None for m in result.muscles):
-                with timed(timings, "vtk_files"):
+                with timed(timings, "vtk_files", process=True):
                     _write_vtk(result, staging / "fibres", stems, quiet=quiet, progress=progress)
             interrupts.check()
             if scene is not None:
                 from .scene import write_scene
 
-                with timed(timings, "scene"):
+                with timed(timings, "scene", process=True):
                     write_scene(staging / "scene", result, scene["spec"], step=scene.get("step"))
             extra = {}
             if osim is not None:
                 from .osim_export import export_osim
 
                 interrupts.check()
-                with timed(timings, "osim_export"):
+                with timed(timings, "osim_export", process=True):
                     kw = dict(osim)
                     spec = kw.pop("spec")
                     name = f"{Path(spec.model_path).stem}_fibres.osim"

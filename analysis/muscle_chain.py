@@ -49,16 +49,19 @@ class Ctx:
     transport: str = "bind"
 
 
-def timed(timings, stage):
-    """A context adding its wall time to ``timings[stage]`` and the CPU time of its thread to
-    ``timings[stage + "_cpu"]`` (the CPU times compare runs on a shared machine)."""
+def timed(timings, stage, *, process: bool = False):
+    """A context adding its wall time to ``timings[stage]`` and the CPU time of its thread (of
+    the whole process with ``process``: a stage with helper threads and no other work running)
+    to ``timings[stage + "_cpu"]`` (the CPU times compare runs on a shared machine)."""
+    clock = _time.process_time if process else _time.thread_time
+
     class _T:
         def __enter__(self):
-            self.t0, self.c0 = _time.perf_counter(), _time.thread_time()
+            self.t0, self.c0 = _time.perf_counter(), clock()
 
         def __exit__(self, *exc):
             timings[stage] = timings.get(stage, 0.0) + _time.perf_counter() - self.t0
-            timings[stage + "_cpu"] = timings.get(stage + "_cpu", 0.0) + _time.thread_time() - self.c0
+            timings[stage + "_cpu"] = timings.get(stage + "_cpu", 0.0) + clock() - self.c0
             return False
 
     return _T()
