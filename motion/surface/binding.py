@@ -68,8 +68,7 @@ def _ro(a, dtype=float) -> np.ndarray:
 
 def _check_tf(tf, name: str, n_frames: int | None = None) -> np.ndarray:
     tf = np.asarray(tf, dtype=float)
-    if tf.shape == (4, 4):
-        tf = tf[None]
+    tf = tf[None] if tf.shape == (4, 4) else tf
     if tf.ndim != 3 or tf.shape[1:] != (4, 4):
         raise ValueError(f"{name} must be (4, 4) or (F, 4, 4), got shape {tf.shape}")
     if n_frames is not None and tf.shape[0] not in (1, n_frames):
@@ -253,8 +252,7 @@ class SurfaceBinding:
         rider_frames : int, keyword-only
             Also return the line frames at the last this many vertices (`SurfaceFrames`).
         riders_apart : int, keyword-only
-            Return the last this many (face-less) vertices apart, rider-major
-            (``SurfaceFrames.riders``), and the rider frames rider-major: no frame-major copies.
+            The last this many (face-less) vertices apart, rider-major (``SurfaceFrames.riders``).
 
         Returns
         -------
