@@ -27,9 +27,9 @@ plus the memory the process already holds (its resident size when the estimate i
 (400 x 300), 0.39 (200 x 300 with ``--jobs 2``, whose two muscles' peaks rarely coincide). It is
 a guard against runs that cannot fit, erring on the safe side, not a precise forecast.
 
-Disk: the CSV rows (``CSV_BYTES_PER_ROW``), the ``.vtp`` files (``F x N (R + 1) x 32`` bytes plus
-a header per frame) and about ``PLOT_BYTES`` per muscle for the plots; refused when above the free
-space of the output folder's file system.
+Disk: the CSV rows (``CSV_BYTES_PER_ROW``), the ``.vtp`` files (``F x N (R + 1) x 16`` bytes of
+float32 points and int32 connectivity, plus a header per frame) and about ``PLOT_BYTES`` per muscle
+for the plots; refused when above the free space of the output folder's file system.
 
 The budget: ``--max-memory SIZE`` (``8G``, ``500M``, ``1.5GiB``, plain bytes); default 80 % of the
 machine's physical memory (8 GiB where that is unknown).
@@ -187,7 +187,7 @@ def muscle_costs(mspec, n_frames, n_coordinates, transport="bind") -> dict:
         work += poses * n * (r + 1) * 3 * 8
     kept = f * n * (r + 1) * 3 * 8 + f * per_frame * n * 8     # points + all poses' lengths
     rows = f * n * (1 + k)
-    disk = rows * CSV_BYTES_PER_ROW + f * (n * (r + 1) * 32 + n * 32 + 2048) + PLOT_BYTES
+    disk = rows * CSV_BYTES_PER_ROW + f * (n * (r + 1) * 16 + n * 32 + 2048) + PLOT_BYTES
     return {"muscle": mspec.name, "frames": f, "fibres": n, "points": r + 1, "poses": 1 + 2 * k,
             "vertices": v, "work": work, "kept": kept, "tables": rows * TABLE_BYTES_PER_ROW,
             "disk": disk}

@@ -29,13 +29,13 @@ import contextlib
 import shutil
 import sys
 import tempfile
-import time as _time
 import warnings
 from pathlib import Path
 
 import numpy as np
 
 from .errors import FibreWarning, InputError
+from .muscle_chain import timed
 from .sto_files import write_sto_files
 
 __all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
@@ -242,43 +242,37 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     timings = {}
     try:
         with confined_to(staging):
-            t0 = _time.perf_counter()
-            write_tables(result, staging)
-            timings["write_tables"] = _time.perf_counter() - t0
+            with timed(timings, "write_tables", process=True):
+                write_tables(result, staging)
             interrupts.check()
             if sto:
-                t0 = _time.perf_counter()
-                write_sto_files(result, staging, per_fibre=sto_fibres, muscle_stems=stems,
-                                coordinate_stems=coord_stems)
-                timings["write_sto"] = _time.perf_counter() - t0
+                with timed(timings, "write_sto", process=True):
+                    write_sto_files(result, staging, per_fibre=sto_fibres, muscle_stems=stems,
+                                    coordinate_stems=coord_stems)
             if plots:
-                t0 = _time.perf_counter()
-                _write_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
-                timings["plots"] = _time.perf_counter() - t0
+                with timed(timings, "plots", process=True):
+                    _write_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
             interrupts.check()
             if vtk and not streamed and any(m.fibre_points is not None for m in result.muscles):
-                t0 = _time.perf_counter()
-                _write_vtk(result, staging / "fibres", stems, quiet=quiet, progress=progress)
-                timings["vtk_files"] = _time.perf_counter() - t0
+                with timed(timings, "vtk_files", process=True):
+                    _write_vtk(result, staging / "fibres", stems, quiet=quiet, progress=progress)
             interrupts.check()
             if scene is not None:
                 from .scene import write_scene
 
-                t0 = _time.perf_counter()
-                write_scene(staging / "scene", result, scene["spec"], step=scene.get("step"))
-                timings["scene"] = _time.perf_counter() - t0
+                with timed(timings, "scene", process=True):
+                    write_scene(staging / "scene", result, scene["spec"], step=scene.get("step"))
             extra = {}
             if osim is not None:
                 from .osim_export import export_osim
 
                 interrupts.check()
-                t0 = _time.perf_counter()
-                kw = dict(osim)
-                spec = kw.pop("spec")
-                name = f"{Path(spec.model_path).stem}_fibres.osim"
-                extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
-                extra["osim_export"]["file"] = name
-                timings["osim_export"] = _time.perf_counter() - t0
+                with timed(timings, "osim_export", process=True):
+                    kw = dict(osim)
+                    spec = kw.pop("spec")
+                    name = f"{Path(spec.model_path).stem}_fibres.osim"
+                    extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
+                    extra["osim_export"]["file"] = name
             extra["files"] = [f for f in staged_files(staging) if f != "run.json"] + ["run.json"]
             extra["file_names"] = {"muscles": stems, "coordinates": coord_stems}
             write_run_json(result, staging / "run.json", command=command, extra_timings=timings, extra=extra)
@@ -389,12 +383,12 @@ def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True):
 
 
 def _write_muscle_vtk(vtk_files, folder, stem, m, time):
+    """The fibres of one muscle per frame (the wrapped surfaces are drawn by the scene only:
+    docs/decisions.md, "A whole model over a whole trial")."""
     if m.fibre_points is not None:
         vtk_files.write_fibre_frames(folder, stem, m.fibre_points, times=time,
                                      cell_data={"length": m.fibre_lengths,
                                                 "normalized_length": m.normalized_lengths})
-    if m.surface_vertices is not None:
-        vtk_files.write_surface_frames(folder, stem, m.surface_vertices, m.surface_faces, times=time)
 
 
 def _write_vtk(result, folder: Path, stems, *, quiet, progress):

@@ -53,6 +53,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from numba import njit
 
 from . import interrupts
 
@@ -68,9 +69,10 @@ LENGTH_SUBDIVISION = 2
 
 @dataclasses.dataclass
 class Carried:
-    """The fibres at a batch of poses: ``points`` (F, N, P, 3) as reported, ``lengths`` (F, N)
-    (measured as the module docstring says), ``surfaces`` (F, V, 3) the wrapped surface and the
-    wrapping's ``notes``."""
+    """The fibres at a batch of poses: ``points`` (K, N, P, 3) as reported at the first K poses
+    (``carry(stacked, keep=K)``; all poses by default), ``lengths`` (F, N) (measured as the
+    module docstring says), ``surfaces`` (F, V, 3) the wrapped surface and the wrapping's
+    ``notes``."""
 
     points: np.ndarray
     lengths: np.ndarray
@@ -119,44 +121,106 @@ def _subdivided(points, m: int) -> np.ndarray:
     return np.concatenate([inner.reshape(p.shape[0], -1, 3), p[:, -1:]], axis=1)
 
 
-def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None):
-    """Fibres carried by the belly deformation (F, N, P, 3), corrected so that their ends are
-    ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the residuals
-    spread linearly in each rest fibre's (N, P, 3) arc-length fraction (module docstring).
+def _ends_ride_their_bodies(carried, rest, origin_ends, insertion_ends, frames=None, *, keep=0,
+                            every=LENGTH_SUBDIVISION):
+    """Fibres carried by the belly deformation, rider-major (N, Q, F, 3), corrected so that their
+    ends are ``origin_ends`` / ``insertion_ends`` (F, N, 3) (rigid with their bodies), the
+    residuals spread linearly in each rest fibre's (N, Q, 3) arc-length fraction (module
+    docstring), and measured: returns the lengths (F, N) of the corrected polylines and their
+    every ``every``-th point (``keep``, N, Q', 3) at the first ``keep`` poses (the reported
+    polylines).
 
-    ``frames`` (F, N, P, 3, 3), the belly's line frames at the fibre points (columns normal,
+    ``frames`` (N, Q, F, 3, 3), the belly's line frames at the fibre points (columns normal,
     binormal, tangent; `motion.WrappedSurface.rider_frames`): each end residual is then held in
     the frame at its end and carried along the fibre with the frames, so over a pulley a
     residual across the muscle stays across it instead of a fixed ground vector (where the
-    frames are constant, on a straight line, it is the same correction)."""
-    seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, P-1)
+    frames are constant, on a straight line, it is the same correction).
+
+    One pass over the points (`_carry_loop`, compiled): the corrected points of the
+    perturbed poses are never stored, only their lengths."""
+    seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)                      # (N, Q-1)
     u = np.concatenate([np.zeros((rest.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
-    u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, P)
-    e0 = origin_ends - carried[:, :, 0]
-    e1 = insertion_ends - carried[:, :, -1]
-    if frames is not None:
-        local0 = np.einsum("fnji,fnj->fni", frames[:, :, 0], e0)       # e0 in the frame at the end
-        local1 = np.einsum("fnji,fnj->fni", frames[:, :, -1], e1)
-        mix = local0[:, :, None] + u[None, :, :, None] * (local1 - local0)[:, :, None]   # (F, N, P, 3)
-        out = carried + np.einsum("fnpij,fnpj->fnpi", frames, mix)   # (faster than batched 3x3 matmul)
-        # the ends exactly (the interpolated frames there are those used for local0/local1)
-        out[:, :, 0] = origin_ends
-        out[:, :, -1] = insertion_ends
-        return out
-    out = carried + e0[:, :, None]                       # = ... + (1 - u) e0 + u e1, two temporaries
-    out += u[None, :, :, None] * (e1 - e0)[:, :, None]
-    return out
+    u = u / np.maximum(u[:, -1:], 1e-300)                                      # (N, Q)
+    n_n, n_q, n_f = carried.shape[:3]
+    lengths = np.empty((n_f, n_n))
+    points = np.empty((int(keep), n_n, (n_q - 1) // every + 1, 3))
+    use = frames is not None
+    dummy = np.zeros((1, 1, 1, 3, 3))
+    _carry_loop(carried, np.asarray(origin_ends, dtype=float), np.asarray(insertion_ends, dtype=float), u,
+                frames if use else dummy, use, int(every), lengths, points)
+    return lengths, points
+
+
+@njit(cache=True, nogil=True)
+def _carry_loop(x, ends0, ends1, u, frames, use_frames, every, lengths, points):  # pragma: no cover
+    """`_ends_ride_their_bodies` fibre by fibre, point by point, all poses at once (rider-major
+    input read in order): the end residuals (in the line frames at the ends when
+    ``use_frames``), the corrected points, their polyline lengths, and the kept points of the
+    first ``points.shape[0]`` poses."""
+    n_n, n_q, n_f = x.shape[0], x.shape[1], x.shape[2]
+    keep = points.shape[0]
+    last = n_q - 1
+    e0 = np.empty((n_f, 3))
+    e1 = np.empty((n_f, 3))
+    prev = np.empty((n_f, 3))
+    total = np.empty(n_f)
+    y = np.empty(3)
+    m = np.empty(3)
+    for n in range(n_n):
+        for f in range(n_f):
+            for a in range(3):
+                e0[f, a] = ends0[f, n, a] - x[n, 0, f, a]
+                e1[f, a] = ends1[f, n, a] - x[n, last, f, a]
+            if use_frames:           # residuals in the frames at the ends: local = R^T e
+                r0, r1, r2 = e0[f, 0], e0[f, 1], e0[f, 2]
+                s0, s1, s2 = e1[f, 0], e1[f, 1], e1[f, 2]
+                for a in range(3):
+                    e0[f, a] = frames[n, 0, f, 0, a] * r0 + frames[n, 0, f, 1, a] * r1 + frames[n, 0, f, 2, a] * r2
+                    e1[f, a] = (frames[n, last, f, 0, a] * s0 + frames[n, last, f, 1, a] * s1
+                                + frames[n, last, f, 2, a] * s2)
+            total[f] = 0.0
+        for j in range(n_q):
+            w = u[n, j]
+            for f in range(n_f):
+                if j == 0:
+                    for a in range(3):
+                        y[a] = ends0[f, n, a]
+                elif j == last:
+                    for a in range(3):
+                        y[a] = ends1[f, n, a]
+                else:
+                    for a in range(3):
+                        m[a] = e0[f, a] + w * (e1[f, a] - e0[f, a])
+                    if use_frames:
+                        for a in range(3):
+                            y[a] = x[n, j, f, a] + (frames[n, j, f, a, 0] * m[0] + frames[n, j, f, a, 1] * m[1]
+                                                    + frames[n, j, f, a, 2] * m[2])
+                    else:
+                        for a in range(3):
+                            y[a] = x[n, j, f, a] + m[a]
+                if j > 0:
+                    d0, d1, d2 = y[0] - prev[f, 0], y[1] - prev[f, 1], y[2] - prev[f, 2]
+                    total[f] += np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                if f < keep and j % every == 0:
+                    for a in range(3):
+                        points[f, n, j // every, a] = y[a]
+                for a in range(3):
+                    prev[f, a] = y[a]
+        for f in range(n_f):
+            lengths[f, n] = total[f]
 
 
 def bind_transport(model, sspec, rest, bundle0):
-    """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked)`` wraps the
-    rest surface with the rest fibres' material points as riders at every pose of ``stacked``
-    (a `motion.Motion`) and returns a `Carried`.
+    """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked, keep=None)``
+    wraps the rest surface with the rest fibres' material points as riders at every pose of
+    ``stacked`` (a `motion.Motion`) and returns a `Carried` (the polylines of the first ``keep``
+    poses). The muscle is bound once (`motion.surface.wrap.SurfaceWrapper`), whatever the number of
+    calls.
 
     ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its surface wrapped at one
     frame (its rest geometry in ground), ``bundle0`` the rest-pose `fibres.FibreBundle`."""
-    from motion import wrap_surfaces
     from motion.surface.rest import rest_pose
+    from motion.surface.wrap import SurfaceWrapper
 
     shape = bundle0.points.shape                                  # (N, P, 3)
     n_v = rest.rest_vertices.shape[0]
@@ -176,16 +240,19 @@ def bind_transport(model, sspec, rest, bundle0):
         end: _with_points(getattr(sspec, end), p_ground, pose0, model, tf_data_ground)
         for end, p_ground in ends.items()})
 
-    def carry(stacked) -> Carried:
-        (wrapped,) = wrap_surfaces(model, stacked, [bound])
+    wrapper = SurfaceWrapper(model, bound)
+
+    def carry(stacked, keep=None) -> Carried:
+        wrapped = wrapper(stacked)
         n_all = wrapped.vertices.shape[0]
-        frames = getattr(wrapped, "rider_frames", None)
-        carried = _ends_ride_their_bodies(
-            wrapped.vertices[:, n_v:].reshape((n_all,) + fine.shape), fine,
+        frames = wrapped.rider_frames
+        lengths, points = _ends_ride_their_bodies(
+            wrapped.riders.reshape(fine.shape[:2] + (n_all, 3)), fine,
             wrapped.origin[:, -shape[0]:], wrapped.insertion[:, -shape[0]:],
-            None if frames is None else frames.reshape((n_all,) + fine.shape[:2] + (3, 3)))
-        return Carried(points=carried[:, :, ::LENGTH_SUBDIVISION], lengths=fibre_lengths(carried),
-                       surfaces=wrapped.vertices[:, :n_v], notes=tuple(getattr(wrapped, "notes", ())))
+            None if frames is None else frames.reshape(fine.shape[:2] + (n_all, 3, 3)),
+            keep=n_all if keep is None else keep)
+        return Carried(points=points, lengths=lengths, surfaces=wrapped.vertices,
+                       notes=tuple(getattr(wrapped, "notes", ())))
 
     return carry
 
@@ -198,7 +265,7 @@ def decompose_transport(model, sspec, bundle0, options, bar):
     from fibres import decompose
     from motion import wrap_surfaces
 
-    def carry(stacked) -> Carried:
+    def carry(stacked, keep=None) -> Carried:
         (wrapped,) = wrap_surfaces(model, stacked, [sspec])
         points = np.empty((wrapped.vertices.shape[0],) + bundle0.points.shape)
         for f in range(len(points)):  # one decomposition per (perturbed) frame, the plan frozen
@@ -207,7 +274,7 @@ def decompose_transport(model, sspec, bundle0, options, bar):
                           plan=bundle0.plan, **options)
             points[f] = b.points
             bar.update(1)
-        return Carried(points=points, lengths=fibre_lengths(points), surfaces=wrapped.vertices,
+        return Carried(points=points[:keep], lengths=fibre_lengths(points), surfaces=wrapped.vertices,
                        notes=tuple(getattr(wrapped, "notes", ())))
 
     return carry

@@ -83,10 +83,13 @@ def _umask() -> int:
     return mask
 
 
-def write_csv(frame, path, *, float_format="%.12g"):
-    """Write a pandas DataFrame as CSV (no index, >= 9 significant digits), atomically."""
+def write_csv(frame, path):
+    """Write a pandas DataFrame as CSV (no index, 12 significant digits: `analysis.csv_text`),
+    atomically."""
+    from .csv_text import csv_bytes
+
     with atomic_path(path) as tmp:
-        frame.to_csv(tmp, index=False, float_format=float_format)
+        Path(tmp).write_bytes(csv_bytes(frame))
 
 
 def write_text(text: str, path):

@@ -214,6 +214,8 @@ TABLES.update({
 })
 
 
+#: tables `write_tables` writes at the same time (threads)
+TABLE_THREADS = 2
 #: tables written muscle by muscle (`write_tables`): their rows are muscle-major anyway
 PER_MUSCLE = ("fibre_lengths.csv", "fibre_moment_arms.csv", "action_lines.csv", "action_line_moment_arms.csv")
 
@@ -225,13 +227,14 @@ def write_tables(result, out_dir, *, parquet: bool = True) -> list:
     The per-fibre and per-line tables (`PER_MUSCLE`) are built and appended one muscle at a
     time (a Parquet row group per muscle), so a whole model's tables never sit in memory at once;
     the files are the same as if written at once. Returns the paths written."""
+    import concurrent.futures
+    import contextvars
     import dataclasses
     from pathlib import Path
 
     from .output_files import atomic_path, write_csv
 
-    written = []
-    for name, build in TABLES.items():
+    def one(name, build):
         path = Path(out_dir) / name
         pq = path.with_suffix(".parquet")
         if name not in PER_MUSCLE or len(result.muscles) < 2:
@@ -243,11 +246,16 @@ def write_tables(result, out_dir, *, parquet: bool = True) -> list:
         else:
             parts = (build(dataclasses.replace(result, muscles=(m,))) for m in result.muscles)
             _write_streamed(parts, path, pq if parquet else None)
-        written += [path, pq] if parquet else [path]
-    return written
+        return [path, pq] if parquet else [path]
+
+    # two tables at a time (pyarrow's kernels and the file writes release the GIL); each thread
+    # runs in a copy of this context, so `output_files.confined_to` holds there too
+    with concurrent.futures.ThreadPoolExecutor(max_workers=TABLE_THREADS) as pool:
+        futures = [pool.submit(contextvars.copy_context().run, one, name, build) for name, build in TABLES.items()]
+        return [p for fut in futures for p in fut.result()]
 
 
-def _write_streamed(parts, csv_path, parquet_path, *, float_format="%.12g"):
+def _write_streamed(parts, csv_path, parquet_path):
     """Append DataFrames of the same columns to one CSV (one header) and one Parquet file,
     each atomically (`output_files.atomic_path`)."""
     import contextlib
@@ -255,19 +263,20 @@ def _write_streamed(parts, csv_path, parquet_path, *, float_format="%.12g"):
     import pyarrow as pa
     import pyarrow.parquet as papq
 
+    from .csv_text import write_csv_part
     from .output_files import atomic_path
 
     with contextlib.ExitStack() as stack:
         csv_tmp = stack.enter_context(atomic_path(csv_path))
         pq_tmp = stack.enter_context(atomic_path(parquet_path)) if parquet_path is not None else None
         writer, first, empty = None, True, None
-        with open(csv_tmp, "w", newline="") as fh:
+        with open(csv_tmp, "wb") as fh:
             for part in parts:
                 if part.empty:
                     empty = part if empty is None else empty
                     if not first:
                         continue
-                part.to_csv(fh, index=False, header=first, float_format=float_format)
+                write_csv_part(part, fh, header=first)
                 first = False
                 if pq_tmp is not None and not part.empty:
                     table = pa.Table.from_pandas(part, preserve_index=False)

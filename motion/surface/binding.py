@@ -37,8 +37,8 @@ line are the rotation-minimising frames of Wang et al., ACM TOG 2008):
    All steps are smooth functions of the body poses and the line points, so finite
    differences of anything measured on the surface are meaningful.
 
-The linear part is precomputed as sparse (V, n L) matrices, so a frame costs a few sparse
-products, one cubic volume sum and a Newton solve.
+The linear part is precomputed as sparse (V, n L) matrices: a frame costs a few sparse products,
+one cubic volume sum and a Newton solve.
 """
 from __future__ import annotations
 
@@ -47,10 +47,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline,
-                             resample_polylines, smoothed_tangents,
-                             rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
-from .volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
+from .curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline, resample_polylines,
+                     smoothed_tangents, rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
+from .volume import combine_into_q, combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
 __all__ = ["SurfaceBinding", "SurfaceFrames", "bind_surface", "smoothstep"]
 
@@ -69,8 +68,7 @@ def _ro(a, dtype=float) -> np.ndarray:
 
 def _check_tf(tf, name: str, n_frames: int | None = None) -> np.ndarray:
     tf = np.asarray(tf, dtype=float)
-    if tf.shape == (4, 4):
-        tf = tf[None]
+    tf = tf[None] if tf.shape == (4, 4) else tf
     if tf.ndim != 3 or tf.shape[1:] != (4, 4):
         raise ValueError(f"{name} must be (4, 4) or (F, 4, 4), got shape {tf.shape}")
     if n_frames is not None and tf.shape[0] not in (1, n_frames):
@@ -93,7 +91,10 @@ class SurfaceFrames:
     rest_volume : float
     rider_frames : (F, R, 3, 3) float or None
         With ``deform(..., rider_frames=R)``: the line frames (columns normal, binormal,
-        tangent) interpolated at the last ``R`` vertices (the riders), as the belly carries them.
+        tangent) at the last ``R`` vertices (the riders); (R, F, 3, 3) with ``riders_apart``.
+    riders : (A, F, 3) float or None
+        With ``deform(..., riders_apart=A)``: the last ``A`` vertices, rider-major; ``vertices``
+        then holds the others.
     """
 
     vertices: np.ndarray
@@ -101,22 +102,17 @@ class SurfaceFrames:
     volume: np.ndarray
     rest_volume: float
     rider_frames: np.ndarray | None = None
+    riders: np.ndarray | None = None
 
     def __post_init__(self):
-        if self.rider_frames is not None:
-            arr = np.asarray(self.rider_frames, dtype=float)
-            if arr.flags.writeable and arr.flags.owndata:
-                arr.setflags(write=False)   # built here: freeze without copying
-            else:
-                arr = _ro(arr)
-            object.__setattr__(self, "rider_frames", arr)
-        for name in ("vertices", "radial_scale", "volume"):
+        for name in ("vertices", "radial_scale", "volume", "rider_frames", "riders"):
+            if getattr(self, name) is None:
+                continue
             arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.flags.writeable and arr.flags.owndata:
-                arr.setflags(write=False)   # built here: freeze without copying
-            else:
-                arr = _ro(arr)
-            object.__setattr__(self, name, arr)
+            if arr.flags.writeable:   # own data: frozen without copying; a view: a frozen copy
+                arr = arr if arr.flags.owndata else _ro(arr)
+                arr.setflags(write=False)
+            object.__setattr__(self, name, arr)    # read-only already: frozen by `deform`
 
     @property
     def volume_error(self) -> np.ndarray:
@@ -195,14 +191,16 @@ class SurfaceBinding:
         return np.stack(centres, axis=1), np.stack(frames, axis=1)
 
     # ------------------------------------------------------------------------- deform
-    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None, *, riders: int = 0):
+    def affine_parts(self, curves, tf_origin, tf_insertion, anchors=None, *, riders: int = 0,
+                     rider_major: bool = False):
         """The two parts of ``v(k) = P + k Q`` for every frame, vertex-major.
 
         Returns
         -------
         p, q : (V, F, 3) float
         rider_frames : (F, R, 3, 3) float, only with ``riders = R > 0``
-            The line frames interpolated at the last R vertices (`SurfaceFrames.rider_frames`).
+            The line frames interpolated at the last R vertices (`SurfaceFrames.rider_frames`);
+            (R, F, 3, 3) with ``rider_major``.
         """
         centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
         if riders:
@@ -210,7 +208,7 @@ class SurfaceBinding:
             feat = np.ascontiguousarray(frames.reshape(f_n, -1, 9).transpose(1, 0, 2)).reshape(-1, f_n * 9)
             at = np.asarray(self.frame_matrix[-int(riders):] @ feat).reshape(int(riders), f_n, 3, 3)
             return self._affine(centres, frames, tf_origin, tf_insertion) + (
-                np.ascontiguousarray(at.transpose(1, 0, 2, 3)),)
+                at if rider_major else np.ascontiguousarray(at.transpose(1, 0, 2, 3)),)
         return self._affine(centres, frames, tf_origin, tf_insertion)
 
     def _affine(self, centres, frames, tf_origin, tf_insertion):
@@ -233,7 +231,7 @@ class SurfaceBinding:
         return p, q
 
     def deform(self, curves, tf_origin, tf_insertion, *, anchors=None, obstacles=(), preserve_volume: bool = True,
-               push_iterations: int = 5, rider_frames: int = 0) -> SurfaceFrames:
+               push_iterations: int = 5, rider_frames: int = 0, riders_apart: int = 0) -> SurfaceFrames:
         """Deform the rest surface for every frame of a motion.
 
         Parameters
@@ -256,6 +254,8 @@ class SurfaceBinding:
             Secant updates of ``k`` after the obstacles pushed vertices out.
         rider_frames : int, keyword-only
             Also return the line frames at the last this many vertices (`SurfaceFrames`).
+        riders_apart : int, keyword-only
+            The last this many (face-less) vertices apart, rider-major (``SurfaceFrames.riders``).
 
         Returns
         -------
@@ -264,8 +264,12 @@ class SurfaceBinding:
         if len(curves) != self.n_lines:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
         at = None
+        apart = int(riders_apart)
+        if apart and int(self.faces.max()) >= len(self.rest_vertices) - apart:
+            raise ValueError(f"riders_apart={apart}: the faces use some of the last {apart} vertices")
         if rider_frames:
-            p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames)
+            p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames,
+                                         rider_major=bool(apart))
         else:
             p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
         target = self.rest_volume
@@ -275,12 +279,14 @@ class SurfaceBinding:
         else:
             k = np.ones(p.shape[1])
         if not obstacles:
-            vertices = combine_vf(p, q, k)
+            n_s = p.shape[0] - apart
+            vertices = combine_vf(p[:n_s], q[:n_s], k)
+            riders = combine_into_q(p[n_s:], q[n_s:], k) if apart else None   # q: this call's own
             if preserve_volume:
                 volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
             else:
                 volume = mesh_volume(vertices, self.faces)
-            return SurfaceFrames(vertices, k, volume, target, at)
+            return SurfaceFrames(vertices, k, volume, target, at, riders)
         p = np.ascontiguousarray(p.transpose(1, 0, 2))
         q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
@@ -328,7 +334,9 @@ class SurfaceBinding:
                 k_prev, g_prev = k, g
                 k = np.clip(k_next, 0.25, 4.0)
             vertices, volume = (pusher(p, q, obstacles) if split else pushed)(k)
-        return SurfaceFrames(vertices, k, volume, target, at)
+        n_s = vertices.shape[1] - apart     # riders apart: a rider-major copy of the last ones
+        return SurfaceFrames(vertices[:, :n_s] if apart else vertices, k, volume, target, at,
+                             vertices[:, n_s:].transpose(1, 0, 2) if apart else None)
 
 
 def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,

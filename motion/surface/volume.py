@@ -13,17 +13,19 @@ coefficients are trilinear sums over the triangles; one Newton solve per frame (
 frames) gives the ``k`` that restores the rest volume exactly. The root is a smooth function
 of ``P`` and ``Q``, so the corrected surface stays a smooth function of the body poses.
 
-The per-triangle sums run in chunked numpy (a compiled loop was about 8x faster on this part
-alone, but cost a compile in every process; the whole bundled example runs in numpy: see
-docs/decisions.md, issue 13).
+The cubic's sums run in one compiled loop (`_cubic_loop`: numba, module level, cached on
+disk, so compiled once per environment), triangle by triangle over all frames at once, reading
+the vertex-major layout of the binding in order; ``mesh_volume`` stays numpy. Why compiled:
+docs/decisions.md ("A whole model over a whole trial").
 """
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-__all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "solve_radial_scale"]
+__all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "combine_into_q", "solve_radial_scale"]
 
-_CHUNK = 8  # frames per numpy chunk: bounds the temporaries to a few (8, T, 3) arrays
+_CHUNK = 8  # frames per numpy chunk of `mesh_volume`: a few (8, T, 3) temporaries
 
 
 def _as_frames(vertices) -> tuple[np.ndarray, bool]:
@@ -85,52 +87,69 @@ def volume_cubic(p, q, faces) -> np.ndarray:
     q, _ = _as_frames(q)
     if p.shape != q.shape:
         raise ValueError(f"p and q must have the same shape, got {p.shape} and {q.shape}")
-    f = _check_faces(faces, p.shape[1])
-    out = np.empty((p.shape[0], 4))
-    for s in range(0, p.shape[0], _CHUNK):
-        # component-major (3, C, T) corner arrays: the products run on long contiguous rows
-        pt, qt = p[s:s + _CHUNK].transpose(2, 0, 1), q[s:s + _CHUNK].transpose(2, 0, 1)
-        p0, p1, p2 = (pt[:, :, f[:, i]] for i in range(3))
-        q0, q1, q2 = (qt[:, :, f[:, i]] for i in range(3))
-        a = _cross(p1, p2)
-        b = _cross(p1, q2) + _cross(q1, p2)
-        c = _cross(q1, q2)
-        out[s:s + _CHUNK] = np.stack(
-            [_dot(p0, a), _dot(q0, a) + _dot(p0, b), _dot(q0, b) + _dot(p0, c), _dot(q0, c)],
-            axis=-1) / 6.0
-    return out
-
-
-def _cross(u, v):
-    """Cross products of component-major (3, ...) arrays."""
-    return np.stack([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                     u[0] * v[1] - u[1] * v[0]])
-
-
-def _dot(u, v):
-    """Dot products of component-major (3, C, T) arrays, summed over the last axis (C,)."""
-    return (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]).sum(axis=-1)
+    return volume_cubic_vf(p.transpose(1, 0, 2), q.transpose(1, 0, 2), faces)
 
 
 def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
     """`volume_cubic` for vertex-major arrays ``(V, F, 3)`` (the binding's internal layout).
 
+    Only the vertices the faces use are read: trailing face-less vertices (riders such as fibre
+    points) cost nothing.
+
     Returns
     -------
     (F, 4) float
     """
-    p = np.ascontiguousarray(p_vf, dtype=float)
-    q = np.ascontiguousarray(q_vf, dtype=float)
-    f = _check_faces(faces, p.shape[0])
-    return volume_cubic(p.transpose(1, 0, 2), q.transpose(1, 0, 2), f)
+    p_vf = np.asarray(p_vf, dtype=float)
+    q_vf = np.asarray(q_vf, dtype=float)
+    if p_vf.shape != q_vf.shape or p_vf.ndim != 3 or p_vf.shape[-1] != 3:
+        raise ValueError(f"p and q must be the same (V, F, 3), got {p_vf.shape} and {q_vf.shape}")
+    f = _check_faces(faces, p_vf.shape[0])
+    out = np.zeros((p_vf.shape[1], 4))
+    _cubic_loop(p_vf, q_vf, f, out)
+    return out / 6.0
+
+
+@njit(cache=True, nogil=True)
+def _cubic_loop(p, q, faces, out):  # pragma: no cover
+    """``out[f] += (p0.(p1 x p2), q0.a + p0.b, q0.b + p0.c, q0.(q1 x q2))`` summed over the
+    triangles, with ``a = p1 x p2``, ``b = p1 x q2 + q1 x p2``, ``c = q1 x q2`` (6 x the cubic's
+    coefficients); triangle by triangle, all frames of one triangle's corners in order."""
+    for t in range(faces.shape[0]):
+        i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+        for f in range(p.shape[1]):
+            p0x, p0y, p0z = p[i0, f, 0], p[i0, f, 1], p[i0, f, 2]
+            p1x, p1y, p1z = p[i1, f, 0], p[i1, f, 1], p[i1, f, 2]
+            p2x, p2y, p2z = p[i2, f, 0], p[i2, f, 1], p[i2, f, 2]
+            q0x, q0y, q0z = q[i0, f, 0], q[i0, f, 1], q[i0, f, 2]
+            q1x, q1y, q1z = q[i1, f, 0], q[i1, f, 1], q[i1, f, 2]
+            q2x, q2y, q2z = q[i2, f, 0], q[i2, f, 1], q[i2, f, 2]
+            ax, ay, az = p1y * p2z - p1z * p2y, p1z * p2x - p1x * p2z, p1x * p2y - p1y * p2x
+            bx = p1y * q2z - p1z * q2y + q1y * p2z - q1z * p2y
+            by = p1z * q2x - p1x * q2z + q1z * p2x - q1x * p2z
+            bz = p1x * q2y - p1y * q2x + q1x * p2y - q1y * p2x
+            cx, cy, cz = q1y * q2z - q1z * q2y, q1z * q2x - q1x * q2z, q1x * q2y - q1y * q2x
+            out[f, 0] += p0x * ax + p0y * ay + p0z * az
+            out[f, 1] += q0x * ax + q0y * ay + q0z * az + p0x * bx + p0y * by + p0z * bz
+            out[f, 2] += q0x * bx + q0y * by + q0z * bz + p0x * cx + p0y * cy + p0z * cz
+            out[f, 3] += q0x * cx + q0y * cy + q0z * cz
 
 
 def combine_vf(p_vf, q_vf, k) -> np.ndarray:
     """Frame-major vertices ``(F, V, 3) = P + k Q`` from vertex-major ``P, Q`` (V, F, 3)."""
-    p = np.ascontiguousarray(p_vf, dtype=float)
-    q = np.ascontiguousarray(q_vf, dtype=float)
-    k = np.ascontiguousarray(k, dtype=float)
-    return np.ascontiguousarray((p + k[None, :, None] * q).transpose(1, 0, 2))
+    p = np.asarray(p_vf, dtype=float)
+    w = np.asarray(q_vf, dtype=float) * np.asarray(k, dtype=float)[None, :, None]
+    w += p
+    return np.ascontiguousarray(w.transpose(1, 0, 2))
+
+
+def combine_into_q(p_vf, q_vf, k) -> np.ndarray:
+    """``Q <- P + k Q`` in place, vertex-major (V, F, 3) (no new array: the caller's ``Q`` is
+    its own and not needed after); returns ``Q``, read-only."""
+    q_vf *= np.asarray(k, dtype=float)[None, :, None]
+    q_vf += p_vf
+    q_vf.setflags(write=False)
+    return q_vf
 
 
 def solve_radial_scale(coefficients, target, *, start=None, bounds=(0.25, 4.0), iterations=30) -> np.ndarray:

@@ -47,14 +47,14 @@ def test_gait2392_caps():
     the ankle below), a rectus femoris' and a semimembranosus' over the femur, an iliacus' across
     the hip (origin on the pelvis, insertion cap on the femur)."""
     from motion.osim.muscle_parameters import muscle_parameters
-    from motion.surface.wrap import _current_polylines
+    from motion.surface.current_lines import current_polylines
 
     model = load_model(GAIT2392)
     rest = motion_from_array(model, np.array([[c.default_value for c in model.coordinates]]))
     tf = np.asarray(body_poses(model, rest).tf_ground_body)
     want = {"med_gas_r": ("tibia_r", "tibia_r"), "rect_fem_r": ("femur_r", "femur_r"),
             "semimem_r": ("femur_r", "femur_r"), "iliacus_r": ("pelvis", "femur_r")}
-    lines = _current_polylines(model, rest, list(want), None, tf)
+    lines = current_polylines(model, rest, list(want), None, tf)
     for name, bodies in want.items():
         c = lines[name][0][0]
         slack = muscle_parameters(model, name).tendon_slack_length
