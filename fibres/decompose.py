@@ -482,12 +482,11 @@ def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolu
     notes.extend(slice_notes)
     flags = {}
     if contain:
-        # the pull, then PULL_ROUNDS rounds of spreading each pulled fibre's displacement
-        # along it and pulling that fibre again (fibres are pulled independently, so only the
-        # fibres pulled in the last round take part in the next)
-        grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)     # one binning for every round
-        out, moved = contain_points(pts, v, faces, grid=grid)
-        moved = np.array(moved, dtype=bool)
+        # the pull, then PULL_ROUNDS rounds of spreading each pulled fibre's displacement along
+        # it and pulling that fibre again (only the fibres pulled in the last round take part in
+        # the next); one binning of the surface for every round
+        grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)
+        out, moved = contain_points(pts, v, faces, grid=grid)     # moved: (N,) bool array
         todo, before = np.flatnonzero(moved), pts
         for _ in range(PULL_ROUNDS):
             if not todo.size:
