@@ -21,3 +21,11 @@ def test_every_package_folder_is_listed_in_pyproject():
     assert found, "no package found"
     assert found <= listed, f"not listed in pyproject.toml: {sorted(found - listed)}"
     assert not {p for p in listed - found if p != "analysis.example"}, "listed but missing"
+
+
+def test_no_module_of_the_package_is_over_500_lines():
+    """The house rule of docs/DESIGN.md: modules of one concept, at most 500 lines."""
+    sizes = {str(p.relative_to(ROOT)): len(p.read_text().splitlines())
+             for top in ("fibres", "motion", "analysis") for p in (ROOT / top).rglob("*.py")}
+    assert sizes, "no module found"
+    assert not {k: n for k, n in sizes.items() if n > 500}
