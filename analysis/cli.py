@@ -174,6 +174,10 @@ def _execute(module, args, debug, errors) -> int:
         print(f"fibres {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except Exception as exc:  # internal failure: one line, exit 1
+        if interrupts.requested():
+            # after a Ctrl-C, an error is its echo (a third-party import that caught the
+            # KeyboardInterrupt and left a half-made module): the run was interrupted
+            return 130
         if debug:
             raise
         print(f"fibres {args.command}: internal error: {type(exc).__name__}: {exc}. "
