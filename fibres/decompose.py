@@ -419,7 +419,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     v, faces, o, i, notes, topology, mean_edge = _inputs(mesh, origin, insertion, units, plan)
     tmpl = _template(template, template_params)
     if slicing == "harmonic":
-        return _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, int(n_fibres),
+        return _decompose_harmonic(v, faces, o, i, notes, tmpl, int(n_fibres),
                                    int(resolution), seed, smoothing_iterations, contain, plan)
     prepared = None
     if plan is None:
@@ -456,15 +456,13 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         pts = smooth(pts, k=4.0, iterations=int(smoothing_iterations),
                      max_shift=DECOMPOSE_MAX_SHIFT)
     if contain:
-        pts, flags["contained"] = contain_points(
-            pts, v, faces, mean_edge=mean_edge,
-            bounds=None if prepared is None else (prepared.lo, prepared.hi))
+        pts, flags["contained"] = contain_points(pts, v, faces)
     if fresh:  # the sweep's and the filter's choices recorded at once
         plan = _with_choice(plan, choice, fc)
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), box, (v, faces))
 
 
-def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolution, seed,
+def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
                         smoothing_iterations, contain, plan):
     """`decompose` by harmonic-field slicing (`fibres.slicing.harmonic`, with its fairing:
     lambda|mu pairs of Taubin's non-shrinking smoothing (`fibres.finishing.fairing.taubin_pairs`
@@ -486,14 +484,13 @@ def _decompose_harmonic(v, faces, o, i, notes, mean_edge, tmpl, n_fibres, resolu
         # it and pulling that fibre again (only the fibres pulled in the last round take part in
         # the next); one binning of the surface for every round
         grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)
-        out, moved = contain_points(pts, v, faces, grid=grid)     # moved: (N,) bool array
-        todo, before = np.flatnonzero(moved), pts
+        out, moved = contain_points(pts, v, faces, grid=grid)     # out: a new array
+        todo, before = np.flatnonzero(moved), pts.copy()
         for _ in range(PULL_ROUNDS):
             if not todo.size:
                 break
             spread = spread_pull(before[todo], out[todo])
             again_pts, again = contain_points(spread, v, faces, grid=grid)
-            before, out = before.copy(), out.copy()
             before[todo], out[todo] = spread, again_pts
             todo = todo[np.asarray(again, dtype=bool)]
         pts, flags["contained"] = out, moved

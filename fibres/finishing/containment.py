@@ -79,8 +79,7 @@ def _inner(n, p):
 
 def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
             softness: float = CONTAIN_SOFTNESS, reach: float = CONTAIN_REACH,
-            iterations: int = 2, mean_edge: float | None = None, bounds=None,
-            grid: SurfaceGrid | None = None):
+            iterations: int = 2, grid: SurfaceGrid | None = None):
     """Pull the inner fibre points that lie outside a closed surface back in (module
     docstring).
 
@@ -101,9 +100,6 @@ def contain(points, vertices, faces, *, margin: float = CONTAIN_MARGIN,
     iterations : int, keyword-only
         Pull steps (>= 1): the first moves by ``s - s'`` along the shortest path, the
         others correct towards the same ``s'`` from the new closest point.
-    mean_edge, bounds
-        Accepted for the callers of an earlier grid search; unused (the grids are sized by
-        the vertices' bounding box, measured in the compiled binning).
     grid : SurfaceGrid, keyword-only
         The surface already prepared with this ``reach`` (several pulls on one surface bin
         its triangles once); ``vertices`` and ``faces`` must be the grid's.

@@ -332,20 +332,16 @@ class SurfaceGrid:
         Closed, consistently and outward wound.
     reach : float
         Points with no triangle within this distance get ``s = -inf``.
-    cell, labelled, mean_edge, bounds
-        Accepted for the callers of an earlier grid search; unused (the grids are sized by
-        the vertices' bounding box and the number of triangles). The attribute ``cell`` is
-        the search grid's cell side.
+
+    The grids are sized by the vertices' bounding box and the number of triangles.
     """
 
-    def __init__(self, vertices, faces, *, reach: float, cell: float | None = None,
-                 labelled: bool = True, mean_edge: float | None = None, bounds=None):
+    def __init__(self, vertices, faces, *, reach: float):
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self.reach = float(reach)
         self._grid = _bin_triangles(self.vertices, self.faces, np.eye(3), 3,
                                     SEARCH_DENSITY)[1:] if len(self.faces) else None
-        self.cell = None if self._grid is None else self._grid[1]
         self._ray = None
 
     def inside(self, points):
@@ -361,7 +357,7 @@ class SurfaceGrid:
         return _parity(x, *self._ray)
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,
-                        offset: bool = False, lazy: bool | None = None):
+                        offset: bool = False):
         """(s (n,), outward direction (n, 3)) of points (n, 3) (module docstring).
 
         ``watch``: how far a point inside looks (default `reach`): a point inside by parity
@@ -372,9 +368,7 @@ class SurfaceGrid:
         direction, the blended signed normal offset ``sum w (x - c_t) . n_t / sum w`` and the
         blended face normal ``sum w n_t`` (normalised), smoothstepped into the signed distance
         between OFFSET_NEAR tau and OFFSET_FAR tau. Both are continuous everywhere, through
-        the surface too; on a flat piece of surface the offset is the exact signed distance.
-
-        ``lazy`` is accepted for the callers of an earlier grid search and ignored."""
+        the surface too; on a flat piece of surface the offset is the exact signed distance."""
         x = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         watch = self.reach if watch is None else float(watch)
         if len(x) == 0 or len(self.faces) == 0:

@@ -301,19 +301,6 @@ def test_inside_by_ray_parity_agrees_with_the_distance_sign(torus, shape):
     np.testing.assert_array_equal(quick[out], full[out])
 
 
-def test_given_bounds_give_the_same_pull_bit_for_bit(torus):
-    # contain(bounds=...) takes the vertices' min/max from the caller (a decomposition
-    # already has them) instead of measuring them: the same grid, so the same pulled points
-    # and flags, bit for bit; the chords do leave the torus (something is pulled)
-    v, f = torus
-    fib = chords()
-    a, moved_a = contain(fib, v, f)
-    b, moved_b = contain(fib, v, f, bounds=(v.min(axis=0), v.max(axis=0)))
-    assert moved_a.any()
-    np.testing.assert_array_equal(a, b)
-    np.testing.assert_array_equal(moved_a, moved_b)
-
-
 def test_pull_is_continuous_through_the_surface_near_an_edge():
     # a point crossing the top face of the slab 0.1 mm from its edge with a side face (the
     # blend weighs both faces): the band pull moves points on both sides of the surface, so
