@@ -18,6 +18,9 @@ zeros that ``%g`` drops as well. The fields are then joined row by row
 (``binary_join_element_wise``) and the lines written as one buffer: about 7x faster than
 ``DataFrame.to_csv(float_format="%.12g")`` on the per-fibre tables (bench/README.md).
 
+Not `pyarrow.csv.write_csv`: its least quoting style ("needed") still quotes every string
+field, and the contract's text quotes only the fields that need it.
+
 Tables with a column of another type (dates, nested values, Python objects that are not
 strings) fall back to pandas' ``to_csv`` with ``%.12g``.
 """
