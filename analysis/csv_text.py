@@ -15,8 +15,8 @@ decimal. For ``|x| < 10^-11`` (``d > 22``, where ``10^d`` is no longer exact) th
 as is, with up to 17 digits. The text therefore differs from ``%.12g`` only in the spelling of
 the exponent (``1e-07`` there, ``1e-7`` here; every CSV reader takes both) and in trailing
 zeros that ``%g`` drops as well. The fields are then joined row by row
-(``binary_join_element_wise``) and the lines written as one buffer: about 7x faster than
-``DataFrame.to_csv(float_format="%.12g")`` on the per-fibre tables (bench/README.md).
+(``binary_join_element_wise``) and the lines written as one buffer (timings against
+``DataFrame.to_csv(float_format="%.12g")``: bench/README.md).
 
 Not `pyarrow.csv.write_csv`: its least quoting style ("needed") still quotes every string
 field, and the contract's text quotes only the fields that need it.
