@@ -31,19 +31,12 @@ def add_export_options(parser) -> None:
 
 
 def add_arguments(parser) -> None:
+    from .cli_run import add_model_arguments
     from .frames_option import add_frames_argument
 
-    parser.add_argument("spec", nargs="?", default=None, metavar="SPEC",
-                        help="fibre model (.toml); default: the bundled example")
-    parser.add_argument("--motion", default=None, metavar="FILE",
-                        help="motion whose range the path functions cover; default: the fibre model's")
-    parser.add_argument("--out", default=None, metavar="MODEL.osim",
-                        help="model to write (default: <model>_fibres.osim in the current folder)")
-    parser.add_argument("--muscle", action="append", default=None, metavar="NAME",
-                        help="export only this muscle of the fibre model (repeatable)")
-    parser.add_argument("--fibres", type=int, default=None, metavar="N", help="fibres per muscle")
-    parser.add_argument("--resolution", type=int, default=None, metavar="R", help="segments per fibre")
-    parser.add_argument("--template", default=None, metavar="NAME", help="fibre template for every muscle")
+    add_model_arguments(parser, verb="export", out_metavar="MODEL.osim",
+                        motion_help="motion whose range the path functions cover; default: the fibre model's",
+                        out_help="model to write (default: <model>_fibres.osim in the current folder)")
     add_frames_argument(parser)
     parser.add_argument("--transport", choices=("bind", "decompose"), default="bind",
                         help="how the rest fibres reach each pose (as fibres run)")

@@ -38,7 +38,7 @@ from .errors import FibreWarning, InputError
 from .muscle_chain import timed
 from .sto_files import write_sto_files
 
-__all__ = ["add_arguments", "execute", "default_spec", "write_outputs"]
+__all__ = ["add_arguments", "execute", "default_spec", "write_outputs", "add_model_arguments"]
 
 
 def default_spec() -> Path:
@@ -59,22 +59,30 @@ def default_spec() -> Path:
                      fix="Pass a fibre-model .toml file: fibres run MODEL.toml (or reinstall musclefibres).")
 
 
-def add_arguments(parser) -> None:
-    from .frames_option import add_frames_argument
-
+def add_model_arguments(parser, *, verb: str, motion_help: str, out_help: str, out_default=None,
+                        out_metavar="DIR") -> None:
+    """The arguments ``fibres run`` and ``fibres export-osim`` share: SPEC, --motion, --out,
+    --muscle, --fibres, --resolution, --template (``verb`` and the helps are the command's)."""
     parser.add_argument("spec", nargs="?", default=None, metavar="SPEC",
                         help="fibre model (.toml); default: the bundled example in models/")
-    parser.add_argument("--motion", default=None, metavar="FILE",
-                        help="motion (.mot/.sto); default: the 'motion' of the fibre model")
-    parser.add_argument("--out", default="fibres-out", metavar="DIR", help="output folder (default fibres-out)")
-    parser.add_argument("--setup", default=None, metavar="SETUP.xml",
-                        help="an OpenSim AnalyzeTool setup: its coordinates_file, initial/final time and "
-                             "MuscleAnalysis muscle list in place of --motion/--frames (analysis/setup_file.py)")
+    parser.add_argument("--motion", default=None, metavar="FILE", help=motion_help)
+    parser.add_argument("--out", default=out_default, metavar=out_metavar, help=out_help)
     parser.add_argument("--muscle", action="append", default=None, metavar="NAME",
-                        help="run only this muscle of the fibre model (repeatable)")
+                        help=f"{verb} only this muscle of the fibre model (repeatable)")
     parser.add_argument("--fibres", type=int, default=None, metavar="N", help="fibres per muscle")
     parser.add_argument("--resolution", type=int, default=None, metavar="R", help="segments per fibre")
     parser.add_argument("--template", default=None, metavar="NAME", help="fibre template for every muscle")
+
+
+def add_arguments(parser) -> None:
+    from .frames_option import add_frames_argument
+
+    add_model_arguments(parser, verb="run", out_default="fibres-out",
+                        motion_help="motion (.mot/.sto); default: the 'motion' of the fibre model",
+                        out_help="output folder (default fibres-out)")
+    parser.add_argument("--setup", default=None, metavar="SETUP.xml",
+                        help="an OpenSim AnalyzeTool setup: its coordinates_file, initial/final time and "
+                             "MuscleAnalysis muscle list in place of --motion/--frames (analysis/setup_file.py)")
     parser.add_argument("--slicing", default=None, choices=("harmonic", "planes"),
                         help="cross-sections for every muscle: isolines of a harmonic field (the TOML's "
                              "default) or parallel planes (Kohout 2012)")

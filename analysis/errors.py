@@ -1,16 +1,7 @@
-"""Errors raised by `analysis`: `fibres.errors`' classes (the toolkit's one hierarchy) and
-`FibreWarning`.
-
-One hierarchy for the whole package:
-
-- `InputError(ValueError)`: the user's input is wrong (a file, an element, an argument).
-  The message is one line that names the file, the element (XML path, line, muscle, key)
-  and what to do about it. The command line turns it into exit status 2 with no traceback.
-- `MissingDependencyError(ImportError)`: an optional dependency is not installed; the
-  message names the extra to install.
-
-Anything else escaping the package is an internal failure (exit status 1). `FibreWarning`
-(a UserWarning) flags a result to look at; ``fibres run`` prints it on stderr.
+"""Errors raised by `analysis`: the toolkit's one hierarchy of `fibres.errors` (`InputError`,
+a one-line message naming file, element and fix, exit status 2 on the command line;
+`MissingDependencyError`, naming the extra to install), re-exported here, and `FibreWarning`
+(a UserWarning) for a result to look at, which ``fibres run`` prints on stderr.
 """
 from __future__ import annotations
 

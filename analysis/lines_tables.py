@@ -29,12 +29,23 @@ def _shaped(values, shape, what, dims, dtype=float):
     return a
 
 
-def _frame_index(time, frames):
+def _framed(time, frames, values, axes, what, dims):
+    """(time (F,), frames (F,), values) with ``values`` checked to be (F, *axes): each axis a
+    length or a sequence of names whose count is the length."""
     time = np.asarray(time, dtype=float).reshape(-1)
     frames = np.arange(time.shape[0]) if frames is None else np.asarray(frames).reshape(-1)
     if frames.shape != time.shape:
         raise ValueError(f"frames {frames.shape} and time {time.shape} differ")
-    return time, frames
+    shape = (time.shape[0],) + tuple(a if isinstance(a, int) else len(a) for a in axes)
+    return time, frames, _shaped(values, shape, what, dims)
+
+
+def _add_action_lines(table, action_lines, n_muscles, n_frames, muscle_of=slice(None)):
+    """The ``action_line`` column (names of ``muscle_of``, repeated per frame), if given."""
+    if action_lines is not None:
+        if len(action_lines) != n_muscles:
+            raise ValueError("action_lines must have one name per muscle")
+        table["action_line"] = np.tile(np.asarray(action_lines, dtype=object)[muscle_of], n_frames)
 
 
 def body_poses_table(time, tf_ground_body, body_names, *, frames=None):
@@ -56,11 +67,10 @@ def body_poses_table(time, tf_ground_body, body_names, *, frames=None):
     """
     import pandas as pd
 
-    time, frames = _frame_index(time, frames)
-    n_frames, n_bodies = time.shape[0], len(body_names)
-    tf = _shaped(tf_ground_body, (n_frames, n_bodies, 4, 4), "tf_ground_body", "(F, B, 4, 4)")
+    time, frames, tf = _framed(time, frames, tf_ground_body, (body_names, 4, 4), "tf_ground_body",
+                               "(F, B, 4, 4)")
     table = _per_frame(frames, time, "body", body_names)
-    flat = tf.reshape(n_frames * n_bodies, 4, 4)
+    flat = tf.reshape(-1, 4, 4)
     for k, axis in enumerate("xyz"):
         table[f"t{axis}"] = flat[:, k, 3]
     for i in range(3):
@@ -90,14 +100,9 @@ def action_lines_table(time, lengths, muscle_names, *, frames=None, action_lines
     """
     import pandas as pd
 
-    time, frames = _frame_index(time, frames)
-    n_frames, n_muscles = time.shape[0], len(muscle_names)
-    lengths = _shaped(lengths, (n_frames, n_muscles), "lengths", "(F, M)")
+    time, frames, lengths = _framed(time, frames, lengths, (muscle_names,), "lengths", "(F, M)")
     table = _per_frame(frames, time, "muscle", muscle_names)
-    if action_lines is not None:
-        if len(action_lines) != n_muscles:
-            raise ValueError("action_lines must have one name per muscle")
-        table["action_line"] = np.tile(np.asarray(action_lines, dtype=object), n_frames)
+    _add_action_lines(table, action_lines, len(muscle_names), len(time))
     table["length"] = lengths.reshape(-1)
     return pd.DataFrame(table)
 
@@ -127,10 +132,10 @@ def moment_arms_table(time, moment_arms, spanned, muscle_names, coordinate_names
     """
     import pandas as pd
 
-    time, frames = _frame_index(time, frames)
-    n_frames, n_muscles, n_coords = time.shape[0], len(muscle_names), len(coordinate_names)
-    arms = _shaped(moment_arms, (n_frames, n_muscles, n_coords), "moment_arms", "(F, M, C)")
-    spanned = _shaped(spanned, (n_muscles, n_coords), "spanned", "(M, C)", dtype=bool)
+    time, frames, arms = _framed(time, frames, moment_arms, (muscle_names, coordinate_names),
+                                 "moment_arms", "(F, M, C)")
+    n_frames, n_muscles = time.shape[0], len(muscle_names)
+    spanned = _shaped(spanned, arms.shape[1:], "spanned", "(M, C)", dtype=bool)
     muscle_of, coord_of = np.nonzero(spanned)  # row-major: muscle order, then coordinate order
     n_pairs = muscle_of.shape[0]
     table = {
@@ -138,10 +143,7 @@ def moment_arms_table(time, moment_arms, spanned, muscle_names, coordinate_names
         "time": np.repeat(time, n_pairs),
         "muscle": np.tile(np.asarray(muscle_names, dtype=object)[muscle_of], n_frames),
     }
-    if action_lines is not None:
-        if len(action_lines) != n_muscles:
-            raise ValueError("action_lines must have one name per muscle")
-        table["action_line"] = np.tile(np.asarray(action_lines, dtype=object)[muscle_of], n_frames)
+    _add_action_lines(table, action_lines, n_muscles, n_frames, muscle_of)
     table["coordinate"] = np.tile(np.asarray(coordinate_names, dtype=object)[coord_of], n_frames)
     table["moment_arm"] = arms[:, muscle_of, coord_of].reshape(-1)
     return pd.DataFrame(table)

@@ -79,21 +79,20 @@ def spanned_coordinates(ctx, mspec):
 def surface_spec(mspec):
     """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres."""
     from fibres import as_surface
-    from motion.surface.spec import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment
+    from motion.surface.spec import BoneMesh, MuscleSurfaceSpec
 
     vertices = faces = None
     if mspec.mesh is not None:
         surf = as_surface(mspec.mesh, units=mspec.units)
         vertices, faces = surf.vertices, surf.faces
-    ends = {end: SurfaceAttachment(body=a.body, points=a.points, in_body_frame=a.in_body_frame)
-            for end, a in (("origin", mspec.origin), ("insertion", mspec.insertion))}
     bones = []
     for body, path in mspec.bones:
         bone = as_surface(path, units=mspec.units)
         bones.append(BoneMesh(body=body, vertices=bone.vertices, faces=bone.faces))
     return MuscleSurfaceSpec(name=mspec.name, action_lines=tuple(mspec.action_lines), vertices=vertices,
                              faces=faces, frame=mspec.frame, rest_pose=dict(mspec.rest_pose),
-                             bones=tuple(bones), volume=mspec.volume, **ends)
+                             bones=tuple(bones), volume=mspec.volume, origin=mspec.origin,
+                             insertion=mspec.insertion)
 
 
 def _chunks(n_frames: int, n_poses_per_frame: int):

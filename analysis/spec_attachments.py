@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motion.surface.spec import SurfaceAttachment
+
 __all__ = ["AttachmentSpec", "read_attachment", "UNITS", "is_unit"]
 
 #: length units of a fibre model, metres per unit
@@ -23,38 +25,20 @@ def is_unit(value) -> bool:
     return isinstance(value, str) and value in UNITS
 
 
-def _frozen(a):
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
-
-
-@dataclass(frozen=True)
-class AttachmentSpec:
-    """Attachment points of one muscle end.
+@dataclass(frozen=True, eq=False)
+class AttachmentSpec(SurfaceAttachment):
+    """Attachment points of one muscle end as the fibre model gives them: a
+    `motion.surface.spec.SurfaceAttachment` (``body``, ``points`` (K, 3) in metres,
+    ``in_body_frame``) that also says where the points came from.
 
     Attributes
     ----------
-    body : str
-        The body the points ride on.
-    points : (K, 3) float
-        Points in metres, in the muscle's ``frame`` (``in_body_frame=False``) or in ``body``'s own
-        frame (``in_body_frame=True``: the default taken from a path point).
-    in_body_frame : bool
     source : str
-        Where the points came from (for messages and run.json).
+        The TOML key, landmark file or path point the points came from (for messages and
+        run.json).
     """
 
-    body: str
-    points: np.ndarray
-    in_body_frame: bool = False
     source: str = ""
-
-    def __post_init__(self):
-        pts = _frozen(self.points)
-        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
-            raise ValueError(f"attachment points must be (K, 3) with K >= 1, got {pts.shape}")
-        object.__setattr__(self, "points", pts)
 
 
 def _path_end(path, end: str):

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .model import readonly_array
+
 __all__ = [
     "Constant", "LinearFunction", "PolynomialFunction", "SimmSpline", "PiecewiseLinearFunction",
     "MultiplierFunction", "FUNCTION_TYPES",
@@ -32,16 +34,10 @@ _TINY = 1e-7        # OpenSim SimmMacros TINY_NUMBER: smallest knot spacing
 _ROUNDOFF = 2e-13   # OpenSim SimmMacros ROUNDOFF_ERROR: "equal within error"
 
 
-def _ro(a) -> np.ndarray:
-    arr = np.array(a, dtype=float, copy=True)
-    arr.setflags(write=False)
-    return arr
-
-
 def _freeze(obj, **arrays) -> None:
     """Set each of ``arrays`` on the frozen dataclass ``obj`` as a read-only float copy."""
     for name, a in arrays.items():
-        object.__setattr__(obj, name, _ro(a))
+        object.__setattr__(obj, name, readonly_array(a))
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,7 +74,7 @@ class PolynomialFunction:
     coefficients: np.ndarray
 
     def __post_init__(self):
-        object.__setattr__(self, "coefficients", _ro(np.atleast_1d(self.coefficients)))
+        object.__setattr__(self, "coefficients", readonly_array(np.atleast_1d(self.coefficients)))
 
     def value(self, x):
         return np.polyval(self.coefficients, np.asarray(x, dtype=float))

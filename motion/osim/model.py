@@ -73,13 +73,29 @@ POINT_KINDS = ("fixed", "conditional", "moving")
 WRAP_METHODS = ("hybrid", "midpoint", "axial")
 
 
-def _ro(value, shape=None, dtype=float) -> np.ndarray:
-    """A read-only copy of ``value`` as an array, checked against ``shape``."""
+def readonly_array(value, shape=None, dtype=float) -> np.ndarray:
+    """A read-only copy of ``value`` as a ``dtype`` array, checked against ``shape`` (a tuple in
+    which -1 matches any length; None: any shape). The records of `motion` hold their arrays
+    this way, so that a model or surface spec cannot change under a cached computation."""
     arr = np.array(value, dtype=dtype, copy=True)
-    if shape is not None and arr.shape != shape:
-        raise ValueError(f"expected shape {shape}, got {arr.shape}")
+    if shape is not None and (arr.ndim != len(shape)
+                              or any(s not in (-1, n) for s, n in zip(shape, arr.shape))):
+        want = "(" + ", ".join("n" if s == -1 else str(s) for s in shape) + ")"
+        raise ValueError(f"expected an array of shape {want}, got shape {arr.shape}")
     arr.setflags(write=False)
     return arr
+
+
+def _freeze(obj, arrays=None, tuples=()) -> None:
+    """On the frozen dataclass ``obj``: each field named in ``arrays`` (name -> shape) becomes a
+    read-only float copy checked against its shape (None stays None), each one in ``tuples`` a
+    tuple."""
+    for name, shape in (arrays or {}).items():
+        value = getattr(obj, name)
+        if value is not None:
+            object.__setattr__(obj, name, readonly_array(value, shape))
+    for name in tuples:
+        object.__setattr__(obj, name, tuple(getattr(obj, name)))
 
 
 def euler_xyz_matrix(angles) -> np.ndarray:
@@ -130,8 +146,7 @@ class Geometry:
     tf_body_geometry: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self):
-        object.__setattr__(self, "scale_factors", _ro(self.scale_factors, (3,)))
-        object.__setattr__(self, "tf_body_geometry", _ro(self.tf_body_geometry, (4, 4)))
+        _freeze(self, {"scale_factors": (3,), "tf_body_geometry": (4, 4)})
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,8 +170,7 @@ class TransformAxis:
     def __post_init__(self):
         if self.kind not in ("rotation", "translation"):
             raise ValueError(f"kind must be 'rotation' or 'translation', got {self.kind!r}")
-        object.__setattr__(self, "axis", _ro(self.axis, (3,)))
-        object.__setattr__(self, "coordinates", tuple(self.coordinates))
+        _freeze(self, {"axis": (3,)}, ("coordinates",))
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,12 +188,8 @@ class Joint:
     radii: np.ndarray | None = None
 
     def __post_init__(self):
-        if self.radii is not None:
-            object.__setattr__(self, "radii", _ro(self.radii, (3,)))
-        object.__setattr__(self, "tf_parent_jointframe", _ro(self.tf_parent_jointframe, (4, 4)))
-        object.__setattr__(self, "tf_child_jointframe", _ro(self.tf_child_jointframe, (4, 4)))
-        object.__setattr__(self, "coordinates", tuple(self.coordinates))
-        object.__setattr__(self, "axes", tuple(self.axes))
+        _freeze(self, {"radii": (3,), "tf_parent_jointframe": (4, 4), "tf_child_jointframe": (4, 4)},
+                ("coordinates", "axes"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,7 +208,7 @@ class Coordinate:
     def __post_init__(self):
         if self.motion_type not in MOTION_TYPES:
             raise ValueError(f"motion_type must be one of {MOTION_TYPES}, got {self.motion_type!r}")
-        object.__setattr__(self, "range", _ro(self.range, (2,)))
+        _freeze(self, {"range": (2,)})
         object.__setattr__(self, "default_value", float(self.default_value))
 
 
@@ -213,7 +223,7 @@ class CouplerConstraint:
     scale_factor: float = 1.0
 
     def __post_init__(self):
-        object.__setattr__(self, "independent", tuple(self.independent))
+        _freeze(self, tuples=("independent",))
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,8 +237,7 @@ class WeldConstraint:
     tf_body2_frame: np.ndarray
 
     def __post_init__(self):
-        object.__setattr__(self, "tf_body1_frame", _ro(self.tf_body1_frame, (4, 4)))
-        object.__setattr__(self, "tf_body2_frame", _ro(self.tf_body2_frame, (4, 4)))
+        _freeze(self, {"tf_body1_frame": (4, 4), "tf_body2_frame": (4, 4)})
 
 
 @dataclass(frozen=True, eq=False)
@@ -247,12 +256,9 @@ class PathPoint:
     def __post_init__(self):
         if self.kind not in POINT_KINDS:
             raise ValueError(f"kind must be one of {POINT_KINDS}, got {self.kind!r}")
-        object.__setattr__(self, "location", _ro(self.location, (3,)))
-        if self.range is not None:
-            object.__setattr__(self, "range", _ro(self.range, (2,)))
+        _freeze(self, {"location": (3,), "range": (2,)})
         if self.moving_functions is not None:
-            object.__setattr__(self, "moving_functions", tuple(self.moving_functions))
-            object.__setattr__(self, "moving_coordinates", tuple(self.moving_coordinates))
+            _freeze(self, tuples=("moving_functions", "moving_coordinates"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -277,8 +283,7 @@ class Path:
     wraps: tuple = ()
 
     def __post_init__(self):
-        object.__setattr__(self, "points", tuple(self.points))
-        object.__setattr__(self, "wraps", tuple(self.wraps))
+        _freeze(self, tuples=("points", "wraps"))
 
     @property
     def bodies(self) -> tuple:
@@ -306,9 +311,7 @@ class WrapObject:
     def __post_init__(self):
         if self.kind not in WRAP_KINDS:
             raise ValueError(f"kind must be one of {WRAP_KINDS}, got {self.kind!r}")
-        object.__setattr__(self, "xyz_body_rotation", _ro(self.xyz_body_rotation, (3,)))
-        object.__setattr__(self, "translation", _ro(self.translation, (3,)))
-        object.__setattr__(self, "dimensions", _ro(self.dimensions, (3,)))
+        _freeze(self, {"xyz_body_rotation": (3,), "translation": (3,), "dimensions": (3,)})
 
     @property
     def tf_body_wrap(self) -> np.ndarray:
@@ -332,8 +335,8 @@ class Model:
     wrap_objects: tuple = ()
 
     def __post_init__(self):
-        for key in ("bodies", "joints", "coordinates", "couplers", "welds", "paths", "wrap_objects"):
-            object.__setattr__(self, key, tuple(getattr(self, key)))
+        _freeze(self, tuples=("bodies", "joints", "coordinates", "couplers", "welds", "paths",
+                              "wrap_objects"))
         object.__setattr__(self, "_coord_index", {c.name: i for i, c in enumerate(self.coordinates)})
         object.__setattr__(self, "_body_index", {b.name: i for i, b in enumerate(self.bodies)})
         object.__setattr__(self, "_path_index", {p.name: i for i, p in enumerate(self.paths)})

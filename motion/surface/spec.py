@@ -17,15 +17,9 @@ from types import MappingProxyType
 
 import numpy as np
 
+from ..osim.model import readonly_array
+
 __all__ = ["MuscleSurfaceSpec", "SurfaceAttachment", "BoneMesh"]
-
-
-def _ro(value, shape_tail=None, dtype=float) -> np.ndarray:
-    arr = np.array(value, dtype=dtype, copy=True)
-    if shape_tail is not None and (arr.ndim != 2 or arr.shape[1] != shape_tail):
-        raise ValueError(f"expected an (n, {shape_tail}) array, got shape {arr.shape}")
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,7 +41,7 @@ class SurfaceAttachment:
     in_body_frame: bool = False
 
     def __post_init__(self):
-        pts = _ro(self.points, 3)
+        pts = readonly_array(self.points, (-1, 3))
         if len(pts) == 0 or not np.all(np.isfinite(pts)):
             raise ValueError("attachment points must be a non-empty finite (K, 3) array")
         object.__setattr__(self, "points", pts)
@@ -74,8 +68,8 @@ class BoneMesh:
     in_body_frame: bool = False
 
     def __post_init__(self):
-        object.__setattr__(self, "vertices", _ro(self.vertices, 3))
-        object.__setattr__(self, "faces", _ro(self.faces, 3, np.int64))
+        object.__setattr__(self, "vertices", readonly_array(self.vertices, (-1, 3)))
+        object.__setattr__(self, "faces", readonly_array(self.faces, (-1, 3), np.int64))
         object.__setattr__(self, "body", str(self.body))
 
 
@@ -138,8 +132,8 @@ class MuscleSurfaceSpec:
         if (self.vertices is None) != (self.faces is None):
             raise ValueError(f"muscle {self.name!r}: give both vertices and faces, or neither")
         if self.vertices is not None:
-            object.__setattr__(self, "vertices", _ro(self.vertices, 3))
-            object.__setattr__(self, "faces", _ro(self.faces, 3, np.int64))
+            object.__setattr__(self, "vertices", readonly_array(self.vertices, (-1, 3)))
+            object.__setattr__(self, "faces", readonly_array(self.faces, (-1, 3), np.int64))
         riders = int(self.riders)
         if riders < 0 or (riders and (self.vertices is None or riders > len(self.vertices)
                                       or (self.faces.size and self.faces.max() >= len(self.vertices) - riders))):
