@@ -98,9 +98,16 @@ def natural_spline_matrix(knots, t):
     sk = s[rows, k][..., None]
     b = (t[..., None] - sk) / hk
     a_ = 1.0 - b
-    up = (a_ * eye[k] + b * eye[k + 1]
-          + ((a_ ** 3 - a_) * second[rows, k] + (b ** 3 - b) * second[rows, k + 1])
-          * hk ** 2 / 6.0)
+    scale = hk[..., 0] ** 2 / 6.0
+    # the spline's weights of the values (columns k, k + 1) and of the second derivatives
+    r3, c3 = np.arange(n)[:, None], np.arange(m)[None]
+    lin = np.zeros((n, m, p))
+    lin[r3, c3, k] = a_[..., 0]
+    lin[r3, c3, k + 1] = b[..., 0]
+    cub = np.zeros((n, m, p))
+    cub[r3, c3, k] = (a_[..., 0] ** 3 - a_[..., 0]) * scale
+    cub[r3, c3, k + 1] = (b[..., 0] ** 3 - b[..., 0]) * scale
+    up = lin + cub @ second
     return up.reshape(lead + (m, p))
 
 
@@ -157,7 +164,12 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
 def fairing_operator(points, *, iterations, turning=TURNING, dense=DENSE):
     """The block-diagonal sparse (N P, N P) matrix of `fairing_matrices`."""
     mats = fairing_matrices(points, iterations=iterations, turning=turning, dense=dense)
-    return sp.block_diag(list(mats), format="csr")
+    n, p, _ = mats.shape
+    cols = (np.arange(n)[:, None, None] * p + np.arange(p)[None, None, :]).repeat(p, axis=1)
+    out = sp.csr_matrix((mats.reshape(-1), cols.reshape(-1), np.arange(n * p + 1) * p),
+                        shape=(n * p, n * p))
+    out.eliminate_zeros()
+    return out
 
 
 def _along(a, weights):
