@@ -18,8 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
+from numba import njit
 
 __all__ = ["Loop", "isoline_loops"]
 
@@ -62,45 +61,77 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
     -------
     list of Loop
     """
-    above = np.asarray(u) >= level
-    cross = above[edges[:, 0]] != above[edges[:, 1]]                  # (E,)
-    fc = cross[face_edges]                                            # (T, 3)
-    hit = np.flatnonzero(fc.any(axis=1))
-    if hit.size == 0:
-        return []
-    f = faces[hit]
-    fe = face_edges[hit]
-    ab = above[f]                                                     # (H, 3)
-    # side k runs corner k -> k + 1; rising: below -> above
-    rising = ~ab & np.roll(ab, -1, axis=1)
-    falling = ab & ~np.roll(ab, -1, axis=1)
-    src = fe[np.arange(len(hit)), falling.argmax(axis=1)]
-    dst = fe[np.arange(len(hit)), rising.argmax(axis=1)]
-    nodes = np.flatnonzero(cross)
-    index = np.full(len(edges), -1, dtype=np.int64)
-    index[nodes] = np.arange(nodes.size)
-    nxt = np.empty(nodes.size, dtype=np.int64)
-    nxt[index[src]] = index[dst]
-    seg_face = np.empty(nodes.size, dtype=np.int64)
-    seg_face[index[src]] = hit
-    m = nodes.size
-    graph = coo_matrix((np.ones(m), (np.arange(m), nxt)), shape=(m, m))
-    n_loops, label = connected_components(graph, directed=True, connection="weak")
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    nodes, seg_face, starts = _walk(u, float(level), np.ascontiguousarray(edges, dtype=np.int64),
+                                    np.ascontiguousarray(face_edges, dtype=np.int64),
+                                    np.ascontiguousarray(faces, dtype=np.int64))
     ea, eb = edges[nodes, 0], edges[nodes, 1]
     ua, ub = u[ea], u[eb]
     s = (level - ua) / (ub - ua)
-    loops = []
-    for lab in range(n_loops):
-        members = np.flatnonzero(label == lab)
-        order = np.empty(members.size, dtype=np.int64)
-        k = members[0]
-        for i in range(members.size):
-            order[i] = k
-            k = nxt[k]
-        loops.append(Loop(ea[order], eb[order], s[order], seg_face[order]))
+    loops = [Loop(ea[i:j], eb[i:j], s[i:j], seg_face[i:j])
+             for i, j in zip(starts[:-1].tolist(), starts[1:].tolist())]
     if vertices is not None and len(loops) > 1:
         loops.sort(key=lambda lp: -_length(lp.points(vertices)))
     return loops
+
+
+@njit(cache=True, nogil=True)
+def _walk(u, level, edges, face_edges, faces):
+    """The crossed edges of the isoline ``u = level`` in loop order: (edge index of each loop
+    point, face of the segment from it to the next point, loop start offsets (n_loops + 1)).
+    A crossed edge is a node; each crossed face links its falling side's node to its rising
+    side's (module docstring). Loops are listed by their smallest crossed edge index and each
+    starts there."""
+    n_edges = edges.shape[0]
+    node = np.empty(n_edges, dtype=np.int64)
+    count = 0
+    for e in range(n_edges):
+        if (u[edges[e, 0]] >= level) != (u[edges[e, 1]] >= level):
+            node[e] = count
+            count += 1
+        else:
+            node[e] = -1
+    edge_of = np.empty(count, dtype=np.int64)
+    for e in range(n_edges):
+        if node[e] >= 0:
+            edge_of[node[e]] = e
+    nxt = np.full(count, -1, dtype=np.int64)
+    seg_face = np.full(count, -1, dtype=np.int64)
+    for f in range(faces.shape[0]):
+        a0 = u[faces[f, 0]] >= level
+        a1 = u[faces[f, 1]] >= level
+        a2 = u[faces[f, 2]] >= level
+        if a0 == a1 and a1 == a2:
+            continue
+        ab = (a0, a1, a2)
+        src, dst = -1, -1
+        for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
+            here, there = ab[k], ab[(k + 1) % 3]
+            if here and not there and src < 0:
+                src = face_edges[f, k]
+            elif there and not here and dst < 0:
+                dst = face_edges[f, k]
+        nxt[node[src]] = node[dst]
+        seg_face[node[src]] = f
+    order = np.empty(count, dtype=np.int64)
+    faces_out = np.empty(count, dtype=np.int64)
+    starts = np.empty(count + 1, dtype=np.int64)
+    seen = np.zeros(count, dtype=np.bool_)
+    n_out, n_loops = 0, 0
+    for first in range(count):
+        if seen[first]:
+            continue
+        starts[n_loops] = n_out
+        n_loops += 1
+        k = first
+        while k >= 0 and not seen[k]:
+            seen[k] = True
+            order[n_out] = edge_of[k]
+            faces_out[n_out] = seg_face[k]
+            n_out += 1
+            k = nxt[k]
+    starts[n_loops] = n_out
+    return order[:n_out], faces_out[:n_out], starts[:n_loops + 1]
 
 
 def _length(points) -> float:

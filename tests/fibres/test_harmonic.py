@@ -55,6 +55,69 @@ def test_isolines_of_the_cylinder_are_circles():
         assert np.all(r <= RHO + 1e-12) and np.all(r >= RHO * np.cos(np.pi / 48) - 1e-12)
 
 
+def _loops_oracle(u, faces, level, edges, face_edges):
+    """The isoline's loops by array code and a graph library (the package's implementation
+    before its walk was compiled): crossed edges, each crossed face's falling -> rising link,
+    weakly connected components, each walked from its smallest crossed edge."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    above = u >= level
+    cross = above[edges[:, 0]] != above[edges[:, 1]]
+    hit = np.flatnonzero(cross[face_edges].any(axis=1))
+    ab = above[faces[hit]]
+    rising = ~ab & np.roll(ab, -1, axis=1)
+    falling = ab & ~np.roll(ab, -1, axis=1)
+    fe = face_edges[hit]
+    src = fe[np.arange(hit.size), falling.argmax(axis=1)]
+    dst = fe[np.arange(hit.size), rising.argmax(axis=1)]
+    nodes = np.flatnonzero(cross)
+    index = np.full(len(edges), -1)
+    index[nodes] = np.arange(nodes.size)
+    nxt = np.empty(nodes.size, dtype=np.int64)
+    nxt[index[src]] = index[dst]
+    face = np.empty(nodes.size, dtype=np.int64)
+    face[index[src]] = hit
+    m = nodes.size
+    _, label = connected_components(coo_matrix((np.ones(m), (np.arange(m), nxt)), (m, m)),
+                                    directed=True, connection="weak")
+    out = []
+    for lab in range(label.max() + 1):
+        members = np.flatnonzero(label == lab)
+        order, k = [], members[0]
+        for _ in members:
+            order.append(k)
+            k = nxt[k]
+        out.append((nodes[order], face[order]))
+    return out
+
+
+def test_isoline_walk_equals_the_graph_oracle():
+    """The compiled walk lists the same loops, points and faces in the same order as the
+    graph oracle (exact: both are index bookkeeping), on a bent tube's field at levels with
+    one loop and on a field of the height with two loops (a U-shaped tube cut across both
+    arms)."""
+    v, f = tube(_circle, *arc(L, np.pi), n_sect=24, n_path=31)
+    edges, face_edges = mesh_edges(f, len(v))
+    ring = np.arange(len(v)) // 24                       # section of each vertex; the caps' centres last
+    zero = (ring == 0) | (np.arange(len(v)) == len(v) - 2)
+    one = (ring == 30) | (np.arange(len(v)) == len(v) - 1)
+    fields = [harmonic_field(v, f, zero, one),
+              (v[:, 1] - v[:, 1].min()) / np.ptp(v[:, 1])]
+    counts = set()
+    for u in fields:
+        for t in np.linspace(0.02, 0.98, 25):
+            got = isoline_loops(u, f, t, edges, face_edges)
+            want = _loops_oracle(u, f, t, edges, face_edges)
+            counts.add(len(got))
+            assert len(got) == len(want)
+            for lp, (e, face) in zip(got, want):
+                np.testing.assert_array_equal(lp.a, edges[e, 0])
+                np.testing.assert_array_equal(lp.b, edges[e, 1])
+                np.testing.assert_array_equal(lp.face, face)
+    assert counts >= {1, 2}
+
+
 def test_straight_cylinder_gives_straight_axial_fibres():
     """Landmarks on both caps: every fibre is a straight segment along the axis, from cap to
     cap (the loops are equal circles, the membranes and their area maps equal)."""
