@@ -16,6 +16,7 @@ with a deformed copy of the surface (`Loop.points`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from numba import njit
@@ -151,37 +152,52 @@ def isoline_moments(u, vertices, faces, levels):
     area : (L, 3) float
         Vector area, pointing along the field's gradient side (module docstring).
     """
-    levels = np.asarray(levels, dtype=np.float64)
-    uf = np.asarray(u)[faces]                                         # (T, 3)
-    lo = np.searchsorted(levels, uf.min(axis=1), side="right")
-    hi = np.searchsorted(levels, uf.max(axis=1), side="right")
-    count = hi - lo
-    face = np.repeat(np.arange(len(faces)), count)
-    start = np.repeat(np.cumsum(count) - count, count)
-    lev = np.repeat(lo, count) + np.arange(face.size) - start
-    t = levels[lev]
-    fu = uf[face]
-    ab = fu >= t[:, None]
-    rising = ~ab & np.roll(ab, -1, axis=1)
-    falling = ab & ~np.roll(ab, -1, axis=1)
-    rows = np.arange(face.size)
-    tri = vertices[faces[face]]                                       # (H, 3, 3)
-
-    def crossing(side):
-        k0, k1 = side, (side + 1) % 3
-        u0, u1 = fu[rows, k0], fu[rows, k1]
-        s = ((t - u0) / (u1 - u0))[:, None]
-        return (1.0 - s) * tri[rows, k0] + s * tri[rows, k1]
-
-    a = crossing(falling.argmax(axis=1))
-    b = crossing(rising.argmax(axis=1))
-    seg = np.linalg.norm(b - a, axis=1)
-    n = len(levels)
-    length = np.bincount(lev, seg, n)
-    mid = 0.5 * (a + b) * seg[:, None]
+    levels = np.ascontiguousarray(levels, dtype=np.float64)
+    length, mid, area = _moment_sums(np.ascontiguousarray(u, dtype=np.float64),
+                                     np.ascontiguousarray(vertices, dtype=np.float64),
+                                     np.ascontiguousarray(faces, dtype=np.int64), levels)
     with np.errstate(invalid="ignore", divide="ignore"):
-        centroid = np.stack([np.bincount(lev, mid[:, d], n) for d in range(3)], axis=1) \
-            / length[:, None]
-    cr = 0.5 * np.cross(a, b)
-    area = np.stack([np.bincount(lev, cr[:, d], n) for d in range(3)], axis=1)
+        centroid = mid / length[:, None]
     return length, centroid, area
+
+
+@njit(cache=True, nogil=True)
+def _moment_sums(u, vertices, faces, levels):
+    """Per level (``levels`` increasing): the isoline's length, the sum of its segments'
+    midpoints times their lengths, and its vector area ``1/2 sum a x b``, face by face (a face
+    is crossed by the levels above its lowest and up to its highest corner value; its
+    segment runs from the falling side's crossing ``a`` to the rising side's ``b``)."""
+    n = levels.shape[0]
+    length = np.zeros(n)
+    mid = np.zeros((n, 3))
+    area = np.zeros((n, 3))
+    uu = np.empty(3)
+    a = np.empty(3)
+    b = np.empty(3)
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            uu[k] = u[faces[f, k]]
+        lo = np.searchsorted(levels, min(uu[0], uu[1], uu[2]), side="right")
+        hi = np.searchsorted(levels, max(uu[0], uu[1], uu[2]), side="right")
+        for q in range(lo, hi):
+            t = levels[q]
+            fall, rise = -1, -1
+            for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
+                here, there = uu[k] >= t, uu[(k + 1) % 3] >= t
+                if here and not there and fall < 0:
+                    fall = k
+                elif there and not here and rise < 0:
+                    rise = k
+            for side, out in ((fall, a), (rise, b)):
+                k1 = (side + 1) % 3
+                s = (t - uu[side]) / (uu[k1] - uu[side])
+                for d in range(3):
+                    out[d] = (1.0 - s) * vertices[faces[f, side], d] + s * vertices[faces[f, k1], d]
+            seg = math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2)
+            length[q] += seg
+            for d in range(3):
+                mid[q, d] += 0.5 * (a[d] + b[d]) * seg
+            area[q, 0] += 0.5 * (a[1] * b[2] - a[2] * b[1])
+            area[q, 1] += 0.5 * (a[2] * b[0] - a[0] * b[2])
+            area[q, 2] += 0.5 * (a[0] * b[1] - a[1] * b[0])
+    return length, mid, area
