@@ -254,13 +254,18 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         j1 = np.minimum(j0 + 1, n_loops - 1)
         r_in = rid[:, 1:-1].reshape(-1)
         xy_in = xy[:, 1:-1].reshape(-1, 2)
-        for jj, wj in ((j0, 1.0 - a), (j1, a)):
-            use = wj > 0
-            for j in np.unique(jj[use]):
-                sel = np.flatnonzero(use & (jj == j))
-                rows.append(np.repeat(r_in[sel], k))
-                cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
-                vals.append((lam(j, xy_in[sel]) * wj[sel, None]).reshape(-1))
+        # each point on its two loops (weights 1 - a and a; zero weights left out), the
+        # membrane map of each loop evaluated once for all its points
+        jj = np.concatenate([j0, j1])
+        wj = np.concatenate([1.0 - a, a])
+        pt = np.concatenate([np.arange(a.size), np.arange(a.size)])
+        use = np.flatnonzero(wj > 0)
+        jj, wj, pt = jj[use], wj[use], pt[use]
+        for j in np.unique(jj):
+            sel = np.flatnonzero(jj == j)
+            rows.append(np.repeat(r_in[pt[sel]], k))
+            cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
+            vals.append((lam(j, xy_in[pt[sel]]) * wj[sel, None]).reshape(-1))
     # ends: the fibres' places on the first / last inner membrane, projected on its frame,
     # carried onto the whole patch by area and in order (the membrane's projected area
     # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the fibres

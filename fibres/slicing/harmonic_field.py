@@ -60,7 +60,7 @@ def cotangent_weights(vertices, faces, edges, face_edges) -> np.ndarray:
         cross = np.linalg.norm(np.cross(a, b), axis=1)
         dot = np.einsum("ij,ij->i", a, b)
         cot = dot / np.maximum(cross, 1e-300)
-        np.add.at(w, face_edges[:, (k + 1) % 3], 0.5 * cot)
+        w += np.bincount(face_edges[:, (k + 1) % 3], 0.5 * cot, len(edges))
     return np.maximum(w, 0.0)
 
 
