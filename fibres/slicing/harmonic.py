@@ -298,10 +298,12 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     n_cols = base + len(plan.rest_vertices)
     mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                         shape=(n * p, n_cols))
-    mat = _bend_to_ends(n, p) @ mat
-    rest_pts = (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
-                                      plan.rest_vertices])).reshape(n, p, 3)
-    return _even(rest_pts) @ mat
+    # bending and even steps are (N P, N P) maps of the points: composed first (small), then
+    # applied to the map of the vertices in one sparse product
+    bend = _bend_to_ends(n, p)
+    rest_pts = (bend @ (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
+                                              plan.rest_vertices]))).reshape(n, p, 3)
+    return (_even(rest_pts) @ bend) @ mat
 
 
 def _bend_to_ends(n, p):
