@@ -153,51 +153,56 @@ def isoline_moments(u, vertices, faces, levels):
         Vector area, pointing along the field's gradient side (module docstring).
     """
     levels = np.ascontiguousarray(levels, dtype=np.float64)
-    length, mid, area = _moment_sums(np.ascontiguousarray(u, dtype=np.float64),
-                                     np.ascontiguousarray(vertices, dtype=np.float64),
-                                     np.ascontiguousarray(faces, dtype=np.int64), levels)
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    uf = u[faces]
+    lo = np.searchsorted(levels, uf.min(axis=1), side="right")
+    hi = np.searchsorted(levels, uf.max(axis=1), side="right")
+    length, mid, area = _moment_sums(u, np.ascontiguousarray(vertices, dtype=np.float64),
+                                     faces, levels, lo, hi)
     with np.errstate(invalid="ignore", divide="ignore"):
         centroid = mid / length[:, None]
     return length, centroid, area
 
 
 @njit(cache=True, nogil=True)
-def _moment_sums(u, vertices, faces, levels):
+def _moment_sums(u, vertices, faces, levels, lo, hi):
     """Per level (``levels`` increasing): the isoline's length, the sum of its segments'
     midpoints times their lengths, and its vector area ``1/2 sum a x b``, face by face (a face
     is crossed by the levels above its lowest and up to its highest corner value; its
-    segment runs from the falling side's crossing ``a`` to the rising side's ``b``)."""
+    segment runs from the falling side's crossing ``a`` to the rising side's ``b``): face f
+    is crossed by the levels ``lo[f]:hi[f]``."""
     n = levels.shape[0]
     length = np.zeros(n)
     mid = np.zeros((n, 3))
     area = np.zeros((n, 3))
     uu = np.empty(3)
-    a = np.empty(3)
-    b = np.empty(3)
+    ab = np.empty((2, 3))                    # the segment's ends: falling, rising crossing
+    side = np.empty(2, dtype=np.int64)
     for f in range(faces.shape[0]):
         for k in range(3):
             uu[k] = u[faces[f, k]]
-        lo = np.searchsorted(levels, min(uu[0], uu[1], uu[2]), side="right")
-        hi = np.searchsorted(levels, max(uu[0], uu[1], uu[2]), side="right")
-        for q in range(lo, hi):
+        for q in range(lo[f], hi[f]):
             t = levels[q]
-            fall, rise = -1, -1
+            side[0], side[1] = -1, -1
             for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
                 here, there = uu[k] >= t, uu[(k + 1) % 3] >= t
-                if here and not there and fall < 0:
-                    fall = k
-                elif there and not here and rise < 0:
-                    rise = k
-            for side, out in ((fall, a), (rise, b)):
-                k1 = (side + 1) % 3
-                s = (t - uu[side]) / (uu[k1] - uu[side])
+                if here and not there and side[0] < 0:
+                    side[0] = k
+                elif there and not here and side[1] < 0:
+                    side[1] = k
+            for e in range(2):
+                k0 = side[e]
+                k1 = (k0 + 1) % 3
+                s = (t - uu[k0]) / (uu[k1] - uu[k0])
                 for d in range(3):
-                    out[d] = (1.0 - s) * vertices[faces[f, side], d] + s * vertices[faces[f, k1], d]
-            seg = math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2)
+                    ab[e, d] = (1.0 - s) * vertices[faces[f, k0], d] + s * vertices[faces[f, k1], d]
+            seg = math.sqrt((ab[1, 0] - ab[0, 0]) ** 2 + (ab[1, 1] - ab[0, 1]) ** 2
+                            + (ab[1, 2] - ab[0, 2]) ** 2)
             length[q] += seg
             for d in range(3):
-                mid[q, d] += 0.5 * (a[d] + b[d]) * seg
-            area[q, 0] += 0.5 * (a[1] * b[2] - a[2] * b[1])
-            area[q, 1] += 0.5 * (a[2] * b[0] - a[0] * b[2])
-            area[q, 2] += 0.5 * (a[0] * b[1] - a[1] * b[0])
+                mid[q, d] += 0.5 * (ab[0, d] + ab[1, d]) * seg
+            area[q, 0] += 0.5 * (ab[0, 1] * ab[1, 2] - ab[0, 2] * ab[1, 1])
+            area[q, 1] += 0.5 * (ab[0, 2] * ab[1, 0] - ab[0, 0] * ab[1, 2])
+            area[q, 2] += 0.5 * (ab[0, 0] * ab[1, 1] - ab[0, 1] * ab[1, 0])
     return length, mid, area
