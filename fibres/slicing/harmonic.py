@@ -165,11 +165,15 @@ class HarmonicPlan:
                              "the plan was made on.")
 
 
-def make_harmonic_plan(vertices, faces, origin, insertion) -> HarmonicPlan:
-    """Patches and harmonic field of a rest-pose surface (metres)."""
+def make_harmonic_plan(vertices, faces, origin, insertion, *, topology=None) -> HarmonicPlan:
+    """Patches and harmonic field of a rest-pose surface (metres); ``topology``: the faces'
+    `fibres.slicing.planes.MeshTopology` when at hand (its edges are `mesh_edges`' own)."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
-    edges, face_edges = mesh_edges(f, len(v))
+    if topology is not None and (topology.faces is f or np.array_equal(topology.faces, f)):
+        edges, face_edges = topology.edges.copy(), topology.face_edges.copy()   # writeable
+    else:
+        edges, face_edges = mesh_edges(f, len(v))
     patches = attachment_patches(v, f, origin, insertion, edges)
     u = harmonic_field(v, f, patches.origin, patches.insertion, edges=edges,
                        face_edges=face_edges)
