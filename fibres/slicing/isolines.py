@@ -96,8 +96,11 @@ def _walk(u, level, edges, face_edges, faces):
     for e in range(n_edges):
         if node[e] >= 0:
             edge_of[node[e]] = e
-    nxt = np.full(count, -1, dtype=np.int64)
-    seg_face = np.full(count, -1, dtype=np.int64)
+    nxt = np.empty(count, dtype=np.int64)
+    seg_face = np.empty(count, dtype=np.int64)
+    seen = np.empty(count, dtype=np.bool_)
+    for m in range(count):
+        nxt[m], seg_face[m], seen[m] = -1, -1, False
     for f in range(faces.shape[0]):
         a0 = u[faces[f, 0]] >= level
         a1 = u[faces[f, 1]] >= level
@@ -117,7 +120,6 @@ def _walk(u, level, edges, face_edges, faces):
     order = np.empty(count, dtype=np.int64)
     faces_out = np.empty(count, dtype=np.int64)
     starts = np.empty(count + 1, dtype=np.int64)
-    seen = np.zeros(count, dtype=np.bool_)
     n_out, n_loops = 0, 0
     for first in range(count):
         if seen[first]:
@@ -173,9 +175,13 @@ def _moment_sums(u, vertices, faces, levels, lo, hi):
     segment runs from the falling side's crossing ``a`` to the rising side's ``b``): face f
     is crossed by the levels ``lo[f]:hi[f]``."""
     n = levels.shape[0]
-    length = np.zeros(n)
-    mid = np.zeros((n, 3))
-    area = np.zeros((n, 3))
+    length = np.empty(n)
+    mid = np.empty((n, 3))
+    area = np.empty((n, 3))
+    for q in range(n):
+        length[q] = 0.0
+        for d in range(3):
+            mid[q, d], area[q, d] = 0.0, 0.0
     uu = np.empty(3)
     ab = np.empty((2, 3))                    # the segment's ends: falling, rising crossing
     side = np.empty(2, dtype=np.int64)
