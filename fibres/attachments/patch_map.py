@@ -141,7 +141,7 @@ def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
     return np.clip(X, 0.0, 1.0), np.clip(Y, 0.0, 1.0)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _window_cdf(sx, sw, h, x0, q, given):
     """The conditional distribution along the samples' order (sorted by y) under a Gaussian
     window in x about each ``x0[n]``: weights ``w_i = sw_i exp(-(sx_i - x0) ^ 2 / 2 h ^ 2)``

@@ -76,7 +76,7 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
     return loops
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _walk(u, level, edges, face_edges, faces):
     """The crossed edges of the isoline ``u = level`` in loop order: (edge index of each loop
     point, face of the segment from it to the next point, loop start offsets (n_loops + 1)).
@@ -167,7 +167,7 @@ def isoline_moments(u, vertices, faces, levels):
     return length, centroid, area
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _moment_sums(u, vertices, faces, levels, lo, hi):
     """Per level (``levels`` increasing): the isoline's length, the sum of its segments'
     midpoints times their lengths, and its vector area ``1/2 sum a x b``, face by face (a face
