@@ -1,6 +1,6 @@
 """Fibre quality and moment arms of the LHDL hip muscles, harmonic against planar slicing.
 
-    python bench/fibre_quality.py [--quality] [--moment-arms] [--speed] [--repeats N]
+    python bench/fibre_quality.py [--quality] [--moment-arms] [--speed] [--stages] [--repeats N]
 
 ``--quality``: `fibres.finishing.quality` of the four muscles (100 fibres x 15 segments), with the
 templates of tests/data/lhdl_hip.toml and with ``parallel``, psoas with its own four lumbar
@@ -11,7 +11,10 @@ union) of p5..p95 and of min..max with the ranges of Modenese & Kohout 2020, Tab
 are peak values: the minimum and maximum over all fibres and poses). ``--speed``: medians of
 the rest-pose decomposition (incl. patches and the harmonic solve) and of a frame with the
 plan, one thread, warm process: wall-clock time and process CPU time (the CPU time is the fairer figure on
-a shared, loaded machine). Default: all three.
+a shared, loaded machine). ``--stages``: the rest decomposition's CPU time per stage (medians
+over the repeats of each stage's summed calls; the stages are timed by wrapping the functions
+`fibres.decompose` and `fibres.slicing.harmonic` call, so their sum is less than the whole).
+Default: the first three.
 """
 from __future__ import annotations
 
@@ -152,14 +155,74 @@ def speed(repeats):
               f"{np.median(rest_cpu) * 1e3:.1f} | {np.median(frame_cpu) * 1e3:.1f} |")
 
 
+#: (module, function, label) of the rest decomposition's stages timed by ``--stages``
+STAGES = (("fibres.decompose", "_inputs", "inputs (mesh clean check)"),
+          ("fibres.slicing.harmonic", "mesh_edges", "plan: mesh edges"),
+          ("fibres.slicing.harmonic", "attachment_patches", "plan: attachment patches"),
+          ("fibres.slicing.harmonic", "harmonic_field", "plan: harmonic field solve"),
+          ("fibres.slicing.harmonic_sections", "_levels", "slices: levels"),
+          ("fibres.slicing.harmonic_sections", "isoline_loops", "slices: isoline loops"),
+          ("fibres.slicing.harmonic_sections", "_registered_seam", "slices: seams"),
+          ("fibres.slicing.harmonic", "_slices", "slices (all)"),
+          ("fibres.slicing.harmonic", "mean_value_coordinates", "fibre map: mean value coords"),
+          ("fibres.slicing.harmonic", "area_points", "fibre map: ends onto the patches"),
+          ("fibres.slicing.harmonic", "relax_on_patch", "fibre map: ends' Lloyd steps"),
+          ("fibres.slicing.harmonic", "_fibre_matrix", "fibre map (all)"),
+          ("fibres.slicing.harmonic", "fairing_operator", "fairing matrices"),
+          ("fibres.decompose", "contain_points", "containment pull (all rounds)"))
+
+
+def stages(repeats):
+    import importlib
+    from collections import defaultdict
+
+    from fibres import decompose
+
+    spent = defaultdict(float)
+    for mod, name, label in STAGES:
+        module = importlib.import_module(mod)
+
+        def timed(*a, _f=getattr(module, name), _label=label, **k):
+            c = time.process_time()
+            try:
+                return _f(*a, **k)
+            finally:
+                spent[_label] += time.process_time() - c
+        setattr(module, name, timed)
+    table = {}
+    for muscle in MUSCLES:
+        s = surface(muscle)
+        o, i = landmarks(muscle)
+        opts = dict(template=TOML_TEMPLATES[muscle], n_fibres=100, resolution=15)
+        runs = defaultdict(list)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            decompose((s.vertices, s.faces), o, i, **opts)
+            for _ in range(repeats):
+                spent.clear()
+                c = time.process_time()
+                decompose((s.vertices, s.faces), o, i, **opts)
+                runs["whole rest decomposition"].append(time.process_time() - c)
+                for label, t in spent.items():
+                    runs[label].append(t)
+        table[muscle] = {k: np.median(v) * 1e3 for k, v in runs.items()}
+    print("\n| stage, CPU ms | " + " | ".join(MUSCLES) + " |")
+    print("|---|" + "---|" * len(MUSCLES))
+    labels = ["whole rest decomposition"] + [label for _, _, label in STAGES]
+    for label in labels:
+        print(f"| {label} | " + " | ".join(f"{table[m].get(label, 0.0):.1f}" for m in MUSCLES)
+              + " |")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quality", action="store_true")
     parser.add_argument("--moment-arms", action="store_true")
     parser.add_argument("--speed", action="store_true")
+    parser.add_argument("--stages", action="store_true")
     parser.add_argument("--repeats", type=int, default=11)
     args = parser.parse_args()
-    every = not (args.quality or args.moment_arms or args.speed)
+    every = not (args.quality or args.moment_arms or args.speed or args.stages)
     if not LHDL.is_dir():
         raise SystemExit(f"needs the LHDL data at {LHDL}")
     if every or args.quality:
@@ -168,6 +231,8 @@ def main():
         speed(args.repeats)
     if every or args.moment_arms:
         moment_arms()
+    if args.stages:
+        stages(args.repeats)
 
 
 if __name__ == "__main__":

@@ -259,7 +259,7 @@ def make_plan(mesh, origin, insertion, *, template="parallel", resolution: int =
     _check_slicing(slicing)
     v, faces, o, i, _, topology, _ = _inputs(mesh, origin, insertion, units, None)
     if slicing == "harmonic":
-        return make_harmonic_plan(v, faces, o, i)
+        return make_harmonic_plan(v, faces, o, i, topology=topology)
     tmpl = _template(template, template_params)
     plan = _new_plan(v, faces, o, i, tmpl, int(resolution), axis, angle_step_deg, topology)
     *_, choice, _ = _sweep(plan, v, o, i, fresh=True)
@@ -420,7 +420,8 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
     tmpl = _template(template, template_params)
     if slicing == "harmonic":
         return _decompose_harmonic(v, faces, o, i, notes, tmpl, int(n_fibres),
-                                   int(resolution), seed, smoothing_iterations, contain, plan)
+                                   int(resolution), seed, smoothing_iterations, contain, plan,
+                                   topology)
     prepared = None
     if plan is None:
         # the transposed vertices, bounds, centroid: made once for the fit, filter, grid
@@ -463,7 +464,7 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
 
 
 def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
-                        smoothing_iterations, contain, plan):
+                        smoothing_iterations, contain, plan, topology=None):
     """`decompose` by harmonic-field slicing (`fibres.slicing.harmonic`, with its fairing:
     lambda|mu pairs of Taubin's non-shrinking smoothing (`fibres.finishing.fairing.taubin_pairs`
     of ``smoothing_iterations``) and the
@@ -471,7 +472,7 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
     the containment pull of the planar method, its displacement spread along each fibre
     (`fibres.finishing.fairing.spread_pull`) and pulled again."""
     if plan is None:
-        plan = make_harmonic_plan(v, faces, o, i)
+        plan = make_harmonic_plan(v, faces, o, i, topology=topology)
         notes.extend(plan.notes)
     else:
         plan.check_mesh(v, faces)

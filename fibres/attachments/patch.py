@@ -235,11 +235,14 @@ def _enclosed(v, vn, landmarks, dist, mean_edge):
     except QhullError:
         return none, every
     eq = hull.equations                                  # (H, 3): a x + b y + c <= 0 inside
-    inside = (np.stack([vx, vy], axis=1) @ eq[:, :2].T + eq[:, 2] <= 1e-12).all(axis=1)
     # facing the bone: the outward vertex normal points towards the landmarks' surface
     cos = vn @ frame[:, 2]
     facing = cos * side < -FACING_COS
-    return inside & near & facing, facing
+    test = np.flatnonzero(near & facing)                 # the hull test only where it matters
+    enclosed = np.zeros(len(v), dtype=bool)
+    enclosed[test] = (np.stack([vx[test], vy[test]], axis=1) @ eq[:, :2].T + eq[:, 2]
+                      <= 1e-12).all(axis=1)
+    return enclosed, facing
 
 
 def _touching(a, b, edges) -> bool:

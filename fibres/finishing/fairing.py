@@ -71,27 +71,44 @@ def natural_spline_matrix(knots, t):
     (increasing), evaluated at ``t``: ``U @ y`` are the spline's values (de Boor 1978; the
     second derivatives ``m`` solve the tridiagonal system
     ``h_{i-1} m_{i-1} + 2 (h_{i-1} + h_i) m_i + h_i m_{i+1} = 6 (dy_i / h_i - dy_{i-1} / h_{i-1})``
-    with ``m_0 = m_{P-1} = 0``)."""
+    with ``m_0 = m_{P-1} = 0``). Batched: ``knots`` (..., P) and ``t`` (..., M) give
+    (..., M, P), one spline per leading index (the systems solved together)."""
     s = np.asarray(knots, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64)
-    p = len(s)
-    h = np.diff(s)
+    lead = s.shape[:-1]
+    p, m = s.shape[-1], t.shape[-1]
+    s = s.reshape(-1, p)
+    t = t.reshape(-1, m)
+    n = len(s)
+    h = np.diff(s, axis=1)                                    # (B, P - 1)
     eye = np.eye(p)
-    second = np.zeros((p, p))                 # m = second @ y
+    second = np.zeros((n, p, p))              # m = second @ y
     if p > 2:
-        a = np.zeros((p - 2, p - 2))
+        a = np.zeros((n, p - 2, p - 2))
         i = np.arange(p - 2)
-        a[i, i] = 2.0 * (h[:-1] + h[1:])
-        a[i[1:], i[1:] - 1] = h[1:-1]
-        a[i[:-1], i[:-1] + 1] = h[1:-1]
-        slope = (eye[1:] - eye[:-1]) / h[:, None]            # (P - 1, P): dy_i / h_i
-        second[1:-1] = np.linalg.solve(a, 6.0 * (slope[1:] - slope[:-1]))
-    k = np.clip(np.searchsorted(s, t, side="right") - 1, 0, p - 2)
-    hk = h[k][:, None]
-    b = (t[:, None] - s[k][:, None]) / hk
+        a[:, i, i] = 2.0 * (h[:, :-1] + h[:, 1:])
+        a[:, i[1:], i[1:] - 1] = h[:, 1:-1]
+        a[:, i[:-1], i[:-1] + 1] = h[:, 1:-1]
+        slope = (eye[1:] - eye[:-1]) / h[:, :, None]           # (B, P - 1, P): dy_i / h_i
+        second[:, 1:-1] = np.linalg.solve(a, 6.0 * (slope[:, 1:] - slope[:, :-1]))
+    # k: the knot interval of each t (searchsorted(s, t, side="right") - 1, row by row)
+    k = np.clip((s[:, None, :] <= t[:, :, None]).sum(axis=2) - 1, 0, p - 2)   # (B, M)
+    rows = np.arange(n)[:, None]
+    hk = h[rows, k][..., None]
+    sk = s[rows, k][..., None]
+    b = (t[..., None] - sk) / hk
     a_ = 1.0 - b
-    return (a_ * eye[k] + b * eye[k + 1]
-            + ((a_ ** 3 - a_) * second[k] + (b ** 3 - b) * second[k + 1]) * hk ** 2 / 6.0)
+    scale = hk[..., 0] ** 2 / 6.0
+    # the spline's weights of the values (columns k, k + 1) and of the second derivatives
+    r3, c3 = np.arange(n)[:, None], np.arange(m)[None]
+    lin = np.zeros((n, m, p))
+    lin[r3, c3, k] = a_[..., 0]
+    lin[r3, c3, k + 1] = b[..., 0]
+    cub = np.zeros((n, m, p))
+    cub[r3, c3, k] = (a_[..., 0] ** 3 - a_[..., 0]) * scale
+    cub[r3, c3, k + 1] = (b[..., 0] ** 3 - b[..., 0]) * scale
+    up = lin + cub @ second
+    return up.reshape(lead + (m, p))
 
 
 def _taubin_matrix(p, iterations):
@@ -110,31 +127,33 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
         return np.broadcast_to(np.eye(p), (n, p, p)).copy()
     taubin = _taubin_matrix(p, iterations) if iterations else np.eye(p)
     smoothed = np.einsum("ij,njk->nik", taubin, pts)
-    out = np.empty((n, p, p))
     m = (p - 1) * int(dense) + 1
-    for k in range(n):          # one spline per fibre: its knots are the fibre's own chords
-        seg = np.linalg.norm(np.diff(smoothed[k], axis=0), axis=1)
-        knots = np.concatenate([[0.0], np.cumsum(np.maximum(seg, 1e-12 * max(seg.sum(), 1e-300)))])
-        t = np.linspace(0.0, knots[-1], m)
-        up = natural_spline_matrix(knots, t)                        # (M, P): dense = up @ x
-        curve = up @ smoothed[k]
-        step = np.diff(curve, axis=0)
-        ds = np.linalg.norm(step, axis=1)
-        unit = step / np.maximum(ds, 1e-300)[:, None]
-        theta = np.arctan2(np.linalg.norm(np.cross(unit[:-1], unit[1:]), axis=1),
-                           np.einsum("ij,ij->i", unit[1:], unit[:-1]))
-        share = np.zeros(m - 1)
-        share[:-1] += 0.5 * theta
-        share[1:] += 0.5 * theta
-        measure = ds / max(ds.sum(), 1e-300) + float(turning) * share / np.pi
-        cum = np.concatenate([[0.0], np.cumsum(measure)])
-        target = np.linspace(0.0, cum[-1], p)
-        j = np.clip(np.searchsorted(cum, target, side="right") - 1, 0, m - 2)
-        w = np.clip((target - cum[j]) / np.maximum(cum[j + 1] - cum[j], 1e-300), 0.0, 1.0)
-        pick = np.zeros((p, m))
-        pick[np.arange(p), j] = 1.0 - w
-        pick[np.arange(p), j + 1] += w
-        out[k] = pick @ up @ taubin
+    # one spline per fibre, all at once: its knots are the fibre's own chords
+    seg = np.linalg.norm(np.diff(smoothed, axis=1), axis=2)                  # (N, P - 1)
+    floor = 1e-12 * np.maximum(seg.sum(axis=1, keepdims=True), 1e-300)
+    knots = np.concatenate([np.zeros((n, 1)), np.cumsum(np.maximum(seg, floor), axis=1)],
+                           axis=1)
+    t = np.linspace(0.0, knots[:, -1], m, axis=1)
+    up = natural_spline_matrix(knots, t)                 # (N, M, P): dense = up @ x
+    curve = up @ smoothed
+    step = np.diff(curve, axis=1)
+    ds = np.linalg.norm(step, axis=2)
+    unit = step / np.maximum(ds, 1e-300)[..., None]
+    theta = np.arctan2(np.linalg.norm(np.cross(unit[:, :-1], unit[:, 1:]), axis=2),
+                       np.einsum("nij,nij->ni", unit[:, 1:], unit[:, :-1]))
+    share = np.zeros((n, m - 1))
+    share[:, :-1] += 0.5 * theta
+    share[:, 1:] += 0.5 * theta
+    measure = (ds / np.maximum(ds.sum(axis=1, keepdims=True), 1e-300)
+               + float(turning) * share / np.pi)
+    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(measure, axis=1)], axis=1)
+    target = np.linspace(0.0, cum[:, -1], p, axis=1)
+    j = np.clip((cum[:, None, :] <= target[:, :, None]).sum(axis=2) - 1, 0, m - 2)  # (N, P)
+    rows = np.arange(n)[:, None]
+    c0, c1 = cum[rows, j], cum[rows, j + 1]
+    w = np.clip((target - c0) / np.maximum(c1 - c0, 1e-300), 0.0, 1.0)
+    # each new point a blend of dense points j and j + 1
+    out = ((1.0 - w)[..., None] * up[rows, j] + w[..., None] * up[rows, j + 1]) @ taubin
     out[:, 0] = 0.0
     out[:, -1] = 0.0
     out[:, 0, 0] = 1.0
@@ -145,7 +164,12 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
 def fairing_operator(points, *, iterations, turning=TURNING, dense=DENSE):
     """The block-diagonal sparse (N P, N P) matrix of `fairing_matrices`."""
     mats = fairing_matrices(points, iterations=iterations, turning=turning, dense=dense)
-    return sp.block_diag(list(mats), format="csr")
+    n, p, _ = mats.shape
+    cols = (np.arange(n)[:, None, None] * p + np.arange(p)[None, None, :]).repeat(p, axis=1)
+    out = sp.csr_matrix((mats.reshape(-1), cols.reshape(-1), np.arange(n * p + 1) * p),
+                        shape=(n * p, n * p))
+    out.eliminate_zeros()
+    return out
 
 
 def _along(a, weights):

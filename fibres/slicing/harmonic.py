@@ -165,11 +165,15 @@ class HarmonicPlan:
                              "the plan was made on.")
 
 
-def make_harmonic_plan(vertices, faces, origin, insertion) -> HarmonicPlan:
-    """Patches and harmonic field of a rest-pose surface (metres)."""
+def make_harmonic_plan(vertices, faces, origin, insertion, *, topology=None) -> HarmonicPlan:
+    """Patches and harmonic field of a rest-pose surface (metres); ``topology``: the faces'
+    `fibres.slicing.planes.MeshTopology` when at hand (its edges are `mesh_edges`' own)."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
-    edges, face_edges = mesh_edges(f, len(v))
+    if topology is not None and (topology.faces is f or np.array_equal(topology.faces, f)):
+        edges, face_edges = topology.edges.copy(), topology.face_edges.copy()   # writeable
+    else:
+        edges, face_edges = mesh_edges(f, len(v))
     patches = attachment_patches(v, f, origin, insertion, edges)
     u = harmonic_field(v, f, patches.origin, patches.insertion, edges=edges,
                        face_edges=face_edges)
@@ -254,13 +258,18 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         j1 = np.minimum(j0 + 1, n_loops - 1)
         r_in = rid[:, 1:-1].reshape(-1)
         xy_in = xy[:, 1:-1].reshape(-1, 2)
-        for jj, wj in ((j0, 1.0 - a), (j1, a)):
-            use = wj > 0
-            for j in np.unique(jj[use]):
-                sel = np.flatnonzero(use & (jj == j))
-                rows.append(np.repeat(r_in[sel], k))
-                cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
-                vals.append((lam(j, xy_in[sel]) * wj[sel, None]).reshape(-1))
+        # each point on its two loops (weights 1 - a and a; zero weights left out), the
+        # membrane map of each loop evaluated once for all its points
+        jj = np.concatenate([j0, j1])
+        wj = np.concatenate([1.0 - a, a])
+        pt = np.concatenate([np.arange(a.size), np.arange(a.size)])
+        use = np.flatnonzero(wj > 0)
+        jj, wj, pt = jj[use], wj[use], pt[use]
+        for j in np.unique(jj):
+            sel = np.flatnonzero(jj == j)
+            rows.append(np.repeat(r_in[pt[sel]], k))
+            cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
+            vals.append((lam(j, xy_in[pt[sel]]) * wj[sel, None]).reshape(-1))
     # ends: the fibres' places on the first / last inner membrane, projected on its frame,
     # carried onto the whole patch by area and in order (the membrane's projected area
     # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the fibres
@@ -293,10 +302,12 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     n_cols = base + len(plan.rest_vertices)
     mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                         shape=(n * p, n_cols))
-    mat = _bend_to_ends(n, p) @ mat
-    rest_pts = (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
-                                      plan.rest_vertices])).reshape(n, p, 3)
-    return _even(rest_pts) @ mat
+    # bending and even steps are (N P, N P) maps of the points: composed first (small), then
+    # applied to the map of the vertices in one sparse product
+    bend = _bend_to_ends(n, p)
+    rest_pts = (bend @ (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
+                                              plan.rest_vertices]))).reshape(n, p, 3)
+    return (_even(rest_pts) @ bend) @ mat
 
 
 def _bend_to_ends(n, p):

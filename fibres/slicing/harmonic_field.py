@@ -17,7 +17,7 @@ to zero: the matrix is then an M-matrix, so the discrete field obeys the maximum
 exact linear precision on such edges only. Dirichlet values on the patch vertices; the free
 vertices' system ``L_ff u_f = -L_fb u_b`` is symmetric positive definite and solved by a sparse
 LU factorisation (scipy.sparse.linalg.splu: SuperLU in symmetric mode with a minimum degree
-ordering of A^T + A).
+ordering of A^T + A, pivots on the diagonal: the matrix is symmetric positive definite).
 """
 from __future__ import annotations
 
@@ -60,7 +60,7 @@ def cotangent_weights(vertices, faces, edges, face_edges) -> np.ndarray:
         cross = np.linalg.norm(np.cross(a, b), axis=1)
         dot = np.einsum("ij,ij->i", a, b)
         cot = dot / np.maximum(cross, 1e-300)
-        np.add.at(w, face_edges[:, (k + 1) % 3], 0.5 * cot)
+        w += np.bincount(face_edges[:, (k + 1) % 3], 0.5 * cot, len(edges))
     return np.maximum(w, 0.0)
 
 
@@ -125,6 +125,6 @@ def harmonic_field(vertices, faces, zero, one, *, edges=None, face_edges=None) -
                              (np.concatenate([a, b, k]), np.concatenate([b, a, k]))),
                             shape=(free.size, free.size))
         rhs = _rhs(where, i, j, w, one, free.size)
-        u[free] = splu(mat, permc_spec="MMD_AT_PLUS_A",
+        u[free] = splu(mat, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True}).solve(rhs)
     return np.clip(u, 0.0, 1.0)

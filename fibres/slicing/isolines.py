@@ -16,10 +16,10 @@ with a deformed copy of the surface (`Loop.points`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
+from numba import njit
 
 __all__ = ["Loop", "isoline_loops"]
 
@@ -62,45 +62,79 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
     -------
     list of Loop
     """
-    above = np.asarray(u) >= level
-    cross = above[edges[:, 0]] != above[edges[:, 1]]                  # (E,)
-    fc = cross[face_edges]                                            # (T, 3)
-    hit = np.flatnonzero(fc.any(axis=1))
-    if hit.size == 0:
-        return []
-    f = faces[hit]
-    fe = face_edges[hit]
-    ab = above[f]                                                     # (H, 3)
-    # side k runs corner k -> k + 1; rising: below -> above
-    rising = ~ab & np.roll(ab, -1, axis=1)
-    falling = ab & ~np.roll(ab, -1, axis=1)
-    src = fe[np.arange(len(hit)), falling.argmax(axis=1)]
-    dst = fe[np.arange(len(hit)), rising.argmax(axis=1)]
-    nodes = np.flatnonzero(cross)
-    index = np.full(len(edges), -1, dtype=np.int64)
-    index[nodes] = np.arange(nodes.size)
-    nxt = np.empty(nodes.size, dtype=np.int64)
-    nxt[index[src]] = index[dst]
-    seg_face = np.empty(nodes.size, dtype=np.int64)
-    seg_face[index[src]] = hit
-    m = nodes.size
-    graph = coo_matrix((np.ones(m), (np.arange(m), nxt)), shape=(m, m))
-    n_loops, label = connected_components(graph, directed=True, connection="weak")
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    nodes, seg_face, starts = _walk(u, float(level), np.ascontiguousarray(edges, dtype=np.int64),
+                                    np.ascontiguousarray(face_edges, dtype=np.int64),
+                                    np.ascontiguousarray(faces, dtype=np.int64))
     ea, eb = edges[nodes, 0], edges[nodes, 1]
     ua, ub = u[ea], u[eb]
     s = (level - ua) / (ub - ua)
-    loops = []
-    for lab in range(n_loops):
-        members = np.flatnonzero(label == lab)
-        order = np.empty(members.size, dtype=np.int64)
-        k = members[0]
-        for i in range(members.size):
-            order[i] = k
-            k = nxt[k]
-        loops.append(Loop(ea[order], eb[order], s[order], seg_face[order]))
+    loops = [Loop(ea[i:j], eb[i:j], s[i:j], seg_face[i:j])
+             for i, j in zip(starts[:-1].tolist(), starts[1:].tolist())]
     if vertices is not None and len(loops) > 1:
         loops.sort(key=lambda lp: -_length(lp.points(vertices)))
     return loops
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _walk(u, level, edges, face_edges, faces):
+    """The crossed edges of the isoline ``u = level`` in loop order: (edge index of each loop
+    point, face of the segment from it to the next point, loop start offsets (n_loops + 1)).
+    A crossed edge is a node; each crossed face links its falling side's node to its rising
+    side's (module docstring). Loops are listed by their smallest crossed edge index and each
+    starts there."""
+    n_edges = edges.shape[0]
+    node = np.empty(n_edges, dtype=np.int64)
+    count = 0
+    for e in range(n_edges):
+        if (u[edges[e, 0]] >= level) != (u[edges[e, 1]] >= level):
+            node[e] = count
+            count += 1
+        else:
+            node[e] = -1
+    edge_of = np.empty(count, dtype=np.int64)
+    for e in range(n_edges):
+        if node[e] >= 0:
+            edge_of[node[e]] = e
+    nxt = np.empty(count, dtype=np.int64)
+    seg_face = np.empty(count, dtype=np.int64)
+    seen = np.empty(count, dtype=np.bool_)
+    for m in range(count):
+        nxt[m], seg_face[m], seen[m] = -1, -1, False
+    for f in range(faces.shape[0]):
+        a0 = u[faces[f, 0]] >= level
+        a1 = u[faces[f, 1]] >= level
+        a2 = u[faces[f, 2]] >= level
+        if a0 == a1 and a1 == a2:
+            continue
+        ab = (a0, a1, a2)
+        src, dst = -1, -1
+        for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
+            here, there = ab[k], ab[(k + 1) % 3]
+            if here and not there and src < 0:
+                src = face_edges[f, k]
+            elif there and not here and dst < 0:
+                dst = face_edges[f, k]
+        nxt[node[src]] = node[dst]
+        seg_face[node[src]] = f
+    order = np.empty(count, dtype=np.int64)
+    faces_out = np.empty(count, dtype=np.int64)
+    starts = np.empty(count + 1, dtype=np.int64)
+    n_out, n_loops = 0, 0
+    for first in range(count):
+        if seen[first]:
+            continue
+        starts[n_loops] = n_out
+        n_loops += 1
+        k = first
+        while k >= 0 and not seen[k]:
+            seen[k] = True
+            order[n_out] = edge_of[k]
+            faces_out[n_out] = seg_face[k]
+            n_out += 1
+            k = nxt[k]
+    starts[n_loops] = n_out
+    return order[:n_out], faces_out[:n_out], starts[:n_loops + 1]
 
 
 def _length(points) -> float:
@@ -120,37 +154,61 @@ def isoline_moments(u, vertices, faces, levels):
     area : (L, 3) float
         Vector area, pointing along the field's gradient side (module docstring).
     """
-    levels = np.asarray(levels, dtype=np.float64)
-    uf = np.asarray(u)[faces]                                         # (T, 3)
+    levels = np.ascontiguousarray(levels, dtype=np.float64)
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    uf = u[faces]
     lo = np.searchsorted(levels, uf.min(axis=1), side="right")
     hi = np.searchsorted(levels, uf.max(axis=1), side="right")
-    count = hi - lo
-    face = np.repeat(np.arange(len(faces)), count)
-    start = np.repeat(np.cumsum(count) - count, count)
-    lev = np.repeat(lo, count) + np.arange(face.size) - start
-    t = levels[lev]
-    fu = uf[face]
-    ab = fu >= t[:, None]
-    rising = ~ab & np.roll(ab, -1, axis=1)
-    falling = ab & ~np.roll(ab, -1, axis=1)
-    rows = np.arange(face.size)
-    tri = vertices[faces[face]]                                       # (H, 3, 3)
-
-    def crossing(side):
-        k0, k1 = side, (side + 1) % 3
-        u0, u1 = fu[rows, k0], fu[rows, k1]
-        s = ((t - u0) / (u1 - u0))[:, None]
-        return (1.0 - s) * tri[rows, k0] + s * tri[rows, k1]
-
-    a = crossing(falling.argmax(axis=1))
-    b = crossing(rising.argmax(axis=1))
-    seg = np.linalg.norm(b - a, axis=1)
-    n = len(levels)
-    length = np.bincount(lev, seg, n)
-    mid = 0.5 * (a + b) * seg[:, None]
+    length, mid, area = _moment_sums(u, np.ascontiguousarray(vertices, dtype=np.float64),
+                                     faces, levels, lo, hi)
     with np.errstate(invalid="ignore", divide="ignore"):
-        centroid = np.stack([np.bincount(lev, mid[:, d], n) for d in range(3)], axis=1) \
-            / length[:, None]
-    cr = 0.5 * np.cross(a, b)
-    area = np.stack([np.bincount(lev, cr[:, d], n) for d in range(3)], axis=1)
+        centroid = mid / length[:, None]
     return length, centroid, area
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _moment_sums(u, vertices, faces, levels, lo, hi):
+    """Per level (``levels`` increasing): the isoline's length, the sum of its segments'
+    midpoints times their lengths, and its vector area ``1/2 sum a x b``, face by face (a face
+    is crossed by the levels above its lowest and up to its highest corner value; its
+    segment runs from the falling side's crossing ``a`` to the rising side's ``b``): face f
+    is crossed by the levels ``lo[f]:hi[f]``."""
+    n = levels.shape[0]
+    length = np.empty(n)
+    mid = np.empty((n, 3))
+    area = np.empty((n, 3))
+    for q in range(n):
+        length[q] = 0.0
+        for d in range(3):
+            mid[q, d], area[q, d] = 0.0, 0.0
+    uu = np.empty(3)
+    ab = np.empty((2, 3))                    # the segment's ends: falling, rising crossing
+    side = np.empty(2, dtype=np.int64)
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            uu[k] = u[faces[f, k]]
+        for q in range(lo[f], hi[f]):
+            t = levels[q]
+            side[0], side[1] = -1, -1
+            for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
+                here, there = uu[k] >= t, uu[(k + 1) % 3] >= t
+                if here and not there and side[0] < 0:
+                    side[0] = k
+                elif there and not here and side[1] < 0:
+                    side[1] = k
+            for e in range(2):
+                k0 = side[e]
+                k1 = (k0 + 1) % 3
+                s = (t - uu[k0]) / (uu[k1] - uu[k0])
+                for d in range(3):
+                    ab[e, d] = (1.0 - s) * vertices[faces[f, k0], d] + s * vertices[faces[f, k1], d]
+            seg = math.sqrt((ab[1, 0] - ab[0, 0]) ** 2 + (ab[1, 1] - ab[0, 1]) ** 2
+                            + (ab[1, 2] - ab[0, 2]) ** 2)
+            length[q] += seg
+            for d in range(3):
+                mid[q, d] += 0.5 * (ab[0, d] + ab[1, d]) * seg
+            area[q, 0] += 0.5 * (ab[0, 1] * ab[1, 2] - ab[0, 2] * ab[1, 1])
+            area[q, 1] += 0.5 * (ab[0, 2] * ab[1, 0] - ab[0, 0] * ab[1, 2])
+            area[q, 2] += 0.5 * (ab[0, 0] * ab[1, 1] - ab[0, 1] * ab[1, 0])
+    return length, mid, area

@@ -24,7 +24,10 @@ nearly on it whose denominator ``r r' + D`` rounds to zero or below).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 __all__ = ["mean_value_coordinates", "mvc_map", "strict"]
 
@@ -57,78 +60,75 @@ def mean_value_coordinates(points, polygon) -> np.ndarray:
 
     Notes
     -----
-    One array expression for all points (Hormann & Floater 2006, eq. for ``w_i`` with the
-    half-angle tangent written as ``2A / (r r' + D)``).
+    One compiled loop over the points (`_mvc_kernel`; Hormann & Floater 2006, eq. for
+    ``w_i`` with the half-angle tangent written as ``2A / (r r' + D)``).
     """
-    pts = np.asarray(points, dtype=float)
-    poly = np.asarray(polygon, dtype=float)
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    poly = np.ascontiguousarray(polygon, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
     if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3:
         raise ValueError(f"polygon must have shape (K, 2) with K >= 3, got {poly.shape}")
-    k = poly.shape[0]
-    nxt = np.append(np.arange(1, k), 0)
-    prv = np.append(k - 1, np.arange(k - 1))
-    sx = poly[:, 0] - pts[:, 0, None]                           # (N, K)
-    sy = poly[:, 1] - pts[:, 1, None]
-    sxn = sx[:, nxt]                                            # s_{i+1}
-    syn = sy[:, nxt]
-    r = np.sqrt(sx * sx + sy * sy)
-    rr = r * r[:, nxt]
-    cross = sx * syn - sy * sxn                                 # 2 A_i
-    dot = sx * sxn + sy * syn                                   # D_i
-    denom = rr + dot                                            # r r' (1 + cos alpha)
-    on_edge = ((np.abs(cross) <= _ON_EDGE * rr) | (denom <= 0.0)) & (dot < 0.0)
-    on_vertex = r == 0.0
-    if not (on_edge.any() or on_vertex.any()):
-        tan_half = cross / denom
-        w = (tan_half[:, prv] + tan_half) / r
-        return _finish(w / w.sum(axis=1, keepdims=True), pts, poly)
-    on_edge &= rr > 0.0
-    special = on_vertex.any(axis=1) | on_edge.any(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tan_half = np.where(denom > 0.0, cross / np.where(denom > 0.0, denom, 1.0), 0.0)
-        w = (tan_half[:, prv] + tan_half) / np.where(on_vertex, 1.0, r)
-        lam = w / w.sum(axis=1, keepdims=True)
-    rn = r[:, nxt]
-    lam[special] = _boundary_coordinates(on_vertex[special], on_edge[special],
-                                         r[special], rn[special])
-    return _finish(lam, pts, poly)
+    return _finish(_mvc_kernel(pts, poly), pts, poly)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _mvc_kernel(pts, poly):
+    """(N, K) coordinates, one point at a time: ``s_i``, ``r_i``, the half-angle tangents
+    ``2 A_i / (r_i r_{i+1} + D_i)``, then ``w_i``; a point on a vertex (``r_i == 0``) gets
+    the unit vector of the first such vertex, a point on an edge (``|2 A_i| <= _ON_EDGE
+    r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and ``r_i r_{i+1} > 0``) the linear
+    interpolation weights of the first such edge."""
+    n, k = pts.shape[0], poly.shape[0]
+    lam = np.empty((n, k))
+    sx = np.empty(k)
+    sy = np.empty(k)
+    r = np.empty(k)
+    tan_half = np.empty(k)
+    for p in range(n):
+        vertex = -1
+        for i in range(k):
+            sx[i] = poly[i, 0] - pts[p, 0]
+            sy[i] = poly[i, 1] - pts[p, 1]
+            r[i] = math.sqrt(sx[i] * sx[i] + sy[i] * sy[i])
+            if r[i] == 0.0 and vertex < 0:
+                vertex = i
+        edge = -1
+        if vertex < 0:
+            for i in range(k):
+                j = i + 1 if i + 1 < k else 0
+                rr = r[i] * r[j]
+                cross = sx[i] * sy[j] - sy[i] * sx[j]
+                dot = sx[i] * sx[j] + sy[i] * sy[j]
+                denom = rr + dot
+                if dot < 0.0 and rr > 0.0 and (abs(cross) <= _ON_EDGE * rr or denom <= 0.0):
+                    edge = i
+                    break
+                tan_half[i] = cross / denom
+        for i in range(k):
+            lam[p, i] = 0.0
+        if vertex >= 0:
+            lam[p, vertex] = 1.0
+        elif edge >= 0:
+            j = edge + 1 if edge + 1 < k else 0
+            ra, rb = r[edge], r[j]
+            lam[p, edge] = rb / (ra + rb)
+            lam[p, j] += ra / (ra + rb)
+        else:
+            total = 0.0
+            for i in range(k):
+                w = (tan_half[i - 1 if i > 0 else k - 1] + tan_half[i]) / r[i]
+                lam[p, i] = w
+                total += w
+            for i in range(k):
+                lam[p, i] /= total
+    return lam
 
 
 def _finish(lam, pts, poly):
     if strict:
         assert np.allclose(lam.sum(axis=1), 1.0, atol=1e-9)
         assert np.allclose(lam @ poly, pts, atol=1e-9 * (1.0 + np.abs(poly).max()))
-    return lam
-
-
-def _boundary_coordinates(on_vertex, on_edge, r, rn) -> np.ndarray:
-    """Exact coordinates for points on a vertex or an edge.
-
-    Parameters
-    ----------
-    on_vertex, on_edge : (M, K) bool
-    r, rn : (M, K) float
-        Distances to vertex i and vertex i+1.
-
-    Returns
-    -------
-    lam : (M, K) float
-    """
-    m, k = r.shape
-    lam = np.zeros((m, k))
-    rows = np.arange(m)
-    has_vertex = on_vertex.any(axis=1)
-    vi = np.argmax(on_vertex, axis=1)
-    ei = np.argmax(on_edge, axis=1)
-    e_rows = rows[~has_vertex]
-    e = ei[~has_vertex]
-    ra = r[e_rows, e]
-    rb = rn[e_rows, e]
-    lam[e_rows, e] = rb / (ra + rb)
-    lam[e_rows, (e + 1) % k] += ra / (ra + rb)
-    lam[rows[has_vertex], vi[has_vertex]] = 1.0
     return lam
 
 
@@ -173,8 +173,7 @@ def mvc_map(points, groups, sources, targets, *, weights=None) -> np.ndarray:
 
     Notes
     -----
-    `mean_value_coordinates` is evaluated per polygon (numpy, all points of a polygon at
-    once).
+    `mean_value_coordinates` is evaluated per polygon (all points of a polygon at once).
     """
     pts = np.ascontiguousarray(points, dtype=float)
     groups = np.ascontiguousarray(groups, dtype=np.int64)
@@ -204,4 +203,3 @@ def packed(sources, targets):
             np.ascontiguousarray(np.concatenate(targets), dtype=float), offsets)
 
 
-#: the compiled `_mvc_map_loop` (set by `_kernel`), called by `_mvc_map_vec`

@@ -55,6 +55,117 @@ def test_isolines_of_the_cylinder_are_circles():
         assert np.all(r <= RHO + 1e-12) and np.all(r >= RHO * np.cos(np.pi / 48) - 1e-12)
 
 
+def _loops_oracle(u, faces, level, edges, face_edges):
+    """The isoline's loops by array code and a graph library (the package's implementation
+    before its walk was compiled): crossed edges, each crossed face's falling -> rising link,
+    weakly connected components, each walked from its smallest crossed edge."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    above = u >= level
+    cross = above[edges[:, 0]] != above[edges[:, 1]]
+    hit = np.flatnonzero(cross[face_edges].any(axis=1))
+    ab = above[faces[hit]]
+    rising = ~ab & np.roll(ab, -1, axis=1)
+    falling = ab & ~np.roll(ab, -1, axis=1)
+    fe = face_edges[hit]
+    src = fe[np.arange(hit.size), falling.argmax(axis=1)]
+    dst = fe[np.arange(hit.size), rising.argmax(axis=1)]
+    nodes = np.flatnonzero(cross)
+    index = np.full(len(edges), -1)
+    index[nodes] = np.arange(nodes.size)
+    nxt = np.empty(nodes.size, dtype=np.int64)
+    nxt[index[src]] = index[dst]
+    face = np.empty(nodes.size, dtype=np.int64)
+    face[index[src]] = hit
+    m = nodes.size
+    _, label = connected_components(coo_matrix((np.ones(m), (np.arange(m), nxt)), (m, m)),
+                                    directed=True, connection="weak")
+    out = []
+    for lab in range(label.max() + 1):
+        members = np.flatnonzero(label == lab)
+        order, k = [], members[0]
+        for _ in members:
+            order.append(k)
+            k = nxt[k]
+        out.append((nodes[order], face[order]))
+    return out
+
+
+def test_isoline_walk_equals_the_graph_oracle():
+    """The compiled walk lists the same loops, points and faces in the same order as the
+    graph oracle (exact: both are index bookkeeping), on a bent tube's field at levels with
+    one loop and on a field of the height with two loops (a U-shaped tube cut across both
+    arms)."""
+    v, f = tube(_circle, *arc(L, np.pi), n_sect=24, n_path=31)
+    edges, face_edges = mesh_edges(f, len(v))
+    ring = np.arange(len(v)) // 24                       # section of each vertex; the caps' centres last
+    zero = (ring == 0) | (np.arange(len(v)) == len(v) - 2)
+    one = (ring == 30) | (np.arange(len(v)) == len(v) - 1)
+    fields = [harmonic_field(v, f, zero, one),
+              (v[:, 1] - v[:, 1].min()) / np.ptp(v[:, 1])]
+    counts = set()
+    for u in fields:
+        for t in np.linspace(0.02, 0.98, 25):
+            got = isoline_loops(u, f, t, edges, face_edges)
+            want = _loops_oracle(u, f, t, edges, face_edges)
+            counts.add(len(got))
+            assert len(got) == len(want)
+            for lp, (e, face) in zip(got, want):
+                np.testing.assert_array_equal(lp.a, edges[e, 0])
+                np.testing.assert_array_equal(lp.b, edges[e, 1])
+                np.testing.assert_array_equal(lp.face, face)
+    assert counts >= {1, 2}
+
+
+def _moments_oracle(u, v, faces, levels):
+    """Length, centroid and vector area per level by array code over all (face, level)
+    crossings (the package's implementation before it was compiled)."""
+    uf = u[faces]
+    lo = np.searchsorted(levels, uf.min(axis=1), side="right")
+    count = np.searchsorted(levels, uf.max(axis=1), side="right") - lo
+    face = np.repeat(np.arange(len(faces)), count)
+    lev = np.repeat(lo, count) + np.arange(face.size) - np.repeat(np.cumsum(count) - count, count)
+    t, fu, tri = levels[lev], uf[face], v[faces[face]]
+    ab = fu >= t[:, None]
+    rows = np.arange(face.size)
+
+    def crossing(side):
+        k0, k1 = side, (side + 1) % 3
+        s = ((t - fu[rows, k0]) / (fu[rows, k1] - fu[rows, k0]))[:, None]
+        return (1.0 - s) * tri[rows, k0] + s * tri[rows, k1]
+
+    a = crossing((ab & ~np.roll(ab, -1, axis=1)).argmax(axis=1))
+    b = crossing((~ab & np.roll(ab, -1, axis=1)).argmax(axis=1))
+    seg = np.linalg.norm(b - a, axis=1)
+    n = len(levels)
+    length = np.bincount(lev, seg, n)
+    mid = np.stack([np.bincount(lev, (0.5 * (a + b) * seg[:, None])[:, d], n) for d in range(3)], 1)
+    area = np.stack([np.bincount(lev, (0.5 * np.cross(a, b))[:, d], n) for d in range(3)], 1)
+    return length, mid / length[:, None], area
+
+
+def test_isoline_moments_equal_the_array_oracle():
+    """The compiled per-face sums equal the array oracle's (same terms, same order: to
+    rounding, 1e-15 m on a 0.1 m tube), and a straight cylinder's isoline at level t is the
+    section circle at height t L: centroid on the axis, vector area ~pi rho^2 along it."""
+    from fibres.slicing.isolines import isoline_moments
+
+    v, f = tube(_circle, *arc(L, np.pi), n_sect=24, n_path=31)
+    u = (v[:, 1] - v[:, 1].min()) / np.ptp(v[:, 1])
+    levels = np.linspace(0.01, 0.99, 40)
+    for got, want in zip(isoline_moments(u, v, f, levels), _moments_oracle(u, v, f, levels)):
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+    v, f = tube(_circle, *straight(L), n_sect=48, n_path=41)
+    u = harmonic_field(v, f, v[:, 2] <= 1e-12, v[:, 2] >= L - 1e-12)
+    length, centre, area = isoline_moments(u, v, f, np.array([0.25, 0.6]))
+    np.testing.assert_allclose(centre, [[0, 0, 0.25 * L], [0, 0, 0.6 * L]], atol=1e-12)
+    # the inscribed 48-gon: perimeter 2 n rho sin(pi / n), area n rho^2 sin(2 pi / n) / 2
+    np.testing.assert_allclose(length, 2 * 48 * RHO * np.sin(np.pi / 48), rtol=1e-9)
+    np.testing.assert_allclose(np.abs(area[:, 2]), 24 * RHO ** 2 * np.sin(2 * np.pi / 48),
+                               rtol=1e-9)
+
+
 def test_straight_cylinder_gives_straight_axial_fibres():
     """Landmarks on both caps: every fibre is a straight segment along the axis, from cap to
     cap (the loops are equal circles, the membranes and their area maps equal)."""
@@ -169,6 +280,34 @@ def test_kr_coordinates_of_a_uniform_rectangle_and_the_round_trip():
     bx, by = knothe_rosenblatt(px, py, area, X, Y)     # the exact inverse of the sampled map
     np.testing.assert_allclose(bx, qx, atol=1e-9)
     np.testing.assert_allclose(by, qy, atol=1e-9)
+
+
+def test_window_cdf_equals_the_array_oracle():
+    """The compiled conditional shares of `fibres.attachments.patch_map` equal the array
+    expression over all (point, sample) pairs (same terms and order; numpy's and LLVM's exp
+    may differ in the last bit: 1e-14), with the bracket searched or given, and a point far
+    outside the window (all weights underflow) falls back to the plain sample weights."""
+    from fibres.attachments.patch_map import _window_cdf
+
+    rng = np.random.default_rng(4)
+    sx, sw = rng.uniform(0, 1, 300), rng.uniform(0.1, 1, 300)
+    x0 = np.concatenate([rng.uniform(0, 1, 40), [80.0]])
+    q = rng.uniform(0, 1, 41)
+    h = 0.08
+    w = sw[None] * np.exp(-0.5 * ((sx[None] - x0[:, None]) / h) ** 2)
+    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    rows = np.arange(41)
+    k = np.clip((mid < q[:, None]).sum(axis=1), 1, 299)
+    got = _window_cdf(sx, sw, h, x0, q, np.full(41, -1))
+    np.testing.assert_array_equal(got[0], k)
+    for a, b in zip(got[1:], (mid[rows, k - 1], mid[rows, k], mid[:, 0], mid[:, -1])):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+    given = rng.integers(1, 300, 41)
+    got = _window_cdf(sx, sw, h, x0, q, given)
+    np.testing.assert_allclose(got[1], mid[rows, given - 1], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(got[2], mid[rows, given], rtol=0, atol=1e-14)
 
 
 def test_lloyd_steps_spread_points_evenly_over_a_square_patch():

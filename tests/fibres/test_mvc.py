@@ -145,3 +145,52 @@ def test_packed_planes_map_like_separate_polygons():
     ps, pd = planes(np.concatenate(src), offs), planes(np.concatenate(dst), offs)
     assert all(np.array_equal(a, b) for a, b in zip(ps, src)) and len(ps) == 2
     np.testing.assert_array_equal(mvc_map(pts, groups, ps, pd), mvc_map(pts, groups, src, dst))
+
+
+def _array_oracle(points, polygon):
+    """The coordinates as one array expression over all points and edges (the package's
+    implementation before it was compiled; same formula, same special cases)."""
+    pts, poly = np.asarray(points, float), np.asarray(polygon, float)
+    k = len(poly)
+    nxt = np.append(np.arange(1, k), 0)
+    prv = np.append(k - 1, np.arange(k - 1))
+    sx, sy = poly[:, 0] - pts[:, 0, None], poly[:, 1] - pts[:, 1, None]
+    sxn, syn = sx[:, nxt], sy[:, nxt]
+    r = np.sqrt(sx * sx + sy * sy)
+    rr = r * r[:, nxt]
+    cross, dot = sx * syn - sy * sxn, sx * sxn + sy * syn
+    denom = rr + dot
+    on_edge = ((np.abs(cross) <= 1e-14 * rr) | (denom <= 0.0)) & (dot < 0.0) & (rr > 0.0)
+    on_vertex = r == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tan_half = np.where(denom > 0.0, cross / np.where(denom > 0.0, denom, 1.0), 0.0)
+        w = (tan_half[:, prv] + tan_half) / np.where(on_vertex, 1.0, r)
+        lam = w / w.sum(axis=1, keepdims=True)
+    for row in np.flatnonzero(on_vertex.any(axis=1) | on_edge.any(axis=1)):
+        lam[row] = 0.0
+        if on_vertex[row].any():
+            lam[row, np.argmax(on_vertex[row])] = 1.0
+        else:
+            e = np.argmax(on_edge[row])
+            ra, rb = r[row, e], r[row, (e + 1) % k]
+            lam[row, e] = rb / (ra + rb)
+            lam[row, (e + 1) % k] += ra / (ra + rb)
+    return lam
+
+
+@pytest.mark.parametrize("poly", [SQUARE, ARROW, ARROW[::-1] * 3.0])
+def test_compiled_loop_equals_the_array_oracle(poly):
+    # the compiled loop evaluates the same terms in the same order as the array expression,
+    # so the two agree to rounding (1e-13 of coordinates of order 1); vertices, edge points
+    # and a coincident pair of polygon vertices take the special branches
+    rng = np.random.default_rng(11)
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    t = rng.uniform(0, 1, (40, 1))
+    j = np.arange(40) % len(poly)
+    edge_pts = poly[j] + t * (np.roll(poly, -1, axis=0)[j] - poly[j])
+    pts = np.concatenate([rng.uniform(lo, hi, (300, 2)), poly, edge_pts])
+    np.testing.assert_allclose(mean_value_coordinates(pts, poly), _array_oracle(pts, poly),
+                               rtol=0, atol=1e-13)
+    doubled = np.insert(poly, 2, poly[2], axis=0)
+    np.testing.assert_allclose(mean_value_coordinates(pts, doubled),
+                               _array_oracle(pts, doubled), rtol=0, atol=1e-13)
