@@ -8,10 +8,7 @@ a deformed copy of the surface.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
 
 __all__ = ["area_points", "relax_on_patch", "LLOYD", "grid_area_map", "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
 
@@ -63,12 +60,18 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    q = np.ascontiguousarray(np.clip(Y, 0.0, 1.0), dtype=np.float64)
-    k, m0, m1, first, last = _window_cdf(sx, sw, h, np.ascontiguousarray(xs, dtype=np.float64),
-                                         q, np.full(len(xs), -1, dtype=np.int64))
-    f = np.clip((q - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
+    w = sw[None] * np.exp(-0.5 * ((sx[None] - xs[:, None]) / h) ** 2)   # (N, S)
+    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    q = np.clip(Y, 0.0, 1.0)[:, None]
+    k = np.clip((mid < q).sum(axis=1), 1, len(sy) - 1)
+    rows = np.arange(len(xs))
+    m0, m1 = mid[rows, k - 1], mid[rows, k]
+    f = np.clip((q[:, 0] - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
     ys = sy[k - 1] + f * (sy[k] - sy[k - 1])
-    ys = np.where(q <= first, sy[0], np.where(q >= last, sy[-1], ys))
+    below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
+    ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
     return xs, ys
 
 
@@ -132,53 +135,15 @@ def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    qx = np.ascontiguousarray(qx, dtype=np.float64)
-    qy = np.asarray(qy, dtype=np.float64)
-    k = np.clip(np.searchsorted(sy, qy, side="left"), 1, len(sy) - 1)   # count of sy < qy
-    _, m0, m1, _, _ = _window_cdf(sx, sw, h, qx, qy, k)
+    w = sw[None] * np.exp(-0.5 * ((sx[None] - np.asarray(qx)[:, None]) / h) ** 2)
+    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    k = np.clip((sy[None] < np.asarray(qy)[:, None]).sum(axis=1), 1, len(sy) - 1)
+    rows = np.arange(len(k))
     f = np.clip((qy - sy[k - 1]) / np.maximum(sy[k] - sy[k - 1], 1e-300), 0.0, 1.0)
-    Y = m0 + f * (m1 - m0)
+    Y = mid[rows, k - 1] + f * (mid[rows, k] - mid[rows, k - 1])
     return np.clip(X, 0.0, 1.0), np.clip(Y, 0.0, 1.0)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _window_cdf(sx, sw, h, x0, q, given):
-    """The conditional distribution along the samples' order (sorted by y) under a Gaussian
-    window in x about each ``x0[n]``: weights ``w_i = sw_i exp(-(sx_i - x0) ^ 2 / 2 h ^ 2)``
-    (``sw`` itself where they all vanish), mid-point cumulative shares
-    ``mid_i = (W_i - w_i / 2) / W`` (``W_i`` the running sum). Per point: the bracket index
-    k (``given[n]``, or where negative the number of ``mid_i < q[n]`` clipped to [1, S - 1]),
-    ``mid[k - 1]``, ``mid[k]``, ``mid[0]`` and ``mid[S - 1]``."""
-    s, n = sx.shape[0], x0.shape[0]
-    w = np.empty(s)
-    mid = np.empty(s)
-    ks = np.empty(n, dtype=np.int64)
-    m0, m1, first, last = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    for p in range(n):
-        total = 0.0
-        for i in range(s):
-            z = (sx[i] - x0[p]) / h
-            w[i] = sw[i] * math.exp(-0.5 * (z * z))
-            total += w[i]
-        if not total > 0.0:
-            for i in range(s):
-                w[i] = sw[i]
-        cum = 0.0
-        for i in range(s):
-            cum += w[i]
-            mid[i] = cum
-        for i in range(s):
-            mid[i] = (mid[i] - 0.5 * w[i]) / cum
-        k = given[p]
-        if k < 0:
-            k = 0
-            for i in range(s):
-                if mid[i] < q[p]:
-                    k += 1
-            k = min(max(k, 1), s - 1)
-        ks[p] = k
-        m0[p], m1[p], first[p], last[p] = mid[k - 1], mid[k], mid[0], mid[s - 1]
-    return ks, m0, m1, first, last
 
 
 def locate(px, py, xs, ys):

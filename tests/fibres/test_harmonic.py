@@ -282,34 +282,6 @@ def test_kr_coordinates_of_a_uniform_rectangle_and_the_round_trip():
     np.testing.assert_allclose(by, qy, atol=1e-9)
 
 
-def test_window_cdf_equals_the_array_oracle():
-    """The compiled conditional shares of `fibres.attachments.patch_map` equal the array
-    expression over all (point, sample) pairs (same terms and order; numpy's and LLVM's exp
-    may differ in the last bit: 1e-14), with the bracket searched or given, and a point far
-    outside the window (all weights underflow) falls back to the plain sample weights."""
-    from fibres.attachments.patch_map import _window_cdf
-
-    rng = np.random.default_rng(4)
-    sx, sw = rng.uniform(0, 1, 300), rng.uniform(0.1, 1, 300)
-    x0 = np.concatenate([rng.uniform(0, 1, 40), [80.0]])
-    q = rng.uniform(0, 1, 41)
-    h = 0.08
-    w = sw[None] * np.exp(-0.5 * ((sx[None] - x0[:, None]) / h) ** 2)
-    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
-    cum = np.cumsum(w, axis=1)
-    mid = (cum - 0.5 * w) / cum[:, -1:]
-    rows = np.arange(41)
-    k = np.clip((mid < q[:, None]).sum(axis=1), 1, 299)
-    got = _window_cdf(sx, sw, h, x0, q, np.full(41, -1))
-    np.testing.assert_array_equal(got[0], k)
-    for a, b in zip(got[1:], (mid[rows, k - 1], mid[rows, k], mid[:, 0], mid[:, -1])):
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
-    given = rng.integers(1, 300, 41)
-    got = _window_cdf(sx, sw, h, x0, q, given)
-    np.testing.assert_allclose(got[1], mid[rows, given - 1], rtol=0, atol=1e-14)
-    np.testing.assert_allclose(got[2], mid[rows, given], rtol=0, atol=1e-14)
-
-
 def test_lloyd_steps_spread_points_evenly_over_a_square_patch():
     """A flat unit square patch (two triangles) and 16 points crowded in its lower-left
     quarter: after Lloyd steps every point has moved towards its Voronoi cell's centroid, so
