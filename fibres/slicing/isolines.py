@@ -16,7 +16,6 @@ with a deformed copy of the surface (`Loop.points`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 
 import numpy as np
 from numba import njit
@@ -154,61 +153,37 @@ def isoline_moments(u, vertices, faces, levels):
     area : (L, 3) float
         Vector area, pointing along the field's gradient side (module docstring).
     """
-    levels = np.ascontiguousarray(levels, dtype=np.float64)
-    u = np.ascontiguousarray(u, dtype=np.float64)
-    faces = np.ascontiguousarray(faces, dtype=np.int64)
-    uf = u[faces]
+    levels = np.asarray(levels, dtype=np.float64)
+    uf = np.asarray(u)[faces]                                         # (T, 3)
     lo = np.searchsorted(levels, uf.min(axis=1), side="right")
     hi = np.searchsorted(levels, uf.max(axis=1), side="right")
-    length, mid, area = _moment_sums(u, np.ascontiguousarray(vertices, dtype=np.float64),
-                                     faces, levels, lo, hi)
+    count = hi - lo
+    face = np.repeat(np.arange(len(faces)), count)
+    start = np.repeat(np.cumsum(count) - count, count)
+    lev = np.repeat(lo, count) + np.arange(face.size) - start
+    t = levels[lev]
+    fu = uf[face]
+    ab = fu >= t[:, None]
+    rising = ~ab & np.roll(ab, -1, axis=1)
+    falling = ab & ~np.roll(ab, -1, axis=1)
+    rows = np.arange(face.size)
+    tri = vertices[faces[face]]                                       # (H, 3, 3)
+
+    def crossing(side):
+        k0, k1 = side, (side + 1) % 3
+        u0, u1 = fu[rows, k0], fu[rows, k1]
+        s = ((t - u0) / (u1 - u0))[:, None]
+        return (1.0 - s) * tri[rows, k0] + s * tri[rows, k1]
+
+    a = crossing(falling.argmax(axis=1))
+    b = crossing(rising.argmax(axis=1))
+    seg = np.linalg.norm(b - a, axis=1)
+    n = len(levels)
+    length = np.bincount(lev, seg, n)
+    mid = 0.5 * (a + b) * seg[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
-        centroid = mid / length[:, None]
+        centroid = np.stack([np.bincount(lev, mid[:, d], n) for d in range(3)], axis=1) \
+            / length[:, None]
+    cr = 0.5 * np.cross(a, b)
+    area = np.stack([np.bincount(lev, cr[:, d], n) for d in range(3)], axis=1)
     return length, centroid, area
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _moment_sums(u, vertices, faces, levels, lo, hi):
-    """Per level (``levels`` increasing): the isoline's length, the sum of its segments'
-    midpoints times their lengths, and its vector area ``1/2 sum a x b``, face by face (a face
-    is crossed by the levels above its lowest and up to its highest corner value; its
-    segment runs from the falling side's crossing ``a`` to the rising side's ``b``): face f
-    is crossed by the levels ``lo[f]:hi[f]``."""
-    n = levels.shape[0]
-    length = np.empty(n)
-    mid = np.empty((n, 3))
-    area = np.empty((n, 3))
-    for q in range(n):
-        length[q] = 0.0
-        for d in range(3):
-            mid[q, d], area[q, d] = 0.0, 0.0
-    uu = np.empty(3)
-    ab = np.empty((2, 3))                    # the segment's ends: falling, rising crossing
-    side = np.empty(2, dtype=np.int64)
-    for f in range(faces.shape[0]):
-        for k in range(3):
-            uu[k] = u[faces[f, k]]
-        for q in range(lo[f], hi[f]):
-            t = levels[q]
-            side[0], side[1] = -1, -1
-            for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
-                here, there = uu[k] >= t, uu[(k + 1) % 3] >= t
-                if here and not there and side[0] < 0:
-                    side[0] = k
-                elif there and not here and side[1] < 0:
-                    side[1] = k
-            for e in range(2):
-                k0 = side[e]
-                k1 = (k0 + 1) % 3
-                s = (t - uu[k0]) / (uu[k1] - uu[k0])
-                for d in range(3):
-                    ab[e, d] = (1.0 - s) * vertices[faces[f, k0], d] + s * vertices[faces[f, k1], d]
-            seg = math.sqrt((ab[1, 0] - ab[0, 0]) ** 2 + (ab[1, 1] - ab[0, 1]) ** 2
-                            + (ab[1, 2] - ab[0, 2]) ** 2)
-            length[q] += seg
-            for d in range(3):
-                mid[q, d] += 0.5 * (ab[0, d] + ab[1, d]) * seg
-            area[q, 0] += 0.5 * (ab[0, 1] * ab[1, 2] - ab[0, 2] * ab[1, 1])
-            area[q, 1] += 0.5 * (ab[0, 2] * ab[1, 0] - ab[0, 0] * ab[1, 2])
-            area[q, 2] += 0.5 * (ab[0, 0] * ab[1, 1] - ab[0, 1] * ab[1, 0])
-    return length, mid, area
