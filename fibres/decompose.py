@@ -39,7 +39,7 @@ from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_ma
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .template.sampling import sobol_rs
 from .slicing.planes import mesh_topology, slice_mesh
-from .finishing.fairing import PULL_ROUNDS, spread_pull
+from .finishing.carried_pull import carry_rest_pull, pull_rounds
 from .finishing.smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .mesh.surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .template.templates import Template, get_template
@@ -470,7 +470,8 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
     turn-aware resampling of `fibres.finishing.fairing`, both in the plan's linear map), then
     the containment pull of the planar method, its displacement spread along each fibre
     (`fibres.finishing.fairing.spread_pull`) and pulled again."""
-    if plan is None:
+    fresh = plan is None
+    if fresh:
         plan = make_harmonic_plan(v, faces, o, i)
         notes.extend(plan.notes)
     else:
@@ -480,18 +481,29 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
     notes.extend(slice_notes)
     flags = {}
     if contain:
-        # the pull, then PULL_ROUNDS rounds of spreading each pulled fibre's displacement along
-        # it and pulling that fibre again (only the fibres pulled in the last round take part in
-        # the next); one binning of the surface for every round
-        grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)
-        out, moved = contain_points(pts, v, faces, grid=grid)     # out: a new array
-        todo, before = np.flatnonzero(moved), pts.copy()
-        for _ in range(PULL_ROUNDS):
-            if not todo.size:
-                break
-            spread = spread_pull(before[todo], out[todo])
-            again_pts, again = contain_points(spread, v, faces, grid=grid)
-            before[todo], out[todo] = spread, again_pts
-            todo = todo[np.asarray(again, dtype=bool)]
-        pts, flags["contained"] = out, moved
+        # the rest pose's pull carried in the walls' frames, then this frame's own pull
+        carried = _carried_pull(plan, tmpl, n_fibres, resolution, seed, smoothing_iterations,
+                                pts if fresh else None)
+        pts = carried.apply(pts, v)
+        pts, moved = pull_rounds(pts, SurfaceGrid(v, faces, reach=CONTAIN_REACH))
+        flags["contained"] = moved | carried.fibres
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))
+
+
+def _carried_pull(plan, tmpl, n_fibres, resolution, seed, smoothing, rest_points=None):
+    """The `fibres.finishing.carried_pull.CarriedPull` of the plan's rest pose for these
+    fibres, made once per plan and request and cached with the plan's maps;
+    ``rest_points``: the fibres mapped onto the rest pose when at hand."""
+    spec = template_spec(tmpl)
+    key = ("carried pull", spec[0], repr(sorted(dict(spec[1]).items())), int(n_fibres),
+           int(resolution), int(seed), int(smoothing))
+    with plan._lock:
+        hit = plan._cache.get(key)
+    if hit is not None:
+        return hit
+    if rest_points is None:
+        rest_points, _, _ = harmonic_points(plan, plan.rest_vertices, tmpl, n_fibres,
+                                            resolution, seed, int(smoothing))
+    carried = carry_rest_pull(rest_points, plan.rest_vertices, plan.faces)
+    with plan._lock:
+        return plan._cache.setdefault(key, carried)
