@@ -1,31 +1,33 @@
-"""The containment pull of the rest pose, carried to every frame in the frames of the walls.
+"""The containment pull of the rest pose, carried to every frame in frames of the walls.
 
 `fibres.decompose` with harmonic slicing maps the plan's fibres onto a frame linearly
-(``points = F W V``, `fibres.slicing.harmonic`); the fairing in that map cuts concave walls
-(the LHDL psoas tendon round the pelvic brim: about 400 of its 1,400 inner points outside),
-so every frame would pull the same hundreds of points in again, spread the pulls along their
-fibres and pull again (`pull_rounds`). Here that work is done once, on the plan's rest pose,
-and each displaced point carries its displacement ``e`` to the frames in the frame of a
-nearby surface triangle (a, b, c) (the one whose centroid is nearest the point's place at
-rest, among those with a non-zero area):
+(``points = F W V``, `fibres.slicing.harmonic`), and the fairing in that map cuts concave walls
+(a tendon bending round a bone), so every frame would pull the same points in again, spread
+the pulls along their fibres and pull again (`pull_rounds`). Here that work is done once, on
+the plan's rest pose (`carry_rest_pull`: band `REST_MARGIN`, `REST_ROUNDS` spread rounds),
+and each displaced point carries its displacement ``e`` to the frames in the frame of a patch
+of the surface next to it: of the `CARRY_CANDIDATES` triangles whose centroids are nearest
+to the point's place at rest, those whose normals lie within ``acos(FACING)`` of the nearest
+one's (so the opposite wall of a thin tendon does not count). With ``n`` the patch's unit
+normal (its summed area vectors), ``L^2`` its area and ``t`` the nearest triangle's first
+edge projected on the plane normal to ``n``:
 
-    f1 = b - a,   f2 = n x f1,   f3 = |f1| n      (n the triangle's unit normal)
+    f1 = L t / |t|,   f2 = n x f1,   f3 = L n
 
-an orthogonal frame of three equal sides; ``e = sum_k x_k f_k`` with ``x_k = e . f_k / |f1|^2``
-at rest, and on a frame ``e' = sum_k x_k f'_k``. The frame turns and stretches with the
-surface near the point, so a point pulled in from a wall at rest is pulled in from the same
-wall in every frame, by the same amount relative to the local mesh size; a rigid motion or a
-uniform scale of the mesh moves or scales ``e`` alike, and ``e'`` is a smooth function of the
-vertices (fixed coefficients; the triangle is chosen once). The frame's pull (`pull_rounds`,
-band `fibres.finishing.containment.CONTAIN_MARGIN`) then only handles what the deformation
-itself moves towards a wall. The rest pose is pulled with the wider band `REST_MARGIN`
-(points end at least `REST_MARGIN` / 2 deep, deeper than the frame's band), so a frame near
-the rest pose moves no point.
-
-This is the tetrahedral embedding of a point in a deforming mesh (the displacement's
-coordinates in a local frame) used for skinning and cage deformation (e.g. Sederberg &
-Parry, SIGGRAPH 1986, for the idea of frozen local coordinates), applied to the pull's
+an orthogonal frame of three equal sides; ``e = sum_k x_k f_k`` with ``x_k = e . f_k / L^2``
+at rest, and on a frame ``e' = sum_k x_k f'_k`` (`CarriedPull.apply`). The frame turns with the
+wall next to the point and scales with its local stretch, so a point pulled in from a wall
+at rest is pulled in from the same wall in every frame; a rigid motion or a uniform scale of
+the mesh moves or scales ``e`` alike, and ``e'`` is a smooth function of the vertices (fixed
+coefficients and patches, chosen once; a patch's sums average out the jitter of single
+triangles). This is the embedding of points in a deforming mesh by frozen local coordinates
+(as in free-form deformation, Sederberg & Parry, SIGGRAPH 1986), applied to the pull's
 displacement only.
+
+The frame's own pull (`pull_rounds` with the band `fibres.finishing.containment.CONTAIN_MARGIN`)
+follows, for what the deformation itself moves towards a wall: the rest pose's pulled points
+end at least ``REST_MARGIN / 2`` deep, deeper than that band, so near the rest pose few points
+are measured twice and few fibres spread again.
 """
 from __future__ import annotations
 
@@ -40,7 +42,7 @@ from ..mesh.surface_distance import SurfaceGrid
 from .containment import CONTAIN_MARGIN, CONTAIN_REACH, contain
 from .fairing import PULL_ROUNDS, spread_pull
 
-__all__ = ["CarriedPull", "carry_rest_pull", "pull_rounds", "REST_MARGIN", "REST_ROUNDS",
+__all__ = ["CarriedPull", "carry_rest_pull", "planned_pull", "pull_rounds", "REST_MARGIN", "REST_ROUNDS",
            "CARRY_CANDIDATES"]
 
 #: band depth (metres) of the rest pose's pull: its points end at least REST_MARGIN / 2 deep
@@ -182,3 +184,17 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     frames, side = _frames(v, f[used], patches, local[:, 0])
     coefficients = np.einsum("md,mkd->mk", e[rows], frames) / side[:, None]
     return CarriedPull((n, p), rows, f[used], patches, local[:, 0], coefficients)
+
+
+def planned_pull(plan, key, rest_points) -> CarriedPull:
+    """The `CarriedPull` of the rest pose of ``plan`` (a `fibres.slicing.harmonic.HarmonicPlan`)
+    for the fibres named by ``key`` (hashable), made once (``rest_points()``: those fibres
+    mapped onto the plan's rest vertices) and cached with the plan's maps."""
+    key = ("carried pull",) + tuple(key)
+    with plan._lock:
+        hit = plan._cache.get(key)
+    if hit is not None:
+        return hit
+    carried = carry_rest_pull(rest_points(), plan.rest_vertices, plan.faces)
+    with plan._lock:
+        return plan._cache.setdefault(key, carried)

@@ -30,8 +30,9 @@ a point pulled in by ``d`` while its neighbours stay put makes a kink of about
 the tent weights `SPREAD` (four joints each side) and divided by the summed weight of the
 pulled points around (a Shepard-style normalisation: a run of pulled points moves by their
 own displacement, not by its sum, which would push a thin muscle's fibres through the
-opposite wall). The pull is then applied again to the spread fibres (`PULL_ROUNDS` rounds in
-`fibres.decompose`), so the fibre moves in as a smooth bump and no point stays outside.
+opposite wall). The pull is then applied again to the spread fibres (`PULL_ROUNDS` rounds per
+frame, more on the rest pose: `fibres.finishing.carried_pull`), so the fibre moves in as a
+smooth bump and no point stays outside.
 """
 from __future__ import annotations
 
@@ -52,7 +53,7 @@ PAIRS_PER_ITERATION = 1.4
 TURNING = 4.0
 #: weights of a pulled point's displacement given to its neighbours 1, 2, 3, 4 joints away
 SPREAD = (0.8, 0.6, 0.4, 0.2)
-#: rounds of spreading and pulling again (`fibres.decompose`)
+#: rounds of spreading and pulling again per frame (`fibres.finishing.carried_pull.pull_rounds`)
 PULL_ROUNDS = 2
 #: a displacement larger than this (metres) counts as a pull in `spread_pull`
 PULLED = 1e-5
