@@ -69,6 +69,10 @@ def _ray_basis():
     return np.stack([u, v, np.cross(u, v)])
 
 
+#: rows y, z and the ray of the parity test's frame
+_RAY_FRAME = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _bin_triangles(vertices, faces, frame, n_axes, density):
     """The triangles (vertices, faces) binned by their bounding boxes in a uniform grid along
@@ -375,7 +379,7 @@ class SurfaceGrid:
         if len(self.faces) == 0:
             return np.zeros(len(x), bool)
         if self._ray is None:
-            frame = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])      # rows y, z, ray
+            frame = _RAY_FRAME
             pv, *grid = _bin_triangles(self.vertices, self.faces, frame, 2, PARITY_DENSITY)
             self._ray = (pv, self.faces, frame, *grid)
         return _parity(x, *self._ray)
