@@ -42,8 +42,8 @@ from ..mesh.surface_distance import SurfaceGrid
 from .containment import CONTAIN_MARGIN, CONTAIN_REACH, contain
 from .fairing import PULL_ROUNDS, spread_pull
 
-__all__ = ["CarriedPull", "carry_rest_pull", "planned_pull", "pull_rounds", "REST_MARGIN", "REST_ROUNDS",
-           "CARRY_CANDIDATES"]
+__all__ = ["CarriedPull", "carry_rest_pull", "planned_pull", "pull_rounds", "REST_MARGIN",
+           "REST_ROUNDS", "CARRY_CANDIDATES", "FACING"]
 
 #: band depth (metres) of the rest pose's pull: its points end at least REST_MARGIN / 2 deep
 REST_MARGIN = 2.5 * CONTAIN_MARGIN

@@ -331,10 +331,10 @@ EDGE_SAMPLES = 256
 
 def _search_density(vertices, faces):
     """Cells per triangle of the search grid: cubes whose side is the mean length of the
-    triangles' first edges (measured on `EDGE_SAMPLES` evenly strided triangles; so a cell holds a few triangles however much of the vertices'
-    bounding box the surface leaves empty: a long muscle lying or bent across its box),
-    bounded to [`SEARCH_DENSITY`, `SEARCH_DENSITY_MAX`]; the box's volume as `_bin_triangles`
-    measures it."""
+    triangles' first edges (measured on `EDGE_SAMPLES` evenly strided triangles), so that a
+    cell holds a few triangles however much of the vertices' bounding box the surface leaves
+    empty (a long muscle lying or bent across its box); bounded to [`SEARCH_DENSITY`,
+    `SEARCH_DENSITY_MAX`]; the box's volume as `_bin_triangles` measures it."""
     rows = np.ascontiguousarray(vertices.T)          # (3, V): reductions over contiguous rows
     ext = rows.max(axis=1) - rows.min(axis=1)
     volume = float(np.prod(np.maximum(ext, 1e-3 * ext.max())))
