@@ -10,11 +10,13 @@ mean of the fibre moment arms over all fibres and frames, and the overlap (inter
 union) of p5..p95 and of min..max with the ranges of Modenese & Kohout 2020, Table 2 (which
 are peak values: the minimum and maximum over all fibres and poses). ``--speed``: medians of
 the rest-pose decomposition (incl. patches and the harmonic solve) and of a frame with the
-plan, one thread, warm process: wall-clock time and process CPU time (the CPU time is the fairer figure on
-a shared, loaded machine). ``--stages``: the rest decomposition's CPU time per stage (medians
-over the repeats of each stage's summed calls; the stages are timed by wrapping the functions
-`fibres.decompose` and `fibres.slicing.harmonic` call, so their sum is less than the whole).
-Default: the first three.
+plan (a copy of the rest pose with 0.1 mm of noise on every vertex), one thread, warm process:
+wall-clock time and process CPU time (the CPU time is the fairer figure on a shared, loaded
+machine), and the CPU time of a bent frame (`bend`: 5, 10, 15 and 20 degrees, as in
+tests/fibres/test_decompose_lhdl.py). ``--stages``: the rest decomposition's CPU time per stage
+(medians over the repeats of each stage's summed calls; the stages are timed by wrapping the
+functions `fibres.decompose` and `fibres.slicing.harmonic` call, so their sum is less than the
+whole). Default: the first three.
 """
 from __future__ import annotations
 
@@ -70,6 +72,24 @@ def surface(muscle):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return as_surface(LHDL / "muscles_clean" / f"{muscle}.vtk", units="mm")
+
+
+def bender(origin, insertion):
+    """A smooth bend about an axis through the origin centroid, perpendicular to the attachment
+    line and to z: a point turns by ``deg * t``, t its place along the attachment line
+    clipped to 0..1 (the bend sweeps of tests/fibres/test_decompose_lhdl.py)."""
+    a, b = origin.mean(axis=0), insertion.mean(axis=0)
+    length = np.linalg.norm(b - a)
+    ax = (b - a) / length
+    n = np.cross(ax, [0.0, 0.0, 1.0])
+    n /= np.linalg.norm(n)
+
+    def bend(x, deg):
+        t = np.clip((x - a) @ ax / length, 0.0, 1.0)
+        c, s = np.cos(np.deg2rad(deg) * t)[:, None], np.sin(np.deg2rad(deg) * t)[:, None]
+        rel = x - a
+        return a + rel * c + np.cross(n, rel) * s + n * (rel @ n)[:, None] * (1 - c)
+    return bend
 
 
 def quality():
@@ -129,8 +149,8 @@ def speed(repeats):
     from fibres import decompose
 
     print("\n| muscle | vertices | rest decomposition (ms) | frame with the plan (ms) |"
-          " rest, CPU (ms) | frame, CPU (ms) |")
-    print("|---|---|---|---|---|---|")
+          " rest, CPU (ms) | frame, CPU (ms) | bent frame, CPU (ms) |")
+    print("|---|---|---|---|---|---|---|")
     for muscle in MUSCLES:
         s = surface(muscle)
         o, i = landmarks(muscle)
@@ -139,7 +159,9 @@ def speed(repeats):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             b = decompose((v, f), o, i, **opts)
-            rest, frame, rest_cpu, frame_cpu = [], [], [], []
+            rest, frame, rest_cpu, frame_cpu, bent_cpu = [], [], [], [], []
+            bend = bender(o, i)
+            bent = [(bend(v, deg), bend(o, deg), bend(i, deg)) for deg in (5, 10, 15, 20)]
             rng = np.random.default_rng(0)
             for _ in range(repeats):
                 t, c = time.perf_counter(), time.process_time()
@@ -151,8 +173,13 @@ def speed(repeats):
                 decompose((w, f), o, i, plan=b.plan, **opts)
                 frame.append(time.perf_counter() - t)
                 frame_cpu.append(time.process_time() - c)
+                for w, bo, bi in bent:
+                    c = time.process_time()
+                    decompose((w, f), bo, bi, plan=b.plan, **opts)
+                    bent_cpu.append(time.process_time() - c)
         print(f"| {muscle} | {len(v)} | {np.median(rest) * 1e3:.1f} | {np.median(frame) * 1e3:.1f} | "
-              f"{np.median(rest_cpu) * 1e3:.1f} | {np.median(frame_cpu) * 1e3:.1f} |")
+              f"{np.median(rest_cpu) * 1e3:.1f} | {np.median(frame_cpu) * 1e3:.1f} | "
+              f"{np.median(bent_cpu) * 1e3:.1f} |")
 
 
 #: (module, function, label) of the rest decomposition's stages timed by ``--stages``

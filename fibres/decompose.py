@@ -39,7 +39,7 @@ from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_ma
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .template.sampling import sobol_rs
 from .slicing.planes import mesh_topology, slice_mesh
-from .finishing.fairing import PULL_ROUNDS, spread_pull
+from .finishing.carried_pull import planned_pull, pull_rounds
 from .finishing.smoothing import DECOMPOSE_MAX_SHIFT, DEFAULT_ITERATIONS, smooth
 from .mesh.surface import Surface, as_points, as_surface, clean_mesh_geometry
 from .template.templates import Template, get_template
@@ -391,8 +391,10 @@ def decompose(mesh, origin, insertion, *, template="parallel", n_fibres: int = 1
         chords and mean value coordinates on non-convex contours leave points up to ~4 mm
         outside curved muscles). Points deeper than 0.2 mm are not moved; pulled points
         end inside, at least 0.1 mm deep. Every inner
-        point is classified on every call (no choice is kept in the plan; timings in
-        bench/README.md); False skips it.
+        point is classified on every call (timings in bench/README.md); with harmonic
+        slicing the rest pose's pull (a wider band, more spread rounds) is made once per
+        plan and carried to the frame first (`fibres.finishing.carried_pull`). False skips
+        it.
 
     slicing : {"harmonic", "planes"}, keyword-only
         Cross-sections: isolines of a harmonic field between the attachment patches
@@ -469,9 +471,11 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
     lambda|mu pairs of Taubin's non-shrinking smoothing (`fibres.finishing.fairing.taubin_pairs`
     of ``smoothing_iterations``) and the
     turn-aware resampling of `fibres.finishing.fairing`, both in the plan's linear map), then
-    the containment pull of the planar method, its displacement spread along each fibre
-    (`fibres.finishing.fairing.spread_pull`) and pulled again."""
-    if plan is None:
+    the rest pose's containment pull carried to this frame
+    (`fibres.finishing.carried_pull`) and this frame's own pull, its displacement spread
+    along each fibre (`fibres.finishing.fairing.spread_pull`) and pulled again."""
+    fresh = plan is None
+    if fresh:
         plan = make_harmonic_plan(v, faces, o, i, topology=topology)
         notes.extend(plan.notes)
     else:
@@ -481,18 +485,15 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
     notes.extend(slice_notes)
     flags = {}
     if contain:
-        # the pull, then PULL_ROUNDS rounds of spreading each pulled fibre's displacement along
-        # it and pulling that fibre again (only the fibres pulled in the last round take part in
-        # the next); one binning of the surface for every round
-        grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)
-        out, moved = contain_points(pts, v, faces, grid=grid)     # out: a new array
-        todo, before = np.flatnonzero(moved), pts.copy()
-        for _ in range(PULL_ROUNDS):
-            if not todo.size:
-                break
-            spread = spread_pull(before[todo], out[todo])
-            again_pts, again = contain_points(spread, v, faces, grid=grid)
-            before[todo], out[todo] = spread, again_pts
-            todo = todo[np.asarray(again, dtype=bool)]
-        pts, flags["contained"] = out, moved
+        # the rest pose's pull carried in the walls' frames, then this frame's own pull
+        spec = template_spec(tmpl)
+        key = (spec[0], repr(sorted(dict(spec[1]).items())), n_fibres, resolution, seed,
+               int(smoothing_iterations))
+        carried = planned_pull(plan, key, lambda: pts if fresh else harmonic_points(
+            plan, plan.rest_vertices, tmpl, n_fibres, resolution, seed,
+            int(smoothing_iterations))[0])
+        pts = carried.apply(pts, v)
+        pts, moved = pull_rounds(pts, SurfaceGrid(v, faces, reach=CONTAIN_REACH))
+        flags["contained"] = moved | carried.fibres
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))
+

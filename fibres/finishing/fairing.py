@@ -28,10 +28,13 @@ material fibre in every frame). The two end points (on the attachment patches) a
 a point pulled in by ``d`` while its neighbours stay put makes a kink of about
 ``2 atan(|d| / h)`` (segment length h). The displacements are spread to the neighbours with
 the tent weights `SPREAD` (four joints each side) and divided by the summed weight of the
-pulled points around (a Shepard-style normalisation: a run of pulled points moves by their
-own displacement, not by its sum, which would push a thin muscle's fibres through the
-opposite wall). The pull is then applied again to the spread fibres (`PULL_ROUNDS` rounds in
-`fibres.decompose`), so the fibre moves in as a smooth bump and no point stays outside.
+pulled points around (a Shepard-style normalisation, at least 1: a run of pulled points moves
+by their own displacement, not by its sum, which would push a thin muscle's fibres through
+the opposite wall). A pull counts in that sum as ``min(1, |d| / PULLED)`` of a point, so a
+pull that starts from zero during a motion enters the sum from zero instead of by a step.
+The pull is then applied again to the spread fibres (`PULL_ROUNDS` rounds per frame, more on
+the rest pose: `fibres.finishing.carried_pull`), so the fibre moves in as a smooth bump and
+no point stays outside.
 """
 from __future__ import annotations
 
@@ -52,9 +55,9 @@ PAIRS_PER_ITERATION = 1.4
 TURNING = 4.0
 #: weights of a pulled point's displacement given to its neighbours 1, 2, 3, 4 joints away
 SPREAD = (0.8, 0.6, 0.4, 0.2)
-#: rounds of spreading and pulling again (`fibres.decompose`)
+#: rounds of spreading and pulling again per frame (`fibres.finishing.carried_pull.pull_rounds`)
 PULL_ROUNDS = 2
-#: a displacement larger than this (metres) counts as a pull in `spread_pull`
+#: a pull this long (metres) or longer counts as one whole point in `spread_pull`'s sum
 PULLED = 1e-5
 
 
@@ -188,8 +191,8 @@ def spread_pull(before, after):
     spread along each fibre (module docstring); ends unchanged. Pull the result again."""
     b = np.asarray(before, dtype=np.float64)
     d = np.asarray(after, dtype=np.float64) - b
-    moved = (np.einsum("npk,npk->np", d, d) > PULLED ** 2).astype(np.float64)[..., None]
-    e = _along(d, SPREAD) / np.maximum(1.0, _along(moved, SPREAD))
+    share = np.minimum(1.0, np.sqrt(np.einsum("npk,npk->np", d, d)) / PULLED)[..., None]
+    e = _along(d, SPREAD) / np.maximum(1.0, _along(share, SPREAD))
     e[:, 0] = 0.0
     e[:, -1] = 0.0
     return b + e

@@ -69,6 +69,10 @@ def _ray_basis():
     return np.stack([u, v, np.cross(u, v)])
 
 
+#: rows y, z and the ray of the parity test's frame
+_RAY_FRAME = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _bin_triangles(vertices, faces, frame, n_axes, density):
     """The triangles (vertices, faces) binned by their bounding boxes in a uniform grid along
@@ -316,8 +320,30 @@ def _blend(sums, tau, offset):
     return np.where(ok, s, -np.inf), np.where(ok[:, None], g, 0.0)
 
 
-#: cells per triangle of the search grid and of the parity grid
+#: cells per triangle of the search grid (at least; `SEARCH_DENSITY_MAX` at most) and of the
+#: parity grid
 SEARCH_DENSITY, PARITY_DENSITY = 4.0, 0.5
+#: the search grid's cells are cubes of about the triangles' mean edge, within these bounds
+SEARCH_DENSITY_MAX = 64.0
+#: triangles whose first edge measures the mean edge (`_search_density`)
+EDGE_SAMPLES = 256
+
+
+def _search_density(vertices, faces):
+    """Cells per triangle of the search grid: cubes whose side is the mean length of the
+    triangles' first edges (measured on `EDGE_SAMPLES` evenly strided triangles), so that a
+    cell holds a few triangles however much of the vertices' bounding box the surface leaves
+    empty (a long muscle lying or bent across its box); bounded to [`SEARCH_DENSITY`,
+    `SEARCH_DENSITY_MAX`]; the box's volume as `_bin_triangles` measures it."""
+    rows = np.ascontiguousarray(vertices.T)          # (3, V): reductions over contiguous rows
+    ext = rows.max(axis=1) - rows.min(axis=1)
+    volume = float(np.prod(np.maximum(ext, 1e-3 * ext.max())))
+    some = faces[::max(1, len(faces) // EDGE_SAMPLES)]           # an evenly strided sample
+    step = vertices[some[:, 1]] - vertices[some[:, 0]]
+    edge = float(np.mean(np.sqrt(np.einsum("ij,ij->i", step, step))))
+    if not (volume > 0.0 and edge > 0.0):
+        return SEARCH_DENSITY
+    return min(max(volume / (len(faces) * edge ** 3), SEARCH_DENSITY), SEARCH_DENSITY_MAX)
 
 
 class SurfaceGrid:
@@ -333,7 +359,8 @@ class SurfaceGrid:
     reach : float
         Points with no triangle within this distance get ``s = -inf``.
 
-    The grids are sized by the vertices' bounding box and the number of triangles.
+    The grids are sized by the vertices' bounding box, the number of triangles and (the search
+    grid) their mean edge (`_search_density`).
     """
 
     def __init__(self, vertices, faces, *, reach: float):
@@ -341,7 +368,8 @@ class SurfaceGrid:
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self.reach = float(reach)
         self._grid = _bin_triangles(self.vertices, self.faces, np.eye(3), 3,
-                                    SEARCH_DENSITY)[1:] if len(self.faces) else None
+                                    _search_density(self.vertices, self.faces))[1:] \
+            if len(self.faces) else None
         self._ray = None
 
     def inside(self, points):
@@ -351,7 +379,7 @@ class SurfaceGrid:
         if len(self.faces) == 0:
             return np.zeros(len(x), bool)
         if self._ray is None:
-            frame = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])      # rows y, z, ray
+            frame = _RAY_FRAME
             pv, *grid = _bin_triangles(self.vertices, self.faces, frame, 2, PARITY_DENSITY)
             self._ray = (pv, self.faces, frame, *grid)
         return _parity(x, *self._ray)

@@ -119,3 +119,25 @@ def test_natural_spline_matrix_matches_scipy():
     t = np.linspace(knots[0], knots[-1], 57)
     np.testing.assert_allclose(natural_spline_matrix(knots, t) @ y,
                                CubicSpline(knots, y, bc_type="natural")(t), atol=1e-12)
+
+
+def test_spread_pull_has_no_step_where_a_pull_reaches_pulled():
+    """A pull next to a run of 1 mm pulls, growing through PULLED: its share of the
+    normalising sum grows with it (min(1, |d| / PULLED)), so the spread moves by ~1e-6 of
+    the run's pull when it crosses PULLED by +-1e-6 (counted as a whole point at once, the
+    neighbour's share would jump from 1.8 to 2.6: 0.3 mm)."""
+    from fibres.finishing.fairing import PULLED
+
+    p = 16
+    line = np.stack([np.linspace(0.0, 0.15, p), np.zeros(p), np.zeros(p)], axis=1)[None]
+
+    def spread(small):
+        after = line.copy()
+        after[0, 6:9, 1] += 1e-3
+        after[0, 10, 1] += small
+        return spread_pull(line, after)
+
+    below, above = spread(PULLED * (1 - 1e-6)), spread(PULLED * (1 + 1e-6))
+    assert np.abs(above - below).max() < 1e-8
+    # and from zero: a pull of 1e-9 m changes the spread by about as little
+    assert np.abs(spread(1e-9) - spread(0.0)).max() < 1e-6

@@ -401,7 +401,7 @@ BOUNDS = {"glut_max_r": (0.05, 0.95, 0.95), "glut_med_r": (0.03, 0.90, 0.95),
 # psoas misses the 20 degrees by 0.5 (the containment pull in its tendon: 13.4 without it);
 # its bound is a regression guard at the measured value plus 0.5, not the target.
 TURN_MAX = 45.0
-TURN_P95 = {"glut_max_r": 20.0, "glut_med_r": 20.0, "iliacus_r": 20.0, "psoas_r": 21.0}
+TURN_P95 = {"glut_max_r": 20.0, "glut_med_r": 20.0, "iliacus_r": 20.0, "psoas_r": 20.0}
 
 
 @pytest.mark.shared

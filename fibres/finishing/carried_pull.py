@@ -1,0 +1,200 @@
+"""The containment pull of the rest pose, carried to every frame in frames of the walls.
+
+`fibres.decompose` with harmonic slicing maps the plan's fibres onto a frame linearly
+(``points = F W V``, `fibres.slicing.harmonic`), and the fairing in that map cuts concave walls
+(a tendon bending round a bone), so every frame would pull the same points in again, spread
+the pulls along their fibres and pull again (`pull_rounds`). Here that work is done once, on
+the plan's rest pose (`carry_rest_pull`: band `REST_MARGIN`, `REST_ROUNDS` spread rounds),
+and each displaced point carries its displacement ``e`` to the frames in the frame of a patch
+of the surface next to it: of the `CARRY_CANDIDATES` triangles whose centroids are nearest
+to the point's place at rest, those whose normals lie within ``acos(FACING)`` of the nearest
+one's (so the opposite wall of a thin tendon does not count). With ``n`` the patch's unit
+normal (its summed area vectors), ``L^2`` its area and ``t`` the nearest triangle's first
+edge projected on the plane normal to ``n``:
+
+    f1 = L t / |t|,   f2 = n x f1,   f3 = L n
+
+an orthogonal frame of three equal sides; ``e = sum_k x_k f_k`` with ``x_k = e . f_k / L^2``
+at rest, and on a frame ``e' = sum_k x_k f'_k`` (`CarriedPull.apply`). The frame turns with the
+wall next to the point and scales with its local stretch, so a point pulled in from a wall
+at rest is pulled in from the same wall in every frame; a rigid motion or a uniform scale of
+the mesh moves or scales ``e`` alike, and ``e'`` is a smooth function of the vertices (fixed
+coefficients and patches, chosen once; a patch's sums average out the jitter of single
+triangles). This is the embedding of points in a deforming mesh by frozen local coordinates
+(as in free-form deformation, Sederberg & Parry, SIGGRAPH 1986), applied to the pull's
+displacement only.
+
+The frame's own pull (`pull_rounds` with the band `fibres.finishing.containment.CONTAIN_MARGIN`)
+follows, for what the deformation itself moves towards a wall: the rest pose's pulled points
+end at least ``REST_MARGIN / 2`` deep, deeper than that band, so near the rest pose few points
+are measured twice and few fibres spread again.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from ..errors import InputError
+from ..mesh.surface_distance import SurfaceGrid
+from .containment import CONTAIN_MARGIN, CONTAIN_REACH, contain
+from .fairing import PULL_ROUNDS, spread_pull
+
+__all__ = ["CarriedPull", "carry_rest_pull", "planned_pull", "pull_rounds", "REST_MARGIN",
+           "REST_ROUNDS", "CARRY_CANDIDATES", "FACING"]
+
+#: band depth (metres) of the rest pose's pull: its points end at least REST_MARGIN / 2 deep
+REST_MARGIN = 2.5 * CONTAIN_MARGIN
+#: rounds of spreading and pulling again on the rest pose
+REST_ROUNDS = 4
+#: triangles (nearest centroids) in the patch whose frame carries a point's displacement
+CARRY_CANDIDATES = 16
+#: a candidate triangle belongs to the patch when its normal is within acos(FACING) of the
+#: nearest one's (not the opposite wall of a thin tendon)
+FACING = 0.5
+
+
+def pull_rounds(points, grid: SurfaceGrid, *, margin: float = CONTAIN_MARGIN,
+                rounds: int = PULL_ROUNDS):
+    """The containment pull (`fibres.finishing.containment.contain`) of fibres ``points``
+    (N, P, 3) in the surface of ``grid``, then ``rounds`` rounds of spreading each pulled
+    fibre's displacement along it (`fibres.finishing.fairing.spread_pull`) and pulling that
+    fibre again; only the fibres pulled in a round take part in the next.
+
+    Returns
+    -------
+    points : (N, P, 3) float64
+        A new array.
+    moved : (N,) bool
+        Fibres with a point pulled in.
+    """
+    v, f = grid.vertices, grid.faces
+    out, moved = contain(points, v, f, margin=margin, grid=grid)
+    todo, before = np.flatnonzero(moved), np.array(points, dtype=np.float64, copy=True)
+    for _ in range(int(rounds)):
+        if not todo.size:
+            break
+        spread = spread_pull(before[todo], out[todo])
+        again_pts, again = contain(spread, v, f, margin=margin, grid=grid)
+        before[todo], out[todo] = spread, again_pts
+        todo = todo[np.asarray(again, dtype=bool)]
+    return out, moved
+
+
+def _frames(vertices, faces, patches, first):
+    """(M, 3, 3) frames ``[f1, f2, f3]`` (module docstring) of M triangle patches and their
+    squared side ``L^2`` (M,): ``patches`` (M, F) sparse 0/1 (the rows of ``faces`` (F, 3) in
+    each patch), ``first`` (M,) the row whose first edge gives the direction of f1."""
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    cross = np.cross(b - a, c - a)                                  # (F, 3): 2 x area x normal
+    total = patches @ cross
+    normal = total / np.maximum(np.linalg.norm(total, axis=1), 1e-300)[:, None]
+    side = 0.5 * (patches @ np.linalg.norm(cross, axis=1))          # L^2: the patch's area
+    edge = b[first] - a[first]
+    edge -= np.einsum("ij,ij->i", edge, normal)[:, None] * normal
+    f1 = edge * np.sqrt(side / np.maximum(np.einsum("ij,ij->i", edge, edge), 1e-300))[:, None]
+    f2 = np.cross(normal, f1)
+    f3 = np.sqrt(side)[:, None] * normal
+    return np.stack([f1, f2, f3], axis=1), side
+
+
+@dataclass(frozen=True)
+class CarriedPull:
+    """Displacements of fibre points fixed in the frames of surface triangles (module
+    docstring).
+
+    Attributes
+    ----------
+    shape : (N, P)
+        The fibres it applies to.
+    rows : (M,) int64
+        Flat indices (fibre * P + point) of the displaced points.
+    faces : (F, 3) int64
+        Vertex indices of the triangles the points' frames are made of.
+    patches : (M, F) scipy.sparse.csr_matrix
+        1 where a row of ``faces`` belongs to a point's patch: of its `CARRY_CANDIDATES`
+        nearest triangles, those facing the nearest one's way.
+    first : (M,) int64
+        The row of ``faces`` of each point's nearest triangle.
+    coefficients : (M, 3) float
+        ``x_k``: the displacement is ``sum_k x_k f_k``.
+    """
+
+    shape: tuple
+    rows: np.ndarray
+    faces: np.ndarray
+    patches: sp.csr_matrix
+    first: np.ndarray
+    coefficients: np.ndarray
+
+    @property
+    def fibres(self):
+        """(N,) bool: the fibres with a displaced point."""
+        out = np.zeros(self.shape[0], bool)
+        out[self.rows // self.shape[1]] = True
+        return out
+
+    def apply(self, points, vertices):
+        """Fibres ``points`` (N, P, 3) of a frame with its surface ``vertices`` (V, 3)
+        (same faces as at rest), displaced: a new array."""
+        out = np.array(points, dtype=np.float64, copy=True)
+        if tuple(out.shape[:2]) != tuple(self.shape):
+            raise ValueError(f"points must be {self.shape} fibres x points, got {out.shape[:2]}")
+        if self.rows.size:
+            frames, _ = _frames(np.asarray(vertices, dtype=np.float64), self.faces,
+                                self.patches, self.first)
+            flat = out.reshape(-1, 3)
+            flat[self.rows] += np.einsum("mk,mkd->md", self.coefficients, frames)
+        return out
+
+
+def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
+                    rounds: int = REST_ROUNDS, reach: float = CONTAIN_REACH):
+    """The rest pose's pull (`pull_rounds` with band ``margin``) of fibres ``points``
+    (N, P, 3) in the surface (vertices, faces), as a `CarriedPull` (module docstring):
+    ``carry_rest_pull(...).apply(points, vertices)`` are the pulled fibres (to rounding)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    pts = np.asarray(points, dtype=np.float64)
+    n, p = pts.shape[:2]
+    grid = SurfaceGrid(v, f, reach=reach)
+    out, _ = pull_rounds(pts, grid, margin=margin, rounds=rounds)
+    e = (out - pts).reshape(-1, 3)
+    rows = np.flatnonzero(np.any(e != 0.0, axis=1))
+    if not rows.size:
+        return CarriedPull((n, p), rows, np.zeros((0, 3), np.int64),
+                           sp.csr_matrix((0, 0)), np.zeros(0, np.int64), np.zeros((0, 3)))
+    corners = v[f]
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    k = min(CARRY_CANDIDATES, len(f))
+    _, near = cKDTree(corners.mean(axis=1)).query(out.reshape(-1, 3)[rows], k=k)
+    near = np.asarray(near).reshape(len(rows), k)
+    unit = cross[near] / np.maximum(np.linalg.norm(cross[near], axis=2), 1e-300)[..., None]
+    weights = (np.einsum("mkd,md->mk", unit, unit[:, 0]) > FACING).astype(np.float64)
+    if not (np.linalg.norm(cross[near[:, 0]], axis=1) > 0).all():
+        raise InputError("a triangle of the surface near a pulled fibre point has no area",
+                         where="mesh", fix="Repair the mesh (degenerate triangles).")
+    used, local = np.unique(near, return_inverse=True)
+    local = local.reshape(near.shape)
+    patches = sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(len(rows)), k),
+                                               local.ravel())), shape=(len(rows), len(used)))
+    patches.eliminate_zeros()
+    frames, side = _frames(v, f[used], patches, local[:, 0])
+    coefficients = np.einsum("md,mkd->mk", e[rows], frames) / side[:, None]
+    return CarriedPull((n, p), rows, f[used], patches, local[:, 0], coefficients)
+
+
+def planned_pull(plan, key, rest_points) -> CarriedPull:
+    """The `CarriedPull` of the rest pose of ``plan`` (a `fibres.slicing.harmonic.HarmonicPlan`)
+    for the fibres named by ``key`` (hashable), made once (``rest_points()``: those fibres
+    mapped onto the plan's rest vertices) and cached with the plan's maps."""
+    key = ("carried pull",) + tuple(key)
+    with plan._lock:
+        hit = plan._cache.get(key)
+    if hit is not None:
+        return hit
+    carried = carry_rest_pull(rest_points(), plan.rest_vertices, plan.faces)
+    with plan._lock:
+        return plan._cache.setdefault(key, carried)
