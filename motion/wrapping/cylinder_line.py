@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
+from .wrap_codes import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
 
 __all__ = ["wrap_line", "STEP"]
 
