@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .wrap_codes import ELLIPSOID_METHODS, quadrant_axis_sign
+from .cylinder_line import ELLIPSOID_METHODS, quadrant_axis_sign
 from .wrapped_rows import CYLINDER, ELLIPSOID, SPHERE, TORUS, wrap_compiled_rows
 
 __all__ = ["wrap_paths", "wrap_path", "WrappedPath", "group_rows", "WrapSlot", "wrap_range", "wrap_spec"]
@@ -40,7 +40,7 @@ class WrapSlot:
     ``kind``: CYLINDER, SPHERE, ELLIPSOID or TORUS (`motion.wrapping.wrapped_rows`); ``params``
     (N, 3) or (3,) the object's size per row (cylinder: radius, length; sphere: radius;
     ellipsoid: the semi-axes; torus: inner, outer radius; unused entries 0); ``axis``,
-    ``sign`` its quadrant (`motion.wrapping.wrap_codes.quadrant_axis_sign`); ``adjust`` the
+    ``sign`` its quadrant (`motion.wrapping.cylinder_line.quadrant_axis_sign`); ``adjust`` the
     cylinder's tangent re-adjustment; ``method`` the ellipsoid's (index into
     ``ELLIPSOID_METHODS``); ``tf`` (N, 4, 4) the wrap frame in ground and ``dtf`` (N, D, 4, 4) its
     derivatives; ``start``, ``end`` (N,) the 0-based range of defined points it may act on.

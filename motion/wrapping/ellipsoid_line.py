@@ -39,8 +39,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .cylinder_line import csqrt, vadd, vcross, vdot, vnorm, vscale, vsub, vunit
-from .wrap_codes import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP
+from .cylinder_line import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, csqrt, vadd, vcross, vdot, vnorm, vscale, vsub, vunit
 
 __all__ = ["ellipsoid_line", "closest_point"]
 
@@ -390,7 +389,7 @@ def ellipsoid_line(p1, p2, da, db, dc, axis, sign, method):
     """WrapEllipsoid::wrapLine in the ellipsoid frame: (code, r1, r2, arc).
 
     ``p1``, ``p2``: triples of complex (value + i STEP derivative); ``da, db, dc`` the semi-axes;
-    ``axis``, ``sign`` the quadrant (`motion.wrapping.wrap_codes.quadrant_axis_sign`); ``method``
+    ``axis``, ``sign`` the quadrant (`motion.wrapping.cylinder_line.quadrant_axis_sign`); ``method``
     0 hybrid, 1 midpoint, 2 axial. r1, r2, arc are meaningful where code is MANDATORY_WRAP.
     """
     dims = (da, db, dc)

@@ -37,8 +37,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .cylinder_line import csqrt, vadd, vcross, vdot, vnorm, vscale, vsub, vunit, wrap_line
-from .wrap_codes import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
+from .cylinder_line import (INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, csqrt, vadd, vcross, vdot, vnorm, vscale,
+                            vsub, vunit, wrap_line)
 
 __all__ = ["sphere_line", "torus_line"]
 

@@ -39,10 +39,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .cylinder_line import STEP, vnorm, vsub, wrap_line
+from .cylinder_line import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, STEP, WRAPPED, vnorm, vsub, wrap_line
 from .ellipsoid_line import ellipsoid_line
 from .sphere_torus_line import sphere_line, torus_line
-from .wrap_codes import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
 
 __all__ = ["wrap_compiled_rows", "CYLINDER", "SPHERE", "ELLIPSOID", "TORUS"]
 

@@ -24,7 +24,7 @@ from motion.wrapping.cylinder_line import STEP, wrap_line
 from motion.wrapping.ellipsoid_line import ellipsoid_line
 from motion.wrapping.path_points import path_points
 from motion.wrapping.sphere_torus_line import sphere_line, torus_line
-from motion.wrapping.wrap_codes import ELLIPSOID_METHODS, quadrant_axis_sign
+from motion.wrapping.cylinder_line import ELLIPSOID_METHODS, quadrant_axis_sign
 from motion.wrapping.wrapped_rows import wrap_compiled_rows
 
 from wrap_oracle.cylinder import cylinder_wrap_line     # tests/motion (rootdir-relative import)

@@ -13,7 +13,7 @@ import numpy as np
 
 from . import dual as ad
 from .dual import Dual
-from motion.wrapping.wrap_codes import ELLIPSOID_METHODS
+from motion.wrapping.cylinder_line import ELLIPSOID_METHODS
 from motion.wrapping.wrapped_rows import CYLINDER, ELLIPSOID, SPHERE
 
 from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, cylinder_wrap_line
