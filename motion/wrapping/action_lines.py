@@ -393,11 +393,13 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     plan = _plan(model, chosen)
     spanned = plan.spanned
     n_slots = plan.points.shape[1] if len(plan.unwrapped) else 0
+    # wrapped paths have more nodes (their tangent points): room for all from the start
+    k_max = max([len(chosen[m].points) + 2 * len(chosen[m].wraps) for m in plan.wrapped] + [n_slots])
     lengths = np.zeros((n_frames, len(chosen)))
     dldq = np.zeros((n_frames, len(chosen), n_coords))
-    points = np.full((n_frames, len(chosen), n_slots, 3), np.nan)
-    mask = np.zeros((n_frames, len(chosen), n_slots), dtype=bool)
-    order = np.full((n_frames, len(chosen), n_slots), -1, dtype=np.int64)
+    points = np.full((n_frames, len(chosen), k_max, 3), np.nan)
+    mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
+    order = np.full((n_frames, len(chosen), k_max), -1, dtype=np.int64)
     # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
     blocks = [_block(model, chosen, plan, q[i:i + FRAME_BLOCK],
                      tuple(a[i:i + FRAME_BLOCK] for a in (lengths, dldq, points, mask, order)))
@@ -408,12 +410,6 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
                 for w in range(len(plan.wrapped))]
     moment_arms = np.negative(dldq, out=dldq)
     moment_arms[:, ~spanned] = 0.0                 # exactly 0.0 where not spanned
-    k_max = max([p[0].shape[1] for p in per_path] + [n_slots])
-    if k_max > n_slots:                      # wrapped paths with more points (tangent points)
-        pad = ((0, 0), (0, 0), (0, k_max - n_slots))
-        points = np.pad(points, pad + ((0, 0),), constant_values=np.nan)
-        mask = np.pad(mask, pad, constant_values=False)
-        order = np.pad(order, pad, constant_values=-1)
     labels = [tuple(p.name for p in path.points) for path in chosen]
     for m, (pts, msk, lab, ordr) in zip(plan.wrapped, per_path):
         k = pts.shape[1]

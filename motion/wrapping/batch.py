@@ -20,6 +20,7 @@ group become rows of one call:
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,14 +90,28 @@ def wrap_spec(wrap_object, method: str, single: bool) -> tuple:
     return (_KINDS[kind], np.array(params, dtype=float), axis, sign, kind == "cylinder" and not single, m)
 
 
+_STATIC = weakref.WeakKeyDictionary()   # model -> {path name: its wraps' static description}
+
+
+def _statics(model, path) -> tuple:
+    """Per PathWrap of ``path``, what does not change with the pose (models are frozen, so this
+    is cached per model): (body index, tf_body_wrap, `wrap_spec`, `wrap_range`, active)."""
+    per_model = _STATIC.setdefault(model, {})
+    if path.name not in per_model:
+        out = []
+        for pw in path.wraps:
+            wo = model.wrap_object(pw.wrap_object)
+            out.append((model.body_index(wo.body), np.asarray(wo.tf_body_wrap, dtype=float),
+                        wrap_spec(wo, pw.method, len(path.wraps) == 1), wrap_range(pw, len(path.points)),
+                        bool(wo.active)))
+        per_model[path.name] = tuple(out)
+    return per_model[path.name]
+
+
 def _signature(model, path) -> tuple:
     """Hashable description of a path's wraps: what must be equal to share one call."""
-    out = []
-    for pw in path.wraps:
-        wo = model.wrap_object(pw.wrap_object)
-        kind, _, axis, sign, adjust, method = wrap_spec(wo, pw.method, len(path.wraps) == 1)
-        out.append((kind, axis, sign, adjust, method, bool(wo.active)))
-    return tuple(out)
+    return tuple((kind, axis, sign, adjust, method, active)
+                 for _, _, (kind, _, axis, sign, adjust, method), _, active in _statics(model, path))
 
 
 @dataclass(frozen=True)
@@ -249,22 +264,20 @@ def group_rows(paths, model, points, active, d_points, tf, dtf, columns) -> tupl
         pts[rows, :n_p] = points[g]
         act[rows, :n_p] = active[g]
         dpts[rows, :n_p, :len(cols)] = d_points[g][:, :, cols]
+    statics = [_statics(model, path) for path in paths]
     slots = []
-    for w, pw in enumerate(paths[0].wraps):
+    for w in range(len(paths[0].wraps)):
         tf_w = np.empty((n_rows, 4, 4))
         dtf_w = np.zeros((n_rows, d_max, 4, 4))
         start = np.empty(n_rows, dtype=np.int64)
         end = np.empty(n_rows, dtype=np.int64)
         params = np.empty((n_rows, 3))
-        for g, (path, cols) in enumerate(zip(paths, columns)):
+        for g, cols in enumerate(columns):
             rows = slice(g * n_frames, (g + 1) * n_frames)
-            wo = model.wrap_object(path.wraps[w].wrap_object)
-            b = model.body_index(wo.body)
-            kind, params[rows], axis, sign, adjust, method = wrap_spec(wo, path.wraps[w].method, len(path.wraps) == 1)
-            tf_w[rows] = tf[:, b] @ wo.tf_body_wrap
-            dtf_w[rows, :len(cols)] = dtf[:, b][:, cols] @ wo.tf_body_wrap
-            start[rows], end[rows] = wrap_range(path.wraps[w], len(path.points))
-        slots.append(WrapSlot(kind, params, axis, sign, adjust, method, bool(wo.active), tf_w, dtf_w, start, end))
+            b, tf_bw, (kind, params[rows], axis, sign, adjust, method), (start[rows], end[rows]), active = statics[g][w]
+            np.matmul(tf[:, b], tf_bw, out=tf_w[rows])
+            dtf_w[rows, :len(cols)] = dtf[:, b, cols] @ tf_bw
+        slots.append(WrapSlot(kind, params, axis, sign, adjust, method, active, tf_w, dtf_w, start, end))
     n_dirs = np.repeat(np.array([len(c) for c in columns], dtype=np.int64), n_frames)
     return pts, act, dpts, n_dirs, slots
 
