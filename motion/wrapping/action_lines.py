@@ -1,7 +1,7 @@
 """Action lines of an OpenSim model: path lengths and exact moment arms, vectorised over frames.
 
 For every path force (muscle, ligament, path actuator): the current path per frame (active
-points, and the wrap tangent points of `motion.wrapping.path` when the path has wrap objects),
+points, and the wrap tangent points of `motion.wrapping.wrapped_rows` when the path has wrap objects),
 its length L (F,) and the moment arms r = -dL/dq (F, C) by forward-mode derivatives (chain rule
 through the body transforms, moving points and couplers; no finite differences).
 
@@ -28,9 +28,9 @@ unwrapped paths' points stacked, sorted by body, grouped in (body, path) pairs, 
 straight from the joint chain (no (F, B, C, 4, 4) derivative array). A numba kernel walks the
 active points of every path per frame (`motion.wrapping.path_points._polyline_kernel`; a numpy
 oracle of it is in ``tests/motion/polyline_oracle.py``). Wrapped paths go through
-`motion.wrapping.batch.wrap_paths`: paths with the same kind of wraps share one pass of the
-wrap algorithm (rows = path x frame), each carrying derivatives only along its own spanned
-coordinates; groups wrapped over cylinders only run compiled (`motion.wrapping.cylinder_paths`).
+`motion.wrapping.batch.wrap_paths`: paths with the same kinds of wraps share one call of the
+compiled wrap kernel (`motion.wrapping.wrapped_rows`, rows = path x frame), each carrying
+derivatives only along its own spanned coordinates.
 Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
 """
 from __future__ import annotations
