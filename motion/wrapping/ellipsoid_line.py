@@ -225,6 +225,7 @@ def _tangent_point(pe, r1, p1, ax, vs, vs4):
     v = np.empty(4, dtype=np.complex128)
     vt = np.zeros(4, dtype=np.complex128)
     step = np.empty(4, dtype=np.complex128)
+    scratch = np.empty(4, dtype=np.complex128)
     nit = 0
     while ssq > _TINY and nit < 50:
         nit += 1
@@ -270,7 +271,6 @@ def _tangent_point(pe, r1, p1, ax, vs, vs4):
         alpha /= 8.0
         fakt = 0.5
         nit2 = 0
-        scratch = np.empty(4, dtype=np.complex128)
         while ssq <= ssqo and nit2 < 1000:
             fakt *= 2.0
             r1 = (r1[0] + vt[0] * fakt, r1[1] + vt[1] * fakt, r1[2] + vt[2] * fakt)
