@@ -10,7 +10,7 @@ the point's Jacobian (3 x 3) comes from casadi's algorithmic differentiation. It
 on ``--rows`` points (a typical Arm26 call: 121 frames x 298 samples) with ``Function.map``
 (serial) in casadi's SX virtual machine, and, if a C compiler is found, as generated C code
 compiled with ``-O2`` (compile time reported). The numpy side is
-`motion.wrapping.ellipsoid.closest_point_on_ellipsoid` on `motion.wrapping.dual.Dual` arrays
+``closest_point_on_ellipsoid`` of the numpy oracle (``tests/motion/wrap_oracle``) on its ``Dual`` arrays
 seeded with the 3 x 3 identity. Both give the same points (max |difference| printed).
 
 casadi is not a dependency of the package (see ``docs/decisions.md``: it cannot be imported in a
@@ -56,8 +56,9 @@ def casadi_function(ca):
 
 
 def numpy_side(pts):
-    from motion.wrapping.dual import Dual
-    from motion.wrapping.ellipsoid import closest_point_on_ellipsoid
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "motion"))
+    from wrap_oracle.dual import Dual      # the numpy oracle of the compiled wrapping
+    from wrap_oracle.ellipsoid import closest_point_on_ellipsoid
 
     eye = np.eye(3)
     u, v, w = (Dual(pts[:, i], np.broadcast_to(eye[i], (len(pts), 3)).copy()) for i in range(3))

@@ -18,7 +18,7 @@ coordinate) pair.
   frames. Warm: after one call on the same model (index plans cached); first call: a fresh
   Python process (``--first-call``: import, model and motion loading, then the first
   ``action_lines``, each timed, wall clock and CPU; the first call loads, or with an empty numba
-  cache compiles, the polyline and cylinder-path kernels).
+  cache compiles, the polyline and wrap kernels).
 - OpenSim: what ``../shared/tools/opensim_reference.py`` does per frame: ``Coordinate.setValue``
   for every coordinate + ``Model.assemble`` + ``realizePosition`` (pose), then
   ``GeometryPath.getLength`` per path and ``Muscle.computeMomentArm`` per spanned pair, in the

@@ -73,7 +73,7 @@ def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) 
             path = model.path(name)
             pp = path_points(path, model, q_used, tf, jac=jac if need_d else None, d_tf_ground_body=dtf)
             if path.wraps:
-                from ..wrapping.path import wrap_path
+                from ..wrapping.batch import wrap_path
 
                 wrapped = wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
                 pts, ids = _path_polyline_ids(model, wrapped, tf)
@@ -125,7 +125,7 @@ def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POI
     Parameters
     ----------
     model : motion.Model
-    wrapped : motion.wrapping.path.WrappedPath
+    wrapped : motion.wrapping.batch.WrappedPath
     tf_ground_body : (F, B, 4, 4) float
 
     Returns

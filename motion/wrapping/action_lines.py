@@ -1,7 +1,7 @@
 """Action lines of an OpenSim model: path lengths and exact moment arms, vectorised over frames.
 
 For every path force (muscle, ligament, path actuator): the current path per frame (active
-points, and the wrap tangent points of `motion.wrapping.path` when the path has wrap objects),
+points, and the wrap tangent points of `motion.wrapping.wrapped_rows` when the path has wrap objects),
 its length L (F,) and the moment arms r = -dL/dq (F, C) by forward-mode derivatives (chain rule
 through the body transforms, moving points and couplers; no finite differences).
 
@@ -28,9 +28,9 @@ unwrapped paths' points stacked, sorted by body, grouped in (body, path) pairs, 
 straight from the joint chain (no (F, B, C, 4, 4) derivative array). A numba kernel walks the
 active points of every path per frame (`motion.wrapping.path_points._polyline_kernel`; a numpy
 oracle of it is in ``tests/motion/polyline_oracle.py``). Wrapped paths go through
-`motion.wrapping.batch.wrap_paths`: paths with the same kind of wraps share one pass of the
-wrap algorithm (rows = path x frame), each carrying derivatives only along its own spanned
-coordinates; groups wrapped over cylinders only run compiled (`motion.wrapping.cylinder_paths`).
+`motion.wrapping.batch.wrap_paths`: paths with the same kinds of wraps share one call of the
+compiled wrap kernel (`motion.wrapping.wrapped_rows`, rows = path x frame), each carrying
+derivatives only along its own spanned coordinates.
 Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
 """
 from __future__ import annotations
@@ -393,11 +393,13 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     plan = _plan(model, chosen)
     spanned = plan.spanned
     n_slots = plan.points.shape[1] if len(plan.unwrapped) else 0
+    # wrapped paths have more nodes (their tangent points): room for all from the start
+    k_max = max([len(chosen[m].points) + 2 * len(chosen[m].wraps) for m in plan.wrapped] + [n_slots])
     lengths = np.zeros((n_frames, len(chosen)))
     dldq = np.zeros((n_frames, len(chosen), n_coords))
-    points = np.full((n_frames, len(chosen), n_slots, 3), np.nan)
-    mask = np.zeros((n_frames, len(chosen), n_slots), dtype=bool)
-    order = np.full((n_frames, len(chosen), n_slots), -1, dtype=np.int64)
+    points = np.full((n_frames, len(chosen), k_max, 3), np.nan)
+    mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
+    order = np.full((n_frames, len(chosen), k_max), -1, dtype=np.int64)
     # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
     blocks = [_block(model, chosen, plan, q[i:i + FRAME_BLOCK],
                      tuple(a[i:i + FRAME_BLOCK] for a in (lengths, dldq, points, mask, order)))
@@ -408,12 +410,6 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
                 for w in range(len(plan.wrapped))]
     moment_arms = np.negative(dldq, out=dldq)
     moment_arms[:, ~spanned] = 0.0                 # exactly 0.0 where not spanned
-    k_max = max([p[0].shape[1] for p in per_path] + [n_slots])
-    if k_max > n_slots:                      # wrapped paths with more points (tangent points)
-        pad = ((0, 0), (0, 0), (0, k_max - n_slots))
-        points = np.pad(points, pad + ((0, 0),), constant_values=np.nan)
-        mask = np.pad(mask, pad, constant_values=False)
-        order = np.pad(order, pad, constant_values=-1)
     labels = [tuple(p.name for p in path.points) for path in chosen]
     for m, (pts, msk, lab, ordr) in zip(plan.wrapped, per_path):
         k = pts.shape[1]

@@ -1,60 +1,58 @@
-"""Several wrapped paths in one pass: paths with the same kind of wraps share every array step.
+"""Wrapped paths in few compiled passes: paths with the same kind of wraps share one call.
 
-Contract: `wrap_paths` returns, for each path, what `motion.wrapping.path.wrap_path` returns
-for it alone (length, dL/dq along the path's own coordinates, current points, mask, labels,
-order) -- the same algorithm on the same numbers, row by row. Groups whose wraps are all
-WrapCylinders run the compiled kernel `motion.wrapping.cylinder_paths` (equal to the numpy
-`wrap_rows` to rounding); the others run `wrap_rows`.
+Contract: `wrap_paths` returns, for each path, its length, dL/dq along its own coordinates, its
+current points, mask, labels and node order, by OpenSim 4.6's applyWrapObjects
+(`motion.wrapping.wrapped_rows`); `wrap_path` does it for one path along all coordinates (the
+moving surfaces use it). `WrapSlot` and `wrap_spec` describe one PathWrap for the kernel.
 
-Method. `motion.wrapping.path.wrap_rows` runs OpenSim's applyWrapObjects on independent rows,
-and its cost is dominated by the number of numpy calls, not by the number of rows (the
-compiled kernel pays per row, and shares the rows' preparation, `group_rows`). Paths are
-therefore grouped by the *signature* of their wraps (per PathWrap: the wrap-line function,
-its options other than a cylinder's radius and length, and whether the object is active);
-the paths of one group become rows (path, frame) of one call:
+Method. The kernel runs rows (path x frame); a call has a fixed sequence of wrap kinds, so
+paths are grouped by the *signature* of their wraps (per PathWrap: the kind, quadrant,
+tangent re-adjustment, ellipsoid method and whether the object is active); the paths of one
+group become rows of one call:
 
 - defined points are padded to the group's largest point count with inactive points (the
   current path skips inactive points, so padding never enters it);
 - each path's derivative directions are its own spanned coordinates (``columns``), padded with
-  zeros to the group's largest count (the wrap algebra is linear in the directions, so a
+  zeros to the group's largest count (the algorithm is linear in the directions, so a
   direction may mean a different coordinate in each row);
 - per-row arrays carry what differs inside a group: wrap frames and their derivatives, the
-  PathWrap ranges, and cylinder radii and lengths.
-
-The module also holds what describes one wrap for the row-level algorithm (`WrapSlot`,
-`line_function`: the wrap-line function and options of a wrap object, `wrap_range`).
-
-On the RajagopalLaiUhlrich2023 walk (42 wrapped paths, 46 cylinder wraps) the 42 per-path
-passes become 5 group passes (see ``bench/lines.py`` and ``docs/decisions.md``).
+  PathWrap ranges, and the objects' sizes (radii, dimensions).
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
-from .cylinder import cylinder_wrap_line
-from .cylinder_paths import wrap_cylinder_rows
-from .ellipsoid import ellipsoid_wrap_line
-from .sphere import sphere_wrap_line
-from .torus import torus_wrap_line
+from .cylinder_line import ELLIPSOID_METHODS, quadrant_axis_sign
+from .wrapped_rows import CYLINDER, ELLIPSOID, SPHERE, TORUS, wrap_compiled_rows
 
-__all__ = ["wrap_paths", "group_rows", "WrapSlot", "wrap_range", "line_function"]
+__all__ = ["wrap_paths", "wrap_path", "WrappedPath", "group_rows", "WrapSlot", "wrap_range", "wrap_spec"]
+
+_KINDS = {"cylinder": CYLINDER, "sphere": SPHERE, "ellipsoid": ELLIPSOID, "torus": TORUS}
+
 
 @dataclass(frozen=True)
 class WrapSlot:
     """One wrap of a path (PathWrapSet entry), for every row (frame, or frame of one of several
     batched paths).
 
-    ``fn(p1, p2, **opts, **{k: v[rows]})`` is the wrap object's wrap-line function in its own
-    frame; ``row_opts`` hold per-row option arrays (N,) (cylinder radius and length of batched
-    paths); ``tf`` (N, 4, 4) the wrap frame in ground and ``dtf`` (N, D, 4, 4) its derivatives;
-    ``start``, ``end`` (N,) the 0-based range of defined points the wrap may act on.
+    ``kind``: CYLINDER, SPHERE, ELLIPSOID or TORUS (`motion.wrapping.wrapped_rows`); ``params``
+    (N, 3) or (3,) the object's size per row (cylinder: radius, length; sphere: radius;
+    ellipsoid: the semi-axes; torus: inner, outer radius; unused entries 0); ``axis``,
+    ``sign`` its quadrant (`motion.wrapping.cylinder_line.quadrant_axis_sign`); ``adjust`` the
+    cylinder's tangent re-adjustment; ``method`` the ellipsoid's (index into
+    ``ELLIPSOID_METHODS``); ``tf`` (N, 4, 4) the wrap frame in ground and ``dtf`` (N, D, 4, 4) its
+    derivatives; ``start``, ``end`` (N,) the 0-based range of defined points it may act on.
     """
 
-    fn: object
-    opts: dict
-    row_opts: dict
+    kind: int
+    params: np.ndarray
+    axis: int
+    sign: int
+    adjust: bool
+    method: int
     active: bool
     tf: np.ndarray
     dtf: np.ndarray
@@ -69,45 +67,154 @@ def wrap_range(path_wrap, n_points: int) -> tuple:
     return start, min(end, n_points - 1)
 
 
-def line_function(wrap_object, method: str, single: bool):
-    """(wrap-line function, options) of a wrap object; ``single``: the path's only wrap (OpenSim
-    then skips the cylinder's tangent re-adjustment, ``WrapResult::singleWrap``)."""
+def wrap_spec(wrap_object, method: str, single: bool) -> tuple:
+    """(kind, params (3,), axis, sign, adjust, method index) of a wrap object as a path uses it.
+
+    ``single``: the path's only wrap (OpenSim then skips the cylinder's tangent re-adjustment,
+    ``WrapResult::singleWrap``; a torus' internal cylinder always re-adjusts)."""
     kind = wrap_object.kind
+    if kind not in _KINDS:
+        raise ValueError(f"unknown wrap object kind {kind!r}")
+    axis, sign = quadrant_axis_sign(wrap_object.quadrant)
     if kind == "cylinder":
-        return cylinder_wrap_line, dict(radius=float(wrap_object.radius),
-                                        length=float(wrap_object.length),
-                                        quadrant=wrap_object.quadrant,
-                                        adjust_tangents=not single)
-    if kind == "sphere":
-        return sphere_wrap_line, dict(radius=float(wrap_object.radius), quadrant=wrap_object.quadrant)
-    if kind == "ellipsoid":
-        return ellipsoid_wrap_line, dict(dimensions=np.asarray(wrap_object.dimensions, dtype=float),
-                                         quadrant=wrap_object.quadrant, method=method)
-    if kind == "torus":
-        return torus_wrap_line, dict(inner_radius=float(wrap_object.inner_radius),
-                                     outer_radius=float(wrap_object.outer_radius),
-                                     quadrant=wrap_object.quadrant)
-    raise ValueError(f"unknown wrap object kind {kind!r}")
+        params = (wrap_object.radius, wrap_object.length, 0.0)
+    elif kind == "sphere":
+        params = (wrap_object.radius, 0.0, 0.0)
+    elif kind == "ellipsoid":
+        params = tuple(np.asarray(wrap_object.dimensions, dtype=float))
+        if method not in ELLIPSOID_METHODS:
+            raise ValueError(f"method must be one of {ELLIPSOID_METHODS}, got {method!r}")
+    else:
+        params = (wrap_object.inner_radius, wrap_object.outer_radius, 0.0)
+    m = ELLIPSOID_METHODS.index(method) if kind == "ellipsoid" else 0
+    return (_KINDS[kind], np.array(params, dtype=float), axis, sign, kind == "cylinder" and not single, m)
 
 
-# options that may differ between the rows of one call (the function accepts (N,) arrays)
-_ROW_OPTIONS = {cylinder_wrap_line: ("radius", "length")}
+_STATIC = weakref.WeakKeyDictionary()   # model -> {path name: its wraps' static description}
+
+
+def _statics(model, path) -> tuple:
+    """Per PathWrap of ``path``, what does not change with the pose (models are frozen, so this
+    is cached per model): (body index, tf_body_wrap, `wrap_spec`, `wrap_range`, active)."""
+    per_model = _STATIC.setdefault(model, {})
+    if path.name not in per_model:
+        out = []
+        for pw in path.wraps:
+            wo = model.wrap_object(pw.wrap_object)
+            out.append((model.body_index(wo.body), np.asarray(wo.tf_body_wrap, dtype=float),
+                        wrap_spec(wo, pw.method, len(path.wraps) == 1), wrap_range(pw, len(path.points)),
+                        bool(wo.active)))
+        per_model[path.name] = tuple(out)
+    return per_model[path.name]
 
 
 def _signature(model, path) -> tuple:
     """Hashable description of a path's wraps: what must be equal to share one call."""
-    out = []
+    return tuple((kind, axis, sign, adjust, method, active)
+                 for _, _, (kind, _, axis, sign, adjust, method), _, active in _statics(model, path))
+
+
+@dataclass(frozen=True)
+class WrappedPath:
+    """A path after wrapping, per frame.
+
+    Node layout: nodes ``0..P-1`` are the defined path points, nodes ``P + 2 w`` and
+    ``P + 2 w + 1`` the first and second tangent points of the path's wrap ``w``.
+
+    Attributes
+    ----------
+    length : (F,) float
+        Path length (m).
+    d_length : (F, C) float
+        dL/dq, exact (the derivative of the algorithm OpenSim runs).
+    points : (F, N, 3) float
+        Node positions in ground as OpenSim reports them (NaN where a node is absent).
+    mask : (F, N) bool
+        Node is part of the current path.
+    order : (F, N) int
+        The current path in order as node indices, padded with -1.
+    labels : (N,) str
+        Point names, and ``"<wrap object>:1"`` / ``":2"`` for tangent points.
+    kinds : (N,) str
+        ``"point"`` or ``"wrap"``.
+    arc : (F, W) float
+        Arc length on each wrap object (0 where it does not wrap).
+    wrap_objects : (W,) str
+    """
+
+    length: np.ndarray
+    d_length: np.ndarray
+    points: np.ndarray
+    mask: np.ndarray
+    order: np.ndarray
+    labels: tuple
+    kinds: tuple
+    arc: np.ndarray
+    wrap_objects: tuple
+
+    def __post_init__(self):
+        for name in ("length", "d_length", "points", "mask", "order", "arc"):
+            arr = np.array(getattr(self, name), copy=True)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "labels", tuple(self.labels))
+        object.__setattr__(self, "kinds", tuple(self.kinds))
+
+    @property
+    def ordered_points(self) -> np.ndarray:
+        """(F, N, 3) the current path's points in path order, NaN-padded at the end."""
+        idx = np.where(self.order >= 0, self.order, 0)
+        out = np.take_along_axis(self.points, idx[..., None], axis=1)
+        return np.where((self.order >= 0)[..., None], out, np.nan)
+
+
+def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground_body) -> WrappedPath:
+    """Apply one path's wrap objects on every frame, as OpenSim 4.6 does.
+
+    Parameters
+    ----------
+    path : motion.osim.model.Path
+        The path (``path.wraps`` in PathWrapSet order).
+    model : motion.osim.model.Model
+    points : (F, P, 3) float
+        The defined path points in ground (inactive conditional points: any finite value).
+    active : (F, P) bool
+    d_points : (F, P, C, 3) float or None
+        Derivatives of the points with respect to the coordinates (None: lengths only, C = 0).
+    tf_ground_body : (F, B, 4, 4) float
+    d_tf_ground_body : (F, B, C, 4, 4) float or None
+
+    Returns
+    -------
+    WrappedPath
+    """
+    points = np.asarray(points, dtype=float)
+    active = np.asarray(active, dtype=bool)
+    tf = np.asarray(tf_ground_body, dtype=float)
+    if d_points is None or d_tf_ground_body is None:   # lengths only: no coordinates to follow
+        d_points = np.zeros(points.shape[:2] + (0, 3))
+        d_tf_ground_body = np.zeros(tf.shape[:2] + (0, 4, 4))
+    d_points = np.asarray(d_points, dtype=float)
+    if points.ndim != 3 or points.shape[-1] != 3 or active.shape != points.shape[:2]:
+        raise ValueError(f"points must be (F, P, 3) and active (F, P); got {points.shape}, {active.shape}")
+    if len(path.points) != points.shape[1]:
+        raise ValueError(f"path {path.name!r} has {len(path.points)} points, got {points.shape[1]}")
+    n_frames, n_points = points.shape[:2]
+    n_coords = d_points.shape[2]
+    pts, act, dpts, n_dirs, slots = group_rows([path], model, [points], [active], [d_points], tf,
+                                               np.asarray(d_tf_ground_body, dtype=float), [np.arange(n_coords)])
+    length, d_length, order, mask, seen, arc = wrap_compiled_rows(pts, act, dpts, n_dirs, slots)
+    labels = [p.name for p in path.points]
     for pw in path.wraps:
-        wo = model.wrap_object(pw.wrap_object)
-        fn, opts = line_function(wo, pw.method, len(path.wraps) == 1)
-        fixed = tuple(sorted((k, tuple(np.ravel(v)) if isinstance(v, np.ndarray) else v)
-                             for k, v in opts.items() if k not in _ROW_OPTIONS.get(fn, ())))
-        out.append((fn, fixed, bool(wo.active)))
-    return tuple(out)
+        labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
+    return WrappedPath(length=length, d_length=d_length, points=np.where(mask[..., None], seen, np.nan),
+                       mask=mask, order=order, labels=tuple(labels),
+                       kinds=("point",) * n_points + ("wrap",) * (2 * len(path.wraps)), arc=arc,
+                       wrap_objects=tuple(pw.wrap_object for pw in path.wraps))
 
 
 def wrap_paths(paths, model, points, active, d_points, tf_ground_body, d_tf_ground_body, columns) -> list:
-    """Wrap several paths on every frame (OpenSim 4.6's algorithm, as `wrap_path`).
+    """Wrap several paths on every frame (OpenSim 4.6's algorithm, `motion.wrapping.wrapped_rows`).
 
     Parameters
     ----------
@@ -124,7 +231,7 @@ def wrap_paths(paths, model, points, active, d_points, tf_ground_body, d_tf_grou
     Returns
     -------
     list of (length (F,), d_length (F, C_m), points (F, K_m, 3), mask (F, K_m), labels (K_m,),
-    order (F, K_m)) per path, with ``K_m = P_m + 2 W_m`` nodes numbered as `wrap_path` does.
+    order (F, K_m)) per path, with ``K_m = P_m + 2 W_m`` nodes numbered as `WrappedPath`'s.
     """
     groups = {}
     for m, path in enumerate(paths):
@@ -140,8 +247,8 @@ def wrap_paths(paths, model, points, active, d_points, tf_ground_body, d_tf_grou
 
 
 def group_rows(paths, model, points, active, d_points, tf, dtf, columns) -> tuple:
-    """The rows (path, frame) of paths of one signature, as `motion.wrapping.path.wrap_rows` takes
-    them: points (N, P_max, 3), active (N, P_max), d_points (N, P_max, D_max, 3), the number of
+    """The rows (path, frame) of paths of one signature, as `wrap_compiled_rows` takes them:
+    points (N, P_max, 3), active (N, P_max), d_points (N, P_max, D_max, 3), the number of
     directions of each row (N,) and the `WrapSlot` list (arguments as `wrap_paths`)."""
     n_frames = tf.shape[0]
     n_paths = len(paths)
@@ -157,42 +264,31 @@ def group_rows(paths, model, points, active, d_points, tf, dtf, columns) -> tupl
         pts[rows, :n_p] = points[g]
         act[rows, :n_p] = active[g]
         dpts[rows, :n_p, :len(cols)] = d_points[g][:, :, cols]
+    statics = [_statics(model, path) for path in paths]
     slots = []
-    for w, pw in enumerate(paths[0].wraps):
+    for w in range(len(paths[0].wraps)):
         tf_w = np.empty((n_rows, 4, 4))
         dtf_w = np.zeros((n_rows, d_max, 4, 4))
         start = np.empty(n_rows, dtype=np.int64)
         end = np.empty(n_rows, dtype=np.int64)
-        row_opts = {}
-        for g, (path, cols) in enumerate(zip(paths, columns)):
+        params = np.empty((n_rows, 3))
+        for g, cols in enumerate(columns):
             rows = slice(g * n_frames, (g + 1) * n_frames)
-            wo = model.wrap_object(path.wraps[w].wrap_object)
-            b = model.body_index(wo.body)
-            fn, opts = line_function(wo, path.wraps[w].method, len(path.wraps) == 1)
-            tf_w[rows] = tf[:, b] @ wo.tf_body_wrap
-            dtf_w[rows, :len(cols)] = dtf[:, b][:, cols] @ wo.tf_body_wrap
-            start[rows], end[rows] = wrap_range(path.wraps[w], len(path.points))
-            for key in _ROW_OPTIONS.get(fn, ()):
-                row_opts.setdefault(key, np.empty(n_rows))[rows] = opts.pop(key)
-        slots.append(WrapSlot(fn, opts, row_opts, bool(wo.active), tf_w, dtf_w, start, end))
+            b, tf_bw, (kind, params[rows], axis, sign, adjust, method), (start[rows], end[rows]), active = statics[g][w]
+            np.matmul(tf[:, b], tf_bw, out=tf_w[rows])
+            dtf_w[rows, :len(cols)] = dtf[:, b, cols] @ tf_bw
+        slots.append(WrapSlot(kind, params, axis, sign, adjust, method, active, tf_w, dtf_w, start, end))
     n_dirs = np.repeat(np.array([len(c) for c in columns], dtype=np.int64), n_frames)
     return pts, act, dpts, n_dirs, slots
 
 
 def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> list:
-    """One pass for paths of one signature (compiled for cylinders, `wrap_rows` otherwise);
-    results split back per path."""
+    """One compiled pass for paths of one signature; results split back per path."""
     n_frames = tf.shape[0]
     p_max = max(len(p.points) for p in paths)
     pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
     n_rows, d_max = len(n_dirs), dpts.shape[2]
-    if all(slot.fn is cylinder_wrap_line for slot in slots):
-        length_v, d_length, order, mask, node_v = wrap_cylinder_rows(pts, act, dpts, n_dirs, slots)
-    else:
-        from .path import wrap_rows      # here: motion.wrapping.path imports WrapSlot from this module
-        length, order, mask, seen, _ = wrap_rows(pts, act, dpts, slots)
-        node_v = np.stack([n.v for n in seen], axis=1)                   # (N, P_max + 2 W, 3)
-        length_v, d_length = length.v, np.broadcast_to(length.d, (n_rows, d_max))
+    length_v, d_length, order, mask, node_v, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots)
     n_wraps = len(slots)
     results = []
     for g, (path, cols) in enumerate(zip(paths, columns)):

@@ -1,10 +1,29 @@
-"""One straight segment over one WrapCylinder, compiled: the wrap line of `motion.wrapping.cylinder`.
+"""One straight segment over one WrapCylinder, compiled: OpenSim 4.6's WrapCylinder::wrapLine.
 
-Contract: `wrap_line` returns what `motion.wrapping.cylinder.cylinder_wrap_line` returns for one
-row (code, tangent points r1, r2 and the helix length), values and derivatives, by the same
-steps (Peter Loan's WrapCylinder::wrapLine and _make_spiral_path of OpenSim 4.6, documented in
-`motion.wrapping.cylinder`); it is the numba kernel that `motion.wrapping.cylinder_paths`
-calls for every candidate segment.
+Contract: `wrap_line` returns, for one segment p1 -> p2 in the cylinder's frame (axis z, centred),
+OpenSim's WrapAction code, the tangent points r1, r2 and the helix length, values and
+derivatives; `motion.wrapping.wrapped_rows` calls it for every candidate segment (and
+`motion.wrapping.sphere_torus_line` for a torus). Steps (Peter Loan's WrapCylinder::wrapLine and
+_make_spiral_path of OpenSim 4.6, read from its public source for the facts):
+
+1. No wrap if either end point lies inside the infinite cylinder (``insideRadius``).
+2. ``quadrant = all``: wrap only if the straight segment passes within ``radius`` of the
+   cylinder's axis segment (closest points of the two lines, WrapMath::IntersectLines): a
+   ``mandatoryWrap``. With a quadrant the segment may also wrap without touching (``wrapped``)
+   when its end points lie on opposite sides and its closest point is on the inactive side.
+3. Preliminary tangent points in the planes normal to the axis through each end point; the
+   pair is chosen by the most-parallel rule (all) or by the active side (quadrant).
+4. They are slid along the axis to the plane through p1, p2 and an "apex" on the cylinder; no
+   wrap if both end up beyond the half length.
+5. The surface path is a helix of length ``sqrt((R theta)^2 + axial^2)``, theta signed about the
+   axis (``atan2``; ``2 pi - theta`` for a long wrap). Except for paths with a single wrap
+   object (OpenSim's ``WrapResult::singleWrap``), the tangent points are then re-adjusted along
+   the axis until the straight lines meet the helix within 0.1 degree (up to 100 restarts),
+   r2 tested against a spiral point taken after r1 moved in the same pass (OpenSim 4.6).
+
+A numpy implementation of the same steps is in ``tests/motion/wrap_oracle/cylinder.py``. The module
+also holds what every compiled wrap line shares: the complex-step vector helpers, OpenSim's
+WrapAction codes and quadrant names (`quadrant_axis_sign`).
 
 Method: numbers are ``complex128`` carrying a derivative along one direction in the
 imaginary part, scaled by ``STEP`` (``x + i STEP dx/ds``): sums, products and quotients of
@@ -12,7 +31,7 @@ such numbers are forward-mode dual numbers up to terms of order ``STEP**2`` (1e-
 below double precision), i.e. the complex-step derivative (Squire & Trapp, SIAM Review 40,
 1998; Martins, Sturdza & Alonso, ACM TOMS 29, 2003), exact to rounding with no step-size
 error. Square roots, trigonometric functions and ``atan2`` are applied as value plus
-derivative (a zero square root gets derivative 0, as `motion.wrapping.dual.sqrt`). Every
+derivative (a zero square root gets derivative 0: a zero vector's norm). Every
 branch tests real parts only. Vectors are triples of such numbers.
 """
 from __future__ import annotations
@@ -22,9 +41,27 @@ import math
 import numpy as np
 from numba import njit
 
-from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
 
-__all__ = ["wrap_line", "STEP"]
+__all__ = ["wrap_line", "STEP", "NO_WRAP", "INSIDE_RADIUS", "WRAPPED", "MANDATORY_WRAP", "quadrant_axis_sign",
+           "ELLIPSOID_METHODS"]
+
+# OpenSim WrapObject::WrapAction
+NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP = 0, 1, 2, 3
+
+# WrapEllipsoid methods, numbered as `motion.wrapping.ellipsoid_line.ellipsoid_line` takes them
+ELLIPSOID_METHODS = ("hybrid", "midpoint", "axial")
+
+
+def quadrant_axis_sign(quadrant: str) -> tuple:
+    """(axis, sign) of an OpenSim quadrant name; sign 0 means all quadrants."""
+    q = str(quadrant).strip()
+    table = {"x": (0, 1), "+x": (0, 1), "X": (0, 1), "+X": (0, 1), "-x": (0, -1), "-X": (0, -1),
+             "y": (1, 1), "+y": (1, 1), "Y": (1, 1), "+Y": (1, 1), "-y": (1, -1), "-Y": (1, -1),
+             "z": (2, 1), "+z": (2, 1), "Z": (2, 1), "+Z": (2, 1), "-z": (2, -1), "-Z": (2, -1),
+             "all": (0, 0), "ALL": (0, 0), "All": (0, 0), "Unassigned": (0, 0)}
+    if q not in table:
+        raise ValueError(f"quadrant must be one of x, -x, y, -y, z, -z, all; got {quadrant!r}")
+    return table[q]
 
 STEP = 1e-100                        # scale of the derivative in the imaginary part
 _TANGENCY = 0.1 * np.pi / 180.0      # WrapCylinder's tangency threshold (rad)
@@ -155,7 +192,7 @@ def wrap_line(p1, p2, radius, length, axis, sign, adjust):
     """WrapCylinder::wrapLine in the cylinder frame (axis z, centred): (code, r1, r2, arc).
 
     ``p1``, ``p2``: triples of complex (value + i STEP derivative); ``axis``, ``sign`` from
-    `motion.wrapping.cylinder.quadrant_axis_sign`; ``adjust``: the tangency re-adjustment.
+    `motion.wrapping.cylinder_line.quadrant_axis_sign`; ``adjust``: the tangency re-adjustment.
     r1, r2 and arc are meaningful where code is WRAPPED or MANDATORY_WRAP.
     """
     r2sq = radius * radius

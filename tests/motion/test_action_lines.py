@@ -21,8 +21,8 @@ from reference import CASES, ReferenceCase, case_id
 
 def _have_wrapping() -> bool:
     try:
-        return importlib.util.find_spec("motion.wrapping.path") is not None and \
-            importlib.import_module("motion.wrapping.path") is not None
+        return importlib.util.find_spec("motion.wrapping.batch") is not None and \
+            importlib.import_module("motion.wrapping.batch") is not None
     except ImportError:
         return False
 
@@ -75,7 +75,7 @@ def test_unwrapped_paths_match_opensim(opensim_dir, case):
 WRAPPED = [c for c in CASES if c[0].startswith("Arm26") or "WrapPath" in c[0]]
 
 
-@pytest.mark.skipif(not _have_wrapping(), reason="motion.wrapping.path (the wrap helper's part) is not available yet")
+@pytest.mark.skipif(not _have_wrapping(), reason="motion.wrapping.batch (the wrap helper's part) is not available yet")
 @pytest.mark.parametrize("case", WRAPPED, ids=[case_id(c) for c in WRAPPED])
 def test_wrapped_paths_match_opensim(opensim_dir, case):
     rc, model, lines = _compute(opensim_dir, case, wrapped=True)

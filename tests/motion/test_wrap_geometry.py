@@ -1,4 +1,6 @@
-"""Wrap geometry on arrays: closed-form answers, tangency, and exact derivatives.
+"""Wrap geometry on arrays (the numpy oracle in tests/motion/wrap_oracle, which
+`test_compiled_wraps.py` ties to the compiled kernels): closed-form answers, tangency, exact
+derivatives.
 
 Closed forms used (wrap frame, everything in metres):
 - A segment p1 = (-a, -b, z), p2 = (a, -b, z) with 0 < b < R over a sphere (or a cylinder with
@@ -16,10 +18,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion.wrapping.cylinder import wrap_cylinder
-from motion.wrapping.ellipsoid import closest_point_on_ellipsoid, wrap_ellipsoid
-from motion.wrapping.sphere import wrap_sphere
-from motion.wrapping.torus import wrap_torus
+from wrap_oracle.cylinder import wrap_cylinder     # tests/motion (rootdir-relative import)
+from wrap_oracle.ellipsoid import closest_point_on_ellipsoid, wrap_ellipsoid
+from wrap_oracle.sphere import wrap_sphere
+from wrap_oracle.torus import wrap_torus
 
 R = 0.05
 
@@ -239,7 +241,7 @@ def test_cylinder_readjustment_ends_tangent_and_frame_by_frame(quadrant, monkeyp
     assert 10 <= res.wrapped.sum() < len(res.wrapped)
     # frames with a single 2 mm piece (n = 1) skip the loop in OpenSim too, and frames where
     # OpenSim's cap of 100 restarts stops it early (found by lifting the cap) are not tangent
-    monkeypatch.setattr("motion.wrapping.cylinder._MAX_ITERATIONS", 100000)
+    monkeypatch.setattr("wrap_oracle.cylinder._MAX_ITERATIONS", 100000)
     uncapped = wrap_cylinder(p1, p2, radius=R, length=0.6, quadrant=quadrant, adjust_tangents=True)
     monkeypatch.undo()
     capped = np.nan_to_num(np.abs(uncapped.t1 - res.t1).max(axis=1)) > 0

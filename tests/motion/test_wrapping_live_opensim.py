@@ -18,8 +18,8 @@ import pytest
 from motion.osim.kinematics import body_pose_derivatives
 from motion.osim.reader import load_model
 from motion.wrapping.path_points import path_points
-from motion.wrapping.path import wrap_path
-from motion.wrapping.cylinder import cylinder_wrap_line
+from motion.wrapping.batch import wrap_path
+from wrap_oracle.cylinder import cylinder_wrap_line     # tests/motion (rootdir-relative import)
 
 
 def _build(osim, path_file, wraps, points, q_range=(-3.0, 3.0), method=None):
@@ -116,7 +116,7 @@ def test_sphere_on_moving_body(osim, tmp_path, quadrant):
 @pytest.mark.parametrize("quadrant", ["all", "y"])
 def test_torus(osim, tmp_path, quadrant):
     # path through the hole of a tilted torus; OpenSim puts a cylinder of the tube radius at
-    # its (odd) "closest" ring point -- reproduced, see motion.wrapping.torus
+    # its (odd) "closest" ring point -- reproduced, see motion.wrapping.sphere_torus_line
     w = osim.WrapTorus()
     w.setName("tor")
     w.set_inner_radius(0.02)
@@ -155,7 +155,7 @@ def test_cylinder_tangent_readjustment(osim, tmp_path):
     # A quadrant cylinder that wraps long arcs on a path with two wrap objects: OpenSim
     # re-adjusts the tangent points along the axis (0.1-degree tangency loop, up to 13 passes
     # here). OpenSim 4.6 computes r2's spiral point from r1 as already moved in the same pass
-    # (see motion.wrapping.cylinder._spiral_path); reproduced, the tangent points agree to ~4e-15 m.
+    # (see motion.wrapping.cylinder_line.wrap_line); reproduced, the tangent points agree to ~4e-15 m.
     # Bound 1e-9 m: the loop is replayed step for step, so only round-off remains (~1e-15 m);
     # a different number of passes would move the points by >= 1e-6 m (one 0.1-degree step
     # at r = 0.03 m), so this bound catches any departure from OpenSim's iteration.

@@ -20,7 +20,7 @@ from motion.wrapping.action_lines import action_lines
 from motion.osim.kinematics import body_pose_derivatives
 from motion.osim.reader import load_model
 from motion.wrapping.path_points import path_points
-from motion.wrapping.path import wrap_path
+from motion.wrapping.batch import wrap_path
 
 from reference import ReferenceCase  # tests/motion/reference.py (rootdir-relative import)
 
@@ -131,9 +131,9 @@ def test_tangent_points_and_path_order(case):
 
 
 def test_lengths_only_mode_gives_the_same_lengths(case):
-    # without derivatives (d_points = d_tf = None) the algorithm takes the same branches; paths
-    # over cylinders only are compiled in action_lines (motion.wrapping.cylinder_paths): the same
-    # steps, equal to rounding (1e-12 m; another branch would differ by micrometres or more)
+    # without derivatives (d_points = d_tf = None) the algorithm takes the same branches
+    # (motion.wrapping.wrapped_rows, rows grouped differently): equal to rounding (1e-12 m;
+    # another branch would differ by micrometres or more)
     ref, model, q, names, lines = case
     tf, _, q_used, _ = body_pose_derivatives(model, q)
     for name in names:

@@ -1,4 +1,4 @@
-"""Forward-mode automatic differentiation on numpy arrays, for the wrapping code.
+"""Forward-mode automatic differentiation on numpy arrays, for the numpy oracle of the wrapping.
 
 OpenSim's wrap algorithms (WrapCylinder, WrapSphere, WrapEllipsoid, WrapTorus) are heuristic
 and iterative: the length they return is not exactly a geodesic, so the textbook derivative

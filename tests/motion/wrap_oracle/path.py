@@ -1,111 +1,50 @@
-"""Path-level wrapping: OpenSim's GeometryPath::applyWrapObjects on all frames at once.
+"""Numpy oracle of `motion.wrapping.wrapped_rows`: OpenSim's applyWrapObjects on dual numbers.
 
-What OpenSim 4.6 does (read from its public source, GeometryPath.cpp, WrapObject.cpp,
-PathWrap.cpp; reproduced here in numpy, not copied):
-
-- The current path starts as the active path points (conditional points may be inactive).
-- Wrap objects are applied in PathWrapSet order. For each one, its two tangent points are
-  first removed from the current path; an inactive wrap object (``active`` false) stops there.
-- The range ``(start, end)`` (1-based indices into the *defined* path points, -1 = first /
-  last) is narrowed to the first and last *active* points inside it; every segment of the
-  current path between those two points is tried, except a segment joining the two tangent
-  points of one wrap object. The points are taken into the wrap object's frame
-  (``tf_ground_body @ tf_body_wrap``, body-fixed x-y-z Euler angles).
-- The first segment whose wrap is ``mandatoryWrap`` (the straight line penetrates the object)
-  wins at once; otherwise among ``wrapped`` segments the one whose length grows least.
-- The winner's tangent points are inserted into the current path after the segment's first
-  point (OpenSim's PathWrapPoints); the path length adds the arc length between them and the
-  straight distances elsewhere.
-- With two or more wrap objects the whole pass is repeated (up to 8 times) until the length
-  changes by less than 0.5 mm; after the first pass, if the first object did not wrap
-  (``noWrap``) and the second found a point inside it, their order is swapped.
-- A path with a single wrap object skips the cylinder's tangent re-adjustment (OpenSim's
-  ``WrapResult::singleWrap``), which the references confirm to machine precision.
-- Lengths and reported points use each tangent point's ground position as first read in the
-  state (OpenSim caches ``Point::getLocationInGround`` at Stage::Position), while the wrapping
-  itself and the arc lengths use the latest pass: with several wrap objects whose tangent
-  points move between passes OpenSim's length mixes passes, and so does this (`_GroundCache`).
-- Not reproduced: when a range holds no active point OpenSim abandons all remaining wrap
-  objects of that pass; here only that wrap object is skipped (such a range is a model error).
-
-Frames are processed together (`wrap_rows`: rows are frames, or frames of several paths with
-the same kind of wraps, `motion.wrapping.batch`): each row carries its own current path as an
-index array, and every wrap computation runs on all rows that need it, with masks; all
-eligible segments of all rows go through the wrap-line function in one call. Values are
-`motion.wrapping.dual.Dual` numbers seeded with the path points' derivatives with respect to
-the coordinates, so dL/dq is exact for the algorithm OpenSim runs.
+The same algorithm as the package's compiled kernel (the steps are documented there), written
+independently on `Dual` arrays (forward-mode derivatives along D directions) and vectorised
+over rows: each row carries its own current path as an index array, and every wrap computation
+runs on all rows that need it, with masks; all eligible segments of all rows go through the
+wrap-line function (`cylinder`, `sphere`, `ellipsoid`, `torus` beside this file) in one call.
+``wrap_rows`` takes the package's `motion.wrapping.batch.WrapSlot` list.
 """
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 from . import dual as ad
 from .dual import Dual
-from .batch import WrapSlot, line_function, wrap_range
-from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED
+from motion.wrapping.cylinder_line import ELLIPSOID_METHODS
+from motion.wrapping.wrapped_rows import CYLINDER, ELLIPSOID, SPHERE
 
-__all__ = ["WrappedPath", "wrap_path"]
+from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, cylinder_wrap_line
+from .ellipsoid import ellipsoid_wrap_line
+from .sphere import sphere_wrap_line
+from .torus import torus_wrap_line
+
+__all__ = ["wrap_rows", "line_function"]
 
 _CONVERGED = 0.0005  # m, OpenSim's length-change criterion between passes
 
 
-@dataclass(frozen=True)
-class WrappedPath:
-    """A path after wrapping, per frame.
+_AXES = {(0, 1): "x", (0, -1): "-x", (1, 1): "y", (1, -1): "-y", (2, 1): "z", (2, -1): "-z"}
 
-    Node layout: nodes ``0..P-1`` are the defined path points, node ``P + 2 w`` and
-    ``P + 2 w + 1`` are the first and second tangent points of the path's wrap ``w``.
 
-    Attributes
-    ----------
-    length : (F,) float
-        Path length (m).
-    d_length : (F, C) float
-        dL/dq, exact (chain rule through the wrap algorithms).
-    points : (F, N, 3) float
-        Node positions in ground (NaN where a node is absent).
-    d_points : (F, N, C, 3) float
-        Their derivatives with respect to the coordinates.
-    mask : (F, N) bool
-        Node is part of the current path.
-    order : (F, N) int
-        The current path in order as node indices, padded with -1.
-    labels : (N,) str
-        Point names, and ``"<wrap object>:1"`` / ``":2"`` for tangent points.
-    kinds : (N,) str
-        ``"point"`` or ``"wrap"``.
-    arc : (F, W) float
-        Arc length on each wrap object (0 where it does not wrap).
-    wrap_objects : (W,) str
-    """
-
-    length: np.ndarray
-    d_length: np.ndarray
-    points: np.ndarray
-    d_points: np.ndarray
-    mask: np.ndarray
-    order: np.ndarray
-    labels: tuple
-    kinds: tuple
-    arc: np.ndarray
-    wrap_objects: tuple
-
-    def __post_init__(self):
-        for name in ("length", "d_length", "points", "d_points", "mask", "order", "arc"):
-            arr = np.array(getattr(self, name), copy=True)
-            arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
-        object.__setattr__(self, "labels", tuple(self.labels))
-        object.__setattr__(self, "kinds", tuple(self.kinds))
-
-    @property
-    def ordered_points(self) -> np.ndarray:
-        """(F, N, 3) the current path's points in path order, NaN-padded at the end."""
-        idx = np.where(self.order >= 0, self.order, 0)
-        out = np.take_along_axis(self.points, idx[..., None], axis=1)
-        return np.where((self.order >= 0)[..., None], out, np.nan)
+def line_function(slot, n_rows: int):
+    """(numpy wrap-line function, options) of a `motion.wrapping.batch.WrapSlot`; options that
+    differ per row are (N,) arrays (cylinder radius and length) or must be equal in all rows."""
+    quadrant = _AXES.get((slot.axis, slot.sign), "all")
+    prm = np.broadcast_to(np.asarray(slot.params, dtype=float), (n_rows, 3))
+    if slot.kind == CYLINDER:
+        return cylinder_wrap_line, dict(radius=prm[:, 0], length=prm[:, 1], quadrant=quadrant,
+                                        adjust_tangents=bool(slot.adjust))
+    first = prm[0]
+    assert np.all(prm == first), "the numpy oracle takes one size per call for this kind"
+    if slot.kind == SPHERE:
+        return sphere_wrap_line, dict(radius=float(first[0]), quadrant=quadrant)
+    if slot.kind == ELLIPSOID:
+        return ellipsoid_wrap_line, dict(dimensions=first.copy(), quadrant=quadrant,
+                                         method=ELLIPSOID_METHODS[slot.method])
+    return torus_wrap_line, dict(inner_radius=float(first[0]), outer_radius=float(first[1]), quadrant=quadrant)
 
 
 def _apply_rt(rot: Dual, v: Dual) -> Dual:
@@ -234,69 +173,6 @@ def _path_length(order, nodes, arcs, n_points, n_wraps, cache) -> Dual:
     return total
 
 
-def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground_body) -> WrappedPath:
-    """Apply a path's wrap objects on every frame, as OpenSim 4.6 does.
-
-    Parameters
-    ----------
-    path : motion.osim.model.Path
-        The path (``path.wraps`` in PathWrapSet order).
-    model : motion.osim.model.Model
-    points : (F, P, 3) float
-        The defined path points in ground (inactive conditional points: any finite value).
-    active : (F, P) bool
-        Which points are active.
-    d_points : (F, P, C, 3) float or None
-        Derivatives of the points with respect to the coordinates (None: lengths only, C = 0).
-    tf_ground_body : (F, B, 4, 4) float
-        Body poses (model body order).
-    d_tf_ground_body : (F, B, C, 4, 4) float or None
-        Their derivatives with respect to the coordinates.
-
-    Returns
-    -------
-    WrappedPath
-    """
-    points = np.asarray(points, dtype=float)
-    active = np.asarray(active, dtype=bool)
-    tf_ground_body = np.asarray(tf_ground_body, dtype=float)
-    if d_points is None or d_tf_ground_body is None:   # lengths only: no coordinates to follow
-        d_points = np.zeros(points.shape[:2] + (0, 3))
-        d_tf_ground_body = np.zeros(tf_ground_body.shape[:2] + (0, 4, 4))
-    d_points = np.asarray(d_points, dtype=float)
-    if points.ndim != 3 or points.shape[-1] != 3 or active.shape != points.shape[:2]:
-        raise ValueError(f"points must be (F, P, 3) and active (F, P); got {points.shape}, {active.shape}")
-    if len(path.points) != points.shape[1]:
-        raise ValueError(f"path {path.name!r} has {len(path.points)} points, got {points.shape[1]}")
-    nf, n_points = points.shape[:2]
-    slots = []
-    for pw in path.wraps:
-        wo = model.wrap_object(pw.wrap_object)
-        b = model.body_index(wo.body)
-        fn, opts = line_function(wo, pw.method, len(path.wraps) == 1)
-        start, end = wrap_range(pw, n_points)
-        slots.append(WrapSlot(fn, opts, {}, bool(wo.active), tf_ground_body[:, b] @ wo.tf_body_wrap,
-                              np.asarray(d_tf_ground_body)[:, b] @ wo.tf_body_wrap,
-                              np.full(nf, start), np.full(nf, end)))
-    length, order, mask, seen, arcs = wrap_rows(points, active, d_points, slots)
-    n_coords = d_points.shape[2]
-    n_wraps = len(slots)
-    pts = np.stack([n.v for n in seen], axis=1)
-    dpts = np.stack([np.broadcast_to(n.d, (nf, 3, n_coords)) for n in seen], axis=1)
-    pts = np.where(mask[..., None], pts, np.nan)
-    labels = [p.name for p in path.points]
-    kinds = ["point"] * n_points
-    for pw in path.wraps:
-        labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
-        kinds += ["wrap", "wrap"]
-    arc = np.stack([np.where(mask[:, n_points + 2 * w], arcs[w].v, 0.0) for w in range(n_wraps)],
-                   axis=1) if n_wraps else np.zeros((nf, 0))
-    return WrappedPath(length=length.v, d_length=np.broadcast_to(length.d, (nf, n_coords)),
-                       points=pts, d_points=np.moveaxis(dpts, 2, 3), mask=mask, order=order,
-                       labels=tuple(labels), kinds=tuple(kinds), arc=arc,
-                       wrap_objects=tuple(pw.wrap_object for pw in path.wraps))
-
-
 def wrap_rows(points, active, d_points, slots) -> tuple:
     """OpenSim's applyWrapObjects on N independent rows (see the module docstring).
 
@@ -340,7 +216,7 @@ def wrap_rows(points, active, d_points, slots) -> tuple:
         for slot in slots:
             rot = Dual(slot.tf[:, :3, :3], np.moveaxis(slot.dtf[:, :, :3, :3], 1, 3))
             origin = Dual(slot.tf[:, :3, 3], np.moveaxis(slot.dtf[:, :, :3, 3], 1, 2))
-            setups.append((slot, rot, origin))
+            setups.append((slot, rot, origin, line_function(slot, nf)))
 
         wrap_order = np.tile(np.arange(n_wraps), (nf, 1))
         running = np.ones(nf, dtype=bool)
@@ -358,11 +234,11 @@ def wrap_rows(points, active, d_points, slots) -> tuple:
                         continue
                     ids = (n_points + 2 * w, n_points + 2 * w + 1)
                     order, count = _remove(order, count, ids, frames)
-                    slot, rot, origin = setups[w]
+                    slot, rot, origin, line = setups[w]
                     if not slot.active:
                         continue
                     order, count, nodes, arcs, res = _wrap_one(
-                        w, frames, order, count, nodes, arcs, active, rot, origin, slot, n_points, cache)
+                        w, frames, order, count, nodes, arcs, active, rot, origin, slot, line, n_points, cache)
                     result[frames, i] = res[frames]
             length = _path_length(order, nodes, arcs, n_points, n_wraps, cache)
             conv = running & (np.abs(length.v - last_length) < _CONVERGED)
@@ -388,7 +264,7 @@ def wrap_rows(points, active, d_points, slots) -> tuple:
     return length, order, mask, cache.seen, arcs
 
 
-def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, slot, n_points, cache):
+def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, slot, line, n_points, cache):
     """Try wrap ``w`` on every eligible segment of the frames' current paths; insert the best."""
     nf, nk = order.shape
     n_coords = nodes[0].d.shape[-1]
@@ -426,8 +302,9 @@ def _wrap_one(w, frames, order, count, nodes, arcs, active, rot, origin, slot, n
         pa = _concat([_subset(_gather(nodes, a), sel) for _, a, _, sel in cand])
         pb = _concat([_subset(_gather(nodes, b), sel) for _, _, b, sel in cand])
         r_s, o_s = _subset(rot, rows), _subset(origin, rows)
-        code_all, r1_all, r2_all, arc_all = slot.fn(_apply_rt(r_s, pa - o_s), _apply_rt(r_s, pb - o_s),
-                                                    **slot.opts, **{k: v[rows] for k, v in slot.row_opts.items()})
+        fn, opts = line
+        opts = {k: (v[rows] if k in ("radius", "length") and np.ndim(v) else v) for k, v in opts.items()}
+        code_all, r1_all, r2_all, arc_all = fn(_apply_rt(r_s, pa - o_s), _apply_rt(r_s, pb - o_s), **opts)
         r1g_all = _apply_r(r_s, r1_all) + o_s
         r2g_all = _apply_r(r_s, r2_all) + o_s
     start = 0

@@ -1,4 +1,4 @@
-"""Wrapping of a straight path segment over an OpenSim WrapEllipsoid, vectorised over frames.
+"""Numpy oracle of `motion.wrapping.ellipsoid_line`: a path segment over an OpenSim WrapEllipsoid.
 
 Reproduces OpenSim 4.6 ``WrapEllipsoid::wrapLine`` (Peter Loan, Frans van der Helm's method,
 from SIMM), read from OpenSim's public source for the facts; an independent numpy
@@ -26,7 +26,7 @@ implementation of the same steps:
    the ellipsoid; its length is the sum of the pieces (as OpenSim; short chords < 1 mm count
    straight). A quadrant-constrained wrap that starts the wrong way is redone the far way.
 
-Everything runs on `motion.wrapping.dual.Dual` arrays; the derivative is the exact derivative
+Everything runs on `wrap_oracle.dual.Dual` arrays; the derivative is the exact derivative
 of this (iterative, piecewise smooth) function.
 """
 from __future__ import annotations
@@ -484,7 +484,7 @@ def _pick(options, idx) -> Dual:
 
 def wrap_ellipsoid(p1, p2, *, dimensions, quadrant="all", method="hybrid"):
     """Wrap segments p1->p2 over a WrapEllipsoid; tangent points, lengths and exact gradients
-    (a `motion.wrapping.dual.SegmentWrap`); the arguments are those of `ellipsoid_wrap_line`,
+    (a `wrap_oracle.dual.SegmentWrap`); the arguments are those of `ellipsoid_wrap_line`,
     with plain float (F, 3) end points."""
     return ad.segment_wrap(ellipsoid_wrap_line, p1, p2, dimensions=dimensions,
                            quadrant=quadrant, method=method)

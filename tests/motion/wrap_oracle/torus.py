@@ -1,4 +1,4 @@
-"""Wrapping of a straight path segment over an OpenSim WrapTorus, vectorised over frames.
+"""Numpy oracle of `motion.wrapping.sphere_torus_line.torus_line`: a segment over a WrapTorus.
 
 OpenSim 4.6's ``WrapTorus::wrapLine`` (read from its public source for the facts; this is an
 independent numpy implementation) does not compute a geodesic on the torus. It:
@@ -141,7 +141,7 @@ def wrap_torus(p1, p2, *, inner_radius, outer_radius, quadrant="all", adjust_tan
 
     Returns
     -------
-    motion.wrapping.dual.SegmentWrap
+    wrap_oracle.dual.SegmentWrap
     """
     return ad.segment_wrap(torus_wrap_line, p1, p2, inner_radius=inner_radius,
                            outer_radius=outer_radius, quadrant=quadrant,

@@ -1,4 +1,4 @@
-"""Wrapping of a straight path segment over an OpenSim WrapSphere, vectorised over frames.
+"""Numpy oracle of `motion.wrapping.sphere_torus_line.sphere_line`: a segment over a WrapSphere.
 
 Reproduces OpenSim 4.6 ``WrapSphere::wrapLine`` (Peter Loan, from SIMM), read from OpenSim's
 public source for the facts; an independent numpy implementation:
@@ -163,6 +163,6 @@ def wrap_sphere(p1, p2, *, radius, quadrant="all"):
 
     Returns
     -------
-    motion.wrapping.dual.SegmentWrap
+    wrap_oracle.dual.SegmentWrap
     """
     return ad.segment_wrap(sphere_wrap_line, p1, p2, radius=radius, quadrant=quadrant)

@@ -1,4 +1,4 @@
-"""Wrapping of a straight path segment over an OpenSim WrapCylinder, vectorised over frames.
+"""Numpy oracle of `motion.wrapping.cylinder_line`: a path segment over an OpenSim WrapCylinder.
 
 Reproduces OpenSim 4.6 ``WrapCylinder::wrapLine`` and ``_make_spiral_path`` (Peter Loan's
 algorithm, inherited from SIMM), read from OpenSim's public source for the facts; this is an
@@ -23,7 +23,7 @@ independent numpy implementation:
    against a spiral point taken after r1 moved in the same pass (older releases' source used
    the pass's initial r1; 4.6 is what is reproduced, to ~1e-15 m against live OpenSim).
 
-Everything is computed on `motion.wrapping.dual.Dual` arrays, so the returned length carries
+Everything is computed on `wrap_oracle.dual.Dual` arrays, so the returned length carries
 its exact derivative with respect to whatever the inputs were seeded with.
 """
 from __future__ import annotations
@@ -385,7 +385,7 @@ def wrap_cylinder(p1, p2, *, radius, length, quadrant="all", adjust_tangents=Fal
 
     Returns
     -------
-    motion.wrapping.dual.SegmentWrap
+    wrap_oracle.dual.SegmentWrap
         t1, t2 (F, 3), wrapped (F,), code (F,), arc (F,), length (F,), dl_dp1, dl_dp2 (F, 3).
     """
     return ad.segment_wrap(cylinder_wrap_line, p1, p2, radius=radius, length=length,

@@ -1,28 +1,51 @@
-"""Paths wrapped over cylinders only: OpenSim's applyWrapObjects on rows, compiled.
+"""Wrapped paths, compiled: OpenSim's GeometryPath::applyWrapObjects on rows (path x frame).
 
-Contract: `wrap_cylinder_rows` returns, for rows whose wraps are all WrapCylinders, what
-`motion.wrapping.path.wrap_rows` returns for them (length and dL/dq along each row's own
-directions, the current path as node order, and the reported node positions), by the same
-algorithm step for step: OpenSim 4.6's GeometryPath::applyWrapObjects as documented in
-`motion.wrapping.path` (wrap passes, candidate segments, mandatory and least-change wraps,
-the swap rule, and the Stage::Position cache of tangent points' ground positions), with the
-segment over a cylinder from `motion.wrapping.cylinder_line`. ``tests/motion/
-test_cylinder_paths.py`` compares the two on real models.
+Contract: `wrap_compiled_rows` returns, for rows whose wraps have the same kinds (WrapCylinder,
+WrapSphere, WrapEllipsoid, WrapTorus, alone or in series), each row's length and dL/dq along its
+own directions, the current path as node order, and the reported node positions, by OpenSim
+4.6's algorithm step for step:
 
-Method: one module-level numba kernel (`_cylinder_rows_kernel`) runs every row (one path at
-one frame) once per derivative direction with complex-step numbers (`motion.wrapping.
-cylinder_line`: the value and one directional derivative); the values, hence every branch,
-are the same in each run. Scratch arrays are allocated once per call, nothing per segment.
+- The current path starts as the active path points (conditional points may be inactive).
+- Wrap objects are applied in PathWrapSet order. For each one, its two tangent points are
+  first removed from the current path; an inactive wrap object stops there.
+- The range ``(start, end)`` of defined points is narrowed to the first and last *active*
+  points in it; every segment of the current path between those two is tried, except one
+  joining the two tangent points of one wrap object, in the wrap object's frame.
+- The first segment whose wrap is ``mandatoryWrap`` wins at once; otherwise among ``wrapped``
+  segments the one whose length grows least.
+- The winner's tangent points are inserted after the segment's first point; the length adds
+  the arc between them and the straight distances elsewhere.
+- With two or more wrap objects the pass is repeated (up to 8 times) until the length changes
+  by less than 0.5 mm; after the first pass, if the first object did not wrap and the second
+  found a point inside it, their order is swapped (and wrap object 0's points removed).
+- Lengths and reported points use each tangent point's ground position as first read in the
+  state (OpenSim caches ``Point::getLocationInGround`` at Stage::Position), while the wrapping
+  and the arcs use the latest pass: with several wrap objects OpenSim's length mixes passes,
+  and so does this.
+- Not reproduced: when a range holds no active point OpenSim abandons the remaining wrap
+  objects of that pass; here only that wrap object is skipped (such a range is a model error).
+
+The segment over one object: `motion.wrapping.cylinder_line` (and torus: through the cylinder),
+`motion.wrapping.sphere_torus_line`, `motion.wrapping.ellipsoid_line`. A numpy implementation of
+the same algorithm on dual numbers is the oracle in ``tests/motion/wrap_oracle/``
+(``tests/motion/test_compiled_wraps.py`` compares them on real models).
+
+Method: one module-level numba kernel (`_rows_kernel`) runs every row once per derivative
+direction with complex-step numbers (the value and one directional derivative); the values,
+hence every branch, are the same in each run. Scratch arrays are allocated once per call.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, quadrant_axis_sign
-from .cylinder_line import STEP, vnorm, vsub, wrap_line
+from .cylinder_line import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, STEP, WRAPPED, vnorm, vsub, wrap_line
+from .ellipsoid_line import ellipsoid_line
+from .sphere_torus_line import sphere_line, torus_line
 
-__all__ = ["wrap_cylinder_rows"]
+__all__ = ["wrap_compiled_rows", "CYLINDER", "SPHERE", "ELLIPSOID", "TORUS"]
+
+CYLINDER, SPHERE, ELLIPSOID, TORUS = 0, 1, 2, 3     # wrap object kinds as the kernel takes them
 
 _CONVERGED = 0.0005                  # m, OpenSim's length-change criterion between passes
 _NO, _INSIDE, _WRAPPED, _MANDATORY = NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP
@@ -83,8 +106,20 @@ def _to_ground(r, f):
 
 
 @njit(cache=True, error_model="numpy")
-def _wrap_one(n, w, active, frame, wstart, wend, wradius, wlength, waxis, wsign, wadjust, order, node, seen, ok,
-              arc):
+def _line(kind, pa, pb, prm, axis, sign, adjust, method):
+    """The segment pa -> pb (wrap frame) over a wrap object of ``kind``: (code, r1, r2, arc)."""
+    if kind == CYLINDER:
+        return wrap_line(pa, pb, prm[0], prm[1], axis, sign, adjust)
+    if kind == SPHERE:
+        return sphere_line(pa, pb, prm[0], axis, sign)
+    if kind == ELLIPSOID:
+        return ellipsoid_line(pa, pb, prm[0], prm[1], prm[2], axis, sign, method)
+    return torus_line(pa, pb, prm[0], prm[1], axis, sign)
+
+
+@njit(cache=True, error_model="numpy")
+def _wrap_one(n, w, active, frame, wstart, wend, wkind, wparam, waxis, wsign, wadjust, wmethod, order, node, seen,
+              ok, arc):
     """Try wrap w on every eligible segment of the current path, insert the best; its code.
 
     ``frame`` (4, 4) complex: the wrap frame in ground with its derivative along this direction.
@@ -115,8 +150,7 @@ def _wrap_one(n, w, active, frame, wstart, wend, wradius, wlength, waxis, wsign,
             continue
         pa = _to_wrap(node, a, frame)
         pb = _to_wrap(node, b, frame)
-        code, r1, r2, arc_ab = wrap_line(pa, pb, wradius[w, n], wlength[w, n], waxis[w], wsign[w],
-                                         wadjust[w])
+        code, r1, r2, arc_ab = _line(wkind[w], pa, pb, wparam[w, n], waxis[w], wsign[w], wadjust[w], wmethod[w])
         result = code
         if code < _WRAPPED:
             continue
@@ -149,8 +183,8 @@ def _wrap_one(n, w, active, frame, wstart, wend, wradius, wlength, waxis, wsign,
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _cylinder_rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wradius, wlength, waxis,
-                          wsign, wadjust, wactive, out_length, out_dlength, out_order, out_seen):
+def _rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wkind, wparam, waxis, wsign, wadjust,
+                 wmethod, wactive, out_length, out_dlength, out_order, out_seen, out_arc):
     """applyWrapObjects on every row along every direction: length, dL, order, reported nodes."""
     n_rows, n_points = active.shape
     n_wraps = wtf.shape[0]
@@ -196,8 +230,8 @@ def _cylinder_rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, w
                     w = wrap_order[i]
                     _remove(order, n_points + 2 * w, n_points + 2 * w + 1)
                     if wactive[w]:
-                        result[i] = _wrap_one(n, w, active, frames[w], wstart, wend, wradius, wlength, waxis, wsign,
-                                              wadjust, order, node, seen, ok, arc)
+                        result[i] = _wrap_one(n, w, active, frames[w], wstart, wend, wkind, wparam, waxis, wsign,
+                                              wadjust, wmethod, order, node, seen, ok, arc)
                 length = _path_length(order, node, seen, ok, arc, n_points)
                 if abs(length.real - last) < _CONVERGED:
                     break
@@ -209,57 +243,57 @@ def _cylinder_rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, w
             if has_d:
                 out_dlength[n, e] = length.imag / STEP
         out_length[n] = length.real
+        for w in range(n_wraps):
+            out_arc[n, w] = arc[w].real
         for k in range(n_nodes):
             out_order[n, k] = order[k]
             for i in range(3):
                 out_seen[n, k, i] = seen[k, i].real
 
 
-def wrap_cylinder_rows(points, active, d_points, n_dirs, slots) -> tuple:
-    """`motion.wrapping.path.wrap_rows` for rows whose wraps are all cylinders, compiled.
+def wrap_compiled_rows(points, active, d_points, n_dirs, slots) -> tuple:
+    """applyWrapObjects on N independent rows (see the module docstring), compiled.
 
     Parameters
     ----------
     points : (N, P, 3) float; active : (N, P) bool; d_points : (N, P, D, 3) float
-        As `wrap_rows`.
+        Defined path points in ground per row (padding points: inactive), and their derivatives
+        along D directions (per row any meaning: the algorithm is linear in them).
     n_dirs : (N,) int
         Directions each row needs (its first ``n_dirs`` of D; the others are returned as 0).
-    slots : sequence of `motion.wrapping.batch.WrapSlot` whose ``fn`` is the cylinder's.
+    slots : sequence of `motion.wrapping.batch.WrapSlot` in PathWrapSet order.
 
     Returns
     -------
-    length (N,), d_length (N, D), order (N, P + 2 W) int, mask (N, P + 2 W) bool,
-    seen (N, P + 2 W, 3) float: as `wrap_rows` (values of its Duals).
+    length (N,), d_length (N, D), order (N, P + 2 W) int (the current path as node ids, -1
+    padded; nodes ``P + 2 w`` and ``P + 2 w + 1`` are wrap w's tangent points), mask
+    (N, P + 2 W) bool, seen (N, P + 2 W, 3) float (node positions as OpenSim reports them),
+    arc (N, W) float (the arc over each wrap object of the final path; 0 where it does not wrap).
     """
     n_rows, n_points = np.shape(active)
     n_wraps = len(slots)
     n_d = d_points.shape[2]
-
-    def per_row(slot, key):
-        return np.broadcast_to(np.asarray(slot.row_opts[key] if key in slot.row_opts else slot.opts[key],
-                                          dtype=float), (n_rows,))
-
     wtf = np.ascontiguousarray(np.stack([s.tf for s in slots]) if slots else np.zeros((0, n_rows, 4, 4)))
     wdtf = np.ascontiguousarray(np.stack([s.dtf for s in slots]) if slots else np.zeros((0, n_rows, n_d, 4, 4)))
     wstart = np.array([s.start for s in slots], dtype=np.int64).reshape(n_wraps, n_rows)
     wend = np.array([s.end for s in slots], dtype=np.int64).reshape(n_wraps, n_rows)
-    wradius = np.array([per_row(s, "radius") for s in slots]).reshape(n_wraps, n_rows)
-    wlength = np.array([per_row(s, "length") for s in slots]).reshape(n_wraps, n_rows)
-    axis_sign = [quadrant_axis_sign(s.opts["quadrant"]) for s in slots]
-    waxis = np.array([a for a, _ in axis_sign], dtype=np.int64)
-    wsign = np.array([s for _, s in axis_sign], dtype=np.int64)
-    wadjust = np.array([bool(s.opts["adjust_tangents"]) for s in slots], dtype=np.bool_)
-    wactive = np.array([bool(s.active) for s in slots], dtype=np.bool_)
+    wparam = np.array([np.broadcast_to(s.params, (n_rows, 3)) for s in slots], dtype=float).reshape(n_wraps, n_rows, 3)
+    wkind = np.array([s.kind for s in slots], dtype=np.int64)
+    waxis = np.array([s.axis for s in slots], dtype=np.int64)
+    wsign = np.array([s.sign for s in slots], dtype=np.int64)
+    wadjust = np.array([s.adjust for s in slots], dtype=np.bool_)
+    wmethod = np.array([s.method for s in slots], dtype=np.int64)
+    wactive = np.array([s.active for s in slots], dtype=np.bool_)
     n_nodes = n_points + 2 * n_wraps
     length = np.empty(n_rows)
     d_length = np.zeros((n_rows, n_d))
     order = np.empty((n_rows, n_nodes), dtype=np.int64)
     seen = np.empty((n_rows, n_nodes, 3))
-    _cylinder_rows_kernel(np.ascontiguousarray(points, dtype=float), np.ascontiguousarray(active, dtype=np.bool_),
-                          np.ascontiguousarray(d_points, dtype=float),
-                          np.asarray(n_dirs, dtype=np.int64), wtf, wdtf, wstart, wend, wradius, wlength, waxis,
-                          wsign, wadjust, wactive, length, d_length, order, seen)
+    arc = np.empty((n_rows, n_wraps))
+    _rows_kernel(np.ascontiguousarray(points, dtype=float), np.ascontiguousarray(active, dtype=np.bool_),
+                 np.ascontiguousarray(d_points, dtype=float), np.asarray(n_dirs, dtype=np.int64), wtf, wdtf, wstart,
+                 wend, wkind, wparam, waxis, wsign, wadjust, wmethod, wactive, length, d_length, order, seen, arc)
     mask = np.zeros((n_rows, n_nodes), dtype=bool)
     rows, cols = np.nonzero(order >= 0)
     mask[rows, order[rows, cols]] = True
-    return length, d_length, order, mask, seen
+    return length, d_length, order, mask, seen, np.where(mask[:, n_points::2], arc, 0.0)
