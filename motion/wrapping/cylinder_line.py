@@ -131,6 +131,27 @@ def _angle(a, b):
 
 
 @njit(cache=True, error_model="numpy")
+def aligned_pair(r1a, r1b, c1, r2a, r2b, c2):
+    """Of the candidate tangent points ``r1a``/``r1b`` (about centre ``c1``) and ``r2a``/``r2b``
+    (about ``c2``), the pair whose directions from their centres agree best (largest cosine;
+    OpenSim's if/else chain: the first maximum, strict '>')."""
+    n1a, _ = vunit(vsub(r1a, c1))
+    n1b, _ = vunit(vsub(r1b, c1))
+    n2a, _ = vunit(vsub(r2a, c2))
+    n2b, _ = vunit(vsub(r2b, c2))
+    e0, e1 = vdot(n1a, n2a).real, vdot(n1a, n2b).real
+    e2, e3 = vdot(n1b, n2a).real, vdot(n1b, n2b).real
+    pick = 3
+    if e2 > e3:
+        pick = 2
+    if e1 > e2 and e1 > e3:
+        pick = 1
+    if e0 > e1 and e0 > e2 and e0 > e3:
+        pick = 0
+    return (r1a if pick <= 1 else r1b), (r2a if (pick == 0 or pick == 2) else r2b)
+
+
+@njit(cache=True, error_model="numpy")
 def _prelim(p, radius):
     """Two candidate tangent points in the plane normal to the axis through p; p11, |p - p11|."""
     p11 = (0j, 0j, p[2])
@@ -246,21 +267,7 @@ def wrap_line(p1, p2, radius, length, axis, sign, adjust):
         r2 = r2a if choose_b else r2b
         long_wrap = vdot(vadd(vsub(r1, p11), vsub(r2, p22)), vadd(vsub(r1, p1), vsub(r2, p2))).real < 0.0
     else:
-        n1a, _ = vunit(vsub(r1a, p11))
-        n1b, _ = vunit(vsub(r1b, p11))
-        n2a, _ = vunit(vsub(r2a, p22))
-        n2b, _ = vunit(vsub(r2b, p22))
-        e0, e1 = vdot(n1a, n2a).real, vdot(n1a, n2b).real
-        e2, e3 = vdot(n1b, n2a).real, vdot(n1b, n2b).real
-        pick = 3        # OpenSim's if/else chain: the first maximum, strict '>'
-        if e2 > e3:
-            pick = 2
-        if e1 > e2 and e1 > e3:
-            pick = 1
-        if e0 > e1 and e0 > e2 and e0 > e3:
-            pick = 0
-        r1 = r1a if pick <= 1 else r1b
-        r2 = r2a if (pick == 0 or pick == 2) else r2b
+        r1, r2 = aligned_pair(r1a, r1b, p11, r2a, r2b, p22)
     # apex on the cylinder between the points, in the plane through p1, p2 and the axis
     mpt = vadd(p1, vscale(vsub(p2, p1), d1 / (d1 + d2)))
     axispt = (0.0 * mpt[0], 0.0 * mpt[0], mpt[2])

@@ -37,8 +37,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .cylinder_line import (INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, csqrt, vadd, vcross, vdot, vnorm, vscale,
-                            vsub, vunit, wrap_line)
+from .cylinder_line import (INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, WRAPPED, aligned_pair, csqrt, vadd, vcross,
+                            vdot, vnorm, vscale, vsub, vunit, wrap_line)
 
 __all__ = ["sphere_line", "torus_line"]
 
@@ -101,21 +101,7 @@ def sphere_line(p1, p2, radius, axis, sign):
     n, _ = vunit(hp2)
     r1a, r1b = _candidates(p1, n, radius)
     r2a, r2b = _candidates(p2, n, radius)
-    n1a, _ = vunit(r1a)
-    n1b, _ = vunit(r1b)
-    n2a, _ = vunit(r2a)
-    n2b, _ = vunit(r2b)
-    e0, e1 = vdot(n1a, n2a).real, vdot(n1a, n2b).real
-    e2, e3 = vdot(n1b, n2a).real, vdot(n1b, n2b).real
-    pick = 3        # OpenSim's if/else chain: the first maximum, strict '>'
-    if e2 > e3:
-        pick = 2
-    if e1 > e2 and e1 > e3:
-        pick = 1
-    if e0 > e1 and e0 > e2 and e0 > e3:
-        pick = 0
-    r1 = r1a if pick <= 1 else r1b
-    r2 = r2a if (pick == 0 or pick == 2) else r2b
+    r1, r2 = aligned_pair(r1a, r1b, _Z3, r2a, r2b, _Z3)
     far = False
     if sign != 0:
         on1, on2 = _side(p1[axis], sign), _side(p2[axis], sign)
@@ -130,8 +116,8 @@ def sphere_line(p1, p2, radius, axis, sign):
                 return NO_WRAP, _Z3, _Z3, 0j
         if not on1 or not on2:
             sm, _ = vunit(vsub(vscale(p1, -1.0), p2))
-            take1a = vdot(n1a, sm).real > vdot(n1b, sm).real
-            take2a = vdot(n2a, sm).real > vdot(n2b, sm).real
+            take1a = vdot(vunit(r1a)[0], sm).real > vdot(vunit(r1b)[0], sm).real
+            take2a = vdot(vunit(r2a)[0], sm).real > vdot(vunit(r2b)[0], sm).real
             c1, o1 = (r1a, r1b) if take1a else (r1b, r1a)
             c2, o2 = (r2a, r2b) if take2a else (r2b, r2a)
             sm2, _ = vunit(vadd(vsub(c1, p1), vsub(c2, p2)))
