@@ -240,8 +240,11 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     streamed = staging is not None
     staging = Path(staging) if streamed else open_staging(out)
     timings = {}
+    plotting = None
     try:
         with confined_to(staging):
+            if plots:   # worker processes draw while this process writes the tables and the scene
+                plotting = _start_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
             with timed(timings, "write_tables", process=True):
                 write_tables(result, staging)
             interrupts.check()
@@ -249,9 +252,6 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
                 with timed(timings, "write_sto", process=True):
                     write_sto_files(result, staging, per_fibre=sto_fibres, muscle_stems=stems,
                                     coordinate_stems=coord_stems)
-            if plots:
-                with timed(timings, "plots", process=True):
-                    _write_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
             interrupts.check()
             if vtk and not streamed and any(m.fibre_points is not None for m in result.muscles):
                 with timed(timings, "vtk_files", process=True):
@@ -273,12 +273,18 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
                     name = f"{Path(spec.model_path).stem}_fibres.osim"
                     extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
                     extra["osim_export"]["file"] = name
+            if plotting is not None:
+                with timed(timings, "plots", process=True):   # this process' share: the waiting
+                    plotting, finish = None, plotting
+                    finish()
             extra["files"] = [f for f in staged_files(staging) if f != "run.json"] + ["run.json"]
             extra["file_names"] = {"muscles": stems, "coordinates": coord_stems}
             write_run_json(result, staging / "run.json", command=command, extra_timings=timings, extra=extra)
         interrupts.check()
         return publish(staging, out)
     finally:
+        if plotting is not None:       # failed or interrupted before the plots were collected
+            plotting(cancel=True)
         with contextlib.suppress(FileNotFoundError):
             shutil.rmtree(staging)
 
@@ -304,13 +310,16 @@ def _plot_tasks(result, folder: Path, stems) -> list:
     return tasks
 
 
-def _write_plots(result, folder: Path, stems, *, quiet, progress):
-    """Per muscle: fibre-length band over time, moment arm vs coordinate, L/L_rest histogram.
+def _start_plots(result, folder: Path, stems, *, quiet, progress):
+    """Start drawing the plots of every muscle (fibre-length band over time, moment arm vs
+    coordinate, L/L_rest histogram); returns ``finish(cancel=False)``, which waits for them (or,
+    with ``cancel``, cancels the pending ones and waits for the running ones).
 
     From `PARALLEL_PLOTS_FROM` muscles on, the muscles are drawn in worker processes (one per
-    core, at most 4; matplotlib holds the GIL while drawing, so threads would not help): a
-    whole-model run's plots take about 1/cores of the time. Workers are spawned (not forked
-    from this multi-threaded process) and only write files; Ctrl-C cancels the pending ones."""
+    core, at most 4; matplotlib holds the GIL while drawing, so threads would not help), which
+    run while the caller writes the other files; fewer muscles are drawn in this process by
+    ``finish``. Workers are spawned (not forked from this multi-threaded process) and only write
+    files; Ctrl-C cancels the pending ones."""
     import concurrent.futures
     import multiprocessing
     import os
@@ -320,28 +329,41 @@ def _write_plots(result, folder: Path, stems, *, quiet, progress):
     folder.mkdir(parents=True, exist_ok=True)
     tasks = _plot_tasks(result, folder, stems)
     workers = min(os.cpu_count() or 1, 4, len(tasks))
-    bar = progress(total=len(tasks), desc="plots", quiet=quiet, unit="muscle")
-    try:
-        if len(tasks) < PARALLEL_PLOTS_FROM or workers < 2:
-            for kw in tasks:
-                interrupts.check()
-                plots.plot_muscle(**kw)
-                bar.update(1)
+    if len(tasks) < PARALLEL_PLOTS_FROM or workers < 2:
+        def finish_here(cancel=False):
+            if cancel:
+                return
+            bar = progress(total=len(tasks), desc="plots", quiet=quiet, unit="muscle")
+            try:
+                for kw in tasks:
+                    interrupts.check()
+                    plots.plot_muscle(**kw)
+                    bar.update(1)
+            finally:
+                bar.close()
+        return finish_here
+    pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers,
+                                                  mp_context=multiprocessing.get_context("spawn"))
+    futures = [pool.submit(plots.plot_muscle, **kw) for kw in tasks]
+
+    def finish(cancel=False):
+        if cancel:
+            pool.shutdown(wait=True, cancel_futures=True)   # no worker writes after we return
             return
-        pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers,
-                                                      mp_context=multiprocessing.get_context("spawn"))
+        bar = progress(total=len(tasks), desc="plots", quiet=quiet, unit="muscle")
         try:
-            futures = [pool.submit(plots.plot_muscle, **kw) for kw in tasks]
             for fut in concurrent.futures.as_completed(futures):
                 fut.result()
                 bar.update(1)
                 interrupts.check()
         except BaseException:
-            pool.shutdown(wait=True, cancel_futures=True)   # no worker writes after we return
+            pool.shutdown(wait=True, cancel_futures=True)
             raise
+        finally:
+            bar.close()
         pool.shutdown(wait=True)
-    finally:
-        bar.close()
+
+    return finish
 
 
 def open_staging(out) -> Path:
