@@ -157,7 +157,7 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                              template=args.template, slicing=args.slicing)
     check_mesh_files(chosen)
     out = prepare_out_dir(args.out)
-    staging = None
+    staging = tables = None
     try:
         if lock.fd is None:
             lock.acquire()
@@ -166,8 +166,14 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
 
         start_notice(f"{len(chosen)} muscle(s): moving, wrapping and decomposing the surfaces", args.quiet)
         staging = open_staging(out)
+        if len(chosen) > 1:    # the per-muscle tables are written as the muscles are done
+            from .output_files import confined_to
+            from .tables import TableStreams
+
+            with confined_to(staging):
+                tables = TableStreams(staging)
         on_muscle = muscle_files_writer(staging, [m.name for m in chosen], scene_step=args.scene_step,
-                                        scene=not args.no_scene)
+                                        scene=not args.no_scene, tables=tables)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
             result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,
@@ -193,8 +199,11 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                     "max_order": args.max_order, "announce": announcer(args.quiet)}
         scene = None if args.no_scene else {"spec": loaded, "step": args.scene_step}
         write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
-                      quiet=args.quiet, command=command, osim=osim, scene=scene, staging=staging)
+                      quiet=args.quiet, command=command, osim=osim, scene=scene, staging=staging,
+                      tables=tables)
     except BaseException:
+        if tables is not None:
+            tables.abort()
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
         lock.release()
@@ -209,7 +218,7 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
 
 
 def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres=False, quiet=True,
-                  command=None, osim=None, scene=None, staging=None) -> list:
+                  command=None, osim=None, scene=None, staging=None, tables=None) -> list:
     """Write every output file of a run into ``out_dir`` (staged, then moved into place).
 
     ``scene``: None, or ``{"spec": FibreModelSpec, "step": K or None}`` to write ``scene/``
@@ -218,7 +227,8 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     to also write ``<model>_fibres.osim``; its record goes into run.json under ``osim_export``.
 
     ``staging``: a staging folder made by `open_staging` that already holds the muscles' 3D files
-    (`muscle_files_writer`, written during the run); they are not written again.
+    (`muscle_files_writer`, written during the run); they are not written again. ``tables``: the
+    `analysis.tables.TableStreams` in it that received every muscle during the run (finished here).
 
     Muscle and coordinate names become file names only through `analysis.file_names.file_stems`
     (the mapping is ``file_names`` in run.json); every path is checked to stay inside the staging
@@ -246,7 +256,7 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
             if plots:   # worker processes draw while this process writes the tables and the scene
                 plotting = _start_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
             with timed(timings, "write_tables", process=True):
-                write_tables(result, staging)
+                write_tables(result, staging, streamed=tables)
             interrupts.check()
             if sto:
                 with timed(timings, "write_sto", process=True):
@@ -374,12 +384,12 @@ def open_staging(out) -> Path:
     return Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
 
 
-def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True):
+def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True, tables=None):
     """The ``on_muscle`` hook of `analysis.run` for ``fibres run``: writes each muscle's 3D files
     (``fibres/``, `_write_vtk`) into ``staging`` as soon as the muscle is done, then keeps only
     what the scene needs of its fibre points and surfaces (the scene's frames,
     `scene.scene_frames`; nothing without a scene), so a whole model's points and surfaces are
-    never in memory at once."""
+    never in memory at once. ``tables``: an `analysis.tables.TableStreams` each muscle is added to."""
     import dataclasses
 
     from . import vtk_files
@@ -394,6 +404,8 @@ def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True):
         folder.mkdir(parents=True, exist_ok=True)
         with confined_to(staging):
             _write_muscle_vtk(vtk_files, folder, stems[m.name], m, time)
+            if tables is not None:
+                tables.add(time, m)
         keep = scene_frames(len(time), scene_step) if scene else None
 
         def kept(a):
