@@ -254,11 +254,12 @@ class SurfaceBinding:
         p = np.asarray(fixed @ fixed_feat).reshape(n_s, n_f, 3)
         q = np.asarray(radial @ radial_feat).reshape(n_s, n_f, 3)
         target = self.rest_volume
-        k = solve_radial_scale(coeffs := volume_cubic_vf(p, q, self.faces), target) if preserve_volume \
-            else np.ones(n_f)
         if preserve_volume:
+            coeffs = volume_cubic_vf(p, q, self.faces)
+            k = solve_radial_scale(coeffs, target)
             volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
         else:
+            k = np.ones(n_f)
             volume = mesh_volume(combine_vf(p, q, k), self.faces)
         keep = n_f if keep is None else min(int(keep), n_f)
         vertices = combine_vf(p[:, :keep], q[:, :keep], k[:keep])
