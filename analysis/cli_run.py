@@ -165,7 +165,7 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                              template=args.template, slicing=args.slicing)
     check_mesh_files(chosen)
     out = prepare_out_dir(args.out)
-    staging = None
+    staging = tables = None
     try:
         if lock.fd is None:
             lock.acquire()
@@ -174,8 +174,14 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
 
         start_notice(f"{len(chosen)} muscle(s): moving, wrapping and decomposing the surfaces", args.quiet)
         staging = open_staging(out)
+        if len(chosen) > 1:    # the per-muscle tables are written as the muscles are done
+            from .output_files import confined_to
+            from .tables import TableStreams
+
+            with confined_to(staging):
+                tables = TableStreams(staging)
         on_muscle = muscle_files_writer(staging, [m.name for m in chosen], scene_step=args.scene_step,
-                                        scene=not args.no_scene)
+                                        scene=not args.no_scene, tables=tables)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
             result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,
@@ -201,8 +207,11 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                     "max_order": args.max_order, "announce": announcer(args.quiet)}
         scene = None if args.no_scene else {"spec": loaded, "step": args.scene_step}
         write_outputs(result, out, plots=not args.no_plots, sto=args.sto, sto_fibres=args.sto_fibres,
-                      quiet=args.quiet, command=command, osim=osim, scene=scene, staging=staging)
+                      quiet=args.quiet, command=command, osim=osim, scene=scene, staging=staging,
+                      tables=tables)
     except BaseException:
+        if tables is not None:
+            tables.abort()
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
         lock.release()
@@ -217,7 +226,7 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
 
 
 def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres=False, quiet=True,
-                  command=None, osim=None, scene=None, staging=None) -> list:
+                  command=None, osim=None, scene=None, staging=None, tables=None) -> list:
     """Write every output file of a run into ``out_dir`` (staged, then moved into place).
 
     ``scene``: None, or ``{"spec": FibreModelSpec, "step": K or None}`` to write ``scene/``
@@ -226,7 +235,8 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     to also write ``<model>_fibres.osim``; its record goes into run.json under ``osim_export``.
 
     ``staging``: a staging folder made by `open_staging` that already holds the muscles' 3D files
-    (`muscle_files_writer`, written during the run); they are not written again.
+    (`muscle_files_writer`, written during the run); they are not written again. ``tables``: the
+    `analysis.tables.TableStreams` in it that received every muscle during the run (finished here).
 
     Muscle and coordinate names become file names only through `analysis.file_names.file_stems`
     (the mapping is ``file_names`` in run.json); every path is checked to stay inside the staging
@@ -248,18 +258,18 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
     streamed = staging is not None
     staging = Path(staging) if streamed else open_staging(out)
     timings = {}
+    plotting = None
     try:
         with confined_to(staging):
+            if plots:   # worker processes draw while this process writes the tables and the scene
+                plotting = _start_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
             with timed(timings, "write_tables", process=True):
-                write_tables(result, staging)
+                write_tables(result, staging, streamed=tables)
             interrupts.check()
             if sto:
                 with timed(timings, "write_sto", process=True):
                     write_sto_files(result, staging, per_fibre=sto_fibres, muscle_stems=stems,
                                     coordinate_stems=coord_stems)
-            if plots:
-                with timed(timings, "plots", process=True):
-                    _write_plots(result, staging / "plots", stems, quiet=quiet, progress=progress)
             interrupts.check()
             if vtk and not streamed and any(m.fibre_points is not None for m in result.muscles):
                 with timed(timings, "vtk_files", process=True):
@@ -281,12 +291,18 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
                     name = f"{Path(spec.model_path).stem}_fibres.osim"
                     extra = {"osim_export": export_osim(spec, result, staging / name, final_folder=out, **kw)}
                     extra["osim_export"]["file"] = name
+            if plotting is not None:
+                with timed(timings, "plots", process=True):   # this process' share: the waiting
+                    plotting, finish = None, plotting
+                    finish()
             extra["files"] = [f for f in staged_files(staging) if f != "run.json"] + ["run.json"]
             extra["file_names"] = {"muscles": stems, "coordinates": coord_stems}
             write_run_json(result, staging / "run.json", command=command, extra_timings=timings, extra=extra)
         interrupts.check()
         return publish(staging, out)
     finally:
+        if plotting is not None:       # failed or interrupted before the plots were collected
+            plotting(cancel=True)
         with contextlib.suppress(FileNotFoundError):
             shutil.rmtree(staging)
 
@@ -312,13 +328,16 @@ def _plot_tasks(result, folder: Path, stems) -> list:
     return tasks
 
 
-def _write_plots(result, folder: Path, stems, *, quiet, progress):
-    """Per muscle: fibre-length band over time, moment arm vs coordinate, L/L_rest histogram.
+def _start_plots(result, folder: Path, stems, *, quiet, progress):
+    """Start drawing the plots of every muscle (fibre-length band over time, moment arm vs
+    coordinate, L/L_rest histogram); returns ``finish(cancel=False)``, which waits for them (or,
+    with ``cancel``, cancels the pending ones and waits for the running ones).
 
     From `PARALLEL_PLOTS_FROM` muscles on, the muscles are drawn in worker processes (one per
-    core, at most 4; matplotlib holds the GIL while drawing, so threads would not help): a
-    whole-model run's plots take about 1/cores of the time. Workers are spawned (not forked
-    from this multi-threaded process) and only write files; Ctrl-C cancels the pending ones."""
+    core, at most 4; matplotlib holds the GIL while drawing, so threads would not help), which
+    run while the caller writes the other files; fewer muscles are drawn in this process by
+    ``finish``. Workers are spawned (not forked from this multi-threaded process) and only write
+    files; Ctrl-C cancels the pending ones."""
     import concurrent.futures
     import multiprocessing
     import os
@@ -328,28 +347,41 @@ def _write_plots(result, folder: Path, stems, *, quiet, progress):
     folder.mkdir(parents=True, exist_ok=True)
     tasks = _plot_tasks(result, folder, stems)
     workers = min(os.cpu_count() or 1, 4, len(tasks))
-    bar = progress(total=len(tasks), desc="plots", quiet=quiet, unit="muscle")
-    try:
-        if len(tasks) < PARALLEL_PLOTS_FROM or workers < 2:
-            for kw in tasks:
-                interrupts.check()
-                plots.plot_muscle(**kw)
-                bar.update(1)
+    if len(tasks) < PARALLEL_PLOTS_FROM or workers < 2:
+        def finish_here(cancel=False):
+            if cancel:
+                return
+            bar = progress(total=len(tasks), desc="plots", quiet=quiet, unit="muscle")
+            try:
+                for kw in tasks:
+                    interrupts.check()
+                    plots.plot_muscle(**kw)
+                    bar.update(1)
+            finally:
+                bar.close()
+        return finish_here
+    pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers,
+                                                  mp_context=multiprocessing.get_context("spawn"))
+    futures = [pool.submit(plots.plot_muscle, **kw) for kw in tasks]
+
+    def finish(cancel=False):
+        if cancel:
+            pool.shutdown(wait=True, cancel_futures=True)   # no worker writes after we return
             return
-        pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers,
-                                                      mp_context=multiprocessing.get_context("spawn"))
+        bar = progress(total=len(tasks), desc="plots", quiet=quiet, unit="muscle")
         try:
-            futures = [pool.submit(plots.plot_muscle, **kw) for kw in tasks]
             for fut in concurrent.futures.as_completed(futures):
                 fut.result()
                 bar.update(1)
                 interrupts.check()
         except BaseException:
-            pool.shutdown(wait=True, cancel_futures=True)   # no worker writes after we return
+            pool.shutdown(wait=True, cancel_futures=True)
             raise
+        finally:
+            bar.close()
         pool.shutdown(wait=True)
-    finally:
-        bar.close()
+
+    return finish
 
 
 def open_staging(out) -> Path:
@@ -360,12 +392,12 @@ def open_staging(out) -> Path:
     return Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
 
 
-def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True):
+def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True, tables=None):
     """The ``on_muscle`` hook of `analysis.run` for ``fibres run``: writes each muscle's 3D files
     (``fibres/``, `_write_vtk`) into ``staging`` as soon as the muscle is done, then keeps only
     what the scene needs of its fibre points and surfaces (the scene's frames,
     `scene.scene_frames`; nothing without a scene), so a whole model's points and surfaces are
-    never in memory at once."""
+    never in memory at once. ``tables``: an `analysis.tables.TableStreams` each muscle is added to."""
     import dataclasses
 
     from . import vtk_files
@@ -380,6 +412,8 @@ def muscle_files_writer(staging: Path, names, *, scene_step=None, scene=True):
         folder.mkdir(parents=True, exist_ok=True)
         with confined_to(staging):
             _write_muscle_vtk(vtk_files, folder, stems[m.name], m, time)
+            if tables is not None:
+                tables.add(time, m)
         keep = scene_frames(len(time), scene_step) if scene else None
 
         def kept(a):

@@ -71,8 +71,8 @@ LENGTH_SUBDIVISION = 2
 class Carried:
     """The fibres at a batch of poses: ``points`` (K, N, P, 3) as reported at the first K poses
     (``carry(stacked, keep=K)``; all poses by default), ``lengths`` (F, N) (measured as the
-    module docstring says), ``surfaces`` (F, V, 3) the wrapped surface and the wrapping's
-    ``notes``."""
+    module docstring says), ``surfaces`` (K, V, 3) the wrapped surface at the first K poses and
+    the wrapping's ``notes``."""
 
     points: np.ndarray
     lengths: np.ndarray
@@ -243,8 +243,8 @@ def bind_transport(model, sspec, rest, bundle0):
     wrapper = SurfaceWrapper(model, bound)
 
     def carry(stacked, keep=None) -> Carried:
-        wrapped = wrapper(stacked)
-        n_all = wrapped.vertices.shape[0]
+        wrapped = wrapper(stacked, keep=keep)
+        n_all = wrapped.radial_scale.shape[0]
         frames = wrapped.rider_frames
         lengths, points = _ends_ride_their_bodies(
             wrapped.riders.reshape(fine.shape[:2] + (n_all, 3)), fine,

@@ -258,12 +258,19 @@ def publish(staging, out) -> list:
     written = []
     with interrupts.deferred():
         write_text(json.dumps({"files": sorted(old | set(new))}) + "\n", out / JOURNAL_NAME)
+        # a staged folder with no counterpart in DIR yet (fibres/, scene/ of a first run) moves
+        # in one rename: no file of the previous run can be inside it
+        moved = {top for top in {PurePosixPath(rel).parts[0] for rel in new if "/" in rel}
+                 if not os.path.lexists(out / top)}
+        for top in sorted(moved):
+            os.replace(staging / top, out / top)
         for rel in new:
             if rel == "run.json":
                 continue
             dst = out / rel
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(staging / rel, dst)
+            if PurePosixPath(rel).parts[0] not in moved:
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(staging / rel, dst)
             written.append(dst)
         for rel in sorted(old - set(new)):
             _remove_stale(out, rel)

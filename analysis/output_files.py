@@ -1,7 +1,10 @@
 """Writing output files atomically: a failed or interrupted run never leaves a half-written file.
 
 Every file is written to a temporary name in the destination folder and renamed into place
-(``os.replace`` is atomic on POSIX and Windows within one file system).
+(``os.replace`` is atomic on POSIX and Windows within one file system). Inside `confined_to`
+(the staging folder of ``fibres run``) files are written in place: the staging folder is itself
+the unit of atomicity (its files are published only after every one was written, and it is
+removed on any failure), so a temporary name and a rename per file would add nothing.
 
 Inside `confined_to(folder)` (the staging folder of `fibres run`) every path handed to
 `atomic_path` is checked first: it must lie inside that folder once resolved (no ``..``, no
@@ -57,7 +60,8 @@ def checked_path(path) -> Path:
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path``; rename it to ``path`` only if the block succeeds.
+    """Yield a temporary path beside ``path``; rename it to ``path`` only if the block succeeds
+    (inside `confined_to`: ``path`` itself, after `checked_path`; module docstring).
 
     Examples
     --------
@@ -65,6 +69,9 @@ def atomic_path(path):
     ...     frame.to_csv(tmp, index=False)
     """
     path = checked_path(path)
+    if _CONFINED.get() is not None:   # the staging folder: written whole or removed (module docstring)
+        yield path
+        return
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     os.close(fd)
     try:

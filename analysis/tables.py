@@ -20,7 +20,7 @@ import numpy as np
 
 __all__ = ["fibre_lengths_table", "fibre_moment_arms_table", "action_lines_table",
            "action_line_moment_arms_table", "summary_table", "result_long_frame", "TABLES",
-           "write_tables"]
+           "write_tables", "TableStreams"]
 
 #: file name -> table builder
 TABLES = {}
@@ -220,13 +220,15 @@ TABLE_THREADS = 2
 PER_MUSCLE = ("fibre_lengths.csv", "fibre_moment_arms.csv", "action_lines.csv", "action_line_moment_arms.csv")
 
 
-def write_tables(result, out_dir, *, parquet: bool = True) -> list:
+def write_tables(result, out_dir, *, parquet: bool = True, streamed=None) -> list:
     """Write the tables into ``out_dir`` atomically, as CSV and (``parquet=True``) as Parquet
     beside it (``<name>.parquet``: the same columns, full float64 precision, pyarrow).
 
     The per-fibre and per-line tables (`PER_MUSCLE`) are built and appended one muscle at a
     time (a Parquet row group per muscle), so a whole model's tables never sit in memory at once;
-    the files are the same as if written at once. Returns the paths written."""
+    the files are the same as if written at once. ``streamed``: a `TableStreams` that already
+    received every muscle of ``result`` during the run (its files are finished here, not built
+    again). Returns the paths written."""
     import concurrent.futures
     import contextvars
     import dataclasses
@@ -248,40 +250,115 @@ def write_tables(result, out_dir, *, parquet: bool = True) -> list:
             _write_streamed(parts, path, pq if parquet else None)
         return [path, pq] if parquet else [path]
 
+    done = streamed.close() if streamed is not None else []
+    todo = {name: build for name, build in TABLES.items() if streamed is None or name not in PER_MUSCLE}
     # two tables at a time (pyarrow's kernels and the file writes release the GIL); each thread
     # runs in a copy of this context, so `output_files.confined_to` holds there too
     with concurrent.futures.ThreadPoolExecutor(max_workers=TABLE_THREADS) as pool:
-        futures = [pool.submit(contextvars.copy_context().run, one, name, build) for name, build in TABLES.items()]
-        return [p for fut in futures for p in fut.result()]
+        futures = [pool.submit(contextvars.copy_context().run, one, name, build) for name, build in todo.items()]
+        return done + [p for fut in futures for p in fut.result()]
+
+
+class _Stream:
+    """One CSV (one header) and one Parquet file (a row group per part) appended part by part,
+    each atomically (`output_files.atomic_path`): ``write(part)``, then ``close()`` or, on
+    failure, ``abort()`` (no file is put in place)."""
+
+    def __init__(self, csv_path, parquet_path):
+        import contextlib
+
+        from .output_files import atomic_path
+
+        self.stack = contextlib.ExitStack()
+        try:
+            self.csv_tmp = self.stack.enter_context(atomic_path(csv_path))
+            self.pq_tmp = self.stack.enter_context(atomic_path(parquet_path)) if parquet_path is not None else None
+            self.fh = self.stack.enter_context(open(self.csv_tmp, "wb"))
+        except BaseException:
+            self.abort()
+            raise
+        self.writer, self.first, self.empty = None, True, None
+
+    def write(self, part) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as papq
+
+        from .csv_text import write_csv_part
+
+        if part.empty:
+            self.empty = part if self.empty is None else self.empty
+            if not self.first:
+                return
+        write_csv_part(part, self.fh, header=self.first)
+        self.first = False
+        if self.pq_tmp is not None and not part.empty:
+            table = pa.Table.from_pandas(part, preserve_index=False)
+            if self.writer is None:
+                self.writer = self.stack.enter_context(papq.ParquetWriter(self.pq_tmp, table.schema))
+            self.writer.write_table(table.cast(self.writer.schema))
+
+    def close(self) -> None:
+        try:
+            if self.pq_tmp is not None and self.writer is None:       # no rows at all: the empty table
+                self.empty.to_parquet(self.pq_tmp, index=False, engine="pyarrow")
+        except BaseException:
+            self.abort()
+            raise
+        self.stack.close()
+
+    def abort(self) -> None:
+        err = RuntimeError("table stream aborted")
+        self.stack.__exit__(type(err), err, None)
 
 
 def _write_streamed(parts, csv_path, parquet_path):
     """Append DataFrames of the same columns to one CSV (one header) and one Parquet file,
-    each atomically (`output_files.atomic_path`)."""
-    import contextlib
+    each atomically (`_Stream`)."""
+    stream = _Stream(csv_path, parquet_path)
+    try:
+        for part in parts:
+            stream.write(part)
+    except BaseException:
+        stream.abort()
+        raise
+    stream.close()
 
-    import pyarrow as pa
-    import pyarrow.parquet as papq
 
-    from .csv_text import write_csv_part
-    from .output_files import atomic_path
+class TableStreams:
+    """The `PER_MUSCLE` tables of a run written while it runs: ``add(time, muscle)`` appends one
+    `MuscleResult` (in the order of the run's muscles; e.g. from `analysis.run`'s ``on_muscle``),
+    `write_tables` (``streamed=``) finishes them after the run and writes the others; ``abort()``
+    drops them. The files are those `write_tables` alone writes."""
 
-    with contextlib.ExitStack() as stack:
-        csv_tmp = stack.enter_context(atomic_path(csv_path))
-        pq_tmp = stack.enter_context(atomic_path(parquet_path)) if parquet_path is not None else None
-        writer, first, empty = None, True, None
-        with open(csv_tmp, "wb") as fh:
-            for part in parts:
-                if part.empty:
-                    empty = part if empty is None else empty
-                    if not first:
-                        continue
-                write_csv_part(part, fh, header=first)
-                first = False
-                if pq_tmp is not None and not part.empty:
-                    table = pa.Table.from_pandas(part, preserve_index=False)
-                    if writer is None:
-                        writer = stack.enter_context(papq.ParquetWriter(pq_tmp, table.schema))
-                    writer.write_table(table.cast(writer.schema))
-        if pq_tmp is not None and writer is None:       # no rows at all: the empty table
-            empty.to_parquet(pq_tmp, index=False, engine="pyarrow")
+    def __init__(self, out_dir, *, parquet: bool = True):
+        from pathlib import Path
+
+        self.paths, self.streams = [], {}
+        try:
+            for name in PER_MUSCLE:
+                path = Path(out_dir) / name
+                pq = path.with_suffix(".parquet") if parquet else None
+                self.streams[name] = _Stream(path, pq)
+                self.paths += [path] + ([pq] if parquet else [])
+        except BaseException:
+            self.abort()
+            raise
+
+    def add(self, time, muscle) -> None:
+        import types
+
+        one = types.SimpleNamespace(time=time, muscles=(muscle,))
+        for name, stream in self.streams.items():
+            stream.write(TABLES[name](one))
+
+    def close(self) -> list:
+        """Finish the files; returns their paths."""
+        for stream in self.streams.values():
+            stream.close()
+        self.streams = {}
+        return self.paths
+
+    def abort(self) -> None:
+        for stream in self.streams.values():
+            stream.abort()
+        self.streams = {}

@@ -36,7 +36,7 @@ def _median_time(fn, repeat):
 
 
 def main(argv=None):
-    from motion.surface.binding import bind_surface
+    from motion.surface.bind import bind_surface
     from motion.surface.collision import WrapObstacle
     from motion.surface.generate import fusiform_surface
 

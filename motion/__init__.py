@@ -8,7 +8,8 @@ from .osim.kinematics import BodyPoses, body_pose_derivatives, body_poses
 from .osim.model import Model
 from .osim.reader import load_model
 from .osim.motion_file import Motion, load_motion, write_sto
-from .surface.binding import SurfaceBinding, bind_surface
+from .surface.bind import bind_surface
+from .surface.binding import SurfaceBinding
 from .surface.generate import fusiform_surface
 from .surface.spec import BoneMesh, MuscleSurfaceSpec, SurfaceAttachment
 from .surface.wrap import WrappedSurface, wrap_surfaces

@@ -37,8 +37,8 @@ line are the rotation-minimising frames of Wang et al., ACM TOG 2008):
    All steps are smooth functions of the body poses and the line points, so finite
    differences of anything measured on the surface are meaningful.
 
-The linear part is precomputed as sparse (V, n L) matrices: a frame costs a few sparse products,
-one cubic volume sum and a Newton solve.
+The linear part is precomputed as sparse (V, n L) matrices (`motion.surface.bind.bind_surface`):
+a frame costs a few sparse products, one cubic volume sum and a Newton solve.
 """
 from __future__ import annotations
 
@@ -47,11 +47,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .curves import (any_perpendicular, arc_fractions, catmull_rom_weights, closest_on_polyline, resample_polylines,
-                     smoothed_tangents, rotation_minimizing_frames, transport_vector, twist_angle, twist_frames)
-from .volume import combine_into_q, combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
+from .curves import (resample_polylines, smoothed_tangents, rotation_minimizing_frames, transport_vector, twist_angle,
+                     twist_frames)
+from .volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
-__all__ = ["SurfaceBinding", "SurfaceFrames", "bind_surface", "smoothstep"]
+__all__ = ["SurfaceBinding", "SurfaceFrames", "smoothstep"]
 
 
 def smoothstep(x) -> np.ndarray:
@@ -203,22 +203,27 @@ class SurfaceBinding:
             (R, F, 3, 3) with ``rider_major``.
         """
         centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
-        if riders:
-            f_n = frames.shape[0]
-            feat = np.ascontiguousarray(frames.reshape(f_n, -1, 9).transpose(1, 0, 2)).reshape(-1, f_n * 9)
-            at = np.asarray(self.frame_matrix[-int(riders):] @ feat).reshape(int(riders), f_n, 3, 3)
-            return self._affine(centres, frames, tf_origin, tf_insertion) + (
-                at if rider_major else np.ascontiguousarray(at.transpose(1, 0, 2, 3)),)
-        return self._affine(centres, frames, tf_origin, tf_insertion)
+        fixed_feat, radial_feat = self._features(centres, frames, tf_origin, tf_insertion)
+        n_v, f_count = self.rest_vertices.shape[0], centres.shape[0]
+        p = np.asarray(self.fixed_matrix @ fixed_feat).reshape(n_v, f_count, 3)
+        q = np.asarray(self.radial_matrix @ radial_feat).reshape(n_v, f_count, 3)
+        return (p, q, self._rider_frames(frames, riders, rider_major)) if riders else (p, q)
 
-    def _affine(self, centres, frames, tf_origin, tf_insertion):
-        """`affine_parts` from the resampled lines and their frames."""
+    def _rider_frames(self, frames, riders: int, rider_major: bool) -> np.ndarray:
+        """The line frames (R, F, 3, 3) at the last ``riders`` vertices ((F, R, 3, 3) unless
+        ``rider_major``), from the lines' frames (F, L, n, 3, 3)."""
+        f_n = frames.shape[0]
+        feat = np.ascontiguousarray(frames.reshape(f_n, -1, 9).transpose(1, 0, 2)).reshape(-1, f_n * 9)
+        at = np.asarray(self.frame_matrix[-int(riders):] @ feat).reshape(int(riders), f_n, 3, 3)
+        return at if rider_major else np.ascontiguousarray(at.transpose(1, 0, 2, 3))
+
+    def _features(self, centres, frames, tf_origin, tf_insertion):
+        """The right-hand sides of the sparse products, feature-major: ``fixed`` (2 n L + 8, 3 F)
+        (all lines' centres and tangents, then the columns of the origin and insertion body
+        transforms, the rigid parts) and ``radial`` (2 n L, 3 F) (normals, binormals)."""
         f_count = centres.shape[0]
-        n_v = self.rest_vertices.shape[0]
         tf_o = np.broadcast_to(_check_tf(tf_origin, "tf_origin", f_count), (f_count, 4, 4))
         tf_i = np.broadcast_to(_check_tf(tf_insertion, "tf_insertion", f_count), (f_count, 4, 4))
-        # feature rows (each an (F, 3) series): all lines' centres and tangents, then the columns
-        # of the origin and insertion body transforms (rigid parts); one sparse product each
         fixed_feat = np.concatenate([centres.reshape(f_count, -1, 3), frames[..., 2].reshape(f_count, -1, 3),
                                      tf_o[:, :3, :].transpose(0, 2, 1), tf_i[:, :3, :].transpose(0, 2, 1)],
                                     axis=1)
@@ -226,12 +231,49 @@ class SurfaceBinding:
                                       frames[..., 1].reshape(f_count, -1, 3)], axis=1)
         fixed_feat = np.ascontiguousarray(fixed_feat.transpose(1, 0, 2)).reshape(fixed_feat.shape[1], -1)
         radial_feat = np.ascontiguousarray(radial_feat.transpose(1, 0, 2)).reshape(radial_feat.shape[1], -1)
-        p = np.asarray(self.fixed_matrix @ fixed_feat).reshape(n_v, f_count, 3)
-        q = np.asarray(self.radial_matrix @ radial_feat).reshape(n_v, f_count, 3)
-        return p, q
+        return fixed_feat, radial_feat
+
+    def _split(self, apart: int) -> tuple:
+        """The fixed and radial rows of the leading vertices and, for the last ``apart`` ones,
+        ``[fixed | radial]`` in one matrix (made once per ``apart``, kept on the binding)."""
+        cache = self.__dict__.setdefault("_splits", {})
+        if apart not in cache:
+            n_s = self.rest_vertices.shape[0] - apart
+            cache[apart] = (self.fixed_matrix[:n_s], self.radial_matrix[:n_s],
+                            sp.hstack([self.fixed_matrix[n_s:], self.radial_matrix[n_s:]], format="csr"))
+        return cache[apart]
+
+    def _free(self, curves, tf_origin, tf_insertion, anchors, preserve_volume, rider_frames, apart, keep):
+        """`deform` without obstacles. The leading vertices' parts P, Q give the cubic and ``k``;
+        the last ``apart`` (riders) are ``P + k Q`` in one product of their rows of ``[fixed |
+        radial]`` with the features, the radial ones scaled by ``k`` per frame (the same sums)."""
+        centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
+        fixed_feat, radial_feat = self._features(centres, frames, tf_origin, tf_insertion)
+        n_f, n_s = centres.shape[0], self.rest_vertices.shape[0] - apart
+        fixed, radial, both = self._split(apart)
+        p = np.asarray(fixed @ fixed_feat).reshape(n_s, n_f, 3)
+        q = np.asarray(radial @ radial_feat).reshape(n_s, n_f, 3)
+        target = self.rest_volume
+        if preserve_volume:
+            coeffs = volume_cubic_vf(p, q, self.faces)
+            k = solve_radial_scale(coeffs, target)
+            volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
+        else:
+            k = np.ones(n_f)
+            volume = mesh_volume(combine_vf(p, q, k), self.faces)
+        keep = n_f if keep is None else min(int(keep), n_f)
+        vertices = combine_vf(p[:, :keep], q[:, :keep], k[:keep])
+        riders = None
+        if apart:
+            radial_feat.reshape(-1, n_f, 3)[...] *= k[None, :, None]
+            riders = np.asarray(both @ np.vstack([fixed_feat, radial_feat])).reshape(apart, n_f, 3)
+            riders.setflags(write=False)
+        at = self._rider_frames(frames, rider_frames, bool(apart)) if rider_frames else None
+        return SurfaceFrames(vertices, k, volume, target, at, riders)
 
     def deform(self, curves, tf_origin, tf_insertion, *, anchors=None, obstacles=(), preserve_volume: bool = True,
-               push_iterations: int = 5, rider_frames: int = 0, riders_apart: int = 0) -> SurfaceFrames:
+               push_iterations: int = 5, rider_frames: int = 0, riders_apart: int = 0,
+               keep_vertices: int | None = None) -> SurfaceFrames:
         """Deform the rest surface for every frame of a motion.
 
         Parameters
@@ -256,6 +298,9 @@ class SurfaceBinding:
             Also return the line frames at the last this many vertices (`SurfaceFrames`).
         riders_apart : int, keyword-only
             The last this many (face-less) vertices apart, rider-major (``SurfaceFrames.riders``).
+        keep_vertices : int, optional, keyword-only
+            ``SurfaceFrames.vertices`` at the first this many frames only (the other outputs
+            cover every frame).
 
         Returns
         -------
@@ -263,30 +308,20 @@ class SurfaceBinding:
         """
         if len(curves) != self.n_lines:
             raise ValueError(f"expected {self.n_lines} curves, got {len(curves)}")
-        at = None
         apart = int(riders_apart)
         if apart and int(self.faces.max()) >= len(self.rest_vertices) - apart:
             raise ValueError(f"riders_apart={apart}: the faces use some of the last {apart} vertices")
+        if not obstacles:
+            return self._free(curves, tf_origin, tf_insertion, anchors, preserve_volume, rider_frames, apart,
+                              keep_vertices)
+        at = None
         if rider_frames:
             p, q, at = self.affine_parts(curves, tf_origin, tf_insertion, anchors, riders=rider_frames,
                                          rider_major=bool(apart))
         else:
             p, q = self.affine_parts(curves, tf_origin, tf_insertion, anchors)   # (V, F, 3)
         target = self.rest_volume
-        if preserve_volume:
-            coeffs = volume_cubic_vf(p, q, self.faces)
-            k = solve_radial_scale(coeffs, target)
-        else:
-            k = np.ones(p.shape[1])
-        if not obstacles:
-            n_s = p.shape[0] - apart
-            vertices = combine_vf(p[:n_s], q[:n_s], k)
-            riders = combine_into_q(p[n_s:], q[n_s:], k) if apart else None   # q: this call's own
-            if preserve_volume:
-                volume = np.sum(coeffs * np.stack([np.ones_like(k), k, k * k, k * k * k], axis=1), axis=1)
-            else:
-                volume = mesh_volume(vertices, self.faces)
-            return SurfaceFrames(vertices, k, volume, target, at, riders)
+        k = solve_radial_scale(volume_cubic_vf(p, q, self.faces), target) if preserve_volume else np.ones(p.shape[1])
         p = np.ascontiguousarray(p.transpose(1, 0, 2))
         q = np.ascontiguousarray(q.transpose(1, 0, 2))
 
@@ -335,166 +370,5 @@ class SurfaceBinding:
                 k = np.clip(k_next, 0.25, 4.0)
             vertices, volume = (pusher(p, q, obstacles) if split else pushed)(k)
         n_s = vertices.shape[1] - apart     # riders apart: a rider-major copy of the last ones
-        return SurfaceFrames(vertices[:, :n_s] if apart else vertices, k, volume, target, at,
+        return SurfaceFrames(vertices[:keep_vertices, :n_s], k, volume, target, at,
                              vertices[:, n_s:].transpose(1, 0, 2) if apart else None)
-
-
-def bind_surface(rest_vertices, faces, rest_curves, tf_rest_origin, tf_rest_insertion,
-                 origin_points, insertion_points, *, n_samples: int = 40,
-                 rigid_radius: float | None = None, blend_radius: float | None = None,
-                 line_blend: float | None = None, rest_anchors=None, free_vertices=None,
-                 tangent_smoothing: float = 0.0) -> SurfaceBinding:
-    """Bind a rest surface to its action lines and attachment bodies.
-
-    Parameters
-    ----------
-    rest_vertices : (V, 3) float
-        Closed, outward-oriented surface in ground at the rest pose (metres).
-    faces : (T, 3) int
-    rest_curves : sequence of L (P_l, 3) float
-        Action lines in ground at the rest pose (any point count; resampled by arc length).
-    tf_rest_origin, tf_rest_insertion : (4, 4) float
-        Rest poses in ground of the origin and insertion bodies.
-    origin_points, insertion_points : (K, 3) float
-        Attachment landmarks in ground at the rest pose.
-    n_samples : int, keyword-only
-        Samples per action line.
-    rigid_radius, blend_radius : float, keyword-only
-        Vertices within ``rigid_radius`` of an attachment landmark move rigidly with its body;
-        the rigid weight falls smoothly to 0 at ``blend_radius``. Defaults: 2 % and 5 % of
-        the mean rest action-line length.
-    line_blend : float, keyword-only
-        ``delta`` of the inverse-distance weights between several lines (default 2 % of the
-        mean rest line length).
-    rest_anchors : sequence of L (K_l,) int or None, keyword-only
-        Indices of anchor points (e.g. the path points that are always present) in each rest
-        line, first and last included; `SurfaceBinding.deform` then matches arc length piece by
-        piece between anchors, so a piece fixed on one body does not slide over that body as
-        the free pieces stretch. None: one piece (global arc length).
-    tangent_smoothing : float, keyword-only
-        Arc length (m, at rest) over which the line tangents that orient the cross-sections
-        are averaged (`motion.surface.curves.smoothed_tangents`, standard deviation); 0: none.
-    free_vertices : (V,) bool or index array or None, keyword-only
-        Vertices that get no rigid attachment zone (``w_o = w_i = 0``, all belly): points
-        carried with the surface that are not part of it, e.g. fibre points, whose ends the
-        caller moves with their bodies itself (`analysis.run`). None: none.
-
-    Returns
-    -------
-    SurfaceBinding
-    """
-    verts = np.asarray(rest_vertices, dtype=float)
-    tri = np.asarray(faces, dtype=np.int64)
-    if verts.ndim != 2 or verts.shape[1] != 3:
-        raise ValueError(f"rest_vertices must be (V, 3), got shape {verts.shape}")
-    if tri.ndim != 2 or tri.shape[1] != 3 or tri.min() < 0 or tri.max() >= len(verts):
-        raise ValueError("faces must be (T, 3) indices into rest_vertices")
-    if len(rest_curves) == 0:
-        raise ValueError("at least one rest action line is needed")
-    n = int(n_samples)
-    tf_o = _check_tf(tf_rest_origin, "tf_rest_origin")[0]
-    tf_i = _check_tf(tf_rest_insertion, "tf_rest_insertion")[0]
-    arc = np.linspace(0.0, 1.0, n)
-
-    fractions = []
-    for k, c in enumerate(rest_curves):
-        idx = None if rest_anchors is None else rest_anchors[k]
-        fractions.append(None if idx is None or len(idx) < 3 else _ro(arc_fractions(c, idx)))
-    curves = [resample_polylines(np.asarray(c, dtype=float), n) for c in rest_curves]
-    lengths = np.array([np.sum(np.linalg.norm(np.diff(c, axis=0), axis=-1)) for c in curves])
-    if np.any(lengths <= 0):
-        raise ValueError("a rest action line has zero length")
-    mean_len = float(np.mean(lengths))
-    rigid = 0.02 * mean_len if rigid_radius is None else float(rigid_radius)
-    blend = 0.05 * mean_len if blend_radius is None else float(blend_radius)
-    if blend <= rigid:
-        raise ValueError("blend_radius must exceed rigid_radius")
-    delta = 0.02 * mean_len if line_blend is None else float(line_blend)
-    sigma = float(tangent_smoothing) / (mean_len / (n - 1)) if tangent_smoothing else 0.0
-
-    # rigid weights from the distance to the attachment landmarks
-    from scipy.spatial import cKDTree
-
-    def rigid_weight(points):
-        pts = np.asarray(points, dtype=float).reshape(-1, 3)
-        if len(pts) == 0:
-            return np.zeros(len(verts))
-        d, _ = cKDTree(pts).query(verts)
-        return 1.0 - smoothstep((d - rigid) / (blend - rigid))
-
-    w_o = rigid_weight(origin_points)
-    w_i = rigid_weight(insertion_points)
-    if free_vertices is not None:
-        w_o[free_vertices] = 0.0
-        w_i[free_vertices] = 0.0
-    over = w_o + w_i
-    scale = np.where(over > 1.0, 1.0 / np.maximum(over, 1e-30), 1.0)
-    w_o, w_i = w_o * scale, w_i * scale
-    w_b = 1.0 - w_o - w_i
-
-    # rest frames: start normal perpendicular to the first tangent, no twist at rest
-    rest_frames = []
-    n_l = len(curves)
-    rows, cols = [], []
-    vals_c, vals_t, vals_n, vals_b = [], [], [], []
-    dists, per_line = [], []
-    for l, c in enumerate(curves):  # loop over action lines (few)
-        tan = smoothed_tangents(c[None], sigma)
-        fr = rotation_minimizing_frames(c[None], any_perpendicular(tan[:, 0]), tangents=tan)[0]
-        rest_frames.append(_ro(fr))
-        j, t, d = closest_on_polyline(verts, c)
-        c_idx, c_w = catmull_rom_weights(j, t, len(c))
-        centre = np.einsum("vk,vkj->vj", c_w, c[c_idx])
-        basis = (1.0 - t)[:, None, None] * fr[j] + t[:, None, None] * fr[j + 1]  # (V, 3, 3)
-        local = np.linalg.solve(basis, (verts - centre)[..., None])[..., 0]       # (V, 3)
-        dists.append(d)
-        per_line.append((j, t, local, c_idx, c_w))
-    d = np.stack(dists, axis=1)  # (V, L)
-    w_line = 1.0 / (d * d + delta * delta) ** 2
-    w_line /= np.sum(w_line, axis=1, keepdims=True)
-    n_v = len(verts)
-    rows_c, cols_c, vals_f = [], [], []
-    for l, (j, t, local, c_idx, c_w) in enumerate(per_line):
-        w = w_b * w_line[:, l]
-        for offset, share in ((0, 1.0 - t), (1, t)):
-            rows.append(np.arange(n_v))
-            cols.append(l * n + j + offset)
-            vals_f.append(w * share)
-            vals_n.append(w * share * local[:, 0])
-            vals_b.append(w * share * local[:, 1])
-            vals_t.append(w * share * local[:, 2])
-        for k in range(c_idx.shape[1]):   # the centre: spline weights on up to 4 samples
-            rows_c.append(np.arange(n_v))
-            cols_c.append(l * n + c_idx[:, k])
-            vals_c.append(w * c_w[:, k])
-    rows = np.concatenate(rows)
-    cols = np.concatenate(cols)
-    rows_c = np.concatenate(rows_c)
-    cols_c = np.concatenate(cols_c)
-    # rigid parts: w * (R local + t) = sum_j (w local_j) R[:, j] + w t, on 8 extra feature rows
-    rig_rows, rig_cols, rig_vals = [], [], []
-    for slot, (w, tf) in enumerate(((w_o, tf_o), (w_i, tf_i))):
-        inv = np.linalg.inv(tf)
-        local = verts @ inv[:3, :3].T + inv[:3, 3]
-        sel = np.nonzero(w > 0)[0]
-        for j, val in enumerate((local[sel, 0], local[sel, 1], local[sel, 2], np.ones(len(sel)))):
-            rig_rows.append(sel)
-            rig_cols.append(np.full(len(sel), 2 * n * n_l + 4 * slot + j))
-            rig_vals.append(w[sel] * val)
-    fixed = sp.csr_matrix((np.concatenate(vals_c + vals_t + rig_vals),
-                           (np.concatenate([rows_c, rows] + rig_rows),
-                            np.concatenate([cols_c, cols + n * n_l] + rig_cols))), shape=(n_v, 2 * n * n_l + 8))
-    frame_matrix = sp.csr_matrix((np.concatenate(vals_f), (rows, cols)), shape=(n_v, n * n_l))
-    radial = sp.csr_matrix((np.concatenate(vals_n + vals_b),
-                            (np.concatenate([rows, rows]), np.concatenate([cols, cols + n * n_l]))),
-                           shape=(n_v, 2 * n * n_l))
-    volume = mesh_volume(verts, tri)
-    if not volume > 0:
-        raise ValueError(f"the rest surface must be closed with outward normals (volume {volume:.3g})")
-    return SurfaceBinding(
-        rest_vertices=_ro(verts), faces=_ro(tri, np.int64), n_samples=n,
-        rest_frames=tuple(rest_frames), tf_rest_origin=_ro(tf_o), tf_rest_insertion=_ro(tf_i),
-        weight_origin=_ro(w_o), weight_insertion=_ro(w_i), weight_belly=_ro(w_b),
-        fixed_matrix=fixed, radial_matrix=radial, rest_volume=float(volume),
-        rest_lengths=_ro(lengths), arc_fraction=_ro(arc), anchor_fractions=tuple(fractions),
-        frame_matrix=frame_matrix, tangent_sigma=sigma)

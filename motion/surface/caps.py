@@ -109,10 +109,12 @@ def tilt_frames(frames, target, weight) -> np.ndarray:
     k = axis / np.maximum(sin, 1e-300)[:, None]                                   # (F, 3)
     phi = angle[:, None] * np.asarray(weight, dtype=float)[None, :]               # (F, n)
     c, s = np.cos(phi)[..., None, None], np.sin(phi)[..., None, None]
+    cross = np.zeros(k.shape + (3,))                                               # [k]x, (F, 3, 3)
+    cross[:, 0, 1], cross[:, 0, 2], cross[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    cross[:, 1, 0], cross[:, 2, 0], cross[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
     kk = k[:, None, :, None]                                                       # (F, 1, 3, 1)
-    cross = np.cross(k[:, None, None, :], np.swapaxes(fr, -1, -2))               # (F, n, 3 cols, 3)
-    dot = np.sum(kk * fr, axis=-2, keepdims=True)                                  # (F, n, 1, 3)
-    return c * fr + s * np.swapaxes(cross, -1, -2) + (1.0 - c) * kk * dot
+    dot = np.matmul(k[:, None, None, :], fr)                                       # (F, n, 1, 3)
+    return c * fr + s * np.matmul(cross[:, None], fr) + (1.0 - c) * kk * dot
 
 
 @dataclass(frozen=True, eq=False)

@@ -162,20 +162,21 @@ def rotation_minimizing_frames(curve, r0, *, tangents=None) -> np.ndarray:
     r = _unit(r - np.sum(r * t[:, 0], axis=-1, keepdims=True) * t[:, 0])
     normals = np.empty_like(x)
     normals[:, 0] = r
+    # the reflections' vectors and factors do not depend on r: all samples at once (a factor 0
+    # where a vector vanishes leaves r as it is)
+    v1 = x[:, 1:] - x[:, :-1]                                                    # (F, n-1, 3)
+    c1 = np.sum(v1 * v1, axis=-1, keepdims=True)
+    a1 = np.where(c1 > _TINY, 2.0 / np.where(c1 > _TINY, c1, 1.0), 0.0)
+    t_l = t[:, :-1] - a1 * np.sum(v1 * t[:, :-1], axis=-1, keepdims=True) * v1
+    v2 = t[:, 1:] - t_l
+    c2 = np.sum(v2 * v2, axis=-1, keepdims=True)
+    a2 = np.where(c2 > _TINY, 2.0 / np.where(c2 > _TINY, c2, 1.0), 0.0)
     for i in range(x.shape[1] - 1):  # loop over the curve's samples (tens), vectorised over frames
-        v1 = x[:, i + 1] - x[:, i]
-        c1 = np.sum(v1 * v1, axis=-1, keepdims=True)
-        ok1 = c1 > _TINY
-        c1s = np.where(ok1, c1, 1.0)
-        r_l = np.where(ok1, r - (2.0 / c1s) * np.sum(v1 * r, axis=-1, keepdims=True) * v1, r)
-        t_l = np.where(ok1, t[:, i] - (2.0 / c1s) * np.sum(v1 * t[:, i], axis=-1, keepdims=True) * v1, t[:, i])
-        v2 = t[:, i + 1] - t_l
-        c2 = np.sum(v2 * v2, axis=-1, keepdims=True)
-        ok2 = c2 > _TINY
-        c2s = np.where(ok2, c2, 1.0)
-        r = np.where(ok2, r_l - (2.0 / c2s) * np.sum(v2 * r_l, axis=-1, keepdims=True) * v2, r_l)
+        w1, w2, t1 = v1[:, i], v2[:, i], t[:, i + 1]
+        r_l = r - a1[:, i] * np.sum(w1 * r, axis=-1, keepdims=True) * w1
+        r = r_l - a2[:, i] * np.sum(w2 * r_l, axis=-1, keepdims=True) * w2
         # re-orthogonalise against the tangent to stop round-off drift
-        r = _unit(r - np.sum(r * t[:, i + 1], axis=-1, keepdims=True) * t[:, i + 1])
+        r = _unit(r - np.sum(r * t1, axis=-1, keepdims=True) * t1)
         normals[:, i + 1] = r
     binormals = np.cross(t, normals)
     return np.stack([normals, binormals, t], axis=-1)
@@ -277,8 +278,10 @@ def smoothed_tangents(curve, sigma: float) -> np.ndarray:
     raw = np.arange(n)[:, None] + offsets[None, :]                              # (n, W)
     inside = (raw >= 0) & (raw <= n - 1)        # the window is cut at the ends, not padded: an
     idx = np.clip(raw, 0, n - 1)                # end's tangent is the mean over the last ~2 sigma
-    avg = np.einsum("fnwk,nw->fnk", tan[:, idx], np.where(inside, weights[None, :], 0.0))
-    return _unit(avg)
+    window = np.zeros((n, n))                     # the weights as one (n, n) matrix
+    np.add.at(window, (np.broadcast_to(np.arange(n)[:, None], idx.shape), idx),
+              np.where(inside, weights[None, :], 0.0))
+    return _unit(np.matmul(window, tan))
 
 
 def closest_on_polyline(points: np.ndarray, curve: np.ndarray):

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "combine_into_q", "solve_radial_scale"]
+__all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "solve_radial_scale"]
 
 _CHUNK = 8  # frames per numpy chunk of `mesh_volume`: a few (8, T, 3) temporaries
 
@@ -141,15 +141,6 @@ def combine_vf(p_vf, q_vf, k) -> np.ndarray:
     w = np.asarray(q_vf, dtype=float) * np.asarray(k, dtype=float)[None, :, None]
     w += p
     return np.ascontiguousarray(w.transpose(1, 0, 2))
-
-
-def combine_into_q(p_vf, q_vf, k) -> np.ndarray:
-    """``Q <- P + k Q`` in place, vertex-major (V, F, 3) (no new array: the caller's ``Q`` is
-    its own and not needed after); returns ``Q``, read-only."""
-    q_vf *= np.asarray(k, dtype=float)[None, :, None]
-    q_vf += p_vf
-    q_vf.setflags(write=False)
-    return q_vf
 
 
 def solve_radial_scale(coefficients, target, *, start=None, bounds=(0.25, 4.0), iterations=30) -> np.ndarray:

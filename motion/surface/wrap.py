@@ -43,7 +43,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
-from .binding import bind_surface
+from .bind import bind_surface
 from .caps import cap_bodies, cap_turning
 from ..osim.muscle_parameters import BELLY_MIN_FRACTION, muscle_parameters
 from .generate import belly_surface, fusiform_surface
@@ -66,7 +66,8 @@ class WrappedSurface:
     ----------
     name : str
     vertices : (F, V, 3) float
-        In ground, metres; same topology as ``faces`` in every frame.
+        In ground, metres; same topology as ``faces`` in every frame (the first K frames only
+        with ``SurfaceWrapper.wrap(..., keep=K)``).
     faces : (T, 3) int
         Outward oriented.
     origin, insertion : (F, K, 3) float
@@ -320,18 +321,20 @@ class SurfaceWrapper:
         self.rest, self.rest_curves, self.vertices = rest, rest_curves, vertices
         self.origin_rest, self.insertion_rest = origin_rest, insertion_rest
 
-    def __call__(self, motion, *, lines=None, poses=None) -> WrappedSurface:
-        """The surface over ``motion`` (see `wrap_surfaces` for ``lines`` and ``poses``)."""
+    def __call__(self, motion, *, lines=None, poses=None, keep=None) -> WrappedSurface:
+        """The surface over ``motion`` (see `wrap_surfaces` for ``lines`` and ``poses``; ``keep``
+        as in `wrap`)."""
         from ..osim.kinematics import body_poses
 
         poses = body_poses(self.model, motion) if poses is None else poses
         tf = np.asarray(getattr(poses, "tf_ground_body", poses), dtype=float)
         return self.wrap(tf, current_polylines(self.model, motion, list(self.spec.action_lines), lines, tf,
-                                               getattr(poses, "q", None)))
+                                               getattr(poses, "q", None)), keep=keep)
 
-    def wrap(self, tf, current) -> WrappedSurface:
+    def wrap(self, tf, current, *, keep=None) -> WrappedSurface:
         """The surface at the body poses ``tf`` (F, B, 4, 4), its lines ``current``
-        (`motion.surface.current_lines.current_polylines`)."""
+        (`motion.surface.current_lines.current_polylines`); ``keep``: ``vertices`` at the first
+        this many poses only (riders, landmarks and the rest at all poses)."""
         model, spec, rest, tendons = self.model, self.spec, self.rest, self.tendons
         curves = [current[name][0] for name in spec.action_lines]
         anchors = [current[name][1] for name in spec.action_lines]
@@ -366,14 +369,15 @@ class SurfaceWrapper:
                         t[:, :3, 3] += offset
         ends_now = (tf[:, self.f_o], tf[:, self.f_i]) if tendons else (tf_o_body, tf_i_body)
         res = self.binding.deform(curves, *ends_now, anchors=anchors, obstacles=obstacles,
-                                  rider_frames=0 if tendons else spec.riders, riders_apart=self.apart)
+                                  rider_frames=0 if tendons else spec.riders, riders_apart=self.apart,
+                                  keep_vertices=keep if self.apart or not tendons else None)
         riders = res.riders
         if tendons:
             k_o = len(self.origin_rest)
             if riders is None:
                 origin_now = res.vertices[:, n_v:n_v + k_o]
                 insertion_now = res.vertices[:, n_v + k_o:]
-                out_v = res.vertices[:, :n_v]
+                out_v = res.vertices[:keep, :n_v]
             else:
                 r = spec.riders
                 origin_now = riders[r:r + k_o].transpose(1, 0, 2)

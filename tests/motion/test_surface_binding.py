@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from motion.surface.binding import bind_surface, smoothstep
+from motion.surface.bind import bind_surface
+from motion.surface.binding import smoothstep
 from motion.surface.collision import WrapObstacle
 from motion.surface.curves import resample_polylines, rotation_minimizing_frames
 from motion.surface.generate import fusiform_surface
@@ -364,3 +365,26 @@ def test_bone_obstacle_leading_is_the_first_vertices():
     whole = obstacle.push_out(now)
     assert np.abs(whole - now).max() > 1e-3
     np.testing.assert_array_equal(obstacle.leading(40).push_out(now[:, :40]), whole[:, :40])
+
+
+def test_riders_apart_without_obstacles_are_the_surface_deformation(pin_cylinder):
+    """Without obstacles the riders apart are ``P + k Q`` from one product of their rows of
+    ``[fixed | radial]`` with the radial features scaled by ``k``: the same sums as the surface's
+    own, so riders copying surface vertices land on the deformed vertices (to round-off), the
+    surface and ``k`` are those of the binding without riders, and ``keep_vertices`` keeps the
+    first frames' surface only."""
+    binding, result, line = pin_cylinder
+    verts, faces = binding.rest_vertices, binding.faces
+    pick = np.flatnonzero(binding.weight_belly == 1.0)[::7]
+    assert len(pick) > 20
+    rest_line = np.array([[0.0, 0.0, 0.0], [LENGTH, 0.0, 0.0]])       # as bound in `pin_cylinder`
+    riding = bind_surface(np.vstack([verts, verts[pick]]), faces, [rest_line], np.eye(4), np.eye(4),
+                          rest_line[:1], rest_line[1:],
+                          free_vertices=np.arange(len(verts), len(verts) + len(pick)))
+    tf_org = np.tile(np.eye(4), (len(line), 1, 1))
+    tf_ins = pin_about([0.12, 0.03, 0.0], np.deg2rad(np.linspace(-30, 90, 25)))
+    got = riding.deform([line], tf_org, tf_ins, riders_apart=len(pick), keep_vertices=4)
+    assert got.vertices.shape == (4,) + verts.shape and got.riders.shape == (len(pick), len(line), 3)
+    np.testing.assert_allclose(got.radial_scale, result.radial_scale, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(got.vertices, result.vertices[:4], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(got.riders.transpose(1, 0, 2), result.vertices[:, pick], rtol=0, atol=1e-15)
