@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion.wrapping.cylinder_line import quadrant_axis_sign  # the quadrant names, not under test
+
 from . import dual as ad
 from .dual import Dual
 
@@ -42,18 +44,6 @@ NO_WRAP, INSIDE_RADIUS, WRAPPED, MANDATORY_WRAP = 0, 1, 2, 3
 _TANGENCY_THRESHOLD = 0.1 * np.pi / 180.0
 _MAX_ITERATIONS = 100
 _LINE_EPSILON = 1e-5
-
-
-def quadrant_axis_sign(quadrant: str) -> tuple:
-    """(axis, sign) of an OpenSim quadrant name; sign 0 means all quadrants."""
-    q = str(quadrant).strip()
-    table = {"x": (0, 1), "+x": (0, 1), "X": (0, 1), "+X": (0, 1), "-x": (0, -1), "-X": (0, -1),
-             "y": (1, 1), "+y": (1, 1), "Y": (1, 1), "+Y": (1, 1), "-y": (1, -1), "-Y": (1, -1),
-             "z": (2, 1), "+z": (2, 1), "Z": (2, 1), "+Z": (2, 1), "-z": (2, -1), "-Z": (2, -1),
-             "all": (0, 0), "ALL": (0, 0), "All": (0, 0), "Unassigned": (0, 0)}
-    if q not in table:
-        raise ValueError(f"quadrant must be one of x, -x, y, -y, z, -z, all; got {quadrant!r}")
-    return table[q]
 
 
 def dsign(x) -> np.ndarray:

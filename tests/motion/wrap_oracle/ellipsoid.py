@@ -39,11 +39,8 @@ from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, dsign, quadrant_ax
 
 __all__ = ["wrap_ellipsoid", "ellipsoid_wrap_line", "closest_point_on_ellipsoid"]
 
-_ROUNDOFF = 2e-13
-_TINY = 1e-8
-_MU_MIN = 0.7073
-_MU_MAX = 0.9
-_FAN = 300
+# OpenSim's constants of the algorithm, shared with the compiled implementation under test
+from motion.wrapping.ellipsoid_line import _FAN, _MU_MAX, _MU_MIN, _ROUNDOFF, _TINY  # noqa: E402
 _SV_BLEND = 0.3
 METHODS = ("hybrid", "midpoint", "axial")
 
