@@ -75,21 +75,15 @@ def surface(muscle):
 
 
 def bender(origin, insertion):
-    """A smooth bend about an axis through the origin centroid, perpendicular to the attachment
-    line and to z: a point turns by ``deg * t``, t its place along the attachment line
-    clipped to 0..1 (the bend sweeps of tests/fibres/test_decompose_lhdl.py)."""
-    a, b = origin.mean(axis=0), insertion.mean(axis=0)
-    length = np.linalg.norm(b - a)
-    ax = (b - a) / length
-    n = np.cross(ax, [0.0, 0.0, 1.0])
-    n /= np.linalg.norm(n)
+    """The smooth bend of the LHDL bend sweeps (tests/fibres/test_decompose_lhdl.py, `_bender`):
+    a point turns by ``deg * t`` about an axis through the origin centroid, t its place along the
+    attachment line clipped to 0..1."""
+    import sys
 
-    def bend(x, deg):
-        t = np.clip((x - a) @ ax / length, 0.0, 1.0)
-        c, s = np.cos(np.deg2rad(deg) * t)[:, None], np.sin(np.deg2rad(deg) * t)[:, None]
-        rel = x - a
-        return a + rel * c + np.cross(n, rel) * s + n * (rel @ n)[:, None] * (1 - c)
-    return bend
+    sys.path.insert(0, str(ROOT / "tests" / "fibres"))
+    from test_decompose_lhdl import _bender
+
+    return _bender(origin, insertion)
 
 
 def quality():
@@ -196,7 +190,7 @@ STAGES = (("fibres.decompose", "_inputs", "inputs (mesh clean check)"),
           ("fibres.slicing.harmonic", "relax_on_patch", "fibre map: ends' Lloyd steps"),
           ("fibres.slicing.harmonic", "_fibre_matrix", "fibre map (all)"),
           ("fibres.slicing.harmonic", "fairing_operator", "fairing matrices"),
-          ("fibres.decompose", "contain_points", "containment pull (all rounds)"))
+          ("fibres.finishing.carried_pull", "contain", "containment pull (all rounds)"))
 
 
 def stages(repeats):
