@@ -229,3 +229,39 @@ def test_ctrl_c_early_in_the_process_exits_130_without_traceback(example, tmp_pa
     assert proc.returncode == 130, text
     assert "Traceback" not in text and len(text.strip().splitlines()) == 1, text
     assert not out.exists() or [p.name for p in out.iterdir()] == []
+
+
+# ----------------------------------------------------------------- plots in worker processes
+def test_plots_drawn_in_worker_processes_equal_the_ones_drawn_here(example, tmp_path, monkeypatch):
+    """From `cli_run.PARALLEL_PLOTS_FROM` muscles on, the plots are drawn by spawned worker
+    processes while the tables are written: the same PNG files, pixel for pixel (the same
+    matplotlib Agg renderer and inputs), as when this process draws them, and both runs' folders
+    hold exactly their manifests."""
+    import numpy as np
+    from matplotlib import image
+
+    cli_run = importlib.import_module("analysis.cli_run")
+    here, workers = tmp_path / "here", tmp_path / "workers"
+    monkeypatch.setattr(cli_run, "PARALLEL_PLOTS_FROM", float("inf"))
+    assert _run(example, here, "--frames", "0:27:13", "--no-sto", "--no-scene") == 0
+    monkeypatch.setattr(cli_run, "PARALLEL_PLOTS_FROM", 1)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)       # two workers even on a one-core runner
+    import concurrent.futures
+
+    pools = []
+
+    class CountedPool(concurrent.futures.ProcessPoolExecutor):
+        def __init__(self, *a, **k):
+            pools.append(k.get("max_workers"))
+            super().__init__(*a, **k)
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", CountedPool)
+    assert _run(example, workers, "--frames", "0:27:13", "--no-sto", "--no-scene") == 0
+    assert pools == [2]                                     # the plots went to two workers
+    _manifest_matches(here)
+    _manifest_matches(workers)
+    pngs = sorted(p.relative_to(here) for p in (here / "plots").glob("*.png"))
+    assert len(pngs) >= 3 * 3           # three muscles, three plots each
+    assert pngs == sorted(p.relative_to(workers) for p in (workers / "plots").glob("*.png"))
+    for rel in pngs:
+        np.testing.assert_array_equal(image.imread(here / rel), image.imread(workers / rel), err_msg=str(rel))
