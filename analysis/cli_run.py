@@ -26,6 +26,7 @@ checked to stay inside the staging folder. Memory is estimated before the long c
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import shutil
 import sys
 import tempfile
@@ -309,6 +310,10 @@ def write_outputs(result, out_dir, *, plots=True, vtk=True, sto=True, sto_fibres
 
 #: muscles from which the plots are drawn in worker processes (fewer: in this process)
 PARALLEL_PLOTS_FROM = 4
+#: True in a context (thread or task) whose runs draw their plots in this process whatever the
+#: number of muscles: a study's trials, which already keep every core busy, in Dask workers
+#: that may not start processes (`analysis.study_tasks`)
+PLOTS_IN_THIS_PROCESS = contextvars.ContextVar("PLOTS_IN_THIS_PROCESS", default=False)
 
 
 def _plot_tasks(result, folder: Path, stems) -> list:
@@ -347,7 +352,7 @@ def _start_plots(result, folder: Path, stems, *, quiet, progress):
     folder.mkdir(parents=True, exist_ok=True)
     tasks = _plot_tasks(result, folder, stems)
     workers = min(os.cpu_count() or 1, 4, len(tasks))
-    if len(tasks) < PARALLEL_PLOTS_FROM or workers < 2:
+    if len(tasks) < PARALLEL_PLOTS_FROM or workers < 2 or PLOTS_IN_THIS_PROCESS.get():
         def finish_here(cancel=False):
             if cancel:
                 return

@@ -128,18 +128,16 @@ def rest_bundle(spec_path, options: dict, muscle: str):
 def _plots_in_this_process():
     """Within the block, `fibres run` draws its plots in this process (its own pool of plot
     processes is for a run alone on a machine): a study already keeps every core busy with
-    trials, and a Dask worker is a daemonic process, which may not start processes."""
+    trials, and a Dask worker is a daemonic process, which may not start processes. A context
+    variable (`cli_run.PLOTS_IN_THIS_PROCESS`), so that trials in parallel threads of one
+    worker do not undo each other's setting."""
     from . import cli_run
 
-    saved = getattr(cli_run, "PARALLEL_PLOTS_FROM", None)
-    if saved is None:
-        yield
-        return
-    cli_run.PARALLEL_PLOTS_FROM = float("inf")
+    token = cli_run.PLOTS_IN_THIS_PROCESS.set(True)
     try:
         yield
     finally:
-        cli_run.PARALLEL_PLOTS_FROM = saved
+        cli_run.PLOTS_IN_THIS_PROCESS.reset(token)
 
 
 def _muscle_names(spec_path, options) -> list:

@@ -258,6 +258,12 @@ def test_plots_drawn_in_worker_processes_equal_the_ones_drawn_here(example, tmp_
     monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", CountedPool)
     assert _run(example, workers, "--frames", "0:27:13", "--no-sto", "--no-scene") == 0
     assert pools == [2]                                     # the plots went to two workers
+    token = cli_run.PLOTS_IN_THIS_PROCESS.set(True)          # as a study's trial sets it
+    try:
+        assert _run(example, tmp_path / "trial", "--frames", "0:27:13", "--no-sto", "--no-scene") == 0
+    finally:
+        cli_run.PLOTS_IN_THIS_PROCESS.reset(token)
+    assert pools == [2]                                     # no pool inside a trial
     _manifest_matches(here)
     _manifest_matches(workers)
     pngs = sorted(p.relative_to(here) for p in (here / "plots").glob("*.png"))
