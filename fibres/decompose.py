@@ -34,7 +34,7 @@ from .errors import InputError
 from .attachments.filtering import apply_filter, filter_choices
 from .fit.box import shape_sign
 from .fit.fitting import fit_box, prepare, principal_frame, reference_frame
-from .slicing.harmonic import HarmonicPlan, harmonic_points, make_harmonic_plan
+from .slicing.harmonic import HarmonicPlan, harmonic_points, make_harmonic_plan, maps_key
 from .slicing.morph import anchored_maps, morph_local, slice_fractions, slice_maps
 from .plan import DecompositionPlan, box_and_local, template_spec
 from .template.sampling import sobol_rs
@@ -486,9 +486,7 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
     flags = {}
     if contain:
         # the rest pose's pull carried in the walls' frames, then this frame's own pull
-        spec = template_spec(tmpl)
-        key = (spec[0], repr(sorted(dict(spec[1]).items())), n_fibres, resolution, seed,
-               int(smoothing_iterations))
+        key = maps_key(tmpl, n_fibres, resolution, seed, smoothing_iterations)
         carried = planned_pull(plan, key, lambda: pts if fresh else harmonic_points(
             plan, plan.rest_vertices, tmpl, n_fibres, resolution, seed,
             int(smoothing_iterations))[0])

@@ -188,13 +188,8 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
 
 def planned_pull(plan, key, rest_points) -> CarriedPull:
     """The `CarriedPull` of the rest pose of ``plan`` (a `fibres.slicing.harmonic.HarmonicPlan`)
-    for the fibres named by ``key`` (hashable), made once (``rest_points()``: those fibres
-    mapped onto the plan's rest vertices) and cached with the plan's maps."""
-    key = ("carried pull",) + tuple(key)
-    with plan._lock:
-        hit = plan._cache.get(key)
-    if hit is not None:
-        return hit
-    carried = carry_rest_pull(rest_points(), plan.rest_vertices, plan.faces)
-    with plan._lock:
-        return plan._cache.setdefault(key, carried)
+    for the fibres named by ``key`` (`fibres.slicing.harmonic.maps_key`), made once
+    (``rest_points()``: those fibres mapped onto the plan's rest vertices) and kept with the
+    plan (`HarmonicPlan.cached`)."""
+    return plan.cached(("carried pull",) + tuple(key),
+                       lambda: carry_rest_pull(rest_points(), plan.rest_vertices, plan.faces))

@@ -89,7 +89,7 @@ from .mvc import mean_value_coordinates
 from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patch
 from ..finishing.fairing import fairing_operator, taubin_pairs
 
-__all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "SAMPLES"]
+__all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "maps_key", "SAMPLES"]
 
 #: template fibres per side of the grid that measures the family's extent (step 7)
 _ENVELOPE = 11
@@ -137,7 +137,7 @@ class HarmonicPlan:
     face_edges: np.ndarray = field(repr=False)
     notes: tuple = ()
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
-    _lock: object = field(default_factory=threading.Lock, repr=False, compare=False)
+    _lock: object = field(default_factory=threading.RLock, repr=False, compare=False)
 
     slicing = "harmonic"
 
@@ -147,8 +147,19 @@ class HarmonicPlan:
         return state
 
     def __setstate__(self, state):
-        state["_lock"] = threading.Lock()
+        state["_lock"] = threading.RLock()
         self.__dict__.update(state)
+
+    def cached(self, key, make):
+        """The value kept under ``key`` (hashable) with this plan, ``make()`` the first time:
+        what a plan derives for one set of fibres (their maps, the rest pose's pull) is made
+        once, by one thread (the others wait), and lives as long as the plan; a pickled plan
+        leaves it behind."""
+        with self._lock:
+            hit = self._cache.get(key)
+            if hit is None:
+                hit = self._cache[key] = make()
+            return hit
 
     @property
     def topology(self):
@@ -358,29 +369,29 @@ def _even(points):
                          shape=(n * p, n * p))
 
 
+def maps_key(tmpl, n_fibres, resolution, seed, smoothing) -> tuple:
+    """The fibres a plan's cached maps are for (`HarmonicPlan.cached`): template (name and
+    parameters), count, resolution, seed and smoothing."""
+    from ..plan import template_spec
+    spec = template_spec(tmpl)
+    return (spec[0], repr(sorted(dict(spec[1]).items())), int(n_fibres), int(resolution),
+            int(seed), int(smoothing))
+
+
 def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed, smoothing):
     """(slices, fibre matrix, fairing matrix, rs) for these fibres, made once per plan and
     cached."""
-    from ..plan import template_spec
     from ..template.sampling import sobol_rs
-    spec = template_spec(tmpl)
-    key = (spec[0], repr(sorted(dict(spec[1]).items())), int(n_fibres), int(resolution),
-           int(seed), int(smoothing))
-    with plan._lock:
-        hit = plan._cache.get(key)
-        if hit is not None:
-            return hit
-        slices = plan._cache.get(("slices", int(resolution)))
-        if slices is None:
-            slices = _slices(plan, int(resolution))
-            plan._cache[("slices", int(resolution))] = slices
+
+    def make():
+        slices = plan.cached(("slices", int(resolution)), lambda: _slices(plan, int(resolution)))
         rs = sobol_rs(int(n_fibres), seed=seed)
         mat = _fibre_matrix(plan, slices, tmpl, rs, int(resolution))
         rest = (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
                                       plan.rest_vertices])).reshape(len(rs), -1, 3)
         fair = fairing_operator(rest, iterations=taubin_pairs(smoothing))
-        plan._cache[key] = (slices, mat, fair, rs)
-        return plan._cache[key]
+        return slices, mat, fair, rs
+    return plan.cached(maps_key(tmpl, n_fibres, resolution, seed, smoothing), make)
 
 
 def harmonic_points(plan: HarmonicPlan, vertices, tmpl, n_fibres, resolution, seed,
