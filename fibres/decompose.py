@@ -494,4 +494,3 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
         pts, moved = pull_rounds(pts, SurfaceGrid(v, faces, reach=CONTAIN_REACH))
         flags["contained"] = moved | carried.fibres
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))
-

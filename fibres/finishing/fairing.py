@@ -101,16 +101,8 @@ def natural_spline_matrix(knots, t):
     sk = s[rows, k][..., None]
     b = (t[..., None] - sk) / hk
     a_ = 1.0 - b
-    scale = hk[..., 0] ** 2 / 6.0
-    # the spline's weights of the values (columns k, k + 1) and of the second derivatives
-    r3, c3 = np.arange(n)[:, None], np.arange(m)[None]
-    lin = np.zeros((n, m, p))
-    lin[r3, c3, k] = a_[..., 0]
-    lin[r3, c3, k + 1] = b[..., 0]
-    cub = np.zeros((n, m, p))
-    cub[r3, c3, k] = (a_[..., 0] ** 3 - a_[..., 0]) * scale
-    cub[r3, c3, k + 1] = (b[..., 0] ** 3 - b[..., 0]) * scale
-    up = lin + cub @ second
+    up = (a_ * eye[k] + b * eye[k + 1]
+          + ((a_ ** 3 - a_) * second[rows, k] + (b ** 3 - b) * second[rows, k + 1]) * hk ** 2 / 6.0)
     return up.reshape(lead + (m, p))
 
 
