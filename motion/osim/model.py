@@ -341,6 +341,22 @@ class Model:
         object.__setattr__(self, "_body_index", {b.name: i for i, b in enumerate(self.bodies)})
         object.__setattr__(self, "_path_index", {p.name: i for i, p in enumerate(self.paths)})
         object.__setattr__(self, "_wrap_index", {w.name: i for i, w in enumerate(self.wrap_objects)})
+        object.__setattr__(self, "_memo", {})
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_memo"] = {}                 # derived data stays with the process that made it
+        return state
+
+    def cached(self, key, make):
+        """The value kept under ``key`` (hashable) with this model, ``make()`` the first time:
+        what the computations derive from a model alone (index plans of its paths, its wraps'
+        fixed description) is made once per model (the model is frozen). Two threads asking at
+        once may both make it; one value is kept."""
+        hit = self._memo.get(key)
+        if hit is None:
+            hit = self._memo.setdefault(key, make())
+        return hit
 
     def _indexed(self, index: dict, name: str, kind: str) -> int:
         """``index[name]``, or a KeyError naming the model and the missing ``kind``."""

@@ -35,7 +35,6 @@ Timings against OpenSim 4.6: ``python bench/lines.py`` (``bench/README.md``).
 """
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -254,15 +253,13 @@ class _Plan:
     spanned: np.ndarray
 
 
-_PLANS = weakref.WeakKeyDictionary()   # model -> {selected path names: _Plan}
-
-
 def _plan(model: Model, chosen: list) -> _Plan:
-    """The cached `_Plan` of ``chosen`` paths of ``model``."""
-    per_model = _PLANS.setdefault(model, {})
-    key = tuple(p.name for p in chosen)
-    if key in per_model:
-        return per_model[key]
+    """The `_Plan` of ``chosen`` paths of ``model``, made once per model (`Model.cached`)."""
+    return model.cached(("action-line plan",) + tuple(p.name for p in chosen),
+                        lambda: _make_plan(model, chosen))
+
+
+def _make_plan(model: Model, chosen: list) -> _Plan:
     n_coords = len(model.coordinates)
     spanned = np.array([spanned_coordinates(model, path) for path in chosen], dtype=bool).reshape(len(chosen), n_coords)
     unwrapped = np.array([m for m, p in enumerate(chosen) if not p.wraps], dtype=np.int64)
@@ -289,11 +286,9 @@ def _plan(model: Model, chosen: list) -> _Plan:
     pair_of = np.cumsum(np.isin(np.arange(len(pair_key)), starts)) - 1
     moving = tuple((int(path_of[n]), n, pt) for n, pt in ps.moving)
     spanned.setflags(write=False)               # shared by every result of this plan
-    plan = _Plan(unwrapped, np.array([m for m, p in enumerate(chosen) if p.wraps], dtype=np.int64), ps,
+    return _Plan(unwrapped, np.array([m for m, p in enumerate(chosen) if p.wraps], dtype=np.int64), ps,
                  slot_point, starts, np.array(tw_b, dtype=np.int64), np.array(tw_c, dtype=np.int64),
                  tuple(groups), pair_of.astype(np.int64), terms, moving, spanned)
-    per_model[key] = plan
-    return plan
 
 
 def _unwrapped_paths(plan: _Plan, model: Model, q_used, jac, tf, twist, out: tuple) -> None:

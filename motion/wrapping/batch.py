@@ -20,7 +20,6 @@ group become rows of one call:
 """
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,22 +89,18 @@ def wrap_spec(wrap_object, method: str, single: bool) -> tuple:
     return (_KINDS[kind], np.array(params, dtype=float), axis, sign, kind == "cylinder" and not single, m)
 
 
-_STATIC = weakref.WeakKeyDictionary()   # model -> {path name: its wraps' static description}
-
-
 def _statics(model, path) -> tuple:
-    """Per PathWrap of ``path``, what does not change with the pose (models are frozen, so this
-    is cached per model): (body index, tf_body_wrap, `wrap_spec`, `wrap_range`, active)."""
-    per_model = _STATIC.setdefault(model, {})
-    if path.name not in per_model:
+    """Per PathWrap of ``path``, what does not change with the pose (kept with the model,
+    `Model.cached`): (body index, tf_body_wrap, `wrap_spec`, `wrap_range`, active)."""
+    def make():
         out = []
         for pw in path.wraps:
             wo = model.wrap_object(pw.wrap_object)
             out.append((model.body_index(wo.body), np.asarray(wo.tf_body_wrap, dtype=float),
                         wrap_spec(wo, pw.method, len(path.wraps) == 1), wrap_range(pw, len(path.points)),
                         bool(wo.active)))
-        per_model[path.name] = tuple(out)
-    return per_model[path.name]
+        return tuple(out)
+    return model.cached(("wrap statics", path.name), make)
 
 
 def _signature(model, path) -> tuple:
