@@ -5,9 +5,9 @@
 ``--quality``: `fibres.finishing.quality` of the four muscles (100 fibres x 15 segments), with the
 templates of tests/data/lhdl_hip.toml and with ``parallel``, psoas with its own four lumbar
 origin clouds, for both slicings. ``--moment-arms``: `analysis.run` of the TOML over the
-dataset's flexion, adduction and rotation motions for both slicings; p5..p95, min..max and
-mean of the fibre moment arms over all fibres and frames, and the overlap (intersection over
-union) of p5..p95 and of min..max with the ranges of Modenese & Kohout 2020, Table 2 (which
+dataset's flexion, adduction and rotation motions for both slicings; p5..p95, min..max,
+mean and sd of the fibre moment arms over all fibres and frames, and the overlap (intersection
+over union) of p5..p95 and of min..max with the ranges of Modenese & Kohout 2020, Table 2 (which
 are peak values: the minimum and maximum over all fibres and poses). ``--speed``: medians of
 the rest-pose decomposition (incl. patches and the harmonic solve) and of a frame with the
 plan (a copy of the rest pose with 0.1 mm of noise on every vertex), one thread, warm process:
@@ -39,14 +39,14 @@ MUSCLES = ("glut_max_r", "glut_med_r", "iliacus_r", "psoas_r")
 TOML_TEMPLATES = {"glut_max_r": "parallel", "glut_med_r": "fanned", "iliacus_r": "fanned",
                   "psoas_r": "parallel"}
 #: Modenese & Kohout 2020, Table 2, highly discretised muscles: the peak values (minimum and
-#: maximum over all fibres and poses) and the mean of the fibres' moment arms (cm)
+#: maximum over all fibres and poses), the mean and its standard deviation (cm)
 PAPER_CM = {
-    "flexion": {"psoas_r": (0.9, 2.6, 1.9), "iliacus_r": (1.3, 4.6, 3.0),
-                "glut_max_r": (-9.2, -1.9, -5.7), "glut_med_r": (-3.5, 1.5, -1.5)},
-    "adduction": {"psoas_r": (0.5, 2.1, 1.4), "iliacus_r": (-1.0, 1.6, 0.2),
-                  "glut_max_r": (-6.8, 5.4, -0.6), "glut_med_r": (-7.5, -0.4, -5.1)},
-    "rotation": {"psoas_r": (-0.5, 0.4, -0.1), "iliacus_r": (-0.2, 0.9, 0.3),
-                 "glut_max_r": (-3.9, 0.0, -2.3), "glut_med_r": (-3.5, 3.1, -0.4)}}
+    "flexion": {"psoas_r": (0.9, 2.6, 1.9, 0.3), "iliacus_r": (1.3, 4.6, 3.0, 0.4),
+                "glut_max_r": (-9.2, -1.9, -5.7, 0.9), "glut_med_r": (-3.5, 1.5, -1.5, 0.3)},
+    "adduction": {"psoas_r": (0.5, 2.1, 1.4, 0.2), "iliacus_r": (-1.0, 1.6, 0.2, 0.2),
+                  "glut_max_r": (-6.8, 5.4, -0.6, 0.3), "glut_med_r": (-7.5, -0.4, -5.1, 0.6)},
+    "rotation": {"psoas_r": (-0.5, 0.4, -0.1, 0.1), "iliacus_r": (-0.2, 0.9, 0.3, 0.1),
+                 "glut_max_r": (-3.9, 0.0, -2.3, 0.3), "glut_med_r": (-3.5, 3.1, -0.4, 0.5)}}
 PAPER_FLEXION_CM = {name: v[:2] for name, v in PAPER_CM["flexion"].items()}
 TASKS = {"flexion": ("hip_flexion.mot", "hip_flexion_r"),
          "adduction": ("hip_adduction.mot", "hip_adduction_r"),
@@ -131,11 +131,11 @@ def moment_arms():
                 al = m.action_line_moment_arms[:, :, c] * 100
                 paper = PAPER_CM[task][m.name]
                 line = (f"  {task:9s} {m.name:11s} {lo:6.2f} .. {hi:6.2f}   min..max "
-                        f"{r.min():6.2f} .. {r.max():6.2f}  mean {r.mean():5.2f}   lines "
-                        f"{al.min():6.2f} .. {al.max():6.2f}   paper {paper[0]:.1f} .. "
-                        f"{paper[1]:.1f} mean {paper[2]:.1f}  IoU p5..p95 "
-                        f"{_iou((lo, hi), paper):.2f}, min..max "
-                        f"{_iou((r.min(), r.max()), paper):.2f}")
+                        f"{r.min():6.2f} .. {r.max():6.2f}  mean {r.mean():5.2f} (sd {r.std():.2f})"
+                        f"   lines {al.min():6.2f} .. {al.max():6.2f}   paper {paper[0]:.1f} .. "
+                        f"{paper[1]:.1f} mean {paper[2]:.1f} (sd {paper[3]:.1f})  IoU p5..p95 "
+                        f"{_iou((lo, hi), paper[:2]):.2f}, min..max "
+                        f"{_iou((r.min(), r.max()), paper[:2]):.2f}")
                 print(line)
 
 
