@@ -56,8 +56,7 @@ _non_negative_int = _int_at_least(0, "an integer >= 0")
 
 def add_arguments(parser) -> None:
     """Arguments of ``fibres decompose``."""
-    parser.add_argument("mesh", metavar="MESH",
-                        help="closed muscle surface (STL, OBJ, PLY, OFF, VTK, VTP)")
+    parser.add_argument("mesh", metavar="MESH", help="closed muscle surface (STL, OBJ, PLY, OFF, VTK, VTP)")
     parser.add_argument("--origin", required=True, metavar="POINTS",
                         help="origin landmarks: CSV with x,y,z columns, a point-cloud mesh "
                              "file, or 'x,y,z;x,y,z'")

@@ -1,7 +1,8 @@
 """Writing output files atomically: a failed or interrupted run never leaves a half-written file.
 
 Every file is written to a temporary name in the destination folder and renamed into place
-(``os.replace`` is atomic on POSIX and Windows within one file system). Inside `confined_to`
+(`motion.osim.atomic_file`: ``os.replace`` is atomic on POSIX and Windows within one file system;
+the file gets the usual permissions, 0o666 less the umask). Inside `confined_to`
 (the staging folder of ``fibres run``) files are written in place: the staging folder is itself
 the unit of atomicity (its files are published only after every one was written, and it is
 removed on any failure), so a temporary name and a rename per file would add nothing.
@@ -17,8 +18,9 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import os
-import tempfile
 from pathlib import Path
+
+from motion.osim.atomic_file import atomic_write
 
 from .errors import InputError
 
@@ -72,22 +74,8 @@ def atomic_path(path):
     if _CONFINED.get() is not None:   # the staging folder: written whole or removed (module docstring)
         yield path
         return
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+    with atomic_write(path) as tmp:
+        yield tmp
 
 
 def write_csv(frame, path):

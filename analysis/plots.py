@@ -237,10 +237,9 @@ def plot_moment_arms(path, coordinate_values, fibre_moment_arms, line_moment_arm
     Path
     """
     q = np.asarray(coordinate_values, dtype=float)
-    fm = np.asarray(fibre_moment_arms, dtype=float)
-    lm = np.asarray(line_moment_arms, dtype=float)
-    if q.ndim == 1:
-        q, fm, lm = q[:, None], fm[..., None], lm[..., None]
+    fm, lm = fibre_moment_arms, line_moment_arms
+    if q.ndim == 1:                    # one coordinate, given without its axis
+        q, fm, lm = q[:, None], np.expand_dims(fm, -1), np.expand_dims(lm, -1)
     q = _array(q, "coordinate_values", 2)
     fm = _array(fm, "fibre_moment_arms", 3)
     lm = _array(lm, "line_moment_arms", 3)

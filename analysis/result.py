@@ -10,15 +10,9 @@ from types import MappingProxyType
 
 import numpy as np
 
+from motion.osim.model import readonly_array
+
 __all__ = ["MuscleResult", "RunResult"]
-
-
-def _ro(value, ndim=None, name="array"):
-    arr = np.array(value, dtype=float, copy=True)
-    if ndim is not None and arr.ndim != ndim:
-        raise ValueError(f"{name} must have {ndim} dimensions, got shape {arr.shape}")
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,6 +22,7 @@ class MuscleResult:
     Attributes
     ----------
     name : str
+        The muscle of the fibre model (one surface; its OpenSim muscles are ``action_lines``).
     coordinates : tuple of str, (C,)
         The independent coordinates its action lines span (the moment-arm coordinates).
     fibre_lengths : (F, N) float
@@ -79,11 +74,11 @@ class MuscleResult:
         object.__setattr__(self, "coordinates", tuple(self.coordinates))
         object.__setattr__(self, "action_lines", tuple(self.action_lines))
         object.__setattr__(self, "notes", tuple(self.notes))
-        fl = _ro(self.fibre_lengths, 2, "fibre_lengths")
-        fr = _ro(self.fibre_moment_arms, 3, "fibre_moment_arms")
-        al = _ro(self.action_line_lengths, 2, "action_line_lengths")
-        ar = _ro(self.action_line_moment_arms, 3, "action_line_moment_arms")
-        rest = _ro(self.rest_lengths, 1, "rest_lengths")
+        fl = readonly_array(self.fibre_lengths, (-1, -1), name="fibre_lengths")
+        fr = readonly_array(self.fibre_moment_arms, (-1, -1, -1), name="fibre_moment_arms")
+        al = readonly_array(self.action_line_lengths, (-1, -1), name="action_line_lengths")
+        ar = readonly_array(self.action_line_moment_arms, (-1, -1, -1), name="action_line_moment_arms")
+        rest = readonly_array(self.rest_lengths, (-1,), name="rest_lengths")
         n_f, n_n = fl.shape
         c = len(self.coordinates)
         if fr.shape != (n_f, n_n, c):
@@ -99,25 +94,24 @@ class MuscleResult:
                          ("action_line_moment_arms", ar), ("rest_lengths", rest)):
             object.__setattr__(self, key, val)
         if self.optimal_lengths is not None:
-            opt = _ro(self.optimal_lengths, 1, "optimal_lengths")
+            opt = readonly_array(self.optimal_lengths, (-1,), name="optimal_lengths")
             if opt.shape != (n_n,):
                 raise ValueError(f"optimal_lengths must be ({n_n},), got {opt.shape}")
             object.__setattr__(self, "optimal_lengths", opt)
         if self.line_normalized_lengths is not None:
-            ln = _ro(self.line_normalized_lengths, 2, "line_normalized_lengths")
+            ln = readonly_array(self.line_normalized_lengths, (-1, -1), name="line_normalized_lengths")
             if ln.shape != al.shape:
                 raise ValueError(f"line_normalized_lengths must be {al.shape}, got {ln.shape}")
             object.__setattr__(self, "line_normalized_lengths", ln)
         if self.fibre_points is not None:
-            pts = _ro(self.fibre_points, 4, "fibre_points")
+            pts = readonly_array(self.fibre_points, (-1, -1, -1, -1), name="fibre_points")
             if pts.shape[0] > n_f or pts.shape[1] != n_n or pts.shape[3] != 3:
                 raise ValueError(f"fibre_points must be (F' <= {n_f}, {n_n}, P, 3), got {pts.shape}")
             object.__setattr__(self, "fibre_points", pts)
         if self.surface_vertices is not None:
-            object.__setattr__(self, "surface_vertices", _ro(self.surface_vertices, 3, "surface_vertices"))
-            faces = np.array(self.surface_faces, dtype=np.int64)
-            faces.setflags(write=False)
-            object.__setattr__(self, "surface_faces", faces)
+            object.__setattr__(self, "surface_vertices",
+                               readonly_array(self.surface_vertices, (-1, -1, -1), name="surface_vertices"))
+            object.__setattr__(self, "surface_faces", readonly_array(self.surface_faces, dtype=np.int64))
 
     @property
     def n_fibres(self) -> int:
@@ -165,17 +159,15 @@ class RunResult:
     inputs: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
 
     def __post_init__(self):
-        object.__setattr__(self, "time", _ro(self.time, 1, "time"))
-        frames = np.array(self.frames, dtype=np.int64)
-        frames.setflags(write=False)
-        object.__setattr__(self, "frames", frames)
-        object.__setattr__(self, "q", _ro(self.q, 2, "q"))
+        object.__setattr__(self, "time", readonly_array(self.time, (-1,), name="time"))
+        object.__setattr__(self, "frames", readonly_array(self.frames, dtype=np.int64))
+        object.__setattr__(self, "q", readonly_array(self.q, (-1, -1), name="q"))
         object.__setattr__(self, "coordinate_names", tuple(self.coordinate_names))
         object.__setattr__(self, "muscles", tuple(self.muscles))
         for key in ("timings", "settings", "inputs"):
             object.__setattr__(self, key, MappingProxyType(dict(getattr(self, key))))
         n_f = len(self.time)
-        if frames.shape != (n_f,) or self.q.shape != (n_f, len(self.coordinate_names)):
+        if self.frames.shape != (n_f,) or self.q.shape != (n_f, len(self.coordinate_names)):
             raise ValueError("time, frames and q must share the frame axis")
         for m in self.muscles:
             if m.fibre_lengths.shape[0] != n_f:

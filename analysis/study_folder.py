@@ -38,9 +38,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import json
-import os
 import shutil
-import tempfile
 from pathlib import Path
 
 __all__ = ["DATASET_TABLES", "DATASET_NAME", "RECORD_NAME", "Hashes", "trial_settings", "is_up_to_date",
@@ -150,6 +148,8 @@ def _partition(out, trial, table: str) -> Path:
 
 def publish_partitions(out, trial) -> int:
     """Copy the trial's tables into the study dataset (each file atomically); returns how many."""
+    from .output_files import atomic_path
+
     n = 0
     for table in DATASET_TABLES:
         src = Path(out) / trial.folder / f"{table}.parquet"
@@ -158,15 +158,8 @@ def publish_partitions(out, trial) -> int:
             shutil.rmtree(dst, ignore_errors=True)
             continue
         dst.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".part-0.", suffix=".part", dir=dst)
-        os.close(fd)
-        try:
+        with atomic_path(dst / "part-0.parquet") as tmp:
             shutil.copyfile(src, tmp)
-            os.replace(tmp, dst / "part-0.parquet")
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-            raise
         n += 1
     return n
 

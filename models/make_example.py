@@ -32,13 +32,13 @@ from __future__ import annotations
 
 import io
 import math
-import os
 import struct
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from motion.osim.atomic_file import atomic_write
 
 HERE = Path(__file__).resolve().parent
 ELBOW = np.array([0.0, -0.29, 0.0])          # elbow axis position in humerus (= ground)
@@ -49,18 +49,11 @@ N_FRAMES = 27                                # 0, 5, ..., 130 degrees
 
 # --------------------------------------------------------------------------- file writing
 def _atomic_bytes(path: Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (`motion.osim.atomic_file`), creating its folder."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o644)           # mkstemp makes 0600 files
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_write(path) as tmp:
+        tmp.write_bytes(data)
     return path
 
 

@@ -177,6 +177,11 @@ def subdivide_rectangle(rect, seg_lengths, splits) -> np.ndarray:
     return q_from + frac[:, None] * (q_to - q_from)
 
 
+def _side_lengths(polygon) -> np.ndarray:
+    """(n,) lengths of the sides of a closed (n, 2) polygon, side i from vertex i to i + 1."""
+    return np.hypot(*(np.roll(polygon, -1, axis=0) - polygon).T)
+
+
 def correspond(contour, rect, *, start=None, splits=None):
     """Match a clockwise contour to the clockwise template rectangle (Kohout 2012, Fig. 7).
 
@@ -208,9 +213,9 @@ def correspond(contour, rect, *, start=None, splits=None):
     if start is None:
         start = start_vertex(contour, rect[0])
     P = np.roll(contour, -int(start), axis=0)
-    seg = np.hypot(*(np.roll(P, -1, axis=0) - P).T)
+    seg = _side_lengths(P)
     if splits is None:
-        sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
+        sides = _side_lengths(rect)
         splits = split_chain(seg, sides)
     Q = subdivide_rectangle(rect, seg, splits)
     return P, Q, int(start), np.asarray(splits, dtype=np.int64)
@@ -231,7 +236,7 @@ def split_fractions(rect) -> np.ndarray:
         its length after the start (``k * length(part_j) = side_j``).
     """
     rect = np.asarray(rect, dtype=float)
-    sides = np.hypot(*(np.roll(rect, -1, axis=0) - rect).T)
+    sides = _side_lengths(rect)
     return np.cumsum(sides)[:3] / sides.sum()
 
 
@@ -246,10 +251,8 @@ def correspond_continuous(contour, rect):
 
     Parameters
     ----------
-    contour : (m, 2) float
-        Clockwise, not closed, m >= 3.
-    rect : (4, 2) float
-        Clockwise ``Q0..Q3``.
+    contour, rect
+        As for `correspond`, with m >= 3.
 
     Returns
     -------
@@ -274,7 +277,7 @@ def correspond_continuous(contour, rect):
     start = int(index[0, 0])
     P = np.roll(new, -start, axis=0)
     splits = (index[0, 1:] - start) % new.shape[0]
-    Q = subdivide_rectangle(rect, np.hypot(*(np.roll(P, -1, axis=0) - P).T), splits)
+    Q = subdivide_rectangle(rect, _side_lengths(P), splits)
     return P, Q, seg[0], tau[0]
 
 

@@ -30,10 +30,11 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+
+from .atomic_file import atomic_write
 
 __all__ = ["ModelBuilder", "TransformAxisSpec"]
 
@@ -411,16 +412,8 @@ class ModelBuilder:
         return '<?xml version="1.0" encoding="UTF-8" ?>\n' + ET.tostring(doc, encoding="unicode") + "\n"
 
     def write(self, path) -> Path:
-        """Write the ``.osim`` file atomically; returns its path."""
+        """Write the ``.osim`` file atomically (`motion.osim.atomic_file`); returns its path."""
         path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent or ".")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-                fh.write(self.to_xml())
-            os.chmod(tmp, 0o644)       # mkstemp makes 0600 files
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        with atomic_write(path) as tmp:
+            tmp.write_text(self.to_xml(), encoding="utf-8", newline="\n")
         return path

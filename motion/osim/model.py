@@ -73,15 +73,16 @@ POINT_KINDS = ("fixed", "conditional", "moving")
 WRAP_METHODS = ("hybrid", "midpoint", "axial")
 
 
-def readonly_array(value, shape=None, dtype=float) -> np.ndarray:
+def readonly_array(value, shape=None, dtype=float, *, name="an array") -> np.ndarray:
     """A read-only copy of ``value`` as a ``dtype`` array, checked against ``shape`` (a tuple in
-    which -1 matches any length; None: any shape). The records of `motion` hold their arrays
-    this way, so that a model or surface spec cannot change under a cached computation."""
+    which -1 matches any length; None: any shape; ``name`` says what it is in the ValueError).
+    The records of `motion` and `analysis` hold their arrays this way, so that a model, surface
+    spec or result cannot change under a cached computation."""
     arr = np.array(value, dtype=dtype, copy=True)
     if shape is not None and (arr.ndim != len(shape)
                               or any(s not in (-1, n) for s, n in zip(shape, arr.shape))):
         want = "(" + ", ".join("n" if s == -1 else str(s) for s in shape) + ")"
-        raise ValueError(f"expected an array of shape {want}, got shape {arr.shape}")
+        raise ValueError(f"expected {name} of shape {want}, got shape {arr.shape}")
     arr.setflags(write=False)
     return arr
 

@@ -46,16 +46,15 @@ Every problem with the file is a `motion.errors.InputError` naming the file, the
 """
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import os
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError, read_guarded
+from .atomic_file import atomic_write
+from .model import readonly_array
 from .motion_table import check_time, match_columns, model_name, read_labels, read_numbers
 
 __all__ = ["Motion", "MotionFileWarning", "load_motion", "write_sto"]
@@ -66,12 +65,6 @@ _SNIFF = 8192
 
 class MotionFileWarning(UserWarning):
     """A motion file's column does not match the model (ignored or defaulted); the run goes on."""
-
-
-def _readonly(array, dtype=float):
-    out = np.array(array, dtype=dtype, copy=True)
-    out.setflags(write=False)
-    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,8 +99,8 @@ class Motion:
     unknown: tuple = ()
 
     def __post_init__(self):
-        time = _readonly(self.time)
-        q = _readonly(self.q)
+        time = readonly_array(self.time)
+        q = readonly_array(self.q)
         names = tuple(str(n) for n in self.coordinate_names)
         if time.ndim != 1:
             raise ValueError(f"time must be (F,), got shape {time.shape}")
@@ -435,16 +428,9 @@ def write_sto(path, time, columns, *, in_degrees=False, name=None) -> Path:
     head = (f"{title}\nversion=1\nnRows={table.shape[0]}\nnColumns={table.shape[1]}\n"
             f"inDegrees={'yes' if in_degrees else 'no'}\nendheader\n"
             + "\t".join(["time"] + labels) + "\n")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", newline="\n") as handle:
-            handle.write(head)
-            # %.17g: doubles survive the round trip exactly.
-            np.savetxt(handle, table, fmt="%.17g", delimiter="\t")
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    with atomic_write(path) as tmp, open(tmp, "w", newline="\n") as handle:
+        handle.write(head)
+        # %.17g: doubles survive the round trip exactly.
+        np.savetxt(handle, table, fmt="%.17g", delimiter="\t")
     return path
 

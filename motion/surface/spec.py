@@ -68,9 +68,9 @@ class BoneMesh:
     in_body_frame: bool = False
 
     def __post_init__(self):
+        object.__setattr__(self, "body", str(self.body))
         object.__setattr__(self, "vertices", readonly_array(self.vertices, (-1, 3)))
         object.__setattr__(self, "faces", readonly_array(self.faces, (-1, 3), np.int64))
-        object.__setattr__(self, "body", str(self.body))
 
 
 @dataclass(frozen=True, eq=False)
