@@ -3,7 +3,7 @@
 The method is Kohout et al. (GRAPP 2012) as implemented by `fibres.decompose`. Inputs, as
 INTERFACE.md says:
 
-- ``MESH``: a closed triangle surface (STL, OBJ, PLY, OFF, legacy VTK, VTP). Safe repairs
+- ``MESH``: a closed triangle surface (STL, OBJ, PLY, OFF, GLB, glTF, legacy VTK, VTP, VTU). Safe repairs
   (duplicate vertices, zero-area or duplicate faces, stray pieces) are reported as one warning
   line on stderr; open surfaces, point clouds and NaN coordinates are refused.
 - ``POINTS`` (``--origin``, ``--insertion``): a CSV with columns x,y,z (header row optional),
@@ -56,7 +56,8 @@ _non_negative_int = _int_at_least(0, "an integer >= 0")
 
 def add_arguments(parser) -> None:
     """Arguments of ``fibres decompose``."""
-    parser.add_argument("mesh", metavar="MESH", help="closed muscle surface (STL, OBJ, PLY, OFF, VTK, VTP)")
+    parser.add_argument("mesh", metavar="MESH",
+                        help="closed muscle surface (STL, OBJ, PLY, OFF, GLB, glTF, VTK, VTP, VTU)")
     parser.add_argument("--origin", required=True, metavar="POINTS",
                         help="origin landmarks: CSV with x,y,z columns, a point-cloud mesh "
                              "file, or 'x,y,z;x,y,z'")
