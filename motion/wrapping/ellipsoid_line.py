@@ -39,9 +39,9 @@ import math
 import numpy as np
 from numba import njit
 
-from .cylinder_line import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, csqrt, vadd, vcross, vdot, vnorm, vscale, vsub, vunit
+from .cylinder_line import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, STEP, csqrt, vadd, vcross, vdot, vnorm, vscale, vsub, vunit
 
-__all__ = ["ellipsoid_line", "closest_point"]
+__all__ = ["ellipsoid_line", "closest_point", "new_fan_memo"]
 
 _ROUNDOFF = 2e-13
 _TINY = 1e-8
@@ -157,6 +157,155 @@ def closest_point(a, b, c, p, special, ta, tb, tc):
         t, dt = t - f / fp, dt - (df * fp - f * dfp) / (fp * fp)
     tc = complex(t, dt)
     return (u * a2 / (tc + a2), v * b2 / (tc + b2), w * c2 / (tc + c2))
+
+
+@njit(cache=True, error_model="numpy")
+def _fan_sum(i1, r1r2, ax, dims, memo, memo_n):
+    """The fan's sum of unit "blades" from the chord samples ``i1 + r1r2 k / 300`` (k = 1..298) to
+    their closest ellipsoid points, with its derivative along the direction ``i1``, ``r1r2`` carry.
+
+    Values: the real steps of `closest_point` (the same Newton iterates). Derivative: the sample
+    is affine in (i1, r1r2), so the sum's derivative is ``A di1 + B dr1r2`` with the 3 x 3 sums
+    ``A = sum_k M_k``, ``B = sum_k (k / 300) M_k`` of the blade Jacobians
+    ``M_k = (I - b b^T) / |x - s| (dx/ds - I)``; dx/ds is the derivative of the Newton iteration
+    carried for the three components of s at once (its linear recurrence, as `closest_point`'s
+    forward mode). Samples on a coordinate plane take `closest_point`'s 2-D case, three
+    complex-step calls for their Jacobian.
+
+    ``memo`` (K, 30), ``memo_n`` (1,): a ring of past results, keyed by the real parts of i1,
+    r1r2 and the dimensions (the sum and A, B depend on nothing else), so that the derivative
+    directions of one row (each a run of the same values) compute the fan once (`new_fan_memo`).
+    """
+    i1r = (i1[0].real, i1[1].real, i1[2].real)
+    dr = (r1r2[0].real, r1r2[1].real, r1r2[2].real)
+    di = (i1[0].imag, i1[1].imag, i1[2].imag)
+    dd = (r1r2[0].imag, r1r2[1].imag, r1r2[2].imag)
+    key = (i1r[0], i1r[1], i1r[2], dr[0], dr[1], dr[2], dims[0], dims[1], dims[2])
+    for e in range(min(memo_n[0], memo.shape[0])):
+        hit = True
+        for i in range(9):
+            if memo[e, i] != key[i]:
+                hit = False
+                break
+        if hit:
+            return _fan_out(memo[e], di, dd)
+    a, b, c = ax
+    a2, b2, c2 = a * a, b * b, c * c
+    m = max(a, max(b, c))
+    n_s = _FAN - 2
+    # the samples' Newton solves in lockstep (a converged sample is frozen, as closest_point's
+    # loop stops there): the same iterates, in branch-free loops over samples
+    su, sv, sw = np.empty(n_s), np.empty(n_s), np.empty(n_s)
+    t, g0, g1, g2 = np.zeros(n_s), np.zeros(n_s), np.zeros(n_s), np.zeros(n_s)
+    done = np.zeros(n_s, dtype=np.bool_)
+    for k in range(n_s):
+        tk = (k + 1) / _FAN
+        ur, vr, wr = i1r[0] + dr[0] * tk, i1r[1] + dr[1] * tk, i1r[2] + dr[2] * tk
+        su[k], sv[k], sw[k] = ur, vr, wr
+        if abs(ur) <= _ROUNDOFF or abs(vr) <= _ROUNDOFF or abs(wr) <= _ROUNDOFF:
+            done[k] = True                # 2-D special case, below
+        elif not (ur / a) ** 2 + (vr / b) ** 2 + (wr / c) ** 2 < 1.0:
+            n = math.sqrt(ur * ur + vr * vr + wr * wr)
+            t[k] = n * m
+            g0[k], g1[k], g2[k] = m * ur / n, m * vr / n, m * wr / n
+    special = done.copy()
+    for _ in range(64):
+        left = 0
+        for k in range(n_s):
+            ur, vr, wr, tt = su[k], sv[k], sw[k], t[k]
+            ca, cb, cc = a2 * ur * ur, b2 * vr * vr, c2 * wr * wr
+            p_, q_, r_ = tt + a2, tt + b2, tt + c2
+            p2, q2, r2 = p_ * p_, q_ * q_, r_ * r_
+            f = p2 * q2 * r2 - ca * q2 * r2 - cb * p2 * r2 - cc * p2 * q2
+            stop = done[k] | (abs(f) < 1e-9)
+            pq, pr, qr = p_ * q_, p_ * r_, q_ * r_
+            s1, s2 = pq * r_, qr + pr + pq
+            ga, gb, gc = qr * (q_ + r_), pr * (p_ + r_), pq * (p_ + q_)
+            fp = (s1 * s2 - ca * ga - cb * gb - cc * gc) * 2.0
+            fpp = ((s2 * s2 + s1 * 2.0 * (p_ + q_ + r_)) - ca * (q2 + 4.0 * qr + r2)
+                   - cb * (p2 + 4.0 * pr + r2) - cc * (p2 + 4.0 * pq + q2)) * 2.0
+            # d t_new = d t (f fpp / fp^2) - sum_i dc_i (f_ci fp - f fp_ci) / fp^2, where
+            # c_i = a_i^2 s_i^2, f_ci = -(product of the other two squares), fp_ci = -2 g_i
+            inv = 1.0 / (fp * fp)
+            keep = f * fpp * inv
+            h0 = (-q2 * r2 * fp + f * 2.0 * ga) * inv * (2.0 * a2 * ur)
+            h1 = (-p2 * r2 * fp + f * 2.0 * gb) * inv * (2.0 * b2 * vr)
+            h2 = (-p2 * q2 * fp + f * 2.0 * gc) * inv * (2.0 * c2 * wr)
+            g0[k] = g0[k] if stop else g0[k] * keep - h0
+            g1[k] = g1[k] if stop else g1[k] * keep - h1
+            g2[k] = g2[k] if stop else g2[k] * keep - h2
+            t[k] = tt if stop else tt - f / fp
+            done[k] = stop
+            left += 0 if stop else 1
+        if left == 0:
+            break
+    bs = np.zeros(3)
+    mat_a = np.zeros((3, 3))
+    mat_b = np.zeros((3, 3))
+    jac = np.empty((3, 3))
+    x = np.empty(3)
+    sq = (a2, b2, c2)
+    for k in range(n_s):
+        tk = (k + 1) / _FAN
+        sk = (su[k], sv[k], sw[k])
+        if special[k]:                   # Jacobian column by column (complex steps)
+            for j in range(3):
+                e = (complex(sk[0], STEP if j == 0 else 0.0), complex(sk[1], STEP if j == 1 else 0.0),
+                     complex(sk[2], STEP if j == 2 else 0.0))
+                close = closest_point(a, b, c, e, -1, dims[0], dims[1], dims[2])
+                for i in range(3):
+                    x[i] = close[i].real
+                    jac[i, j] = close[i].imag / STEP
+        else:
+            gk = (g0[k], g1[k], g2[k])
+            for i in range(3):
+                d = t[k] + sq[i]
+                x[i] = sk[i] * sq[i] / d
+                for j in range(3):
+                    jac[i, j] = (sq[i] / d if i == j else 0.0) - x[i] / d * gk[j]
+        v0, v1, v2 = x[0] - sk[0], x[1] - sk[1], x[2] - sk[2]
+        nv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        if not nv > 0.0:
+            continue                     # a zero blade (vunit's zero vector), no derivative
+        bl = (v0 / nv, v1 / nv, v2 / nv)
+        for i in range(3):
+            bs[i] += bl[i]
+            for j in range(3):
+                mij = 0.0
+                for l in range(3):
+                    proj = (1.0 if i == l else 0.0) - bl[i] * bl[l]
+                    mij += proj * (jac[l, j] - (1.0 if l == j else 0.0))
+                mij /= nv
+                mat_a[i, j] += mij
+                mat_b[i, j] += tk * mij
+    e = memo_n[0] % memo.shape[0]
+    memo_n[0] += 1
+    for i in range(9):
+        memo[e, i] = key[i]
+    for i in range(3):
+        memo[e, 9 + i] = bs[i]
+        for j in range(3):
+            memo[e, 12 + 3 * i + j] = mat_a[i, j]
+            memo[e, 21 + 3 * i + j] = mat_b[i, j]
+    return _fan_out(memo[e], di, dd)
+
+
+@njit(cache=True, error_model="numpy")
+def _fan_out(entry, di, dd):
+    """The fan sum of a memo entry (key, sum, A, B) as complex-step numbers: the sum, and
+    ``A di + B dd`` as derivative."""
+    out = [0j, 0j, 0j]
+    for i in range(3):
+        im = 0.0
+        for j in range(3):
+            im += entry[12 + 3 * i + j] * di[j] + entry[21 + 3 * i + j] * dd[j]
+        out[i] = complex(entry[9 + i], im)
+    return (out[0], out[1], out[2])
+
+
+def new_fan_memo(size: int = 8) -> tuple:
+    """An empty fan memo for `ellipsoid_line`: ((size, 30) float, (1,) int)."""
+    return np.full((size, 30), np.nan), np.zeros(1, dtype=np.int64)
 
 
 @njit(cache=True, error_model="numpy")
@@ -345,7 +494,7 @@ def _arc(r1, r2, ax, vs, vs4, factor, far):
 
 
 @njit(cache=True, error_model="numpy")
-def _plane_point(q1, q2, d12, i1, i2, ax, dims, method):
+def _plane_point(q1, q2, d12, i1, i2, ax, dims, method, memo, memo_n):
     """Step 2: the surface point c1 of the wrapping plane; (c1, tr1, tr2 start, has_fan, fan weight)."""
     r1r2 = vsub(i2, i1)
     mu_vec, _ = vunit(d12)
@@ -378,13 +527,7 @@ def _plane_point(q1, q2, d12, i1, i2, ax, dims, method):
     c1 = c1_f if use_frans else _NAN3
     if method == 0 and mu_b.real < _MU_MAX:              # the fan
         mid = vadd(i1, vscale(r1r2, 0.5))
-        bx, by, bz = 0j, 0j, 0j
-        for k in range(1, _FAN - 1):
-            sample = vadd(i1, vscale(r1r2, k / _FAN))
-            close = closest_point(ax[0], ax[1], ax[2], sample, -1, dims[0], dims[1], dims[2])
-            blade, _ = vunit(vsub(close, sample))
-            bx, by, bz = bx + blade[0], by + blade[1], bz + blade[2]
-        vsum, _ = vunit((bx, by, bz))
+        vsum, _ = vunit(_fan_sum(i1, r1r2, ax, dims, memo, memo_n))
         c_fan = _closest(ax, vadd(mid, vsum))
         w = (mu_b - _MU_MIN) / (_MU_MAX - _MU_MIN)
         has_fan = True
@@ -400,12 +543,13 @@ def _plane_point(q1, q2, d12, i1, i2, ax, dims, method):
 
 
 @njit(cache=True, error_model="numpy")
-def ellipsoid_line(p1, p2, da, db, dc, axis, sign, method):
+def ellipsoid_line(p1, p2, da, db, dc, axis, sign, method, memo, memo_n):
     """WrapEllipsoid::wrapLine in the ellipsoid frame: (code, r1, r2, arc).
 
     ``p1``, ``p2``: triples of complex (value + i STEP derivative); ``da, db, dc`` the semi-axes;
     ``axis``, ``sign`` the quadrant (`motion.wrapping.cylinder_line.quadrant_axis_sign`); ``method``
-    0 hybrid, 1 midpoint, 2 axial. r1, r2, arc are meaningful where code is MANDATORY_WRAP.
+    0 hybrid, 1 midpoint, 2 axial; ``memo``, ``memo_n`` the fan's memo (`new_fan_memo`). r1, r2,
+    arc are meaningful where code is MANDATORY_WRAP.
     """
     dims = (da, db, dc)
     factor = 3.0 / (da + db + dc)
@@ -436,7 +580,7 @@ def ellipsoid_line(p1, p2, da, db, dc, axis, sign, method):
         return NO_WRAP, _Z3, _Z3, 0j
     i1 = vadd(q2, vscale(d12, l1))
     i2 = vadd(q2, vscale(d12, l2))
-    c1, tr1, tr2, has_fan, fan_weight = _plane_point(q1, q2, d12, i1, i2, ax, dims, method)
+    c1, tr1, tr2, has_fan, fan_weight = _plane_point(q1, q2, d12, i1, i2, ax, dims, method, memo, memo_n)
     if sign != 0 and (1 if c1[axis].real >= 0.0 else -1) != sign:
         c1m = (-c1[0] if axis == 0 else c1[0], -c1[1] if axis == 1 else c1[1], -c1[2] if axis == 2 else c1[2])
         tr1 = c1m

@@ -106,20 +106,20 @@ def _to_ground(r, f):
 
 
 @njit(cache=True, error_model="numpy")
-def _line(kind, pa, pb, prm, axis, sign, adjust, method):
+def _line(kind, pa, pb, prm, axis, sign, adjust, method, memo, memo_n):
     """The segment pa -> pb (wrap frame) over a wrap object of ``kind``: (code, r1, r2, arc)."""
     if kind == CYLINDER:
         return wrap_line(pa, pb, prm[0], prm[1], axis, sign, adjust)
     if kind == SPHERE:
         return sphere_line(pa, pb, prm[0], axis, sign)
     if kind == ELLIPSOID:
-        return ellipsoid_line(pa, pb, prm[0], prm[1], prm[2], axis, sign, method)
+        return ellipsoid_line(pa, pb, prm[0], prm[1], prm[2], axis, sign, method, memo, memo_n)
     return torus_line(pa, pb, prm[0], prm[1], axis, sign)
 
 
 @njit(cache=True, error_model="numpy")
 def _wrap_one(n, w, active, frame, wstart, wend, wkind, wparam, waxis, wsign, wadjust, wmethod, order, node, seen,
-              ok, arc):
+              ok, arc, memo, memo_n):
     """Try wrap w on every eligible segment of the current path, insert the best; its code.
 
     ``frame`` (4, 4) complex: the wrap frame in ground with its derivative along this direction.
@@ -150,7 +150,8 @@ def _wrap_one(n, w, active, frame, wstart, wend, wkind, wparam, waxis, wsign, wa
             continue
         pa = _to_wrap(node, a, frame)
         pb = _to_wrap(node, b, frame)
-        code, r1, r2, arc_ab = _line(wkind[w], pa, pb, wparam[w, n], waxis[w], wsign[w], wadjust[w], wmethod[w])
+        code, r1, r2, arc_ab = _line(wkind[w], pa, pb, wparam[w, n], waxis[w], wsign[w], wadjust[w], wmethod[w], memo,
+                                     memo_n)
         result = code
         if code < _WRAPPED:
             continue
@@ -197,6 +198,8 @@ def _rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wkin
     frames = np.empty((n_wraps, 4, 4), dtype=np.complex128)
     wrap_order = np.empty(n_wraps, dtype=np.int64)
     result = np.empty(n_wraps, dtype=np.int64)
+    memo = np.full((8, 30), np.nan)          # the ellipsoid fan's memo (its directions share one fan)
+    memo_n = np.zeros(1, dtype=np.int64)
     for n in range(n_rows):
         for e in range(max(n_dirs[n], 1)):
             has_d = e < n_dirs[n]
@@ -231,7 +234,7 @@ def _rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wkin
                     _remove(order, n_points + 2 * w, n_points + 2 * w + 1)
                     if wactive[w]:
                         result[i] = _wrap_one(n, w, active, frames[w], wstart, wend, wkind, wparam, waxis, wsign,
-                                              wadjust, wmethod, order, node, seen, ok, arc)
+                                              wadjust, wmethod, order, node, seen, ok, arc, memo, memo_n)
                 length = _path_length(order, node, seen, ok, arc, n_points)
                 if abs(length.real - last) < _CONVERGED:
                     break

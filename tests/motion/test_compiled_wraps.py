@@ -21,7 +21,7 @@ from motion.osim.reader import load_model
 from motion.wrapping.action_lines import spanned_coordinates
 from motion.wrapping.batch import _signature, group_rows
 from motion.wrapping.cylinder_line import STEP, wrap_line
-from motion.wrapping.ellipsoid_line import ellipsoid_line
+from motion.wrapping.ellipsoid_line import ellipsoid_line, new_fan_memo
 from motion.wrapping.path_points import path_points
 from motion.wrapping.sphere_torus_line import sphere_line, torus_line
 from motion.wrapping.cylinder_line import ELLIPSOID_METHODS, quadrant_axis_sign
@@ -168,7 +168,8 @@ def test_ellipsoid_line_equals_numpy(method, quadrant):
     axis, sign = quadrant_axis_sign(quadrant)
     m = ELLIPSOID_METHODS.index(method)
     dims = np.array([0.03, 0.02, 0.05])
-    codes = _compare_lines(lambda a, b: ellipsoid_line(a, b, 0.03, 0.02, 0.05, axis, sign, m),
+    memo = new_fan_memo()
+    codes = _compare_lines(lambda a, b: ellipsoid_line(a, b, 0.03, 0.02, 0.05, axis, sign, m, *memo),
                            lambda a, b: ellipsoid_wrap_line(a, b, dimensions=dims, quadrant=quadrant, method=method),
                            *_segments(5, 150, 0.1), d_bound=1e-9)
     assert {0, 1, 3} <= codes
