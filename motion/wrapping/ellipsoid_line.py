@@ -256,28 +256,60 @@ def _fan_sum(i1, r1r2, ax, dims, memo, memo_n):
                 for i in range(3):
                     x[i] = close[i].real
                     jac[i, j] = close[i].imag / STEP
-        else:
-            gk = (g0[k], g1[k], g2[k])
-            for i in range(3):
-                d = t[k] + sq[i]
-                x[i] = sk[i] * sq[i] / d
+            v0, v1, v2 = x[0] - sk[0], x[1] - sk[1], x[2] - sk[2]
+            nv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            if not nv > 0.0:
+                continue                 # a zero blade (vunit's zero vector), no derivative
+            bl = (v0 / nv, v1 / nv, v2 / nv)
+            for i in range(3):           # M = (I - b b^T) (J - I) / |v|
+                bs[i] += bl[i]
                 for j in range(3):
-                    jac[i, j] = (sq[i] / d if i == j else 0.0) - x[i] / d * gk[j]
-        v0, v1, v2 = x[0] - sk[0], x[1] - sk[1], x[2] - sk[2]
+                    mij = 0.0
+                    for l in range(3):
+                        mij += ((1.0 if i == l else 0.0) - bl[i] * bl[l]) * (jac[l, j] - (1.0 if l == j else 0.0))
+                    mat_a[i, j] += mij / nv
+                    mat_b[i, j] += tk * (mij / nv)
+            continue
+        # general case: J = diag(a_i^2 / d_i) - y g^T (d_i = t + a_i^2, y_i = x_i / d_i), so
+        # M = (I - b b^T)(J - I) / |v| = (diag(e) - b (b * e)^T) / |v| + z g^T with
+        # e_i = a_i^2 / d_i - 1, z = (b (b . y) - y) / |v|
+        d0, d1, d2 = t[k] + a2, t[k] + b2, t[k] + c2
+        x0, x1, x2 = sk[0] * a2 / d0, sk[1] * b2 / d1, sk[2] * c2 / d2
+        v0, v1, v2 = x0 - sk[0], x1 - sk[1], x2 - sk[2]
         nv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         if not nv > 0.0:
-            continue                     # a zero blade (vunit's zero vector), no derivative
-        bl = (v0 / nv, v1 / nv, v2 / nv)
-        for i in range(3):
-            bs[i] += bl[i]
-            for j in range(3):
-                mij = 0.0
-                for l in range(3):
-                    proj = (1.0 if i == l else 0.0) - bl[i] * bl[l]
-                    mij += proj * (jac[l, j] - (1.0 if l == j else 0.0))
-                mij /= nv
-                mat_a[i, j] += mij
-                mat_b[i, j] += tk * mij
+            continue
+        b0, b1, b2_ = v0 / nv, v1 / nv, v2 / nv
+        bs[0] += b0
+        bs[1] += b1
+        bs[2] += b2_
+        y0, y1, y2 = x0 / d0, x1 / d1, x2 / d2
+        e0, e1, e2 = (a2 / d0 - 1.0) / nv, (b2 / d1 - 1.0) / nv, (c2 / d2 - 1.0) / nv
+        by = b0 * y0 + b1 * y1 + b2_ * y2
+        z0, z1, z2 = (b0 * by - y0) / nv, (b1 * by - y1) / nv, (b2_ * by - y2) / nv
+        be0, be1, be2 = b0 * e0, b1 * e1, b2_ * e2
+        h0, h1, h2 = g0[k], g1[k], g2[k]
+        m00, m01, m02 = e0 - b0 * be0 + z0 * h0, -b0 * be1 + z0 * h1, -b0 * be2 + z0 * h2
+        m10, m11, m12 = -b1 * be0 + z1 * h0, e1 - b1 * be1 + z1 * h1, -b1 * be2 + z1 * h2
+        m20, m21, m22 = -b2_ * be0 + z2 * h0, -b2_ * be1 + z2 * h1, e2 - b2_ * be2 + z2 * h2
+        mat_a[0, 0] += m00
+        mat_a[0, 1] += m01
+        mat_a[0, 2] += m02
+        mat_a[1, 0] += m10
+        mat_a[1, 1] += m11
+        mat_a[1, 2] += m12
+        mat_a[2, 0] += m20
+        mat_a[2, 1] += m21
+        mat_a[2, 2] += m22
+        mat_b[0, 0] += tk * m00
+        mat_b[0, 1] += tk * m01
+        mat_b[0, 2] += tk * m02
+        mat_b[1, 0] += tk * m10
+        mat_b[1, 1] += tk * m11
+        mat_b[1, 2] += tk * m12
+        mat_b[2, 0] += tk * m20
+        mat_b[2, 1] += tk * m21
+        mat_b[2, 2] += tk * m22
     e = memo_n[0] % memo.shape[0]
     memo_n[0] += 1
     for i in range(9):
