@@ -158,33 +158,66 @@ def coordinate_values(model: Model, q) -> tuple:
     return q, jac
 
 
-def _axis_angle_matrices(axis: np.ndarray, angle: np.ndarray) -> tuple:
-    """Rotation about a unit ``axis`` by ``angle`` (F,) and its derivative dR/dangle (F, 3, 3)."""
+def _axis_cross(axis: np.ndarray) -> tuple:
+    """([axis]x, [axis]x^2) (3, 3) of a unit axis (Rodrigues' formula's two matrices)."""
     kx = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    kk = kx @ kx
+    return kx, kx @ kx
+
+
+def _axis_angle_matrices(axis: np.ndarray, angle: np.ndarray, cross: tuple | None = None) -> tuple:
+    """Rotation about a unit ``axis`` by ``angle`` (F,) and its derivative dR/dangle (F, 3, 3);
+    ``cross``: `_axis_cross` of the axis, if already made."""
+    kx, kk = _axis_cross(axis) if cross is None else cross
     s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
     rot = np.eye(3) + s * kx + (1.0 - c) * kk
     drot = c * kx + s * kk
     return rot, drot
 
 
-def _joint_transform(joint, q: np.ndarray, cidx: dict) -> tuple:
-    """tf_F_M (F, 4, 4) and its partials w.r.t. the joint's coordinates (F, n, 4, 4)."""
+def _joint_statics(model: Model, joint) -> tuple:
+    """What a joint's transform takes from the model alone (kept with it, `Model.cached`):
+    inv(tf_child_jointframe), per rotation axis its (R, dR) (1, 3, 3) if it has no coordinate
+    (else its `_axis_cross`), per translation axis its value if constant (else None), and for a joint
+    without coordinates its whole tf_F_M (4, 4)."""
+    def make():
+        rots = []
+        for ax in joint.axes[:3]:
+            if ax.coordinates:
+                rots.append(_axis_cross(ax.axis))
+            else:              # constant: one frame, broadcast
+                rots.append(_axis_angle_matrices(ax.axis, np.full(1, float(ax.function.value(0.0)))))
+        shifts = [None if ax.coordinates else float(ax.function.value(0.0)) for ax in joint.axes[3:]]
+        inv_child = np.linalg.inv(joint.tf_child_jointframe)
+        fixed = None
+        if not joint.coordinates:
+            fixed = _joint_transform(joint, np.zeros((1, len(model.coordinates))), model._coord_index,
+                                     (inv_child, rots, shifts, None))[0][0]
+            fixed.setflags(write=False)
+        return inv_child, rots, shifts, fixed
+    return model.cached(("joint statics", joint.name), make)
+
+
+def _joint_transform(joint, q: np.ndarray, cidx: dict, statics: tuple) -> tuple:
+    """tf_F_M (F, 4, 4) and its partials w.r.t. the joint's coordinates (F, n, 4, 4);
+    ``statics`` from `_joint_statics`."""
     n_frames = q.shape[0]
-    local = {name: i for i, name in enumerate(joint.coordinates)}
+    _, const_rots, shifts, fixed = statics
     n = len(joint.coordinates)
+    if fixed is not None:                 # no coordinate: the same transform every frame
+        return np.broadcast_to(fixed, (n_frames, 4, 4)), np.zeros((n_frames, 0, 4, 4))
+    local = {name: i for i, name in enumerate(joint.coordinates)}
     tf = np.broadcast_to(np.eye(4), (n_frames, 4, 4)).copy()
     dtf = np.zeros((n_frames, n, 4, 4))
     rots, drots, owners = [], [], []
-    for ax in joint.axes[:3]:
+    for ax, const in zip(joint.axes[:3], const_rots):
         if ax.coordinates:
             x = q[:, cidx[ax.coordinates[0]]]
             val, dval = ax.function.value(x), ax.function.derivative(x)
             owners.append((local[ax.coordinates[0]], dval))
+            r, dr = _axis_angle_matrices(ax.axis, val, const)
         else:
-            val = np.full(1, float(ax.function.value(0.0)))      # constant: one frame, broadcast
             owners.append(None)
-        r, dr = _axis_angle_matrices(ax.axis, val)
+            r, dr = const
         rots.append(r)
         drots.append(dr)
     tf[:, :3, :3] = rots[0] @ rots[1] @ rots[2]
@@ -197,13 +230,13 @@ def _joint_transform(joint, q: np.ndarray, cidx: dict) -> tuple:
     if joint.radii is not None:     # EllipsoidJoint: origin of M on the ellipsoid at radii * z_M
         tf[:, :3, 3] += joint.radii * tf[:, :3, 2]
         dtf[:, :, :3, 3] += joint.radii * dtf[:, :, :3, 2]
-    for ax in joint.axes[3:]:
-        if ax.coordinates:
+    for ax, shift in zip(joint.axes[3:], shifts):
+        if shift is None:
             x = q[:, cidx[ax.coordinates[0]]]
             tf[:, :3, 3] += ax.function.value(x)[:, None] * ax.axis
             dtf[:, local[ax.coordinates[0]], :3, 3] += ax.function.derivative(x)[:, None] * ax.axis
         else:
-            tf[:, :3, 3] += float(ax.function.value(0.0)) * ax.axis
+            tf[:, :3, 3] += shift * ax.axis
     return tf, dtf
 
 
@@ -310,8 +343,9 @@ def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
     for joint in model.joints:
         p = model.body_index(joint.parent)
         b = model.body_index(joint.child)
-        tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx)
-        inv_child = np.linalg.inv(joint.tf_child_jointframe)
+        statics = _joint_statics(model, joint)
+        tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx, statics)
+        inv_child = statics[0]
         left = tf[:, p] @ joint.tf_parent_jointframe           # (F, 4, 4) ground <- F
         tf[:, b] = left @ tf_fm @ inv_child
         if derivatives:
@@ -353,8 +387,9 @@ def _pose_twists(model: Model, motion) -> tuple:
     for joint in model.joints:
         p = model.body_index(joint.parent)
         b = model.body_index(joint.child)
-        tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx)
-        inv_child = np.linalg.inv(joint.tf_child_jointframe)
+        statics = _joint_statics(model, joint)
+        tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx, statics)
+        inv_child = statics[0]
         left = tf[:, p] @ joint.tf_parent_jointframe
         tf[:, b] = left @ tf_fm @ inv_child
         keep = np.flatnonzero(support[p])

@@ -48,18 +48,22 @@ class PathPoints:
     bodies: np.ndarray
 
 
-def _local_positions(path: Path, model: Model, q: np.ndarray, jac: np.ndarray | None) -> tuple:
-    """Body-frame positions (F, P, 3) and their derivatives (F, P, C, 3) or None."""
-    n_frames = q.shape[0]
-    n_points = len(path.points)
-    loc = np.broadcast_to(np.array([p.location for p in path.points]), (n_frames, n_points, 3)).copy()
-    dloc = None if jac is None else np.zeros((n_frames, n_points, q.shape[1], 3))
-    for i, p in enumerate(path.points):          # only the (few) moving points
-        if p.kind == "moving":
-            loc[:, i], d = _moving_local(p, model, q, jac)
-            if dloc is not None:
-                dloc[:, i] = d
-    return loc, dloc
+def _path_statics(model: Model, path: Path) -> tuple:
+    """What `path_points` takes from the model alone (kept with it, `Model.cached`): the points'
+    body indices (P,), per body touched (body, fixed point indices, their body-frame locations
+    (P_b, 3), moving point indices), and all locations (P, 3)."""
+    def make():
+        bodies = np.array([model.body_index(p.body) for p in path.points], dtype=int)
+        locations = np.array([p.location for p in path.points], dtype=float).reshape(len(path.points), 3)
+        moving = np.array([p.kind == "moving" for p in path.points], dtype=bool)
+        groups = []
+        for b in np.unique(bodies):
+            fixed = np.flatnonzero((bodies == b) & ~moving)
+            groups.append((int(b), fixed, locations[fixed], np.flatnonzero((bodies == b) & moving)))
+        for arr in (bodies, locations):
+            arr.setflags(write=False)
+        return bodies, tuple(groups), locations
+    return model.cached(("path point statics", path.name), make)
 
 
 def active_mask(path: Path, model: Model, q: np.ndarray) -> np.ndarray:
@@ -91,18 +95,14 @@ def path_points(path: Path, model: Model, q_used: np.ndarray, tf_ground_body: np
     -------
     PathPoints
     """
-    bodies = np.array([model.body_index(p.body) for p in path.points], dtype=int)
+    bodies, groups, _ = _path_statics(model, path)
     want_d = jac is not None and d_tf_ground_body is not None
-    loc, dloc = _local_positions(path, model, q_used, jac if want_d else None)
-    n_frames, n_points = loc.shape[:2]
-    moving = np.array([p.kind == "moving" for p in path.points])
+    n_frames, n_points = q_used.shape[0], len(path.points)
     pts = np.empty((n_frames, n_points, 3))
     d_pts = np.empty((n_frames, n_points, q_used.shape[1], 3)) if want_d else None
-    for b in np.unique(bodies):                       # a path touches a few bodies
+    for b, fixed, p_body, moving in groups:           # a path touches a few bodies
         rot, trans = tf_ground_body[:, b, :3, :3], tf_ground_body[:, b, :3, 3]
-        fixed = np.flatnonzero((bodies == b) & ~moving)
         if len(fixed):
-            p_body = loc[0, fixed]                                           # (P_b, 3), same every frame
             pts[:, fixed] = p_body @ np.swapaxes(rot, 1, 2) + trans[:, None]
             if want_d:
                 drot = d_tf_ground_body[:, b, :, :3, :3]                     # (F, C, 3, 3)
@@ -110,12 +110,13 @@ def path_points(path: Path, model: Model, q_used: np.ndarray, tf_ground_body: np
                 # one matrix product for all frames and coordinates: (F C 3, 3) @ (3, P_b)
                 dp = (drot.reshape(-1, 3) @ p_body.T).reshape(drot.shape[:3] + (len(fixed),))
                 d_pts[:, fixed] = np.moveaxis(dp, 3, 1) + dtrans[:, None]
-        for i in np.flatnonzero((bodies == b) & moving):                     # few moving points
-            pts[:, i] = np.einsum("fij,fj->fi", rot, loc[:, i]) + trans
+        for i in moving:                                                     # few moving points
+            loc, dloc = _moving_local(path.points[i], model, q_used, jac if want_d else None)
+            pts[:, i] = np.einsum("fij,fj->fi", rot, loc) + trans
             if want_d:
                 drot = d_tf_ground_body[:, b, :, :3, :3]
-                d_pts[:, i] = (np.einsum("fcij,fj->fci", drot, loc[:, i]) + d_tf_ground_body[:, b, :, :3, 3]
-                               + np.einsum("fij,fcj->fci", rot, dloc[:, i]))
+                d_pts[:, i] = (np.einsum("fcij,fj->fci", drot, loc) + d_tf_ground_body[:, b, :, :3, 3]
+                               + np.einsum("fij,fcj->fci", rot, dloc))
     return PathPoints(pts, active_mask(path, model, q_used), d_pts,
                       tuple(p.name for p in path.points), bodies)
 
