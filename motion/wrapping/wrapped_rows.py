@@ -32,7 +32,10 @@ the same algorithm on dual numbers is the oracle in ``tests/motion/wrap_oracle/`
 
 Method: one module-level numba kernel (`_rows_kernel`) runs every row once per derivative
 direction with complex-step numbers (the value and one directional derivative); the values,
-hence every branch, are the same in each run. Scratch arrays are allocated once per call.
+hence every branch, are the same in each run. Scratch arrays are allocated once per call. The
+ellipsoid's fan (`motion.wrapping.ellipsoid_line`), linear in the direction once its two 3 x 3
+sums are known, is kept in a small memo keyed by its real inputs, so that the directions of a
+row compute it once.
 """
 from __future__ import annotations
 

@@ -40,7 +40,8 @@ from .cylinder import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, dsign, quadrant_ax
 __all__ = ["wrap_ellipsoid", "ellipsoid_wrap_line", "closest_point_on_ellipsoid"]
 
 # OpenSim's constants of the algorithm, shared with the compiled implementation under test
-from motion.wrapping.ellipsoid_line import _FAN, _MU_MAX, _MU_MIN, _ROUNDOFF, _TINY  # noqa: E402
+from motion.wrapping.ellipsoid_closest import _FAN, _ROUNDOFF  # noqa: E402
+from motion.wrapping.ellipsoid_line import _MU_MAX, _MU_MIN, _TINY  # noqa: E402
 _SV_BLEND = 0.3
 METHODS = ("hybrid", "midpoint", "axial")
 
