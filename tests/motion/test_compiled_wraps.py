@@ -175,6 +175,41 @@ def test_ellipsoid_line_equals_numpy(method, quadrant):
     assert {0, 1, 3} <= codes
 
 
+def test_ellipsoid_fan_on_a_coordinate_plane_and_from_its_memo():
+    """The hybrid fan where every chord sample lies on the plane y = 0 (segments with y = 0 at both
+    ends: `closest_point`'s 2-D case, whose Jacobian the fan takes by complex steps) equals the
+    oracle as the random segments do; and a second direction on the same segment, answered from
+    the memo, gives what a fresh memo computes (the same operations: equal to the last bit)."""
+    dims = np.array([0.03, 0.02, 0.05])
+    p1, p2, dp1, dp2 = _segments(7, 150, 0.1)
+    p1[:, 1] = 0.0
+    p2[:, 1] = 0.0
+    memo = new_fan_memo()
+    codes = _compare_lines(lambda a, b: ellipsoid_line(a, b, 0.03, 0.02, 0.05, -1, 0, 0, *memo),
+                           lambda a, b: ellipsoid_wrap_line(a, b, dimensions=dims, quadrant="all", method="hybrid"),
+                           p1, p2, dp1, dp2, d_bound=1e-9)
+    assert 3 in codes
+    rng = np.random.default_rng(8)
+    hits = 0
+    for i in range(len(p1)):
+        a = tuple(complex(p1[i, k], STEP * dp1[i, k, 0]) for k in range(3))
+        b = tuple(complex(p2[i, k], STEP * dp2[i, k, 0]) for k in range(3))
+        first = ellipsoid_line(a, b, 0.03, 0.02, 0.05, -1, 0, 0, *memo)
+        if first[0] != 3:
+            continue
+        d = rng.normal(size=6)
+        a2 = tuple(complex(p1[i, k], STEP * d[k]) for k in range(3))
+        b2 = tuple(complex(p2[i, k], STEP * d[3 + k]) for k in range(3))
+        count = memo[1][0]
+        again = ellipsoid_line(a2, b2, 0.03, 0.02, 0.05, -1, 0, 0, *memo)
+        hits += memo[1][0] == count          # answered from the memo: nothing stored
+        fresh = ellipsoid_line(a2, b2, 0.03, 0.02, 0.05, -1, 0, 0, *new_fan_memo())
+        assert again[0] == fresh[0]
+        for got, ref in zip(again[1] + again[2] + (again[3],), fresh[1] + fresh[2] + (fresh[3],)):
+            assert got == ref or (np.isnan(got.real) and np.isnan(ref.real))
+    assert hits > 0
+
+
 @pytest.mark.parametrize("quadrant", ["all", "x", "-z"])
 def test_torus_line_equals_numpy(quadrant):
     """Random segments around a torus (inner 0.02, outer 0.06): both codes; derivatives as the
