@@ -336,7 +336,7 @@ def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -
     also for the wrapped paths); returns q_used and the wrapped paths' (points, mask, labels, order)."""
     if len(plan.wrapped):                    # the wrap helper works with d tf (F, B, C, 4, 4)
         tf, dtf, q_used, jac = body_pose_derivatives(model, q)
-        twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord)
+        twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord) if len(plan.unwrapped) else None
     else:                                    # body twists directly (no (F, B, C, 4, 4) array)
         tf, twist, q_used, jac = _pose_twists(model, q)
         twist = twist[:, plan.twist_body, plan.twist_coord]
