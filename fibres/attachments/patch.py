@@ -75,7 +75,8 @@ class AttachmentPatches:
 
 def _graph(vertices, edges):
     n = len(vertices)
-    length = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
+    d = vertices[edges[:, 0]] - vertices[edges[:, 1]]
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
     i, j = edges[:, 0], edges[:, 1]
     return sp.csr_matrix((np.concatenate([length, length]),
                           (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)), length
@@ -155,7 +156,7 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
     v = np.asarray(vertices, dtype=np.float64)
     graph, length = _graph(v, edges)
     mean_edge = float(length.mean())
-    tree = cKDTree(v)
+    tree = cKDTree(v, balanced_tree=False, compact_nodes=False)   # exact queries, faster build
     notes = []
     fn = _face_normals(v, faces)
     areas = 0.5 * np.linalg.norm(fn, axis=1)

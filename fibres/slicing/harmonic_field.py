@@ -52,15 +52,17 @@ def mesh_edges(faces: np.ndarray, n_vertices: int):
 
 def cotangent_weights(vertices, faces, edges, face_edges) -> np.ndarray:
     """(E,) cotangent weights ``(cot alpha + cot beta) / 2`` of the edges, clipped at 0."""
-    tri = vertices[faces]                                          # (T, 3, 3)
-    w = np.zeros(len(edges))
-    for k in range(3):  # the angle at corner k is opposite side k + 1 (v_{k+1} v_{k+2})
-        a = tri[:, (k + 1) % 3] - tri[:, k]
-        b = tri[:, (k + 2) % 3] - tri[:, k]
-        cross = np.linalg.norm(np.cross(a, b), axis=1)
-        dot = np.einsum("ij,ij->i", a, b)
-        cot = dot / np.maximum(cross, 1e-300)
-        w += np.bincount(face_edges[:, (k + 1) % 3], 0.5 * cot, len(edges))
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    # the sides from each corner; |cross| is twice the area whichever corner it is taken at
+    ab, bc, ca = b - a, c - b, a - c
+    cx = ab[:, 1] * ca[:, 2] - ab[:, 2] * ca[:, 1]
+    cy = ab[:, 2] * ca[:, 0] - ab[:, 0] * ca[:, 2]
+    cz = ab[:, 0] * ca[:, 1] - ab[:, 1] * ca[:, 0]
+    half = 0.5 / np.maximum(np.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+    # the angle at corner k is opposite side k + 1 (v_{k+1} v_{k+2}): cot = a . b / |a x b|
+    cot = np.concatenate([-np.einsum("ij,ij->i", ab, ca), -np.einsum("ij,ij->i", bc, ab),
+                          -np.einsum("ij,ij->i", ca, bc)]) * np.tile(half, 3)
+    w = np.bincount(face_edges[:, [1, 2, 0]].T.reshape(-1), cot, len(edges))
     return np.maximum(w, 0.0)
 
 

@@ -155,8 +155,9 @@ def isoline_moments(u, vertices, faces, levels):
     """
     levels = np.asarray(levels, dtype=np.float64)
     uf = np.asarray(u)[faces]                                         # (T, 3)
-    lo = np.searchsorted(levels, uf.min(axis=1), side="right")
-    hi = np.searchsorted(levels, uf.max(axis=1), side="right")
+    u0, u1, u2 = uf.T
+    lo = np.searchsorted(levels, np.minimum(np.minimum(u0, u1), u2), side="right")
+    hi = np.searchsorted(levels, np.maximum(np.maximum(u0, u1), u2), side="right")
     count = hi - lo
     face = np.repeat(np.arange(len(faces)), count)
     start = np.repeat(np.cumsum(count) - count, count)
@@ -166,14 +167,14 @@ def isoline_moments(u, vertices, faces, levels):
     ab = fu >= t[:, None]
     rising = ~ab & np.roll(ab, -1, axis=1)
     falling = ab & ~np.roll(ab, -1, axis=1)
-    rows = np.arange(face.size)
-    tri = vertices[faces[face]]                                       # (H, 3, 3)
+    corner = faces[face]                                              # (H, 3)
+    flat = 3 * np.arange(face.size)
 
     def crossing(side):
-        k0, k1 = side, (side + 1) % 3
-        u0, u1 = fu[rows, k0], fu[rows, k1]
+        k0, k1 = flat + side, flat + (side + 1) % 3
+        u0, u1 = fu.reshape(-1)[k0], fu.reshape(-1)[k1]
         s = ((t - u0) / (u1 - u0))[:, None]
-        return (1.0 - s) * tri[rows, k0] + s * tri[rows, k1]
+        return (1.0 - s) * vertices[corner.reshape(-1)[k0]] + s * vertices[corner.reshape(-1)[k1]]
 
     a = crossing(falling.argmax(axis=1))
     b = crossing(rising.argmax(axis=1))
