@@ -176,8 +176,9 @@ def isoline_moments(u, vertices, faces, levels):
         s = ((t - u0) / (u1 - u0))[:, None]
         return (1.0 - s) * vertices[corner.reshape(-1)[k0]] + s * vertices[corner.reshape(-1)[k1]]
 
-    a = crossing(falling.argmax(axis=1))
-    b = crossing(rising.argmax(axis=1))
+    # one falling and one rising side per crossing face: its index without an argmax
+    a = crossing(falling[:, 1] + 2 * falling[:, 2])
+    b = crossing(rising[:, 1] + 2 * rising[:, 2])
     seg = np.linalg.norm(b - a, axis=1)
     n = len(levels)
     length = np.bincount(lev, seg, n)
