@@ -39,7 +39,7 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from ..errors import InputError
 
-__all__ = ["AttachmentPatches", "attachment_patches", "FAR_LANDMARK", "MIN_PIECE"]
+__all__ = ["AttachmentPatches", "attachment_patches", "face_normals", "FAR_LANDMARK", "MIN_PIECE"]
 
 #: landmarks farther than this (metres) from the muscle surface are named in a note
 FAR_LANDMARK = 0.02
@@ -82,7 +82,7 @@ def _graph(vertices, edges):
                           (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)), length
 
 
-def _face_normals(vertices, faces):
+def face_normals(vertices, faces):
     """(T, 3) face normals scaled by twice the face area."""
     tri = vertices[faces]
     return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -141,7 +141,8 @@ def _drop_small_pieces(patch, edges, vertex_area, name, notes):
     return out
 
 
-def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentPatches:
+def attachment_patches(vertices, faces, origin, insertion, edges, *,
+                       normals=None) -> AttachmentPatches:
     """The origin and insertion patches of a closed surface (module docstring).
 
     Parameters
@@ -152,13 +153,15 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
         Landmarks, same units as the vertices.
     edges : (E, 2) int
         `fibres.slicing.harmonic_field.mesh_edges` of the faces.
+    normals : (T, 3) float, optional
+        `face_normals` of the surface, when at hand.
     """
     v = np.asarray(vertices, dtype=np.float64)
     graph, length = _graph(v, edges)
     mean_edge = float(length.mean())
     tree = cKDTree(v, balanced_tree=False, compact_nodes=False)   # exact queries, faster build
     notes = []
-    fn = _face_normals(v, faces)
+    fn = face_normals(v, faces) if normals is None else normals
     areas = 0.5 * np.linalg.norm(fn, axis=1)
     flat = faces.reshape(-1)
     vn = np.stack([np.bincount(flat, np.repeat(fn[:, d], 3), len(v)) for d in range(3)], axis=1)

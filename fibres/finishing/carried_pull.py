@@ -152,12 +152,13 @@ class CarriedPull:
 
 def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
                     rounds: int = REST_ROUNDS, reach: float = CONTAIN_REACH,
-                    grid: SurfaceGrid | None = None):
+                    grid: SurfaceGrid | None = None, normals=None):
     """The rest pose's pull (`pull_rounds` with band ``margin``) of fibres ``points``
     (N, P, 3) in the surface (vertices, faces), as a `CarriedPull` (module docstring):
     ``carry_rest_pull(...).apply(points, vertices)`` are the pulled fibres (to rounding).
     ``grid``: the surface already prepared with this ``reach`` (its vertices and faces must
-    be these)."""
+    be these); ``normals``: its face normals scaled by twice the areas
+    (`fibres.attachments.patch.face_normals`), when at hand."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     pts = np.asarray(points, dtype=np.float64)
@@ -173,7 +174,7 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
         return CarriedPull((n, p), rows, np.zeros((0, 3), np.int64),
                            sp.csr_matrix((0, 0)), np.zeros(0, np.int64), np.zeros((0, 3)))
     a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    cross = np.cross(b - a, c - a)
+    cross = np.cross(b - a, c - a) if normals is None else normals
     k = min(CARRY_CANDIDATES, len(f))
     # an unbalanced tree (sliding midpoint) builds in half the time; its queries are exact
     tree = cKDTree((a + b + c) / 3.0, balanced_tree=False, compact_nodes=False)
@@ -202,4 +203,4 @@ def planned_pull(plan, key, rest_points, grid: SurfaceGrid | None = None) -> Car
     `CONTAIN_REACH`, if at hand."""
     return plan.cached(("carried pull",) + tuple(key),
                        lambda: carry_rest_pull(rest_points(), plan.rest_vertices, plan.faces,
-                                               grid=grid))
+                                               grid=grid, normals=plan.face_normals()))

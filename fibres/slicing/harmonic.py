@@ -81,7 +81,7 @@ import threading
 import numpy as np
 import scipy.sparse as sp
 
-from ..attachments.patch import attachment_patches
+from ..attachments.patch import attachment_patches, face_normals
 from ..errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
 from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
@@ -161,6 +161,12 @@ class HarmonicPlan:
                 hit = self._cache[key] = make()
             return hit
 
+    def face_normals(self):
+        """(T, 3) face normals of the rest surface scaled by twice the face areas
+        (`fibres.attachments.patch.face_normals`), kept with the plan."""
+        return self.cached(("face normals",), lambda: face_normals(self.rest_vertices,
+                                                                   self.faces))
+
     @property
     def topology(self):
         """The faces and vertex count (what `fibres.decompose` checks a frame against)."""
@@ -185,12 +191,15 @@ def make_harmonic_plan(vertices, faces, origin, insertion, *, topology=None) -> 
         edges, face_edges = topology.edges.copy(), topology.face_edges.copy()   # writeable
     else:
         edges, face_edges = mesh_edges(f, len(v))
-    patches = attachment_patches(v, f, origin, insertion, edges)
+    normals = face_normals(v, f)
+    patches = attachment_patches(v, f, origin, insertion, edges, normals=normals)
     u = harmonic_field(v, f, patches.origin, patches.insertion, edges=edges,
                        face_edges=face_edges)
-    return HarmonicPlan(f, v, u, patches.origin, patches.insertion, patches.origin_faces,
+    plan = HarmonicPlan(f, v, u, patches.origin, patches.insertion, patches.origin_faces,
                         patches.insertion_faces, np.asarray(origin, float),
                         np.asarray(insertion, float), edges, face_edges, patches.notes)
+    plan.cached(("face normals",), lambda: normals)
+    return plan
 
 
 # -- template points to the muscle ----------------------------------------------------------

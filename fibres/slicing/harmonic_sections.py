@@ -79,8 +79,7 @@ def _levels(plan, resolution: int) -> np.ndarray:
     ring a narrow insertion come closer -- gluteus maximus 5.8 -> 4.4 % empty). The R - 1
     inner levels divide the sum evenly."""
     v, u, f = plan.rest_vertices, plan.field, plan.faces
-    tri = v[f]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = 0.5 * np.linalg.norm(plan.face_normals(), axis=1)
     uc = u[f].mean(axis=1)
     order = np.argsort(uc, kind="stable")
     cum = np.cumsum(area[order])
