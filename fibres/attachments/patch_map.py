@@ -43,6 +43,21 @@ def _quantile(values, weights, q):
     return np.interp(q, mid, v)
 
 
+def _window_weights(sx, sw, x, h):
+    """(N, S) sample weights ``sw`` times the Gaussian window of width ``h`` about each
+    ``x`` (N,) (all ``sw`` for a point no sample's window reaches) and their cumulative sums
+    along S."""
+    d = (sx[None] - np.asarray(x, dtype=np.float64)[:, None]) / h
+    w = np.exp(-0.5 * (d * d))
+    w *= sw[None]
+    cum = np.cumsum(w, axis=1)
+    empty = ~(cum[:, -1] > 0)                   # the weights are >= 0: the sum is the last
+    if empty.any():
+        w[empty] = sw[None]
+        cum[empty] = np.cumsum(sw)[None]
+    return w, cum
+
+
 def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     """Planar targets ``(x*, y*)`` of unit-square coordinates ``(X, Y)`` under the
     Knothe-Rosenblatt map onto the area measure of triangles with projected corners ``px``,
@@ -60,14 +75,12 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    w = sw[None] * np.exp(-0.5 * ((sx[None] - xs[:, None]) / h) ** 2)   # (N, S)
-    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
-    cum = np.cumsum(w, axis=1)
+    w, cum = _window_weights(sx, sw, xs, h)                              # (N, S)
     mid = (cum - 0.5 * w) / cum[:, -1:]
     q = np.clip(Y, 0.0, 1.0)[:, None]
-    k = np.clip((mid < q).sum(axis=1), 1, len(sy) - 1)
-    rows = np.arange(len(xs))
-    m0, m1 = mid[rows, k - 1], mid[rows, k]
+    k = np.clip(np.count_nonzero(mid < q, axis=1), 1, len(sy) - 1)
+    at = k + len(sy) * np.arange(len(xs))
+    m0, m1 = mid.reshape(-1)[at - 1], mid.reshape(-1)[at]
     f = np.clip((q[:, 0] - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
     ys = sy[k - 1] + f * (sy[k] - sy[k - 1])
     below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
@@ -135,14 +148,14 @@ def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    w = sw[None] * np.exp(-0.5 * ((sx[None] - np.asarray(qx)[:, None]) / h) ** 2)
-    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
-    cum = np.cumsum(w, axis=1)
-    mid = (cum - 0.5 * w) / cum[:, -1:]
-    k = np.clip((sy[None] < np.asarray(qy)[:, None]).sum(axis=1), 1, len(sy) - 1)
-    rows = np.arange(len(k))
+    w, cum = _window_weights(sx, sw, qx, h)
+    k = np.clip(np.searchsorted(sy, qy, side="left"), 1, len(sy) - 1)   # #(sy < qy)
+    at = k + len(sy) * np.arange(len(k))
+    # the mid-point cumulative weights only where they are used
+    m0 = (cum.reshape(-1)[at - 1] - 0.5 * w.reshape(-1)[at - 1]) / cum[:, -1]
+    m1 = (cum.reshape(-1)[at] - 0.5 * w.reshape(-1)[at]) / cum[:, -1]
     f = np.clip((qy - sy[k - 1]) / np.maximum(sy[k] - sy[k - 1], 1e-300), 0.0, 1.0)
-    Y = mid[rows, k - 1] + f * (mid[rows, k] - mid[rows, k - 1])
+    Y = m0 + f * (m1 - m0)
     return np.clip(X, 0.0, 1.0), np.clip(Y, 0.0, 1.0)
 
 
