@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["area_points", "relax_on_patch", "LLOYD", "grid_area_map", "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
+__all__ = ["area_points", "relax_on_patch", "relax_on_patches", "LLOYD", "grid_area_map", "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
 
 
 #: nearest triangles tried first when locating a point (`locate`)
@@ -264,37 +264,73 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     face : (N,) int64
     bary : (N, 3) float
     """
+    return relax_on_patches(vertices, faces, [(face_mask, face, bary)], iterations=iterations,
+                            samples=samples)[0]
+
+
+def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
+                     samples: int = SAMPLES):
+    """`relax_on_patch` of several patches at once: ``ends`` a sequence of ``(face_mask,
+    face, bary)``; a list of ``(face, bary)``, each patch's as `relax_on_patch` makes it.
+
+    The patches share the k-d trees of each step: every point, sample and triangle centroid
+    gets a fourth coordinate, its patch's number times a length (`_apart`) beyond any
+    distance the steps look, so nothing sees another patch's samples or triangles, and the
+    distances within a patch are the three-dimensional ones (the fourth differences are 0)."""
     from scipy.spatial import cKDTree
 
-    face = np.asarray(face, dtype=np.int64).copy()
-    bary = np.asarray(bary, dtype=np.float64).copy()
-    idx = np.flatnonzero(face_mask)
-    if iterations <= 0 or idx.size == 0 or len(face) < 2:
-        return face, bary
-    tri = vertices[faces[idx]]                                       # (Tp, 3, 3)
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    n = int(np.clip(np.sqrt(samples / max(len(idx), 1)), 1, 8))
-    sub = _sub_centroids(n)                                          # (S, 3)
-    pts = np.einsum("sk,tkd->tsd", sub, tri).reshape(-1, 3)
-    w = np.repeat(area / len(sub), len(sub))
-    p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
-    patch = _Patch(tri, pts)
+    out = [(np.asarray(f, dtype=np.int64).copy(), np.asarray(b, dtype=np.float64).copy())
+           for _, f, b in ends]
+    todo = [k for k, (mask, _, _) in enumerate(ends)
+            if iterations > 0 and np.any(mask) and len(out[k][0]) >= 2]
+    if not todo:
+        return out
+    apart = _apart(vertices)
+    parts = []
+    for slot, k in enumerate(todo):
+        face, bary = out[k]
+        i = np.flatnonzero(ends[k][0])
+        t = vertices[faces[i]]                                         # (Tp, 3, 3)
+        area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
+        sub = _sub_centroids(n)                                        # (S, 3)
+        s = np.einsum("sk,tkd->tsd", sub, t).reshape(-1, 3)
+        p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
+        parts.append((i, t, s, np.repeat(area / len(sub), len(sub)), p, face, bary,
+                      np.full(len(i), slot * apart), np.full(len(s), slot * apart),
+                      np.full(len(p), slot * apart)))
+    idx, tri, pts, w, p, face, bary, tag, sample_tag, point_tag = (
+        np.concatenate(x) for x in zip(*parts))
+    pts4 = np.c_[pts, sample_tag]
+    patch = _Patch(tri, pts4, tag)
     for _ in range(int(iterations)):
-        owner = cKDTree(p).query(pts)[1]
+        owner = cKDTree(np.c_[p, point_tag]).query(pts4)[1]
         mass = np.bincount(owner, w, len(p))
         has = mass > 0
         c = np.stack([np.bincount(owner, w * pts[:, d], len(p)) for d in range(3)], axis=1)
         sel = np.flatnonzero(has)
-        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None])
+        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None], point_tag[sel])
         face[sel], bary[sel], p[sel] = idx[pick], b, q
-    return face, bary
+    at = np.cumsum([0] + [len(part[4]) for part in parts])
+    for slot, k in enumerate(todo):
+        out[k] = (face[at[slot]:at[slot + 1]], bary[at[slot]:at[slot + 1]])
+    return out
+
+
+def _apart(vertices) -> float:
+    """A length beyond every distance `relax_on_patches` looks within one patch: 4 times the
+    largest extent of the vertices, at least 1."""
+    v = np.asarray(vertices, dtype=np.float64)
+    return 4.0 * max(float(np.ptp(v, axis=0).max()) if len(v) else 0.0, 1.0)
 
 
 class _Patch:
-    """A patch's triangles ``tri`` (Tp, 3, 3) and area samples (points of the patch) with the
-    k-d trees and bound that `_onto_patch` needs, built once for all Lloyd steps."""
+    """Patches' triangles ``tri`` (Tp, 3, 3) and area samples (points of the patches with
+    their fourth coordinate, `relax_on_patches`) with the k-d trees and bound that
+    `_onto_patch` needs, built once for all Lloyd steps; ``tag`` (Tp,) the triangles' fourth
+    coordinate."""
 
-    def __init__(self, tri, samples):
+    def __init__(self, tri, samples, tag):
         from scipy.spatial import cKDTree
 
         self.tri = tri
@@ -303,12 +339,13 @@ class _Patch:
         self.radius = np.sqrt(((tri - cen[:, None]) ** 2).sum(axis=2).max(axis=1))   # (Tp,)
         self.reach = float(self.radius.max())
         self.samples = cKDTree(samples)
-        self.centroids = cKDTree(cen)
+        self.centroids = cKDTree(np.c_[cen, tag])
 
 
-def _onto_patch(patch: _Patch, c):
-    """The point of the patch's triangles nearest each point ``c`` (M, 3): its triangle
-    (index into ``patch.tri``), barycentric weights and position.
+def _onto_patch(patch: _Patch, c, tag):
+    """The point of the patch's triangles nearest each point ``c`` (M, 3) (with its fourth
+    coordinate ``tag`` (M,): among its own patch's triangles): its triangle (index into
+    ``patch.tri``), barycentric weights and position.
 
     Exact among all triangles: a sample (a point of the patch) at distance ``d0`` from c
     bounds the distance to the patch, so only triangles whose centroid lies within ``d0``
@@ -322,8 +359,9 @@ def _onto_patch(patch: _Patch, c):
     from ..mesh.closest_point import closest_points_on_triangles
 
     tri = patch.tri
-    d0 = patch.samples.query(c)[0]
-    near = patch.centroids.query_ball_point(c, (d0 + patch.reach) * (1.0 + 1e-9),
+    c4 = np.c_[c, tag]
+    d0 = patch.samples.query(c4)[0]
+    near = patch.centroids.query_ball_point(c4, (d0 + patch.reach) * (1.0 + 1e-9),
                                             return_sorted=False)
     count = np.fromiter(map(len, near), dtype=np.int64, count=len(c))
     cand = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))

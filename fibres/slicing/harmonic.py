@@ -86,7 +86,7 @@ from ..errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
 from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
-from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patch
+from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patches
 from ..finishing.fairing import fairing_operator, taubin_pairs
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "maps_key", "SAMPLES"]
@@ -294,6 +294,7 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     # carried onto the whole patch by area and in order (the membrane's projected area
     # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the fibres
     # then bend towards them (_bend_to_ends)
+    ends = []
     for col, mask, patch, j in ((0, plan.origin_faces, plan.origin, 0),
                                 (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
         if not mask.any():
@@ -304,9 +305,10 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         on = lam(j, xy[:, col]) @ rest[j] - slices.centres[j]
         X, Y = kr_coordinates((tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2,
                               area, on @ e1, on @ e2, samples=len(area))
-        face, bary = area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j], e1,
-                                 e2, X, Y)
-        moved, mbary = relax_on_patch(plan.rest_vertices, plan.faces, mask, face, bary)
+        ends.append((mask, *area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j],
+                                        e1, e2, X, Y)))
+    relaxed = relax_on_patches(plan.rest_vertices, plan.faces, ends)   # both at once
+    for col, (_, face, bary), (moved, mbary) in zip((0, p - 1), ends, relaxed):
         rows.append(np.repeat(rid[:, col], 3))
         cols.append(base + plan.faces[moved].reshape(-1))
         vals.append(mbary.reshape(-1))
