@@ -122,9 +122,9 @@ def grid_area_map(mass, X, Y):
     cum = np.concatenate([np.zeros((len(xs), 1)), np.cumsum(p, axis=1)], axis=1)
     cum /= cum[:, -1:]
     q = np.clip(Y, 0.0, 1.0)[:, None]
-    k = np.clip((cum[:, 1:] < q).sum(axis=1), 0, g - 1)
-    rows = np.arange(len(xs))
-    lo, hi = cum[rows, k], cum[rows, k + 1]
+    k = np.clip(np.count_nonzero(cum[:, 1:] < q, axis=1), 0, g - 1)
+    at = k + (g + 1) * np.arange(len(xs))
+    lo, hi = cum.reshape(-1)[at], cum.reshape(-1)[at + 1]
     f = np.clip((q[:, 0] - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
     return xs, (k + f) / g
 

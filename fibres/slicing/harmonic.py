@@ -247,8 +247,9 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         if j not in membranes:
             memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]    # (G+1)^2 x 3
             tri = memb[cells]
-            area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
-                                        axis=1)
+            (ax, ay, az), (bx, by, bz) = (tri[:, 1] - tri[:, 0]).T, (tri[:, 2] - tri[:, 0]).T
+            area = 0.5 * np.sqrt((ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2
+                                 + (ax * by - ay * bx) ** 2)
             membranes[j] = (tri, area)
         return membranes[j]
 
