@@ -298,18 +298,22 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
         p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
         parts.append((i, t, s, np.repeat(area / len(sub), len(sub)), p, face, bary,
                       np.full(len(i), slot * apart), np.full(len(s), slot * apart),
-                      np.full(len(p), slot * apart)))
-    idx, tri, pts, w, p, face, bary, tag, sample_tag, point_tag = (
+                      np.full(len(p), slot * apart), np.full(len(p), slot)))
+    idx, tri, pts, w, p, face, bary, tag, sample_tag, point_tag, point_slot = (
         np.concatenate(x) for x in zip(*parts))
     pts4 = np.c_[pts, sample_tag]
     patch = _Patch(tri, pts4, tag)
+    # each patch's own largest triangle radius bounds its points' searches
+    reach = np.array([patch.radius[tag == slot * apart].max() for slot in range(len(todo))])
+    point_reach = reach[point_slot]
     for _ in range(int(iterations)):
         owner = cKDTree(np.c_[p, point_tag]).query(pts4)[1]
         mass = np.bincount(owner, w, len(p))
         has = mass > 0
         c = np.stack([np.bincount(owner, w * pts[:, d], len(p)) for d in range(3)], axis=1)
         sel = np.flatnonzero(has)
-        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None], point_tag[sel])
+        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None], point_tag[sel],
+                                 point_reach[sel])
         face[sel], bary[sel], p[sel] = idx[pick], b, q
     at = np.cumsum([0] + [len(part[4]) for part in parts])
     for slot, k in enumerate(todo):
@@ -342,10 +346,11 @@ class _Patch:
         self.centroids = cKDTree(np.c_[cen, tag])
 
 
-def _onto_patch(patch: _Patch, c, tag):
+def _onto_patch(patch: _Patch, c, tag, reach=None):
     """The point of the patch's triangles nearest each point ``c`` (M, 3) (with its fourth
     coordinate ``tag`` (M,): among its own patch's triangles): its triangle (index into
-    ``patch.tri``), barycentric weights and position.
+    ``patch.tri``), barycentric weights and position. ``reach`` (M,): the largest
+    centroid-to-corner distance of each point's own patch's triangles (default: of all).
 
     Exact among all triangles: a sample (a point of the patch) at distance ``d0`` from c
     bounds the distance to the patch, so only triangles whose centroid lies within ``d0``
@@ -361,7 +366,8 @@ def _onto_patch(patch: _Patch, c, tag):
     tri = patch.tri
     c4 = np.c_[c, tag]
     d0 = patch.samples.query(c4)[0]
-    near = patch.centroids.query_ball_point(c4, (d0 + patch.reach) * (1.0 + 1e-9),
+    reach = patch.reach if reach is None else reach
+    near = patch.centroids.query_ball_point(c4, (d0 + reach) * (1.0 + 1e-9),
                                             return_sorted=False)
     count = np.fromiter(map(len, near), dtype=np.int64, count=len(c))
     cand = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))
