@@ -17,7 +17,9 @@ to zero: the matrix is then an M-matrix, so the discrete field obeys the maximum
 exact linear precision on such edges only. Dirichlet values on the patch vertices; the free
 vertices' system ``L_ff u_f = -L_fb u_b`` is symmetric positive definite and solved by a sparse
 LU factorisation (scipy.sparse.linalg.splu: SuperLU in symmetric mode with a minimum degree
-ordering of A^T + A, pivots on the diagonal: the matrix is symmetric positive definite).
+ordering of A^T + A, pivots on the diagonal: the matrix is symmetric positive definite;
+panels of one column, since the factors of a surface mesh's Laplacian are too sparse for
+wider panels to pay).
 """
 from __future__ import annotations
 
@@ -127,6 +129,6 @@ def harmonic_field(vertices, faces, zero, one, *, edges=None, face_edges=None) -
                              (np.concatenate([a, b, k]), np.concatenate([b, a, k]))),
                             shape=(free.size, free.size))
         rhs = _rhs(where, i, j, w, one, free.size)
-        u[free] = splu(mat, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+        u[free] = splu(mat, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, panel_size=1,
                        options={"SymmetricMode": True}).solve(rhs)
     return np.clip(u, 0.0, 1.0)
