@@ -270,6 +270,8 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     rows, cols, vals = [], [], []
     rid = np.arange(n * p).reshape(n, p)
     kk = np.arange(k)
+    n_cols = base + len(plan.rest_vertices)
+    inner = sp.csr_matrix((n * p, n_cols))
     # inner points: the membranes of the two loops around their height, blended (heights
     # before the first or after the last inner slice are clamped onto it)
     if p > 2:
@@ -277,20 +279,27 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         j0 = np.clip(np.floor(pos).astype(np.int64), 0, max(n_loops - 2, 0))
         a = pos - j0
         j1 = np.minimum(j0 + 1, n_loops - 1)
-        r_in = rid[:, 1:-1].reshape(-1)
         xy_in = xy[:, 1:-1].reshape(-1, 2)
         # each point on its two loops (weights 1 - a and a; zero weights left out), the
-        # membrane map of each loop evaluated once for all its points
+        # membrane map of each loop evaluated once for all its points; row by row in
+        # sparse-row order (loop j0's samples, then loop j1's: j0 < j1 when there are two
+        # loops; with one, the weight on j1 is 0), so the matrix needs no sorting
         jj = np.concatenate([j0, j1])
         wj = np.concatenate([1.0 - a, a])
         pt = np.concatenate([np.arange(a.size), np.arange(a.size)])
         use = np.flatnonzero(wj > 0)
-        jj, wj, pt = jj[use], wj[use], pt[use]
+        jj, wj, pt, side = jj[use], wj[use], pt[use], use // a.size
+        blocks = np.zeros((a.size, 2, k))
         for j in np.unique(jj):
             sel = np.flatnonzero(jj == j)
-            rows.append(np.repeat(r_in[pt[sel]], k))
-            cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
-            vals.append((lam(j, xy_in[pt[sel]]) * wj[sel, None]).reshape(-1))
+            blocks[pt[sel], side[sel]] = lam(j, xy_in[pt[sel]]) * wj[sel, None]
+        at = np.stack([j0, j1], axis=1)[:, :, None] * k + kk                  # (n_in, 2, k)
+        counts = np.zeros((n, p), dtype=np.int64)
+        counts[:, 1:-1] = 2 * k
+        inner = sp.csr_matrix((blocks.reshape(-1), at.reshape(-1),
+                               np.concatenate([[0], np.cumsum(counts.reshape(-1))])),
+                              shape=(n * p, n_cols))
+        inner.eliminate_zeros()
     # ends: the fibres' places on the first / last inner membrane, projected on its frame,
     # carried onto the whole patch by area and in order (the membrane's projected area
     # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the fibres
@@ -322,9 +331,9 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
                 cols.append(np.repeat(base + plan.faces[fc], p - 2, axis=0).reshape(-1))
                 vals.append((sign * np.repeat(bc, p - 2, axis=0)
                              * np.tile(fade, n)[:, None]).reshape(-1))
-    n_cols = base + len(plan.rest_vertices)
-    mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                        shape=(n * p, n_cols))
+    mat = inner + sp.csr_matrix((np.concatenate(vals),
+                                 (np.concatenate(rows), np.concatenate(cols))),
+                                shape=(n * p, n_cols))
     # bending and even steps are (N P, N P) maps of the points: composed first (small), then
     # applied to the map of the vertices in one sparse product
     bend = _bend_to_ends(n, p)
