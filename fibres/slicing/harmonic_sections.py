@@ -87,7 +87,7 @@ def _levels(plan, resolution: int) -> np.ndarray:
     cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
     cand = cand[(cand > 2 * _RIM) & (cand < 1 - 2 * _RIM)]
     cand = np.concatenate([[_RIM], cand, [1 - _RIM]])
-    length, centre, _ = isoline_moments(u, v, f, cand)
+    length, centre, _ = isoline_moments(u, v, f, cand, area=False)
     ok = length > 0
     cand, centre = cand[ok], centre[ok]
     step = np.diff(centre, axis=0)
