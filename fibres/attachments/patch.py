@@ -75,7 +75,7 @@ class AttachmentPatches:
 
 def _graph(vertices, edges):
     n = len(vertices)
-    d = vertices[edges[:, 0]] - vertices[edges[:, 1]]
+    d = np.take(vertices, edges[:, 0], axis=0) - np.take(vertices, edges[:, 1], axis=0)
     length = np.sqrt(np.einsum("ij,ij->i", d, d))
     i, j = edges[:, 0], edges[:, 1]
     return sp.csr_matrix((np.concatenate([length, length]),
@@ -84,7 +84,7 @@ def _graph(vertices, edges):
 
 def face_normals(vertices, faces):
     """(T, 3) face normals scaled by twice the face area."""
-    tri = vertices[faces]
+    tri = np.take(vertices, faces, axis=0)
     return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
 
 

@@ -226,7 +226,7 @@ def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
         Barycentric weights of the face's corners (non-negative, summing to 1).
     """
     idx = np.flatnonzero(face_mask)
-    tri = vertices[faces[idx]]                                     # (Tp, 3, 3)
+    tri = np.take(vertices, faces[idx], axis=0)                    # (Tp, 3, 3)
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     px = (tri - centre) @ e1
     py = (tri - centre) @ e2
@@ -290,7 +290,7 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
     for slot, k in enumerate(todo):
         face, bary = out[k]
         i = np.flatnonzero(ends[k][0])
-        t = vertices[faces[i]]                                         # (Tp, 3, 3)
+        t = np.take(vertices, faces[i], axis=0)                        # (Tp, 3, 3)
         area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
         n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
         sub = _sub_centroids(n)                                        # (S, 3)
@@ -373,13 +373,14 @@ def _onto_patch(patch: _Patch, c, tag, reach=None):
     cand = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))
     who = np.repeat(np.arange(len(c)), count)                          # (pairs,)
     # a triangle's points lie within its own radius of its centroid
-    gap = patch.cen[cand] - c[who]
+    p = np.take(c, who, axis=0)
+    gap = np.take(patch.cen, cand, axis=0) - p
     bound = (d0[who] + patch.radius[cand]) * (1.0 + 1e-9)
     keep = np.einsum("kd,kd->k", gap, gap) <= bound * bound
     cand, who = cand[keep], who[keep]
     count = np.bincount(who, minlength=len(c))
-    t = tri[cand]
-    p = c[who]
+    t = np.take(tri, cand, axis=0)
+    p = p[keep]
     q = closest_points_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
     d2 = np.einsum("kd,kd->k", q - p, q - p)
     best = np.lexsort((d2, who))[np.concatenate([[0], np.cumsum(count)[:-1]])]
