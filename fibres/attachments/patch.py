@@ -73,13 +73,25 @@ class AttachmentPatches:
     notes: tuple = ()
 
 
+def _upper(a, b, values, n):
+    """Sparse (n, n) matrix with ``values`` at the pairs ``(a, b)`` (``a < b``, each pair
+    once): straight in sparse-row form when the pairs come sorted (`mesh_edges` order), else
+    by sorting. The graph routines here are undirected: the upper triangle is the graph."""
+    key = a * np.int64(n) + b
+    if key.size and not (np.diff(key) > 0).all():
+        return sp.csr_matrix((values, (a, b)), shape=(n, n))
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(a, minlength=n), out=indptr[1:])
+    return sp.csr_matrix((values, b, indptr), shape=(n, n))
+
+
 def _graph(vertices, edges):
-    n = len(vertices)
+    """The mesh's edge graph (upper triangle, `_upper`) weighted by the edges' lengths, and
+    the lengths."""
     d = np.take(vertices, edges[:, 0], axis=0) - np.take(vertices, edges[:, 1], axis=0)
     length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    i, j = edges[:, 0], edges[:, 1]
-    return sp.csr_matrix((np.concatenate([length, length]),
-                          (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)), length
+    lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
+    return _upper(lo, hi, length, len(vertices)), length
 
 
 def face_normals(vertices, faces):
@@ -101,9 +113,9 @@ def _components(mask, edges):
     where = np.full(mask.size, -1, dtype=np.int64)
     where[idx] = np.arange(idx.size)
     keep = mask[edges[:, 0]] & mask[edges[:, 1]]
-    a, b = where[edges[keep, 0]], where[edges[keep, 1]]
-    g = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(idx.size, idx.size))
-    return connected_components(g, directed=False)
+    a, b = where[edges[keep, 0]], where[edges[keep, 1]]      # where keeps the edges' order
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    return connected_components(_upper(lo, hi, np.ones(a.size), idx.size), directed=False)
 
 
 def _fill_holes(patch, edges, vertex_area):
