@@ -180,9 +180,11 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     tree = cKDTree((a + b + c) / 3.0, balanced_tree=False, compact_nodes=False)
     _, near = tree.query(out.reshape(-1, 3)[rows], k=k)
     near = np.asarray(near).reshape(len(rows), k)
-    unit = cross[near] / np.maximum(np.linalg.norm(cross[near], axis=2), 1e-300)[..., None]
+    vec = np.take(cross, near, axis=0)                                      # (M, k, 3)
+    size = np.sqrt(np.einsum("mkd,mkd->mk", vec, vec))
+    unit = vec / np.maximum(size, 1e-300)[..., None]
     weights = (np.einsum("mkd,md->mk", unit, unit[:, 0]) > FACING).astype(np.float64)
-    if not (np.linalg.norm(cross[near[:, 0]], axis=1) > 0).all():
+    if not (size[:, 0] > 0).all():
         raise InputError("a triangle of the surface near a pulled fibre point has no area",
                          where="mesh", fix="Repair the mesh (degenerate triangles).")
     used, local = np.unique(near, return_inverse=True)
