@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["area_points", "relax_on_patch", "relax_on_patches", "LLOYD", "grid_area_map", "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
+__all__ = ["area_points", "relax_on_patch", "relax_on_patches", "LLOYD", "grid_area_map",
+           "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
 
 
 #: nearest triangles tried first when locating a point (`locate`)
