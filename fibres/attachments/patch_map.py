@@ -77,14 +77,18 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
     w, cum = _window_weights(sx, sw, xs, h)                              # (N, S)
-    mid = (cum - 0.5 * w) / cum[:, -1:]
-    q = np.clip(Y, 0.0, 1.0)[:, None]
-    k = np.clip(np.count_nonzero(mid < q, axis=1), 1, len(sy) - 1)
+    # the mid-point cumulative weights, normalised only where they are used (the count of
+    # those below q compares before the division: the same up to rounding)
+    total = cum[:, -1].copy()
+    half = cum
+    half -= 0.5 * w
+    q = np.clip(Y, 0.0, 1.0)
+    k = np.clip(np.count_nonzero(half < (q * total)[:, None], axis=1), 1, len(sy) - 1)
     at = k + len(sy) * np.arange(len(xs))
-    m0, m1 = mid.reshape(-1)[at - 1], mid.reshape(-1)[at]
-    f = np.clip((q[:, 0] - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
+    m0, m1 = half.reshape(-1)[at - 1] / total, half.reshape(-1)[at] / total
+    f = np.clip((q - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
     ys = sy[k - 1] + f * (sy[k] - sy[k - 1])
-    below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
+    below, above = q <= half[:, 0] / total, q >= half[:, -1] / total
     ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
     return xs, ys
 
