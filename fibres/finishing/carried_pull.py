@@ -87,7 +87,7 @@ def _frames(vertices, faces, patches, first):
     """(M, 3, 3) frames ``[f1, f2, f3]`` (module docstring) of M triangle patches and their
     squared side ``L^2`` (M,): ``patches`` (M, F) sparse 0/1 (the rows of ``faces`` (F, 3) in
     each patch), ``first`` (M,) the row whose first edge gives the direction of f1."""
-    a, b, c = np.take(vertices, faces, axis=0).transpose(1, 0, 2)
+    a, b, c = np.take(vertices, np.ascontiguousarray(faces.T), axis=0)
     cross = np.cross(b - a, c - a)                                  # (F, 3): 2 x area x normal
     total = patches @ cross
     normal = total / np.maximum(np.linalg.norm(total, axis=1), 1e-300)[:, None]
@@ -173,7 +173,7 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     if not rows.size:
         return CarriedPull((n, p), rows, np.zeros((0, 3), np.int64),
                            sp.csr_matrix((0, 0)), np.zeros(0, np.int64), np.zeros((0, 3)))
-    a, b, c = np.take(v, f, axis=0).transpose(1, 0, 2)
+    a, b, c = np.take(v, np.ascontiguousarray(f.T), axis=0)
     cross = np.cross(b - a, c - a) if normals is None else normals
     k = min(CARRY_CANDIDATES, len(f))
     # an unbalanced tree (sliding midpoint) builds in half the time; its queries are exact
