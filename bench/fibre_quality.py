@@ -187,7 +187,7 @@ STAGES = (("fibres.decompose", "_inputs", "inputs (mesh clean check)"),
           ("fibres.slicing.harmonic", "_slices", "slices (all)"),
           ("fibres.slicing.harmonic", "mean_value_coordinates", "fibre map: mean value coords"),
           ("fibres.slicing.harmonic", "area_points", "fibre map: ends onto the patches"),
-          ("fibres.slicing.harmonic", "relax_on_patch", "fibre map: ends' Lloyd steps"),
+          ("fibres.slicing.harmonic", "relax_on_patches", "fibre map: ends' Lloyd steps"),
           ("fibres.slicing.harmonic", "_fibre_matrix", "fibre map (all)"),
           ("fibres.slicing.harmonic", "fairing_operator", "fairing matrices"),
           ("fibres.finishing.carried_pull", "contain", "containment pull (all rounds)"))

@@ -487,10 +487,11 @@ def _decompose_harmonic(v, faces, o, i, notes, tmpl, n_fibres, resolution, seed,
     if contain:
         # the rest pose's pull carried in the walls' frames, then this frame's own pull
         key = maps_key(tmpl, n_fibres, resolution, seed, smoothing_iterations)
+        grid = SurfaceGrid(v, faces, reach=CONTAIN_REACH)   # at rest the plan's surface too
         carried = planned_pull(plan, key, lambda: pts if fresh else harmonic_points(
             plan, plan.rest_vertices, tmpl, n_fibres, resolution, seed,
-            int(smoothing_iterations))[0])
+            int(smoothing_iterations))[0], grid if fresh else None)
         pts = carried.apply(pts, v)
-        pts, moved = pull_rounds(pts, SurfaceGrid(v, faces, reach=CONTAIN_REACH))
+        pts, moved = pull_rounds(pts, grid)
         flags["contained"] = moved | carried.fibres
     return FibreBundle(pts, rs, tmpl, plan, flags, tuple(notes), None, (v, faces))

@@ -39,7 +39,7 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from ..errors import InputError
 
-__all__ = ["AttachmentPatches", "attachment_patches", "FAR_LANDMARK", "MIN_PIECE"]
+__all__ = ["AttachmentPatches", "attachment_patches", "face_normals", "FAR_LANDMARK", "MIN_PIECE"]
 
 #: landmarks farther than this (metres) from the muscle surface are named in a note
 FAR_LANDMARK = 0.02
@@ -73,17 +73,30 @@ class AttachmentPatches:
     notes: tuple = ()
 
 
+def _upper(a, b, values, n):
+    """Sparse (n, n) matrix with ``values`` at the pairs ``(a, b)`` (``a < b``, each pair
+    once): straight in sparse-row form when the pairs come sorted (`mesh_edges` order), else
+    by sorting. The graph routines here are undirected: the upper triangle is the graph."""
+    key = a * np.int64(n) + b
+    if key.size and not (np.diff(key) > 0).all():
+        return sp.csr_matrix((values, (a, b)), shape=(n, n))
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(a, minlength=n), out=indptr[1:])
+    return sp.csr_matrix((values, b, indptr), shape=(n, n))
+
+
 def _graph(vertices, edges):
-    n = len(vertices)
-    length = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
-    i, j = edges[:, 0], edges[:, 1]
-    return sp.csr_matrix((np.concatenate([length, length]),
-                          (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)), length
+    """The mesh's edge graph (upper triangle, `_upper`) weighted by the edges' lengths, and
+    the lengths."""
+    d = np.take(vertices, edges[:, 0], axis=0) - np.take(vertices, edges[:, 1], axis=0)
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
+    return _upper(lo, hi, length, len(vertices)), length
 
 
-def _face_normals(vertices, faces):
+def face_normals(vertices, faces):
     """(T, 3) face normals scaled by twice the face area."""
-    tri = vertices[faces]
+    tri = np.take(vertices, faces, axis=0)
     return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
 
 
@@ -100,9 +113,9 @@ def _components(mask, edges):
     where = np.full(mask.size, -1, dtype=np.int64)
     where[idx] = np.arange(idx.size)
     keep = mask[edges[:, 0]] & mask[edges[:, 1]]
-    a, b = where[edges[keep, 0]], where[edges[keep, 1]]
-    g = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(idx.size, idx.size))
-    return connected_components(g, directed=False)
+    a, b = where[edges[keep, 0]], where[edges[keep, 1]]      # where keeps the edges' order
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    return connected_components(_upper(lo, hi, np.ones(a.size), idx.size), directed=False)
 
 
 def _fill_holes(patch, edges, vertex_area):
@@ -140,7 +153,8 @@ def _drop_small_pieces(patch, edges, vertex_area, name, notes):
     return out
 
 
-def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentPatches:
+def attachment_patches(vertices, faces, origin, insertion, edges, *,
+                       normals=None) -> AttachmentPatches:
     """The origin and insertion patches of a closed surface (module docstring).
 
     Parameters
@@ -151,13 +165,15 @@ def attachment_patches(vertices, faces, origin, insertion, edges) -> AttachmentP
         Landmarks, same units as the vertices.
     edges : (E, 2) int
         `fibres.slicing.harmonic_field.mesh_edges` of the faces.
+    normals : (T, 3) float, optional
+        `face_normals` of the surface, when at hand.
     """
     v = np.asarray(vertices, dtype=np.float64)
     graph, length = _graph(v, edges)
     mean_edge = float(length.mean())
-    tree = cKDTree(v)
+    tree = cKDTree(v, balanced_tree=False, compact_nodes=False)   # exact queries, faster build
     notes = []
-    fn = _face_normals(v, faces)
+    fn = face_normals(v, faces) if normals is None else normals
     areas = 0.5 * np.linalg.norm(fn, axis=1)
     flat = faces.reshape(-1)
     vn = np.stack([np.bincount(flat, np.repeat(fn[:, d], 3), len(v)) for d in range(3)], axis=1)

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["area_points", "relax_on_patch", "LLOYD", "grid_area_map", "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
+__all__ = ["area_points", "relax_on_patch", "relax_on_patches", "LLOYD", "grid_area_map",
+           "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
 
 
 #: nearest triangles tried first when locating a point (`locate`)
@@ -43,6 +44,21 @@ def _quantile(values, weights, q):
     return np.interp(q, mid, v)
 
 
+def _window_weights(sx, sw, x, h):
+    """(N, S) sample weights ``sw`` times the Gaussian window of width ``h`` about each
+    ``x`` (N,) (all ``sw`` for a point no sample's window reaches) and their cumulative sums
+    along S."""
+    d = (sx[None] - np.asarray(x, dtype=np.float64)[:, None]) / h
+    w = np.exp(-0.5 * (d * d))
+    w *= sw[None]
+    cum = np.cumsum(w, axis=1)
+    empty = ~(cum[:, -1] > 0)                   # the weights are >= 0: the sum is the last
+    if empty.any():
+        w[empty] = sw[None]
+        cum[empty] = np.cumsum(sw)[None]
+    return w, cum
+
+
 def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     """Planar targets ``(x*, y*)`` of unit-square coordinates ``(X, Y)`` under the
     Knothe-Rosenblatt map onto the area measure of triangles with projected corners ``px``,
@@ -60,17 +76,19 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    w = sw[None] * np.exp(-0.5 * ((sx[None] - xs[:, None]) / h) ** 2)   # (N, S)
-    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
-    cum = np.cumsum(w, axis=1)
-    mid = (cum - 0.5 * w) / cum[:, -1:]
-    q = np.clip(Y, 0.0, 1.0)[:, None]
-    k = np.clip((mid < q).sum(axis=1), 1, len(sy) - 1)
-    rows = np.arange(len(xs))
-    m0, m1 = mid[rows, k - 1], mid[rows, k]
-    f = np.clip((q[:, 0] - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
+    w, cum = _window_weights(sx, sw, xs, h)                              # (N, S)
+    # the mid-point cumulative weights, normalised only where they are used (the count of
+    # those below q compares before the division: the same up to rounding)
+    total = cum[:, -1].copy()
+    half = cum
+    half -= 0.5 * w
+    q = np.clip(Y, 0.0, 1.0)
+    k = np.clip(np.count_nonzero(half < (q * total)[:, None], axis=1), 1, len(sy) - 1)
+    at = k + len(sy) * np.arange(len(xs))
+    m0, m1 = half.reshape(-1)[at - 1] / total, half.reshape(-1)[at] / total
+    f = np.clip((q - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
     ys = sy[k - 1] + f * (sy[k] - sy[k - 1])
-    below, above = q[:, 0] <= mid[:, 0], q[:, 0] >= mid[:, -1]
+    below, above = q <= half[:, 0] / total, q >= half[:, -1] / total
     ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
     return xs, ys
 
@@ -109,9 +127,9 @@ def grid_area_map(mass, X, Y):
     cum = np.concatenate([np.zeros((len(xs), 1)), np.cumsum(p, axis=1)], axis=1)
     cum /= cum[:, -1:]
     q = np.clip(Y, 0.0, 1.0)[:, None]
-    k = np.clip((cum[:, 1:] < q).sum(axis=1), 0, g - 1)
-    rows = np.arange(len(xs))
-    lo, hi = cum[rows, k], cum[rows, k + 1]
+    k = np.clip(np.count_nonzero(cum[:, 1:] < q, axis=1), 0, g - 1)
+    at = k + (g + 1) * np.arange(len(xs))
+    lo, hi = cum.reshape(-1)[at], cum.reshape(-1)[at + 1]
     f = np.clip((q[:, 0] - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
     return xs, (k + f) / g
 
@@ -135,14 +153,14 @@ def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    w = sw[None] * np.exp(-0.5 * ((sx[None] - np.asarray(qx)[:, None]) / h) ** 2)
-    w = np.where(w.sum(axis=1, keepdims=True) > 0, w, sw[None])
-    cum = np.cumsum(w, axis=1)
-    mid = (cum - 0.5 * w) / cum[:, -1:]
-    k = np.clip((sy[None] < np.asarray(qy)[:, None]).sum(axis=1), 1, len(sy) - 1)
-    rows = np.arange(len(k))
+    w, cum = _window_weights(sx, sw, qx, h)
+    k = np.clip(np.searchsorted(sy, qy, side="left"), 1, len(sy) - 1)   # #(sy < qy)
+    at = k + len(sy) * np.arange(len(k))
+    # the mid-point cumulative weights only where they are used
+    m0 = (cum.reshape(-1)[at - 1] - 0.5 * w.reshape(-1)[at - 1]) / cum[:, -1]
+    m1 = (cum.reshape(-1)[at] - 0.5 * w.reshape(-1)[at]) / cum[:, -1]
     f = np.clip((qy - sy[k - 1]) / np.maximum(sy[k] - sy[k - 1], 1e-300), 0.0, 1.0)
-    Y = mid[rows, k - 1] + f * (mid[rows, k] - mid[rows, k - 1])
+    Y = m0 + f * (m1 - m0)
     return np.clip(X, 0.0, 1.0), np.clip(Y, 0.0, 1.0)
 
 
@@ -213,7 +231,7 @@ def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
         Barycentric weights of the face's corners (non-negative, summing to 1).
     """
     idx = np.flatnonzero(face_mask)
-    tri = vertices[faces[idx]]                                     # (Tp, 3, 3)
+    tri = np.take(vertices, faces[idx], axis=0)                    # (Tp, 3, 3)
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     px = (tri - centre) @ e1
     py = (tri - centre) @ e2
@@ -251,37 +269,77 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     face : (N,) int64
     bary : (N, 3) float
     """
+    return relax_on_patches(vertices, faces, [(face_mask, face, bary)], iterations=iterations,
+                            samples=samples)[0]
+
+
+def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
+                     samples: int = SAMPLES):
+    """`relax_on_patch` of several patches at once: ``ends`` a sequence of ``(face_mask,
+    face, bary)``; a list of ``(face, bary)``, each patch's as `relax_on_patch` makes it.
+
+    The patches share the k-d trees of each step: every point, sample and triangle centroid
+    gets a fourth coordinate, its patch's number times a length (`_apart`) beyond any
+    distance the steps look, so nothing sees another patch's samples or triangles, and the
+    distances within a patch are the three-dimensional ones (the fourth differences are 0)."""
     from scipy.spatial import cKDTree
 
-    face = np.asarray(face, dtype=np.int64).copy()
-    bary = np.asarray(bary, dtype=np.float64).copy()
-    idx = np.flatnonzero(face_mask)
-    if iterations <= 0 or idx.size == 0 or len(face) < 2:
-        return face, bary
-    tri = vertices[faces[idx]]                                       # (Tp, 3, 3)
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    n = int(np.clip(np.sqrt(samples / max(len(idx), 1)), 1, 8))
-    sub = _sub_centroids(n)                                          # (S, 3)
-    pts = np.einsum("sk,tkd->tsd", sub, tri).reshape(-1, 3)
-    w = np.repeat(area / len(sub), len(sub))
-    p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
-    patch = _Patch(tri, pts)
+    out = [(np.asarray(f, dtype=np.int64).copy(), np.asarray(b, dtype=np.float64).copy())
+           for _, f, b in ends]
+    todo = [k for k, (mask, _, _) in enumerate(ends)
+            if iterations > 0 and np.any(mask) and len(out[k][0]) >= 2]
+    if not todo:
+        return out
+    apart = _apart(vertices)
+    parts = []
+    for slot, k in enumerate(todo):
+        face, bary = out[k]
+        i = np.flatnonzero(ends[k][0])
+        t = np.take(vertices, faces[i], axis=0)                        # (Tp, 3, 3)
+        area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
+        sub = _sub_centroids(n)                                        # (S, 3)
+        s = np.einsum("sk,tkd->tsd", sub, t).reshape(-1, 3)
+        p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
+        parts.append((i, t, s, np.repeat(area / len(sub), len(sub)), p, face, bary,
+                      np.full(len(i), slot * apart), np.full(len(s), slot * apart),
+                      np.full(len(p), slot * apart), np.full(len(p), slot)))
+    idx, tri, pts, w, p, face, bary, tag, sample_tag, point_tag, point_slot = (
+        np.concatenate(x) for x in zip(*parts))
+    pts4 = np.c_[pts, sample_tag]
+    patch = _Patch(tri, pts4, tag)
+    # each patch's own largest triangle radius bounds its points' searches
+    reach = np.array([patch.radius[tag == slot * apart].max() for slot in range(len(todo))])
+    point_reach = reach[point_slot]
     for _ in range(int(iterations)):
-        owner = cKDTree(p).query(pts)[1]
+        owner = cKDTree(np.c_[p, point_tag]).query(pts4)[1]
         mass = np.bincount(owner, w, len(p))
         has = mass > 0
         c = np.stack([np.bincount(owner, w * pts[:, d], len(p)) for d in range(3)], axis=1)
         sel = np.flatnonzero(has)
-        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None])
+        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None], point_tag[sel],
+                                 point_reach[sel])
         face[sel], bary[sel], p[sel] = idx[pick], b, q
-    return face, bary
+    at = np.cumsum([0] + [len(part[4]) for part in parts])
+    for slot, k in enumerate(todo):
+        out[k] = (face[at[slot]:at[slot + 1]], bary[at[slot]:at[slot + 1]])
+    return out
+
+
+def _apart(vertices) -> float:
+    """A length beyond every distance `relax_on_patches` looks within one patch: 4 times the
+    largest extent of the vertices, at least 1."""
+    v = np.asarray(vertices, dtype=np.float64)
+    return 4.0 * max(float(np.ptp(v, axis=0).max()) if len(v) else 0.0, 1.0)
 
 
 class _Patch:
-    """A patch's triangles ``tri`` (Tp, 3, 3) and area samples (points of the patch) with the
-    k-d trees and bound that `_onto_patch` needs, built once for all Lloyd steps."""
+    """Patches' triangles ``tri`` (Tp, 3, 3) and area samples (points of the patches with
+    their fourth coordinate, `relax_on_patches`) with the k-d trees and bound that
+    `_onto_patch` needs, built once for all Lloyd steps; ``tag`` (Tp,) the triangles' fourth
+    coordinate."""
 
-    def __init__(self, tri, samples):
+    def __init__(self, tri, samples, tag):
         from scipy.spatial import cKDTree
 
         self.tri = tri
@@ -290,12 +348,14 @@ class _Patch:
         self.radius = np.sqrt(((tri - cen[:, None]) ** 2).sum(axis=2).max(axis=1))   # (Tp,)
         self.reach = float(self.radius.max())
         self.samples = cKDTree(samples)
-        self.centroids = cKDTree(cen)
+        self.centroids = cKDTree(np.c_[cen, tag])
 
 
-def _onto_patch(patch: _Patch, c):
-    """The point of the patch's triangles nearest each point ``c`` (M, 3): its triangle
-    (index into ``patch.tri``), barycentric weights and position.
+def _onto_patch(patch: _Patch, c, tag, reach=None):
+    """The point of the patch's triangles nearest each point ``c`` (M, 3) (with its fourth
+    coordinate ``tag`` (M,): among its own patch's triangles): its triangle (index into
+    ``patch.tri``), barycentric weights and position. ``reach`` (M,): the largest
+    centroid-to-corner distance of each point's own patch's triangles (default: of all).
 
     Exact among all triangles: a sample (a point of the patch) at distance ``d0`` from c
     bounds the distance to the patch, so only triangles whose centroid lies within ``d0``
@@ -309,20 +369,23 @@ def _onto_patch(patch: _Patch, c):
     from ..mesh.closest_point import closest_points_on_triangles
 
     tri = patch.tri
-    d0 = patch.samples.query(c)[0]
-    near = patch.centroids.query_ball_point(c, (d0 + patch.reach) * (1.0 + 1e-9),
+    c4 = np.c_[c, tag]
+    d0 = patch.samples.query(c4)[0]
+    reach = patch.reach if reach is None else reach
+    near = patch.centroids.query_ball_point(c4, (d0 + reach) * (1.0 + 1e-9),
                                             return_sorted=False)
     count = np.fromiter(map(len, near), dtype=np.int64, count=len(c))
     cand = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))
     who = np.repeat(np.arange(len(c)), count)                          # (pairs,)
     # a triangle's points lie within its own radius of its centroid
-    gap = patch.cen[cand] - c[who]
+    p = np.take(c, who, axis=0)
+    gap = np.take(patch.cen, cand, axis=0) - p
     bound = (d0[who] + patch.radius[cand]) * (1.0 + 1e-9)
     keep = np.einsum("kd,kd->k", gap, gap) <= bound * bound
     cand, who = cand[keep], who[keep]
     count = np.bincount(who, minlength=len(c))
-    t = tri[cand]
-    p = c[who]
+    t = np.take(tri, cand, axis=0)
+    p = p[keep]
     q = closest_points_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
     d2 = np.einsum("kd,kd->k", q - p, q - p)
     best = np.lexsort((d2, who))[np.concatenate([[0], np.cumsum(count)[:-1]])]

@@ -87,7 +87,7 @@ def _frames(vertices, faces, patches, first):
     """(M, 3, 3) frames ``[f1, f2, f3]`` (module docstring) of M triangle patches and their
     squared side ``L^2`` (M,): ``patches`` (M, F) sparse 0/1 (the rows of ``faces`` (F, 3) in
     each patch), ``first`` (M,) the row whose first edge gives the direction of f1."""
-    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    a, b, c = np.take(vertices, np.ascontiguousarray(faces.T), axis=0)
     cross = np.cross(b - a, c - a)                                  # (F, 3): 2 x area x normal
     total = patches @ cross
     normal = total / np.maximum(np.linalg.norm(total, axis=1), 1e-300)[:, None]
@@ -151,29 +151,40 @@ class CarriedPull:
 
 
 def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
-                    rounds: int = REST_ROUNDS, reach: float = CONTAIN_REACH):
+                    rounds: int = REST_ROUNDS, reach: float = CONTAIN_REACH,
+                    grid: SurfaceGrid | None = None, normals=None):
     """The rest pose's pull (`pull_rounds` with band ``margin``) of fibres ``points``
     (N, P, 3) in the surface (vertices, faces), as a `CarriedPull` (module docstring):
-    ``carry_rest_pull(...).apply(points, vertices)`` are the pulled fibres (to rounding)."""
+    ``carry_rest_pull(...).apply(points, vertices)`` are the pulled fibres (to rounding).
+    ``grid``: the surface already prepared with this ``reach`` (its vertices and faces must
+    be these); ``normals``: its face normals scaled by twice the areas
+    (`fibres.attachments.patch.face_normals`), when at hand."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     pts = np.asarray(points, dtype=np.float64)
     n, p = pts.shape[:2]
-    grid = SurfaceGrid(v, f, reach=reach)
+    if grid is None:
+        grid = SurfaceGrid(v, f, reach=reach)
+    elif grid.reach != float(reach):
+        raise ValueError(f"the grid's reach {grid.reach} is not the pull's {reach}")
     out, _ = pull_rounds(pts, grid, margin=margin, rounds=rounds)
     e = (out - pts).reshape(-1, 3)
     rows = np.flatnonzero(np.any(e != 0.0, axis=1))
     if not rows.size:
         return CarriedPull((n, p), rows, np.zeros((0, 3), np.int64),
                            sp.csr_matrix((0, 0)), np.zeros(0, np.int64), np.zeros((0, 3)))
-    corners = v[f]
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    a, b, c = np.take(v, np.ascontiguousarray(f.T), axis=0)
+    cross = np.cross(b - a, c - a) if normals is None else normals
     k = min(CARRY_CANDIDATES, len(f))
-    _, near = cKDTree(corners.mean(axis=1)).query(out.reshape(-1, 3)[rows], k=k)
+    # an unbalanced tree (sliding midpoint) builds in half the time; its queries are exact
+    tree = cKDTree((a + b + c) / 3.0, balanced_tree=False, compact_nodes=False)
+    _, near = tree.query(out.reshape(-1, 3)[rows], k=k)
     near = np.asarray(near).reshape(len(rows), k)
-    unit = cross[near] / np.maximum(np.linalg.norm(cross[near], axis=2), 1e-300)[..., None]
+    vec = np.take(cross, near, axis=0)                                      # (M, k, 3)
+    size = np.sqrt(np.einsum("mkd,mkd->mk", vec, vec))
+    unit = vec / np.maximum(size, 1e-300)[..., None]
     weights = (np.einsum("mkd,md->mk", unit, unit[:, 0]) > FACING).astype(np.float64)
-    if not (np.linalg.norm(cross[near[:, 0]], axis=1) > 0).all():
+    if not (size[:, 0] > 0).all():
         raise InputError("a triangle of the surface near a pulled fibre point has no area",
                          where="mesh", fix="Repair the mesh (degenerate triangles).")
     used, local = np.unique(near, return_inverse=True)
@@ -186,10 +197,12 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     return CarriedPull((n, p), rows, f[used], patches, local[:, 0], coefficients)
 
 
-def planned_pull(plan, key, rest_points) -> CarriedPull:
+def planned_pull(plan, key, rest_points, grid: SurfaceGrid | None = None) -> CarriedPull:
     """The `CarriedPull` of the rest pose of ``plan`` (a `fibres.slicing.harmonic.HarmonicPlan`)
     for the fibres named by ``key`` (`fibres.slicing.harmonic.maps_key`), made once
     (``rest_points()``: those fibres mapped onto the plan's rest vertices) and kept with the
-    plan (`HarmonicPlan.cached`)."""
+    plan (`HarmonicPlan.cached`). ``grid``: the plan's rest surface already prepared with
+    `CONTAIN_REACH`, if at hand."""
     return plan.cached(("carried pull",) + tuple(key),
-                       lambda: carry_rest_pull(rest_points(), plan.rest_vertices, plan.faces))
+                       lambda: carry_rest_pull(rest_points(), plan.rest_vertices, plan.faces,
+                                               grid=grid, normals=plan.face_normals()))

@@ -69,6 +69,63 @@ def taubin_pairs(smoothing_iterations) -> int:
     return int(round(PAIRS_PER_ITERATION * int(smoothing_iterations)))
 
 
+def _spline_second(s, h):
+    """(B, P, P) matrices ``S`` of the natural splines' second derivatives at the knots
+    ``s`` (B, P), ``h = diff(s)``: ``m = S @ y`` (`natural_spline_matrix`). The tridiagonal
+    systems by elimination without pivoting (Thomas), all splines and columns at once: the
+    matrix is strictly diagonally dominant (``2 (h_{i-1} + h_i) > h_{i-1} + h_i``)."""
+    n, p = s.shape
+    second = np.zeros((n, p, p))
+    if p > 2:
+        eye = np.eye(p)
+        slope = (eye[1:] - eye[:-1]) / h[:, :, None]           # (B, P - 1, P): dy_i / h_i
+        r = 6.0 * (slope[:, 1:] - slope[:, :-1])               # (B, P - 2, P)
+        d = 2.0 * (h[:, :-1] + h[:, 1:])                        # (B, P - 2) diagonal
+        e = h[:, 1:-1]                                          # (B, P - 3) off-diagonals
+        for i in range(1, p - 2):
+            w = e[:, i - 1] / d[:, i - 1]
+            d[:, i] -= w * e[:, i - 1]
+            r[:, i] -= w[:, None] * r[:, i - 1]
+        x = second[:, 1:-1]
+        x[:, -1] = r[:, -1] / d[:, -1, None]
+        for i in range(p - 4, -1, -1):
+            x[:, i] = (r[:, i] - e[:, i, None] * x[:, i + 1]) / d[:, i, None]
+    return second
+
+
+def _gather(x, k):
+    """``x[rows, k]`` of ``x`` (B, P, ...) at ``k`` (B, M), by one flat index."""
+    n, p = x.shape[:2]
+    return np.take(x.reshape((n * p,) + x.shape[2:]), k + p * np.arange(n)[:, None], axis=0)
+
+
+def _spline_weights(s, h, t):
+    """Knot interval ``k`` (B, M) of each ``t`` (B, M) in the knots ``s`` (B, P) (row by
+    row ``searchsorted(s, t, side="right") - 1``, clipped to the intervals), the linear
+    weights ``a``, ``b`` and the cubic factors ``(a^3 - a) h^2 / 6``, ``(b^3 - b) h^2 / 6``."""
+    p = s.shape[1]
+    k = np.empty(t.shape, dtype=np.int64)
+    for row, (sr, tr) in enumerate(zip(s, t)):
+        k[row] = np.searchsorted(sr, tr, side="right")
+    np.clip(k - 1, 0, p - 2, out=k)
+    hk = _gather(h, k)
+    b = (t - _gather(s, k)) / hk
+    a = 1.0 - b
+    return k, a, b, (a ** 3 - a) * hk ** 2 / 6.0, (b ** 3 - b) * hk ** 2 / 6.0
+
+
+def _spline_rows(second, k, a, b, ca, cb):
+    """(B, M, P) rows of the spline matrix from `_spline_second` and `_spline_weights`."""
+    n, p, _ = second.shape
+    up = ca[..., None] * _gather(second, k) + cb[..., None] * _gather(second, k + 1)
+    m = k.shape[1]
+    flat = up.reshape(-1)
+    at = (np.arange(n * m) * p).reshape(n, m) + k
+    flat[at] += a
+    flat[at + 1] += b
+    return up
+
+
 def natural_spline_matrix(knots, t):
     """(M, P) matrix ``U`` of the natural cubic spline through P values at ``knots``
     (increasing), evaluated at ``t``: ``U @ y`` are the spline's values (de Boor 1978; the
@@ -82,27 +139,8 @@ def natural_spline_matrix(knots, t):
     p, m = s.shape[-1], t.shape[-1]
     s = s.reshape(-1, p)
     t = t.reshape(-1, m)
-    n = len(s)
     h = np.diff(s, axis=1)                                    # (B, P - 1)
-    eye = np.eye(p)
-    second = np.zeros((n, p, p))              # m = second @ y
-    if p > 2:
-        a = np.zeros((n, p - 2, p - 2))
-        i = np.arange(p - 2)
-        a[:, i, i] = 2.0 * (h[:, :-1] + h[:, 1:])
-        a[:, i[1:], i[1:] - 1] = h[:, 1:-1]
-        a[:, i[:-1], i[:-1] + 1] = h[:, 1:-1]
-        slope = (eye[1:] - eye[:-1]) / h[:, :, None]           # (B, P - 1, P): dy_i / h_i
-        second[:, 1:-1] = np.linalg.solve(a, 6.0 * (slope[:, 1:] - slope[:, :-1]))
-    # k: the knot interval of each t (searchsorted(s, t, side="right") - 1, row by row)
-    k = np.clip((s[:, None, :] <= t[:, :, None]).sum(axis=2) - 1, 0, p - 2)   # (B, M)
-    rows = np.arange(n)[:, None]
-    hk = h[rows, k][..., None]
-    sk = s[rows, k][..., None]
-    b = (t[..., None] - sk) / hk
-    a_ = 1.0 - b
-    up = (a_ * eye[k] + b * eye[k + 1]
-          + ((a_ ** 3 - a_) * second[rows, k] + (b ** 3 - b) * second[rows, k + 1]) * hk ** 2 / 6.0)
+    up = _spline_rows(_spline_second(s, h), *_spline_weights(s, h, t))
     return up.reshape(lead + (m, p))
 
 
@@ -121,7 +159,7 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     if p < 3:
         return np.broadcast_to(np.eye(p), (n, p, p)).copy()
     taubin = _taubin_matrix(p, iterations) if iterations else np.eye(p)
-    smoothed = np.einsum("ij,njk->nik", taubin, pts)
+    smoothed = np.matmul(taubin, pts)
     m = (p - 1) * int(dense) + 1
     # one spline per fibre, all at once: its knots are the fibre's own chords
     seg = np.linalg.norm(np.diff(smoothed, axis=1), axis=2)                  # (N, P - 1)
@@ -129,13 +167,23 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     knots = np.concatenate([np.zeros((n, 1)), np.cumsum(np.maximum(seg, floor), axis=1)],
                            axis=1)
     t = np.linspace(0.0, knots[:, -1], m, axis=1)
-    up = natural_spline_matrix(knots, t)                 # (N, M, P): dense = up @ x
-    curve = up @ smoothed
-    step = np.diff(curve, axis=1)
-    ds = np.linalg.norm(step, axis=2)
-    unit = step / np.maximum(ds, 1e-300)[..., None]
-    theta = np.arctan2(np.linalg.norm(np.cross(unit[:, :-1], unit[:, 1:]), axis=2),
-                       np.einsum("nij,nij->ni", unit[:, 1:], unit[:, :-1]))
+    # the dense curve straight from the spline's values and second derivatives (the whole
+    # (N, M, P) spline matrix is needed only at the two dense points round each new point)
+    h = np.diff(knots, axis=1)
+    second = _spline_second(knots, h)
+    k, a, b, ca, cb = _spline_weights(knots, h, t)
+    # coordinates first (6, N P): the values and second derivatives at the knots
+    both = np.concatenate([smoothed, second @ smoothed], axis=2).reshape(n * p, 6).T
+    at = k + p * np.arange(n)[:, None]
+    g0, g1 = np.take(both, at, axis=1), np.take(both, at + 1, axis=1)        # (6, N, M)
+    curve = a * g0[:3] + b * g1[:3] + ca * g0[3:] + cb * g1[3:]            # (3, N, M)
+    step = np.diff(curve, axis=2)
+    ds = np.sqrt((step * step).sum(axis=0))
+    x, y, z = step / np.maximum(ds, 1e-300)
+    x0, y0, z0, x1, y1, z1 = x[:, :-1], y[:, :-1], z[:, :-1], x[:, 1:], y[:, 1:], z[:, 1:]
+    theta = np.arctan2(np.sqrt((y0 * z1 - z0 * y1) ** 2 + (z0 * x1 - x0 * z1) ** 2
+                               + (x0 * y1 - y0 * x1) ** 2),
+                       x0 * x1 + y0 * y1 + z0 * z1)
     share = np.zeros((n, m - 1))
     share[:, :-1] += 0.5 * theta
     share[:, 1:] += 0.5 * theta
@@ -144,11 +192,12 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     cum = np.concatenate([np.zeros((n, 1)), np.cumsum(measure, axis=1)], axis=1)
     target = np.linspace(0.0, cum[:, -1], p, axis=1)
     j = np.clip((cum[:, None, :] <= target[:, :, None]).sum(axis=2) - 1, 0, m - 2)  # (N, P)
-    rows = np.arange(n)[:, None]
-    c0, c1 = cum[rows, j], cum[rows, j + 1]
+    c0, c1 = _gather(cum, j), _gather(cum, j + 1)
     w = np.clip((target - c0) / np.maximum(c1 - c0, 1e-300), 0.0, 1.0)
-    # each new point a blend of dense points j and j + 1
-    out = ((1.0 - w)[..., None] * up[rows, j] + w[..., None] * up[rows, j + 1]) @ taubin
+    # each new point a blend of dense points j and j + 1: their rows of the spline matrix
+    jj = np.concatenate([j, j + 1], axis=1)                                 # (N, 2 P)
+    up = _spline_rows(second, *(_gather(x, jj) for x in (k, a, b, ca, cb)))
+    out = ((1.0 - w)[..., None] * up[:, :p] + w[..., None] * up[:, p:]) @ taubin
     out[:, 0] = 0.0
     out[:, -1] = 0.0
     out[:, 0, 0] = 1.0

@@ -81,12 +81,12 @@ import threading
 import numpy as np
 import scipy.sparse as sp
 
-from ..attachments.patch import attachment_patches
+from ..attachments.patch import attachment_patches, face_normals
 from ..errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
 from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
-from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patch
+from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patches
 from ..finishing.fairing import fairing_operator, taubin_pairs
 
 __all__ = ["HarmonicPlan", "make_harmonic_plan", "harmonic_points", "maps_key", "SAMPLES"]
@@ -161,6 +161,12 @@ class HarmonicPlan:
                 hit = self._cache[key] = make()
             return hit
 
+    def face_normals(self):
+        """(T, 3) face normals of the rest surface scaled by twice the face areas
+        (`fibres.attachments.patch.face_normals`), kept with the plan."""
+        return self.cached(("face normals",), lambda: face_normals(self.rest_vertices,
+                                                                   self.faces))
+
     @property
     def topology(self):
         """The faces and vertex count (what `fibres.decompose` checks a frame against)."""
@@ -185,12 +191,15 @@ def make_harmonic_plan(vertices, faces, origin, insertion, *, topology=None) -> 
         edges, face_edges = topology.edges.copy(), topology.face_edges.copy()   # writeable
     else:
         edges, face_edges = mesh_edges(f, len(v))
-    patches = attachment_patches(v, f, origin, insertion, edges)
+    normals = face_normals(v, f)
+    patches = attachment_patches(v, f, origin, insertion, edges, normals=normals)
     u = harmonic_field(v, f, patches.origin, patches.insertion, edges=edges,
                        face_edges=face_edges)
-    return HarmonicPlan(f, v, u, patches.origin, patches.insertion, patches.origin_faces,
+    plan = HarmonicPlan(f, v, u, patches.origin, patches.insertion, patches.origin_faces,
                         patches.insertion_faces, np.asarray(origin, float),
                         np.asarray(insertion, float), edges, face_edges, patches.notes)
+    plan.cached(("face normals",), lambda: normals)
+    return plan
 
 
 # -- template points to the muscle ----------------------------------------------------------
@@ -238,8 +247,9 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         if j not in membranes:
             memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]    # (G+1)^2 x 3
             tri = memb[cells]
-            area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
-                                        axis=1)
+            (ax, ay, az), (bx, by, bz) = (tri[:, 1] - tri[:, 0]).T, (tri[:, 2] - tri[:, 0]).T
+            area = 0.5 * np.sqrt((ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2
+                                 + (ax * by - ay * bx) ** 2)
             membranes[j] = (tri, area)
         return membranes[j]
 
@@ -260,6 +270,8 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     rows, cols, vals = [], [], []
     rid = np.arange(n * p).reshape(n, p)
     kk = np.arange(k)
+    n_cols = base + len(plan.rest_vertices)
+    inner = sp.csr_matrix((n * p, n_cols))
     # inner points: the membranes of the two loops around their height, blended (heights
     # before the first or after the last inner slice are clamped onto it)
     if p > 2:
@@ -267,24 +279,32 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         j0 = np.clip(np.floor(pos).astype(np.int64), 0, max(n_loops - 2, 0))
         a = pos - j0
         j1 = np.minimum(j0 + 1, n_loops - 1)
-        r_in = rid[:, 1:-1].reshape(-1)
         xy_in = xy[:, 1:-1].reshape(-1, 2)
         # each point on its two loops (weights 1 - a and a; zero weights left out), the
-        # membrane map of each loop evaluated once for all its points
+        # membrane map of each loop evaluated once for all its points; row by row in
+        # sparse-row order (loop j0's samples, then loop j1's: j0 < j1 when there are two
+        # loops; with one, the weight on j1 is 0), so the matrix needs no sorting
         jj = np.concatenate([j0, j1])
         wj = np.concatenate([1.0 - a, a])
         pt = np.concatenate([np.arange(a.size), np.arange(a.size)])
         use = np.flatnonzero(wj > 0)
-        jj, wj, pt = jj[use], wj[use], pt[use]
+        jj, wj, pt, side = jj[use], wj[use], pt[use], use // a.size
+        blocks = np.zeros((a.size, 2, k))
         for j in np.unique(jj):
             sel = np.flatnonzero(jj == j)
-            rows.append(np.repeat(r_in[pt[sel]], k))
-            cols.append((j * k + np.broadcast_to(kk, (sel.size, k))).reshape(-1))
-            vals.append((lam(j, xy_in[pt[sel]]) * wj[sel, None]).reshape(-1))
+            blocks[pt[sel], side[sel]] = lam(j, xy_in[pt[sel]]) * wj[sel, None]
+        at = np.stack([j0, j1], axis=1)[:, :, None] * k + kk                  # (n_in, 2, k)
+        counts = np.zeros((n, p), dtype=np.int64)
+        counts[:, 1:-1] = 2 * k
+        inner = sp.csr_matrix((blocks.reshape(-1), at.reshape(-1),
+                               np.concatenate([[0], np.cumsum(counts.reshape(-1))])),
+                              shape=(n * p, n_cols))
+        inner.eliminate_zeros()
     # ends: the fibres' places on the first / last inner membrane, projected on its frame,
     # carried onto the whole patch by area and in order (the membrane's projected area
     # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the fibres
     # then bend towards them (_bend_to_ends)
+    ends = []
     for col, mask, patch, j in ((0, plan.origin_faces, plan.origin, 0),
                                 (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
         if not mask.any():
@@ -295,9 +315,10 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
         on = lam(j, xy[:, col]) @ rest[j] - slices.centres[j]
         X, Y = kr_coordinates((tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2,
                               area, on @ e1, on @ e2, samples=len(area))
-        face, bary = area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j], e1,
-                                 e2, X, Y)
-        moved, mbary = relax_on_patch(plan.rest_vertices, plan.faces, mask, face, bary)
+        ends.append((mask, *area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j],
+                                        e1, e2, X, Y)))
+    relaxed = relax_on_patches(plan.rest_vertices, plan.faces, ends)   # both at once
+    for col, (_, face, bary), (moved, mbary) in zip((0, p - 1), ends, relaxed):
         rows.append(np.repeat(rid[:, col], 3))
         cols.append(base + plan.faces[moved].reshape(-1))
         vals.append(mbary.reshape(-1))
@@ -310,9 +331,9 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
                 cols.append(np.repeat(base + plan.faces[fc], p - 2, axis=0).reshape(-1))
                 vals.append((sign * np.repeat(bc, p - 2, axis=0)
                              * np.tile(fade, n)[:, None]).reshape(-1))
-    n_cols = base + len(plan.rest_vertices)
-    mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                        shape=(n * p, n_cols))
+    mat = inner + sp.csr_matrix((np.concatenate(vals),
+                                 (np.concatenate(rows), np.concatenate(cols))),
+                                shape=(n * p, n_cols))
     # bending and even steps are (N P, N P) maps of the points: composed first (small), then
     # applied to the map of the vertices in one sparse product
     bend = _bend_to_ends(n, p)

@@ -79,8 +79,7 @@ def _levels(plan, resolution: int) -> np.ndarray:
     ring a narrow insertion come closer -- gluteus maximus 5.8 -> 4.4 % empty). The R - 1
     inner levels divide the sum evenly."""
     v, u, f = plan.rest_vertices, plan.field, plan.faces
-    tri = v[f]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = 0.5 * np.linalg.norm(plan.face_normals(), axis=1)
     uc = u[f].mean(axis=1)
     order = np.argsort(uc, kind="stable")
     cum = np.cumsum(area[order])
@@ -88,7 +87,7 @@ def _levels(plan, resolution: int) -> np.ndarray:
     cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
     cand = cand[(cand > 2 * _RIM) & (cand < 1 - 2 * _RIM)]
     cand = np.concatenate([[_RIM], cand, [1 - _RIM]])
-    length, centre, _ = isoline_moments(u, v, f, cand)
+    length, centre, _ = isoline_moments(u, v, f, cand, area=False)
     ok = length > 0
     cand, centre = cand[ok], centre[ok]
     step = np.diff(centre, axis=0)
@@ -181,13 +180,16 @@ def _arc_positions(seg, start, k):
     i0 = int(np.floor(start)) % m
     f0 = start - np.floor(start)
     # segment lengths in loop order from the start, the first one split there
-    order = (np.arange(m) + i0) % m
-    seg = seg[order]
+    seg = np.concatenate([seg[i0:], seg[:i0]])
     head = seg[0] * (1.0 - f0)
-    cum = np.concatenate([[0.0, head], head + np.cumsum(seg[1:])])
-    cum = np.append(cum, cum[-1] + seg[0] * f0)                  # back at the start
-    pos = np.concatenate([[start], i0 + 1.0 + np.arange(m), [start + m]])
-    cum = cum + 1e-15 * cum[-1] * np.arange(cum.size)            # strictly increasing
+    cum = np.empty(m + 2)
+    cum[0], cum[1] = 0.0, head
+    np.cumsum(seg[1:], out=cum[2:m + 1])
+    cum[2:m + 1] += head
+    cum[m + 1] = cum[m] + seg[0] * f0                            # back at the start
+    pos = np.arange(-1.0, m + 1.0) + (i0 + 1.0)
+    pos[0], pos[-1] = start, start + m
+    cum += 1e-15 * cum[-1] * np.arange(cum.size)                 # strictly increasing
     target = np.arange(k) / k * cum[-1]
     return np.interp(target, cum, pos) % m
 
@@ -196,17 +198,18 @@ def _arc_positions(seg, start, k):
 _FINE = 8
 
 
-def _loop_samples(p, seam, k):
+def _loop_samples(p, seam, k, seg=None):
     """(k,) positions and (k, 3) points of the closed polyline ``p`` at k equal arcs from
-    ``seam``."""
-    seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    ``seam``; ``seg``: its segment lengths (`_loop_frame`), when at hand."""
+    if seg is None:
+        seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
     pos = _arc_positions(seg, seam, k)
     i0 = np.floor(pos).astype(np.int64) % len(p)
     f = (pos - np.floor(pos))[:, None]
     return pos, (1.0 - f) * p[i0] + f * p[(i0 + 1) % len(p)]
 
 
-def _registered_seam(prev_pts, prev_seam, pts, guess):
+def _registered_seam(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None):
     """The seam (fractional position) of loop ``pts`` whose `SAMPLES` arc-length samples lie
     nearest the previous loop's, in the least-squares sense with both sample sets centred
     (the loops move along the muscle; only the cyclic shift is sought): the shifts searched
@@ -214,10 +217,11 @@ def _registered_seam(prev_pts, prev_seam, pts, guess):
 
     Shift ``t = q F + r`` (F = `_FINE`) takes every F-th fine sample from r, rolled by q:
     its centred sum of squares depends on r only, and the cross term with the reference is
-    a circular cross-correlation over q, computed for all q at once by FFT."""
+    a circular cross-correlation over q, computed for all q at once by FFT. ``prev_seg``,
+    ``seg``: the loops' segment lengths, when at hand."""
     k = SAMPLES
-    _, ref = _loop_samples(prev_pts, prev_seam, k)
-    pos, fine = _loop_samples(pts, guess, k * _FINE)
+    _, ref = _loop_samples(prev_pts, prev_seam, k, prev_seg)
+    pos, fine = _loop_samples(pts, guess, k * _FINE, seg)
     ref = ref - ref.mean(axis=0)
     sub = fine.reshape(k, _FINE, 3).transpose(1, 0, 2)                # (F, K, 3): [r, k]
     sub = sub - sub.mean(axis=1, keepdims=True)
@@ -260,6 +264,7 @@ def _slices(plan, resolution: int) -> _Slices:
     pts = [lp.points(v) for lp in loops]
     frames = [_loop_frame(p) for p in pts]
     centres = np.array([f[0] for f in frames])
+    segs = [f[2] for f in frames]
     normals = np.array([f[1] for f in frames])
     mid = len(loops) // 2
     axes = np.zeros_like(centres)
@@ -284,7 +289,8 @@ def _slices(plan, resolution: int) -> _Slices:
         for j in rng:
             q = _position_point(pts[prev], seams[prev])
             seams[j] = _closest_position(pts[j], q)
-            seams[j] = _registered_seam(pts[prev], seams[prev], pts[j], seams[j])
+            seams[j] = _registered_seam(pts[prev], seams[prev], pts[j], seams[j],
+                                        segs[prev], segs[j])
             prev = j
     shares = np.empty(len(loops))
     rows, cols, vals = [], [], []
@@ -292,8 +298,7 @@ def _slices(plan, resolution: int) -> _Slices:
         d = p - centres[j]
         a, b = np.ptp(d @ axes[j]), np.ptp(d @ np.cross(normals[j], axes[j]))
         shares[j] = a / max(a + b, 1e-300)
-        seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
-        pos = _arc_positions(seg, seams[j], SAMPLES)
+        pos = _arc_positions(segs[j], seams[j], SAMPLES)
         i0 = np.floor(pos).astype(np.int64) % len(lp)
         f = pos - np.floor(pos)
         i1 = (i0 + 1) % len(lp)

@@ -140,7 +140,7 @@ def _length(points) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0, append=points[:1]), axis=1).sum())
 
 
-def isoline_moments(u, vertices, faces, levels):
+def isoline_moments(u, vertices, faces, levels, *, area: bool = True):
     """Length, centroid and vector area of the whole isoline at each of many levels at once
     (all loops of a level together; no loop ordering needed: a closed curve's vector area
     ``1/2 sum a x b`` over its oriented segments does not depend on where it starts).
@@ -151,32 +151,35 @@ def isoline_moments(u, vertices, faces, levels):
     centroid : (L, 3) float
         Length-weighted mean of the segment midpoints (NaN where the level has no isoline).
     area : (L, 3) float
-        Vector area, pointing along the field's gradient side (module docstring).
+        Vector area, pointing along the field's gradient side (module docstring); None
+        with ``area=False``.
     """
     levels = np.asarray(levels, dtype=np.float64)
     uf = np.asarray(u)[faces]                                         # (T, 3)
-    lo = np.searchsorted(levels, uf.min(axis=1), side="right")
-    hi = np.searchsorted(levels, uf.max(axis=1), side="right")
+    u0, u1, u2 = uf.T
+    lo = np.searchsorted(levels, np.minimum(np.minimum(u0, u1), u2), side="right")
+    hi = np.searchsorted(levels, np.maximum(np.maximum(u0, u1), u2), side="right")
     count = hi - lo
     face = np.repeat(np.arange(len(faces)), count)
     start = np.repeat(np.cumsum(count) - count, count)
     lev = np.repeat(lo, count) + np.arange(face.size) - start
     t = levels[lev]
-    fu = uf[face]
-    ab = fu >= t[:, None]
-    rising = ~ab & np.roll(ab, -1, axis=1)
-    falling = ab & ~np.roll(ab, -1, axis=1)
-    rows = np.arange(face.size)
-    tri = vertices[faces[face]]                                       # (H, 3, 3)
+    fu = np.take(uf, face, axis=0)
+    ab0, ab1, ab2 = (fu >= t[:, None]).T
+    flat = 3 * face                                       # rows of the faces' corners, flat
+    uflat, cflat = uf.reshape(-1), np.asarray(faces).reshape(-1)
 
     def crossing(side):
-        k0, k1 = side, (side + 1) % 3
-        u0, u1 = fu[rows, k0], fu[rows, k1]
+        k0, k1 = flat + side, flat + (side + 1) % 3
+        u0, u1 = np.take(uflat, k0), np.take(uflat, k1)
         s = ((t - u0) / (u1 - u0))[:, None]
-        return (1.0 - s) * tri[rows, k0] + s * tri[rows, k1]
+        return ((1.0 - s) * np.take(vertices, np.take(cflat, k0), axis=0)
+                + s * np.take(vertices, np.take(cflat, k1), axis=0))
 
-    a = crossing(falling.argmax(axis=1))
-    b = crossing(rising.argmax(axis=1))
+    # one falling (corner k at or above, k + 1 below) and one rising side per crossing face:
+    # its index without an argmax
+    a = crossing((ab1 & ~ab2) + 2 * (ab2 & ~ab0))
+    b = crossing((~ab1 & ab2) + 2 * (~ab2 & ab0))
     seg = np.linalg.norm(b - a, axis=1)
     n = len(levels)
     length = np.bincount(lev, seg, n)
@@ -184,6 +187,7 @@ def isoline_moments(u, vertices, faces, levels):
     with np.errstate(invalid="ignore", divide="ignore"):
         centroid = np.stack([np.bincount(lev, mid[:, d], n) for d in range(3)], axis=1) \
             / length[:, None]
+    if not area:
+        return length, centroid, None
     cr = 0.5 * np.cross(a, b)
-    area = np.stack([np.bincount(lev, cr[:, d], n) for d in range(3)], axis=1)
-    return length, centroid, area
+    return length, centroid, np.stack([np.bincount(lev, cr[:, d], n) for d in range(3)], axis=1)
