@@ -1,6 +1,7 @@
 """Fibre quality and moment arms of the LHDL hip muscles, harmonic against planar slicing.
 
-    python bench/fibre_quality.py [--quality] [--moment-arms] [--speed] [--stages] [--repeats N]
+    python bench/fibre_quality.py [--quality] [--moment-arms] [--speed] [--stages]
+                                  [--paper-kinematics] [--repeats N]
 
 ``--quality``: `fibres.finishing.quality` of the four muscles (100 fibres x 15 segments), with the
 templates of tests/data/lhdl_hip.toml and with ``parallel``, psoas with its own four lumbar
@@ -16,7 +17,14 @@ machine), and the CPU time of a bent frame (`bend`: 5, 10, 15 and 20 degrees, as
 tests/fibres/test_decompose_lhdl.py). ``--stages``: the rest decomposition's CPU time per stage
 (medians over the repeats of each stage's summed calls; the stages are timed by wrapping the
 functions `fibres.decompose` and `fibres.slicing.harmonic` call, so their sum is less than the
-whole). Default: the first three.
+whole). ``--paper-kinematics``: the rest fibres of the TOML's muscles moved as Modenese & Kohout
+2020 moved theirs (their Eq. 1: each point follows a blend of the pelvis' and the femur's
+transforms, weight ``a t^2 - (a + 1) t + 1`` of the pelvis at the point's place ``t`` along the
+fibre, ``a`` per muscle from their text; ``t`` by arc length, which is their point index on
+evenly spaced points), each fibre's length fitted by a 4th-order polynomial of the coordinate and
+its moment arm ``-dl/dq`` (their tendon excursion): the same statistics and overlaps as
+``--moment-arms``, so that the fibres' geometry is compared under the paper's kinematics rather
+than ours. Default: the first three.
 """
 from __future__ import annotations
 
@@ -113,6 +121,18 @@ def _iou(a, b):
     return inter / union if union > 0 else 0.0
 
 
+def _print_moment_arms(task, name, r, lines, paper):
+    """One line: p5..p95, min..max, mean (sd) of ``r`` (cm), the lines' range, the paper's
+    peaks and mean (sd), and the overlaps of p5..p95 and of min..max with the paper's peaks."""
+    lo, hi = np.percentile(r, [5, 95])
+    shown = "" if lines is None else f"   lines {lines.min():6.2f} .. {lines.max():6.2f}"
+    print(f"  {task:9s} {name:11s} {lo:6.2f} .. {hi:6.2f}   min..max {r.min():6.2f} .. "
+          f"{r.max():6.2f}  mean {r.mean():5.2f} (sd {r.std():.2f}){shown}   paper "
+          f"{paper[0]:.1f} .. {paper[1]:.1f} mean {paper[2]:.1f} (sd {paper[3]:.1f})  IoU "
+          f"p5..p95 {_iou((lo, hi), paper[:2]):.2f}, min..max "
+          f"{_iou((r.min(), r.max()), paper[:2]):.2f}")
+
+
 def moment_arms():
     from analysis import run
 
@@ -126,17 +146,48 @@ def moment_arms():
                           keep_points=False)
             for m in res.muscles:
                 c = list(m.coordinates).index(coord)
-                r = m.fibre_moment_arms[:, :, c] * 100
-                lo, hi = np.percentile(r, [5, 95])
-                al = m.action_line_moment_arms[:, :, c] * 100
-                paper = PAPER_CM[task][m.name]
-                line = (f"  {task:9s} {m.name:11s} {lo:6.2f} .. {hi:6.2f}   min..max "
-                        f"{r.min():6.2f} .. {r.max():6.2f}  mean {r.mean():5.2f} (sd {r.std():.2f})"
-                        f"   lines {al.min():6.2f} .. {al.max():6.2f}   paper {paper[0]:.1f} .. "
-                        f"{paper[1]:.1f} mean {paper[2]:.1f} (sd {paper[3]:.1f})  IoU p5..p95 "
-                        f"{_iou((lo, hi), paper[:2]):.2f}, min..max "
-                        f"{_iou((r.min(), r.max()), paper[:2]):.2f}")
-                print(line)
+                _print_moment_arms(task, m.name, m.fibre_moment_arms[:, :, c] * 100,
+                                   m.action_line_moment_arms[:, :, c] * 100,
+                                   PAPER_CM[task][m.name])
+
+
+#: Modenese & Kohout 2020, the blending parameter ``a`` of each muscle (their "Fibres
+#: kinematics" paragraph; chosen there by eye against bone penetration)
+PAPER_BLEND_A = {"psoas_r": -0.042, "iliacus_r": -0.024, "glut_max_r": -0.042, "glut_med_r": 0.0}
+
+
+def paper_kinematics():
+    from fibres import decompose
+    from motion import body_poses, load_model, load_motion
+
+    model = load_model(LHDL / "model" / "LHDL_hip_r.osim")
+    bodies = [list(model.body_names).index(b) for b in ("pelvis", "femur_r")]
+    print("\nfibres moved by the paper's pelvis/femur blend (harmonic slicing, the TOML's "
+          "attachments): moment arms (cm) over fibres and frames")
+    for muscle in MUSCLES:
+        o, i = landmarks(muscle, own_origin=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            pts = decompose(surface(muscle), o, i, template=TOML_TEMPLATES[muscle],
+                            n_fibres=100, resolution=15).points      # (N, P, 3), body frames
+        arc = np.concatenate([np.zeros((len(pts), 1)),
+                              np.cumsum(np.linalg.norm(np.diff(pts, axis=1), axis=-1), 1)], 1)
+        t = arc / arc[:, -1:]
+        a = PAPER_BLEND_A[muscle]
+        w = (a * t ** 2 - (a + 1) * t + 1)[None, :, :, None]                # pelvis' weight
+        homog = np.concatenate([pts, np.ones(pts.shape[:2] + (1,))], -1)
+        for task, (mot, coord) in TASKS.items():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                motion = load_motion(LHDL / "model" / "motions" / mot, model)
+            tf = body_poses(model, motion).tf_ground_body[:, bodies]          # (F, 2, 4, 4)
+            moved = [np.einsum("fij,npj->fnpi", tf[:, k], homog)[..., :3] for k in (0, 1)]
+            points = w * moved[0] + (1 - w) * moved[1]
+            lengths = np.linalg.norm(np.diff(points, axis=2), axis=-1).sum(-1)   # (F, N)
+            q = motion.q[:, list(motion.coordinate_names).index(coord)]
+            fit = np.polynomial.polynomial.polyfit(q, lengths, 4)              # (5, N)
+            r = -np.polynomial.polynomial.polyval(q, np.polynomial.polynomial.polyder(fit)).T
+            _print_moment_arms(task, muscle, r * 100, None, PAPER_CM[task][muscle])
 
 
 def speed(repeats):
@@ -241,9 +292,11 @@ def main():
     parser.add_argument("--moment-arms", action="store_true")
     parser.add_argument("--speed", action="store_true")
     parser.add_argument("--stages", action="store_true")
+    parser.add_argument("--paper-kinematics", action="store_true")
     parser.add_argument("--repeats", type=int, default=11)
     args = parser.parse_args()
-    every = not (args.quality or args.moment_arms or args.speed or args.stages)
+    every = not (args.quality or args.moment_arms or args.speed or args.stages
+                 or args.paper_kinematics)
     if not LHDL.is_dir():
         raise SystemExit(f"needs the LHDL data at {LHDL}")
     if every or args.quality:
@@ -254,6 +307,8 @@ def main():
         moment_arms()
     if args.stages:
         stages(args.repeats)
+    if args.paper_kinematics:
+        paper_kinematics()
 
 
 if __name__ == "__main__":
