@@ -103,6 +103,15 @@ def _statics(model, path) -> tuple:
     return model.cached(("wrap statics", path.name), make)
 
 
+def _all_kinds(model) -> bool:
+    """A path of ``model`` wraps over an object that is no cylinder: every call then runs the
+    kernel compiled for all kinds (`wrap_compiled_rows`' ``all_kinds``), so that a model
+    compiles one variant; otherwise the calls' own kinds choose (cylinders only: the cheap
+    variant, which never compiles the other kinds)."""
+    return model.cached("wrap kinds", lambda: any(model.wrap_object(pw.wrap_object).kind != "cylinder"
+                                                  for path in model.paths for pw in path.wraps))
+
+
 def _signature(model, path) -> tuple:
     """Hashable description of a path's wraps: what must be equal to share one call."""
     return tuple((kind, axis, sign, adjust, method, active)
@@ -198,7 +207,7 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     n_coords = d_points.shape[2]
     pts, act, dpts, n_dirs, slots = group_rows([path], model, [points], [active], [d_points], tf,
                                                np.asarray(d_tf_ground_body, dtype=float), [np.arange(n_coords)])
-    length, d_length, order, mask, seen, arc = wrap_compiled_rows(pts, act, dpts, n_dirs, slots)
+    length, d_length, order, mask, seen, arc = wrap_compiled_rows(pts, act, dpts, n_dirs, slots, _all_kinds(model) or None)
     labels = [p.name for p in path.points]
     for pw in path.wraps:
         labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
@@ -283,7 +292,7 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
     p_max = max(len(p.points) for p in paths)
     pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
     n_rows, d_max = len(n_dirs), dpts.shape[2]
-    length_v, d_length, order, mask, node_v, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots)
+    length_v, d_length, order, mask, node_v, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots, _all_kinds(model) or None)
     n_wraps = len(slots)
     results = []
     for g, (path, cols) in enumerate(zip(paths, columns)):

@@ -32,7 +32,11 @@ the same algorithm on dual numbers is the oracle in ``tests/motion/wrap_oracle/`
 
 Method: one module-level numba kernel (`_rows_kernel`) runs every row once per derivative
 direction with complex-step numbers (the value and one directional derivative); the values,
-hence every branch, are the same in each run. Scratch arrays are allocated once per call. The
+hence every branch, are the same in each run. It is compiled (and cached on disk) in two
+variants told apart by the type of its ``wkind`` argument: None when every wrap object is a
+cylinder, the kinds array otherwise; `_line` is a numba overload that gives the first variant
+the cylinder's line alone, so that a cylinder-only model never compiles the other kinds (see
+``all_kinds`` of `wrap_compiled_rows`; numbers in ``docs/decisions.md``). Scratch arrays are allocated once per call. The
 ellipsoid's fan (`motion.wrapping.ellipsoid_line`), linear in the direction once its two 3 x 3
 sums are known, is kept in a small memo keyed by its real inputs, so that the directions of a
 row compute it once.
@@ -40,7 +44,8 @@ row compute it once.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from .cylinder_line import INSIDE_RADIUS, MANDATORY_WRAP, NO_WRAP, STEP, WRAPPED, vnorm, vsub, wrap_line
 from .ellipsoid_line import ellipsoid_line
@@ -108,9 +113,21 @@ def _to_ground(r, f):
             f[2, 0] * r[0] + f[2, 1] * r[1] + f[2, 2] * r[2] + f[2, 3])
 
 
-@njit(cache=True, error_model="numpy")
-def _line(kind, pa, pb, prm, axis, sign, adjust, method, memo, memo_n):
-    """The segment pa -> pb (wrap frame) over a wrap object of ``kind``: (code, r1, r2, arc)."""
+def _line(wkind, w, pa, pb, prm, axis, sign, adjust, method, memo, memo_n):
+    """The segment pa -> pb (wrap frame) over wrap object w: (code, r1, r2, arc).
+
+    Compiled only inside the kernel (`_line_kinds` gives its body by the type of ``wkind``)."""
+    raise NotImplementedError("compiled only (motion.wrapping.wrapped_rows._rows_kernel)")
+
+
+def _cylinder(wkind, w, pa, pb, prm, axis, sign, adjust, method, memo, memo_n):
+    """`_line` when every wrap object is a cylinder (``wkind`` None)."""
+    return wrap_line(pa, pb, prm[0], prm[1], axis, sign, adjust)
+
+
+def _any_kind(wkind, w, pa, pb, prm, axis, sign, adjust, method, memo, memo_n):
+    """`_line` for wrap objects of any kind (``wkind`` (W,) int)."""
+    kind = wkind[w]
     if kind == CYLINDER:
         return wrap_line(pa, pb, prm[0], prm[1], axis, sign, adjust)
     if kind == SPHERE:
@@ -118,6 +135,13 @@ def _line(kind, pa, pb, prm, axis, sign, adjust, method, memo, memo_n):
     if kind == ELLIPSOID:
         return ellipsoid_line(pa, pb, prm[0], prm[1], prm[2], axis, sign, method, memo, memo_n)
     return torus_line(pa, pb, prm[0], prm[1], axis, sign)
+
+
+@overload(_line, jit_options={"error_model": "numpy"})
+def _line_kinds(wkind, w, pa, pb, prm, axis, sign, adjust, method, memo, memo_n):
+    """Typing-time choice of `_line`'s body: with ``wkind`` None only the cylinder's code is
+    typed and compiled (the other kinds' functions are never compiled nor loaded)."""
+    return _cylinder if isinstance(wkind, types.NoneType) else _any_kind
 
 
 @njit(cache=True, error_model="numpy")
@@ -153,7 +177,7 @@ def _wrap_one(n, w, active, frame, wstart, wend, wkind, wparam, waxis, wsign, wa
             continue
         pa = _to_wrap(node, a, frame)
         pb = _to_wrap(node, b, frame)
-        code, r1, r2, arc_ab = _line(wkind[w], pa, pb, wparam[w, n], waxis[w], wsign[w], wadjust[w], wmethod[w], memo,
+        code, r1, r2, arc_ab = _line(wkind, w, pa, pb, wparam[w, n], waxis[w], wsign[w], wadjust[w], wmethod[w], memo,
                                      memo_n)
         result = code
         if code < _WRAPPED:
@@ -257,7 +281,7 @@ def _rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wkin
                 out_seen[n, k, i] = seen[k, i].real
 
 
-def wrap_compiled_rows(points, active, d_points, n_dirs, slots) -> tuple:
+def wrap_compiled_rows(points, active, d_points, n_dirs, slots, all_kinds=None) -> tuple:
     """applyWrapObjects on N independent rows (see the module docstring), compiled.
 
     Parameters
@@ -268,6 +292,10 @@ def wrap_compiled_rows(points, active, d_points, n_dirs, slots) -> tuple:
     n_dirs : (N,) int
         Directions each row needs (its first ``n_dirs`` of D; the others are returned as 0).
     slots : sequence of `motion.wrapping.batch.WrapSlot` in PathWrapSet order.
+    all_kinds : bool or None
+        Run the kernel compiled for every kind even if all ``slots`` are cylinders (a model
+        with other kinds elsewhere then compiles one kernel, not two). None: as ``slots`` need.
+        False with a slot that is no cylinder is a ValueError.
 
     Returns
     -------
@@ -285,6 +313,13 @@ def wrap_compiled_rows(points, active, d_points, n_dirs, slots) -> tuple:
     wend = np.array([s.end for s in slots], dtype=np.int64).reshape(n_wraps, n_rows)
     wparam = np.array([np.broadcast_to(s.params, (n_rows, 3)) for s in slots], dtype=float).reshape(n_wraps, n_rows, 3)
     wkind = np.array([s.kind for s in slots], dtype=np.int64)
+    cylinders = bool(np.all(wkind == CYLINDER))
+    if all_kinds is None:
+        all_kinds = not cylinders
+    if not all_kinds:
+        if not cylinders:
+            raise ValueError("all_kinds=False but a wrap object is no cylinder")
+        wkind = None                        # the kernel compiled for cylinders only
     waxis = np.array([s.axis for s in slots], dtype=np.int64)
     wsign = np.array([s.sign for s in slots], dtype=np.int64)
     wadjust = np.array([s.adjust for s in slots], dtype=np.bool_)

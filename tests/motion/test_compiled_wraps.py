@@ -10,6 +10,10 @@ random segments relative to 1 + |d|, see the bounds at the ends).
 """
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -19,13 +23,13 @@ from motion.osim.kinematics import body_pose_derivatives
 from motion.osim.motion_file import load_motion
 from motion.osim.reader import load_model
 from motion.wrapping.action_lines import spanned_coordinates
-from motion.wrapping.batch import _signature, group_rows
+from motion.wrapping.batch import _all_kinds, _signature, group_rows
 from motion.wrapping.cylinder_line import STEP, wrap_line
 from motion.wrapping.ellipsoid_line import ellipsoid_line, new_fan_memo
 from motion.wrapping.path_points import path_points
 from motion.wrapping.sphere_torus_line import sphere_line, torus_line
 from motion.wrapping.cylinder_line import ELLIPSOID_METHODS, quadrant_axis_sign
-from motion.wrapping.wrapped_rows import wrap_compiled_rows
+from motion.wrapping.wrapped_rows import CYLINDER, wrap_compiled_rows
 
 from wrap_oracle.cylinder import cylinder_wrap_line     # tests/motion (rootdir-relative import)
 from wrap_oracle.dual import Dual
@@ -33,6 +37,7 @@ from wrap_oracle.ellipsoid import ellipsoid_wrap_line
 from wrap_oracle.path import wrap_rows
 from wrap_oracle.sphere import sphere_wrap_line
 from wrap_oracle.torus import torus_wrap_line
+from tests.conftest import ROOT
 
 MODELS = [
     ("MomentArmTests/WrapPathCustomJointMomentArmTest.osim",
@@ -80,6 +85,61 @@ def test_rows_equal_numpy(opensim_dir, model_rel, motion_rel, step):
         n_points = pts.shape[1]
         for w, ref in enumerate(ref_arcs):
             np.testing.assert_allclose(arc[:, w], np.where(mask[:, n_points + 2 * w], ref.v, 0.0), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("model_rel, motion_rel, step", MODELS[:2], ids=["wrap-pin", "arm26"])
+def test_cylinder_variant_equals_all_kinds(opensim_dir, model_rel, motion_rel, step):
+    """The kernel compiled for cylinders only and the one for every kind run the same
+    cylinder code on the same numbers: equal to rounding (1e-14 m, the values ~0.1-1 m)."""
+    model = load_model(opensim_dir / model_rel)
+    assert _all_kinds(model) == (model_rel.startswith("Arm26"))     # Arm26 has ellipsoids
+    checked = 0
+    for pts, act, dpts, n_dirs, slots in _groups(opensim_dir, model_rel, motion_rel, step):
+        if any(s.kind != CYLINDER for s in slots):
+            with pytest.raises(ValueError, match="no cylinder"):
+                wrap_compiled_rows(pts, act, dpts, n_dirs, slots, all_kinds=False)
+            continue
+        cyl = wrap_compiled_rows(pts, act, dpts, n_dirs, slots, all_kinds=False)
+        every = wrap_compiled_rows(pts, act, dpts, n_dirs, slots, all_kinds=True)
+        for a, b in zip(cyl, every):
+            if a.dtype.kind in "bi":
+                assert np.array_equal(a, b)
+            else:
+                np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+        checked += 1
+    assert checked
+
+
+_ONLY_CYLINDERS = r"""
+import json, sys, numpy as np, motion
+from motion.osim.kinematics import body_pose_derivatives
+from motion.wrapping import wrapped_rows
+from motion.wrapping.batch import wrap_path
+from motion.wrapping.path_points import path_points
+model = motion.load_model(sys.argv[1])
+mot = motion.load_motion(sys.argv[2], model)
+motion.action_lines(model, mot)                                   # wrap_paths
+tf, dtf, q, jac = body_pose_derivatives(model, mot.q[:3])
+for path in model.paths:                                          # wrap_path (the surfaces' call)
+    if path.wraps:
+        pp = path_points(path, model, q, tf, jac=jac, d_tf_ground_body=dtf)
+        wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
+print(json.dumps([str(s[8]) for s in wrapped_rows._rows_kernel.signatures]))   # the type of wkind
+"""
+
+
+def test_a_cylinder_model_runs_only_the_cylinder_kernel():
+    """The bundled example (one WrapCylinder): in a fresh process its action lines and its
+    surfaces' wrapped paths (`wrap_path`) run only the kernel variant typed with ``wkind`` None,
+    whose `_line` is the cylinder's alone (the other kinds' functions are not compiled for it)."""
+    example = ROOT / "models" / "arm_example.osim"
+    if not example.exists():
+        pytest.skip("bundled example model not generated")
+    out = subprocess.run([sys.executable, "-c", _ONLY_CYLINDERS, str(example), str(ROOT / "models" / "elbow_flexion.mot")],
+                         cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
+                         check=True)
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    assert res == ["none"]
 
 
 @pytest.mark.parametrize("quadrant", ["all", "x", "-x", "y", "-y"])
