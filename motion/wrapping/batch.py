@@ -207,7 +207,8 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     n_coords = d_points.shape[2]
     pts, act, dpts, n_dirs, slots = group_rows([path], model, [points], [active], [d_points], tf,
                                                np.asarray(d_tf_ground_body, dtype=float), [np.arange(n_coords)])
-    length, d_length, order, mask, seen, arc = wrap_compiled_rows(pts, act, dpts, n_dirs, slots, _all_kinds(model) or None)
+    length, d_length, order, mask, seen, arc = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
+                                                                  _all_kinds(model) or None)
     labels = [p.name for p in path.points]
     for pw in path.wraps:
         labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
@@ -292,7 +293,8 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
     p_max = max(len(p.points) for p in paths)
     pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
     n_rows, d_max = len(n_dirs), dpts.shape[2]
-    length_v, d_length, order, mask, node_v, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots, _all_kinds(model) or None)
+    length_v, d_length, order, mask, node_v, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
+                                                                    _all_kinds(model) or None)
     n_wraps = len(slots)
     results = []
     for g, (path, cols) in enumerate(zip(paths, columns)):

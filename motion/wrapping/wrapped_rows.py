@@ -36,10 +36,10 @@ hence every branch, are the same in each run. It is compiled (and cached on disk
 variants told apart by the type of its ``wkind`` argument: None when every wrap object is a
 cylinder, the kinds array otherwise; `_line` is a numba overload that gives the first variant
 the cylinder's line alone, so that a cylinder-only model never compiles the other kinds (see
-``all_kinds`` of `wrap_compiled_rows`; numbers in ``docs/decisions.md``). Scratch arrays are allocated once per call. The
-ellipsoid's fan (`motion.wrapping.ellipsoid_line`), linear in the direction once its two 3 x 3
-sums are known, is kept in a small memo keyed by its real inputs, so that the directions of a
-row compute it once.
+``all_kinds`` of `wrap_compiled_rows`; numbers in ``docs/decisions.md``). Scratch arrays are
+allocated once per call. The ellipsoid's fan (`motion.wrapping.ellipsoid_line`), linear in the
+direction once its two 3 x 3 sums are known, is kept in a small memo keyed by its real inputs,
+so that the directions of a row compute it once.
 """
 from __future__ import annotations
 

@@ -135,7 +135,8 @@ def test_a_cylinder_model_runs_only_the_cylinder_kernel():
     example = ROOT / "models" / "arm_example.osim"
     if not example.exists():
         pytest.skip("bundled example model not generated")
-    out = subprocess.run([sys.executable, "-c", _ONLY_CYLINDERS, str(example), str(ROOT / "models" / "elbow_flexion.mot")],
+    mot = ROOT / "models" / "elbow_flexion.mot"
+    out = subprocess.run([sys.executable, "-c", _ONLY_CYLINDERS, str(example), str(mot)],
                          cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
                          check=True)
     res = json.loads(out.stdout.strip().splitlines()[-1])
