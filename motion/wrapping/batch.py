@@ -292,7 +292,6 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
     n_frames = tf.shape[0]
     p_max = max(len(p.points) for p in paths)
     pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
-    n_rows, d_max = len(n_dirs), dpts.shape[2]
     length_v, d_length, order, mask, node_v, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
                                                                     _all_kinds(model) or None)
     n_wraps = len(slots)
