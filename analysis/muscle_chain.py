@@ -77,13 +77,18 @@ def spanned_coordinates(ctx, mspec):
 
 
 def surface_spec(mspec):
-    """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres."""
+    """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres.
+    A mesh smaller than `fibres.mesh.surface.MIN_MUSCLE_SIZE_M` across is refused (metres declared
+    as mm; its decomposition would take minutes and give nonsense); one too large is refused by
+    `motion.wrap_surfaces`, which also knows how far it lies from its action lines."""
     from fibres import as_surface
+    from fibres.mesh.surface import check_muscle_scale
     from motion.surface.spec import BoneMesh, MuscleSurfaceSpec
 
     vertices = faces = None
     if mspec.mesh is not None:
         surf = as_surface(mspec.mesh, units=mspec.units)
+        check_muscle_scale(surf, file=mspec.mesh, max_size_m=np.inf)
         vertices, faces = surf.vertices, surf.faces
     bones = []
     for body, path in mspec.bones:

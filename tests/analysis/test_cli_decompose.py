@@ -166,6 +166,16 @@ def test_mm_mesh_declared_as_metres(tmp_path, capsys, spindle):
     _assert_refused(code, err, out, "mm.stl", "millimetres", "--units mm")
 
 
+def test_metres_declared_as_mm(tmp_path, capsys, spindle):
+    """A 0.24 m spindle declared as mm is 0.24 mm across: refused at once (it used to be
+    decomposed for a minute into fibres that turn by 180 degrees)."""
+    mesh, _ = spindle
+    out = tmp_path / "f.csv"
+    code, _, err = _run(capsys, mesh, "--origin", ORIGIN, "--insertion", INSERTION, "--units", "mm",
+                        "--out", out)
+    _assert_refused(code, err, out, "spindle.ply", "too small for a muscle", "--units m")
+
+
 def test_landmarks_in_other_units(tmp_path, capsys, spindle):
     mesh, _ = spindle
     out = tmp_path / "f.csv"
