@@ -30,8 +30,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--frame", type=int, default=None, metavar="K",
                         help="frame of the run to draw (default: the middle frame of the scene)")
     parser.add_argument("--view", choices=tuple(VIEWS), default="iso", help="camera direction (default iso)")
-    parser.add_argument("--out", default=None, metavar="FILE.png", help="picture to write")
-    parser.add_argument("--size", default="1200x900", metavar="WxH", help="picture size in pixels")
+    parser.add_argument("--out", default=None, metavar="FILE.png",
+                        help="picture to write (default DIR/render_<frame>_<view>.png)")
+    parser.add_argument("--size", default="1200x900", metavar="WxH", help="picture size in pixels (default 1200x900)")
     parser.add_argument("--no-bones", action="store_true", help="leave the bones out")
     parser.add_argument("--no-surfaces", action="store_true", help="leave the muscle surfaces out")
 
