@@ -38,7 +38,7 @@ def test_outputs(tmp_path, capsys, spindle, fmt):
     code, stdout, err = _run(capsys, mesh, "--origin", ORIGIN, "--insertion", INSERTION,
                              "--fibres", n, "--resolution", r, "--out", out)
     assert code == 0, err
-    assert out.is_file() and f"wrote {n} fibres" in stdout
+    assert out.is_file() and f"wrote {n} fibres" in stdout and "(coordinates in metres)" in stdout
     assert not list(tmp_path.glob(".*.part"))
     if fmt == "csv":
         tab = pd.read_csv(out)
@@ -81,9 +81,10 @@ def test_csv_points_files_and_mm_units(tmp_path, capsys, spindle):
     i.write_text("\n".join(f"{float(a)*1000},{float(b)*1000},{float(c)*1000}"
                  for a, b, c in (p.split(",") for p in INSERTION.split(";"))) + "\n")
     out = tmp_path / "f.npz"
-    code, _, err = _run(capsys, mesh, "--origin", o, "--insertion", i, "--units", "mm",
-                        "--fibres", 5, "--out", out)
+    code, stdout, err = _run(capsys, mesh, "--origin", o, "--insertion", i, "--units", "mm",
+                             "--fibres", 5, "--out", out)
     assert code == 0, err
+    assert "(coordinates in metres, converted from mm)" in stdout
     pts = np.load(out)["points"]
     # output in metres
     assert np.abs(pts).max() < 0.13

@@ -68,7 +68,7 @@ def test_numbers(x, text):
 
 
 def test_missing_values_in_repeated_columns_keep_their_rows():
-    """The LHDL hip run (no optimal_fiber_length in its .osim: normalized_length all NaN) wrote a
+    """The LHDL hip run (its optimal_fiber_length unread: normalized_length all NaN) wrote a
     fibre_lengths.csv of its header alone: a float column of few distinct values over more than
     64 rows was formatted per distinct value, and its missing values (nulls in Arrow) made whole
     lines null, which the join dropped."""
