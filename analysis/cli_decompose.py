@@ -186,7 +186,8 @@ def execute(args) -> int:
                        slicing=args.slicing)
     write_fibres(out, bundle)
     n, p = np.shape(bundle.points)[:2]
-    print(f"wrote {n} fibres of {p} points to {out}")
+    print(f"wrote {n} fibres of {p} points to {out} (coordinates in metres"
+          f"{', converted from mm' if args.units == 'mm' else ''})")
     q = bundle.quality
     print(f"fibre quality: {q.empty_5mm:.1%} of the volume farther than 5 mm from a fibre, "
           f"sharpest turns max {q.turn_max:.0f} / p95 {q.turn_p95:.0f} degrees, "

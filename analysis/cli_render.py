@@ -10,6 +10,7 @@ black, fibres coloured by muscle. Views use OpenSim's axes (x forward, y up, z t
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -30,8 +31,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--frame", type=int, default=None, metavar="K",
                         help="frame of the run to draw (default: the middle frame of the scene)")
     parser.add_argument("--view", choices=tuple(VIEWS), default="iso", help="camera direction (default iso)")
-    parser.add_argument("--out", default=None, metavar="FILE.png", help="picture to write")
-    parser.add_argument("--size", default="1200x900", metavar="WxH", help="picture size in pixels")
+    parser.add_argument("--out", default=None, metavar="FILE.png",
+                        help="picture to write (default DIR/render_<frame>_<view>.png)")
+    parser.add_argument("--size", default="1200x900", metavar="WxH", help="picture size in pixels (default 1200x900)")
     parser.add_argument("--no-bones", action="store_true", help="leave the bones out")
     parser.add_argument("--no-surfaces", action="store_true", help="leave the muscle surfaces out")
 
@@ -67,6 +69,27 @@ def render_scene(scene_dir, out_png, *, frame=None, view="iso", size=(1200, 900)
                              f"(every {frames[1] - frames[0] if len(frames) > 1 else 1}).")
     parts = {p: pv.read(str(scene_dir / f"{p}_{k:04d}.vtp")) for p in names["parts"]}
     pv.OFF_SCREEN = True
+    with _vtk_errors_only():      # without a display VTK logs a coloured "bad X server" WARN line
+        return _draw(parts, names, frames, k, out_png, view=view, size=size, bones=bones, surfaces=surfaces)
+
+
+@contextlib.contextmanager
+def _vtk_errors_only():
+    """VTK's log on stderr limited to errors while drawing (its previous cutoff restored)."""
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    previous = vtkLogger.GetCurrentVerbosityCutoff()
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    try:
+        yield
+    finally:
+        vtkLogger.SetStderrVerbosity(vtkLogger.ConvertToVerbosity(previous))
+
+
+def _draw(parts, names, frames, k, out_png, *, view, size, bones, surfaces) -> Path:
+    import numpy as np
+    import pyvista as pv
+
     plotter = pv.Plotter(off_screen=True, window_size=list(size))
     plotter.set_background("white")
     if bones and parts["bones"].n_points:

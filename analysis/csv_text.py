@@ -79,9 +79,9 @@ def _field(column):
     if not (pa.types.is_floating(t) or pa.types.is_integer(t) or pa.types.is_boolean(t)):
         return None
     if len(column) > 64:
-        encoded = pc.dictionary_encode(column)
+        encoded = pc.dictionary_encode(column)     # missing values: null indices, not in the dictionary
         if 4 * len(encoded.dictionary) < len(column):
-            return pc.take(_field(encoded.dictionary), encoded.indices)
+            return pc.fill_null(pc.take(_field(encoded.dictionary), encoded.indices), "")
     if pa.types.is_floating(t):
         x = _rounded(column.to_numpy(zero_copy_only=False), DIGITS)
         missing = np.isnan(x)

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["optimal_lengths", "line_normalized_lengths", "moment_arm_notes", "MARGIN_RELATIVE",
-           "MARGIN_ABSOLUTE", "MIN_LINE_ARM"]
+__all__ = ["optimal_lengths", "line_normalized_lengths", "short_path_notes", "moment_arm_notes",
+           "MARGIN_RELATIVE", "MARGIN_ABSOLUTE", "MIN_LINE_ARM"]
 
 #: the warning's margin around the action lines' moment-arm range: relative part, absolute (m)
 MARGIN_RELATIVE = 0.2
@@ -65,6 +65,29 @@ def line_normalized_lengths(model, action_lines, line_lengths) -> np.ndarray:
         if p.optimal_fiber_length and p.optimal_fiber_length > 0:
             out[:, k] = (lengths[:, k] - (p.tendon_slack_length or 0.0)) / p.optimal_fiber_length
     return out
+
+
+def short_path_notes(model, action_lines, line_lengths) -> tuple:
+    """A ``"warning: ..."`` note (one for the muscle, or none) naming the action lines whose path
+    is not longer than their muscle's ``tendon_slack_length`` in some frame: their normalized
+    length ``(L - l_ts) / l_opt`` is zero or negative there, which no fibre can be (a generated
+    muscle says so through its belly's own warning; this one is for muscles with a mesh, whose
+    surface ignores the tendon)."""
+    lengths = np.asarray(line_lengths, dtype=float)
+    parts = []
+    for k, (name, p) in enumerate(zip(action_lines, _parameters(model, action_lines))):
+        slack = p.tendon_slack_length
+        if not slack or slack <= 0 or not (p.optimal_fiber_length and p.optimal_fiber_length > 0):
+            continue
+        short = lengths[:, k] <= slack
+        if short.any():
+            parts.append(f"{name} ({1e3 * lengths[short, k].min():.1f}-{1e3 * lengths[short, k].max():.1f} mm, "
+                         f"l_ts {1e3 * slack:.1f} mm, {int(short.sum())} of {len(short)} frames)")
+    if not parts:
+        return ()
+    return (f"warning: action line paths not longer than their tendon slack length l_ts: {', '.join(parts)}; "
+            "their normalized length (L - l_ts) / l_opt is <= 0 there; check the model's "
+            "tendon_slack_length and optimal_fiber_length",)
 
 
 def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms) -> tuple:

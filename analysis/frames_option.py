@@ -73,7 +73,8 @@ def parse_frames(text: str) -> FrameSelection:
 def add_frames_argument(parser) -> None:
     """Add ``--frames START:STOP:STEP`` to an argparse parser (dest ``frames``, default all)."""
     parser.add_argument("--frames", type=parse_frames, default=None, metavar="START:STOP:STEP",
-                        help="use only these motion rows (0-based, Python slice; default: all)")
+                        help="use only these motion rows: 0-based, STOP excluded, STEP optional; "
+                             "START and STOP must lie within the motion (default: all)")
 
 
 def resolve_frames(selection, n_frames: int, *, source=None) -> np.ndarray:

@@ -24,7 +24,7 @@ import numpy as np
 from . import interrupts
 from .budget import POSES_PER_CHUNK
 from .errors import FibreWarning
-from .fibre_checks import line_normalized_lengths, moment_arm_notes, optimal_lengths
+from .fibre_checks import line_normalized_lengths, moment_arm_notes, optimal_lengths, short_path_notes
 from .fibre_moment_arms import active_set_changes, difference_quotients, stacked_motion
 from .fibre_transport import bind_transport, decompose_transport, fibre_lengths
 from .progress import progress
@@ -77,13 +77,18 @@ def spanned_coordinates(ctx, mspec):
 
 
 def surface_spec(mspec):
-    """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres."""
+    """The `motion.MuscleSurfaceSpec` of a muscle: mesh read (and safely repaired) in metres.
+    A mesh smaller than `fibres.mesh.surface.MIN_MUSCLE_SIZE_M` across is refused (metres declared
+    as mm; its decomposition would take minutes and give nonsense); one too large is refused by
+    `motion.wrap_surfaces`, which also knows how far it lies from its action lines."""
     from fibres import as_surface
+    from fibres.mesh.surface import check_muscle_scale
     from motion.surface.spec import BoneMesh, MuscleSurfaceSpec
 
     vertices = faces = None
     if mspec.mesh is not None:
         surf = as_surface(mspec.mesh, units=mspec.units)
+        check_muscle_scale(surf, file=mspec.mesh, max_size_m=np.inf)
         vertices, faces = surf.vertices, surf.faces
     bones = []
     for body, path in mspec.bones:
@@ -199,6 +204,8 @@ def run_muscle(ctx, mspec):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)
     rest_lengths = fibre_lengths(bundle0.points)
     warned = tuple(f"warning: {n}" for n in _merged_notes(chunk_notes)) + moment_arm_notes(names, r, al_r)
+    if mspec.mesh is not None:    # a generated belly warns about a short path itself (motion.surface.wrap)
+        warned += short_path_notes(ctx.model, mspec.action_lines, al_len)
     for note in warned:
         warnings.warn(f"muscle {mspec.name!r}: {note[len('warning: '):]}", FibreWarning, stacklevel=3)
     result = MuscleResult(

@@ -285,8 +285,24 @@ def plot_moment_arms(path, coordinate_values, fibre_moment_arms, line_moment_arm
     text = title or f"{muscle}: moment arms, r = −dL/dq ({fm.shape[1]} fibres)"
     if skipped and title is None:
         text += f"; constant, not drawn: {', '.join(skipped)}"
-    fig.suptitle(text, fontsize="medium")
+    _suptitle(fig, text)
     return _save(fig, path)
+
+
+def _suptitle(fig, text):
+    """The figure title wrapped to the figure's width (a long list of constant coordinates was
+    cut off at both edges), the panels lowered by the extra lines. The width per character is a
+    bound for DejaVu Sans at the medium size (about 0.6 em on average, here 0.085 in), so no text
+    has to be measured (drawing it twice would cost a render)."""
+    import textwrap
+
+    width_in, height_in = fig.get_size_inches()
+    lines = textwrap.wrap(text, width=max(20, int((width_in - 0.3) / 0.085)),
+                          break_on_hyphens=False) or [text]
+    if len(lines) > 1:
+        line_h = 1.25 * 10.0 / 72.0 / height_in      # one 10 pt line in figure fractions
+        fig.subplots_adjust(top=fig.subplotpars.top - line_h * (len(lines) - 1))
+    fig.suptitle("\n".join(lines), fontsize="medium")
 
 
 def plot_length_histogram(path, fibre_lengths, rest_lengths, *, muscle: str, times=None,

@@ -31,7 +31,7 @@ from .errors import InputError
 from .fibre_moment_arms import FD_STEP
 from .fibre_transport import TRANSPORTS, fibre_lengths
 from .muscle_chain import Ctx, run_muscle, spanned_coordinates, timed
-from .progress import progress
+from .progress import progress, stage_notice
 from .result import RunResult
 from .spec import FibreModelSpec, load_spec
 
@@ -146,6 +146,7 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     interrupts.check()
     with timed(timings, "action_lines"):
         lines = motion_pkg.action_lines(model, mot, muscles=names)
+    stage_notice(f"action lines: {len(names)} paths, {len(rows)} frames", timings["action_lines"], quiet)
     interrupts.check()
     ctx = Ctx(spec=spec, model=model, motion=mot, lines=lines, quiet=quiet, keep_points=keep_points,
                keep_surfaces=keep_surfaces, step=dict(FD_STEP, **(step or {})), transport=transport)

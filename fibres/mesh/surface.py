@@ -24,7 +24,7 @@ from ..errors import InputError
 from .clean_check import clean_mesh_geometry, clean_topology  # noqa: F401 - re-exported
 
 __all__ = ["Surface", "as_surface", "as_points", "read_mesh", "SurfaceRepairWarning", "UNITS",
-           "check_muscle_scale"]
+           "check_muscle_scale", "MIN_MUSCLE_SIZE_M"]
 
 #: accepted length units -> factor to metres
 UNITS = {"m": 1.0, "mm": 1e-3}
@@ -333,8 +333,16 @@ def as_surface(mesh, *, units: str = "m") -> Surface:
     return Surface(v, f, tuple(repairs))
 
 
-def check_muscle_scale(surface: Surface, *, file=None, max_size_m: float = 3.0):
-    """Refuse a "muscle" larger than ``max_size_m`` metres: almost surely mm declared as m.
+#: Smallest plausible bounding-box diagonal of one muscle surface, in metres. A mesh in metres
+#: declared as millimetres is a thousand times too small (a 0.3 m biceps becomes 0.3 mm); the
+#: smallest human muscle, the stapedius, is about 6 mm long.
+MIN_MUSCLE_SIZE_M = 2e-3
+
+
+def check_muscle_scale(surface: Surface, *, file=None, max_size_m: float = 3.0,
+                       min_size_m: float = MIN_MUSCLE_SIZE_M):
+    """Refuse a "muscle" larger than ``max_size_m`` metres (almost surely mm declared as m) or
+    smaller than ``min_size_m`` (almost surely m declared as mm).
 
     Parameters
     ----------
@@ -344,8 +352,14 @@ def check_muscle_scale(surface: Surface, *, file=None, max_size_m: float = 3.0):
     max_size_m : float
         Largest plausible bounding-box diagonal of one muscle, in metres (3 m; the longest
         human muscle, sartorius, is about 0.6 m).
+    min_size_m : float
+        Smallest plausible bounding-box diagonal, in metres (`MIN_MUSCLE_SIZE_M`).
     """
     size = surface.size
+    if size < min_size_m:
+        raise InputError(f"the surface is {size * 1e3:.4g} mm across, too small for a muscle; it "
+                         "is probably in metres", file=file, where="units",
+                         fix="Declare the units as m (--units m, units='m').")
     if size > max_size_m:
         raise InputError(f"the surface is {size:.4g} m across, too large for a muscle; it is "
                          "probably in millimetres", file=file, where="units",

@@ -67,7 +67,8 @@ def muscle_parameters(model, name: str) -> MuscleParameters:
     Parameters
     ----------
     model : motion.Model
-        Its ``file`` is read (defusedxml); a model without a readable file gives all None.
+        Its ``file`` is read (defusedxml, decoded as `motion.osim.xml_document.read_document`
+        does: UTF-8, else Latin-1); a model without a readable file gives all None.
     name : str
         The muscle's name.
 
@@ -81,10 +82,10 @@ def muscle_parameters(model, name: str) -> MuscleParameters:
     key = str(file)
     if key not in _CACHE:
         table = {}
-        try:
-            from defusedxml import ElementTree
+        try:   # read as the model itself was (a Latin-1 byte under a UTF-8 declaration, as in LHDL)
+            from .xml_document import read_document
 
-            root = ElementTree.parse(key).getroot()
+            root = read_document(key).el
         except Exception:  # noqa: BLE001 - no file or not XML: no parameters
             root = None
         if root is not None:

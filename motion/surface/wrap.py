@@ -166,7 +166,7 @@ def _check_units(spec, vertices: np.ndarray, curves: list) -> None:
     if gap > 0.25 + 3.0 * min(size, 1.0) or size > 3.0:
         raise InputError(f"the mesh lies {gap:.3g} m from its action lines and is {size:.3g} m across: "
                          "likely a unit or frame mistake", where=f"muscle {spec.name!r}: mesh",
-                         fix="set units = \"mm\" if the mesh is in millimetres, and check frame/rest_pose")
+                         fix="Set units = \"mm\" if the mesh is in millimetres, and check frame/rest_pose.")
 
 
 def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: int = 40,

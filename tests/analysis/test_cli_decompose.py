@@ -38,7 +38,7 @@ def test_outputs(tmp_path, capsys, spindle, fmt):
     code, stdout, err = _run(capsys, mesh, "--origin", ORIGIN, "--insertion", INSERTION,
                              "--fibres", n, "--resolution", r, "--out", out)
     assert code == 0, err
-    assert out.is_file() and f"wrote {n} fibres" in stdout
+    assert out.is_file() and f"wrote {n} fibres" in stdout and "(coordinates in metres)" in stdout
     assert not list(tmp_path.glob(".*.part"))
     if fmt == "csv":
         tab = pd.read_csv(out)
@@ -81,9 +81,10 @@ def test_csv_points_files_and_mm_units(tmp_path, capsys, spindle):
     i.write_text("\n".join(f"{float(a)*1000},{float(b)*1000},{float(c)*1000}"
                  for a, b, c in (p.split(",") for p in INSERTION.split(";"))) + "\n")
     out = tmp_path / "f.npz"
-    code, _, err = _run(capsys, mesh, "--origin", o, "--insertion", i, "--units", "mm",
-                        "--fibres", 5, "--out", out)
+    code, stdout, err = _run(capsys, mesh, "--origin", o, "--insertion", i, "--units", "mm",
+                             "--fibres", 5, "--out", out)
     assert code == 0, err
+    assert "(coordinates in metres, converted from mm)" in stdout
     pts = np.load(out)["points"]
     # output in metres
     assert np.abs(pts).max() < 0.13
@@ -164,6 +165,16 @@ def test_mm_mesh_declared_as_metres(tmp_path, capsys, spindle):
     out = tmp_path / "f.csv"
     code, _, err = _run(capsys, mesh, "--origin", ORIGIN, "--insertion", INSERTION, "--out", out)
     _assert_refused(code, err, out, "mm.stl", "millimetres", "--units mm")
+
+
+def test_metres_declared_as_mm(tmp_path, capsys, spindle):
+    """A 0.24 m spindle declared as mm is 0.24 mm across: refused at once (it used to be
+    decomposed for a minute into fibres that turn by 180 degrees)."""
+    mesh, _ = spindle
+    out = tmp_path / "f.csv"
+    code, _, err = _run(capsys, mesh, "--origin", ORIGIN, "--insertion", INSERTION, "--units", "mm",
+                        "--out", out)
+    _assert_refused(code, err, out, "spindle.ply", "too small for a muscle", "--units m")
 
 
 def test_landmarks_in_other_units(tmp_path, capsys, spindle):

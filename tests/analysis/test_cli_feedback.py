@@ -87,6 +87,34 @@ def test_default_spec_falls_back_to_the_package_data(tmp_path, monkeypatch):
 def test_start_notice(capsys):
     from analysis.progress import start_notice
 
-    assert start_notice("working") is True
+    assert start_notice("working", compiling=False) is True
     assert capsys.readouterr().err == "fibres: working\n"
     assert start_notice("working", quiet=True) is False and capsys.readouterr().err == ""
+
+
+def test_first_run_says_it_compiles(capsys, tmp_path):
+    """An empty numba cache cost the bundled example 38 s of silence after its first line."""
+    from analysis.progress import kernels_cached, start_notice
+
+    index = tmp_path / "k.nbi"
+    assert kernels_cached([index]) is False
+    index.write_bytes(b"")
+    assert kernels_cached([index]) is True
+    start_notice("working", compiling=True)
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "fibres: working" and "compiling" in err[1] and len(err) == 2
+
+
+def test_run_prints_the_action_lines_stage(tmp_path, capsys):
+    from analysis import run
+
+    run(ROOT / "models" / "arm_example.toml", frames="0:3", fibres=8, resolution=6, quiet=False,
+        muscles=["brachialis"])
+    err = capsys.readouterr().err
+    assert "fibres: action lines: 1 paths, 3 frames (" in err, err
+    from analysis.progress import kernels_cached
+
+    assert kernels_cached() is True           # the run compiled the action lines' kernel and cached it
+    run(ROOT / "models" / "arm_example.toml", frames="0:3", fibres=8, resolution=6, quiet=True,
+        muscles=["brachialis"])
+    assert capsys.readouterr().err == ""

@@ -449,3 +449,22 @@ def test_failure_while_writing_leaves_no_file(opensim_dir, tmp_path, capsys, mon
                        "--frames", "0:3", "--quiet"], capsys)
     assert code == 1
     assert sorted(p.name for p in kept.iterdir()) == ["notes.txt"]
+
+
+def test_first_run_says_it_compiles(tmp_path, capsys, monkeypatch):
+    """An empty numba cache: the action lines' kernels compile for up to ~40 s; say so first."""
+    from pathlib import Path
+
+    from analysis import progress
+
+    models = Path(__file__).resolve().parents[2] / "models"
+    argv = ["lines", str(models / "arm_example.osim"), str(models / "elbow_flexion.mot"),
+            "--frames", "0:2", "--out", str(tmp_path / "o")]
+    monkeypatch.setattr(progress, "kernels_cached", lambda index_paths=None: False)
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("fibres lines: first run with this installation: compiling"), err
+    monkeypatch.setattr(progress, "kernels_cached", lambda index_paths=None: True)
+    assert main(argv) == 0 and "compiling" not in capsys.readouterr().err
+    monkeypatch.setattr(progress, "kernels_cached", lambda index_paths=None: False)
+    assert main([*argv, "--quiet"]) == 0 and capsys.readouterr().err == ""

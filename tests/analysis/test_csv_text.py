@@ -65,3 +65,25 @@ def test_empty_table_is_the_header_and_objects_fall_back_to_pandas():
                                     (0.1 + 0.2, "0.3")])
 def test_numbers(x, text):
     assert csv_bytes(pd.DataFrame({"v": [x]}), header=False).decode() == text + "\n"
+
+
+def test_missing_values_in_repeated_columns_keep_their_rows():
+    """The LHDL hip run (its optimal_fiber_length unread: normalized_length all NaN) wrote a
+    fibre_lengths.csv of its header alone: a float column of few distinct values over more than
+    64 rows was formatted per distinct value, and its missing values (nulls in Arrow) made whole
+    lines null, which the join dropped."""
+    n = 400
+    frame = pd.DataFrame({
+        "frame": np.repeat(np.arange(4), n // 4),
+        "length": np.linspace(0.1, 0.2, n),
+        "normalized_length": np.full(n, np.nan),                       # all missing, one value
+        "mixed": np.where(np.arange(n) % 3 == 0, np.nan, np.arange(n) % 2 + 0.5),   # few values + NaN
+    })
+    text = csv_bytes(frame).decode()
+    rows = list(csv.reader(io.StringIO(text)))
+    assert rows[0] == list(frame.columns) and len(rows) == n + 1
+    assert all(r[2] == "" for r in rows[1:])
+    expected = ["" if np.isnan(v) else repr(float(v)) for v in frame["mixed"]]
+    assert [r[3] for r in rows[1:]] == expected
+    back = pd.read_csv(io.StringIO(text))
+    np.testing.assert_allclose(back["length"], frame["length"], rtol=5e-12)   # 12 significant digits

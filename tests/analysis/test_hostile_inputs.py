@@ -133,6 +133,17 @@ def test_caps_say_why(example, tmp_path, capfd):
     assert not (tmp_path / "o").exists()
 
 
+def test_meshes_in_metres_declared_as_millimetres_are_refused_at_once(example, tmp_path, capfd):
+    """units = "mm" on the example's metre meshes made a 0.3 mm biceps: the run took minutes,
+    exited 0 and reported moment arms of -288 mm against the action lines' 25 mm."""
+    toml = example / "arm_example.toml"
+    _edit(toml, 'units = "m"', 'units = "mm"')
+    out = tmp_path / "out"
+    _fails(capfd, ["run", str(toml), "--out", str(out), *SMALL], "biceps.ply", "too small for a muscle",
+           "units='m'")
+    assert not out.exists()
+
+
 # ----------------------------------------------------------------- damaged mesh files
 def _corrupt_legacy_vtk(path: Path, src_ply: Path):
     """A binary legacy .vtk (5.1 layout) of a real mesh with its OFFSETS array corrupted (the file

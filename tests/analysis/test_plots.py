@@ -163,3 +163,27 @@ def test_constant_coordinates_get_no_panel(synthetic, tmp_path):
                                synthetic["line_moment_arms"], ["A", "B"], muscle="x", coordinate_names=["c"],
                                times=t)
     assert _png_size(p)[0] > 0
+
+
+def test_long_titles_stay_inside_the_figure(synthetic, tmp_path, monkeypatch):
+    """LHDL glut_med_r: one flexion panel and two constant coordinates made a title wider than the
+    7-inch figure, cut off at both edges. It is wrapped, and the panel is lowered under it."""
+    figures = []
+    save = plots._save
+    monkeypatch.setattr(plots, "_save", lambda fig, path: (figures.append(fig), save(fig, path))[1])
+    t = synthetic["times"]
+    q = np.stack([synthetic["coordinate_values"], np.zeros(F), np.zeros(F)], axis=1)
+    fm = np.stack([synthetic["fibre_moment_arms"]] * 3, axis=2)
+    lm = np.stack([synthetic["line_moment_arms"]] * 3, axis=2)
+    names = ["hip_flexion_r", "hip_adduction_r", "hip_rotation_r"]
+    for muscle in ("glut_med_r", "a_rather_long_muscle_name_" * 3):
+        plots.plot_moment_arms(tmp_path / "m.png", q, fm, lm, ["A", "B"], muscle=muscle,
+                               coordinate_names=names, times=t)
+        fig = figures[-1]
+        renderer = fig.canvas.get_renderer()
+        box = fig._suptitle.get_window_extent(renderer)
+        fig_w, fig_h = fig.bbox.width, fig.bbox.height
+        assert box.x0 >= 0 and box.x1 <= fig_w and box.y1 <= fig_h, (box, fig_w)
+        panel_title = fig.axes[0].title.get_window_extent(renderer)
+        assert box.y0 >= panel_title.y1, (box, panel_title)     # no overlap with "about ..."
+        assert "hip_rotation_r" in fig._suptitle.get_text()

@@ -132,6 +132,15 @@ def test_muscle_scale_check():
     check_muscle_scale(as_surface((v, f), units="mm"))  # 0.37 m: plausible
 
 
+def test_muscle_scale_check_refuses_metres_declared_as_millimetres():
+    v, f = _box(hi=(0.1, 0.2, 0.3))  # a 0.37 m muscle in metres read as mm: 0.37 mm across
+    with pytest.raises(InputError, match="too small for a muscle") as err:
+        check_muscle_scale(as_surface((v, f), units="mm"), file="m.stl")
+    assert "m.stl" in str(err.value) and "--units m" in str(err.value)
+    check_muscle_scale(as_surface((v, f)))  # 0.37 m: plausible
+    check_muscle_scale(as_surface((v * 0.01, f)))  # 3.7 mm (a stapedius is ~6 mm long): kept
+
+
 def test_as_points_all_kinds(tmp_path):
     expected = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.5]])
     (tmp_path / "h.csv").write_text("x,y,z\n1,2,3\n4,5,6.5\n")

@@ -93,3 +93,23 @@ def test_model_is_frozen(opensim_dir):
     assert model.coordinate_index("r_elbow_flex") == 1
     with pytest.raises(KeyError):
         model.coordinate_index("nope")
+
+
+def test_muscle_parameters_of_a_latin1_file_declared_utf8(tmp_path):
+    """The LHDL hip model declares UTF-8 but holds a Latin-1 byte ("Universit\xe9"): the model
+    loaded, but `muscle_parameters` parsed the file strictly, got nothing, and every LHDL
+    normalized_length was NaN (no l_opt) without a word."""
+    from pathlib import Path
+
+    from motion.osim.muscle_parameters import muscle_parameters
+
+    src = Path(__file__).resolve().parents[2] / "models" / "arm_example.osim"
+    data = src.read_bytes()
+    assert data.lstrip().startswith(b"<?xml") and b"UTF-8" in data.split(b"?>", 1)[0]
+    head, rest = data.split(b"?>", 1)
+    latin1 = tmp_path / "arm_latin1.osim"
+    latin1.write_bytes(head + b"?>\n<!-- Universit\xe9 Libre de Bruxelles -->" + rest)
+    model, reference = load_model(latin1), load_model(src)
+    got, expected = muscle_parameters(model, "BIClong"), muscle_parameters(reference, "BIClong")
+    assert expected.optimal_fiber_length == pytest.approx(0.116)     # models/arm_example.osim
+    assert got == expected
