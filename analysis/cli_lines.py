@@ -3,14 +3,19 @@
 Writes into ``--out`` (default ``fibres-out/``), as INTERFACE.md says:
 
 - ``body_poses.csv``: frame, time, body, tx, ty, tz, r00 ... r22 (v_ground = R v_body + t);
-- ``action_lines.csv``: frame, time, muscle, length;
-- ``action_line_moment_arms.csv``: frame, time, muscle, coordinate, moment_arm (r = -dL/dq),
-  only for the coordinates each muscle spans.
+- ``action_lines.csv``: frame, time, muscle, action_line, length;
+- ``action_line_moment_arms.csv``: frame, time, muscle, action_line, coordinate, moment_arm
+  (r = -dL/dq), only for the coordinates each muscle spans.
+
+The columns are those of ``fibres run``'s files of the same names; there ``muscle`` is the fibre
+model's muscle and ``action_line`` the OpenSim path behind it, here both are the OpenSim path (each
+path is its own muscle), so one reader handles either command's tables.
 
 ``frame`` is the 0-based index into the motion rows actually used (after ``--frames``), ``time``
 the motion's time column. The output folder is checked before any work; the three files are
 written to temporary names and renamed together at the end, so a failed run leaves none of them.
-Warnings (unknown or missing motion columns) are printed as one line each on stderr.
+Warnings (unknown or missing motion columns; missing coordinates that the chosen paths span
+apart from the others) are printed as one line each on stderr.
 """
 from __future__ import annotations
 
@@ -162,7 +167,11 @@ def execute(args) -> int:
         warnings.showwarning = _show_warning
         model = load_model(args.model)
         muscles = _select_muscles(model, args.muscle, args.model)
-        mot = load_motion(args.motion, model)
+        # coordinates the chosen paths span and the file lacks get a warning of their own
+        from motion.wrapping.action_lines import coordinates_spanned
+
+        spanned = coordinates_spanned(model, model.path_names if muscles is None else muscles)
+        mot = load_motion(args.motion, model, spanned=spanned)
         rows = resolve_frames(args.frames, mot.n_frames, source=args.motion)
         mot = mot.select_frames(rows)
         if not args.quiet:
@@ -175,11 +184,11 @@ def execute(args) -> int:
     tables = {
         "body_poses.csv": body_poses_table(mot.time, result["tf_ground_body"],
                                            result["body_names"]),
-        "action_lines.csv": action_lines_table(mot.time, result["lengths"],
-                                               result["muscle_names"]),
+        "action_lines.csv": action_lines_table(mot.time, result["lengths"], result["muscle_names"],
+                                               action_lines=result["muscle_names"]),
         "action_line_moment_arms.csv": moment_arms_table(
             mot.time, result["moment_arms"], result["spanned"], result["muscle_names"],
-            result["coordinate_names"]),
+            result["coordinate_names"], action_lines=result["muscle_names"]),
     }
     existed = out.exists()
     prepare_out_dir(out)

@@ -12,8 +12,9 @@ action-line and fibre tables (`analysis.sto_files`; ``--no-sto`` leaves them out
 No partial output: everything is first written into a hidden staging folder inside DIR and
 moved into place (``os.replace``, one file at a time, atomic each) only after every file was
 written; on any failure or Ctrl-C the staging folder is removed, so DIR holds either the
-previous run's files or this run's, and a rerun works. The output folder is checked before the
-long computation starts.
+previous run's files or this run's, and a rerun works. The fibre model, its meshes and the motion
+(with ``--frames``) are read, and the output folder is checked, before the start line is printed
+and the long computation starts: an input error ends the run before its start line.
 
 The run owns DIR while it works (`analysis.out_folder`): it refuses ``/``, the home folder and
 folders holding a git repository or a Python package unless ``--force``; it locks DIR against a
@@ -143,7 +144,8 @@ def execute(args) -> int:
 def _execute(args, spec, lock, existed, max_memory) -> int:
     from .out_folder import clean_stale
     from .output_files import prepare_out_dir
-    from .run import _select_muscles, check_mesh_files, run
+    from . import budget
+    from .run import _select_muscles, check_mesh_files, read_motion, run
     from .spec import load_spec
 
     # bad input is reported before the output folder is created
@@ -165,6 +167,9 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
     chosen = _select_muscles(loaded, muscles_arg, fibres=args.fibres, resolution=args.resolution,
                              template=args.template, slicing=args.slicing)
     check_mesh_files(chosen)
+    # the motion too: its errors and warnings come before the start line, and no folder is made
+    limit = budget.default_budget() if max_memory is None else int(max_memory)
+    mot_path, motion, _rows = read_motion(loaded, motion_arg, chosen, frames_arg, limit)
     out = prepare_out_dir(args.out)
     staging = tables = None
     try:
@@ -185,7 +190,7 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                                         scene=not args.no_scene, tables=tables)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FibreWarning)      # printed below from the notes, once
-            result = run(loaded, motion_arg, muscles=muscles_arg, fibres=args.fibres,
+            result = run(loaded, motion, muscles=muscles_arg, fibres=args.fibres,
                          resolution=args.resolution, template=args.template, frames=frames_arg,
                          quiet=args.quiet, jobs=args.jobs, transport=args.transport,
                          keep_surfaces=not args.no_scene, slicing=args.slicing,
@@ -195,10 +200,16 @@ def _execute(args, spec, lock, existed, max_memory) -> int:
                 if note.startswith("warning: "):
                     print(f"fibres run: warning: muscle {m.name!r}: {note[len('warning: '):]}",
                           file=sys.stderr)
-        if getattr(args, "setup", None):     # run.json names (and hashes) the setup file too
-            import dataclasses
+        import dataclasses
 
-            result = dataclasses.replace(result, inputs={**result.inputs, "setup": Path(args.setup).resolve()})
+        # run() got the motion read above: run.json names (and hashes) its file, and the setup's
+        inputs = dict(result.inputs)
+        if mot_path is not None:
+            inputs = {"spec": inputs.pop("spec"), "model": inputs.pop("model"),
+                      "motion": Path(mot_path).resolve(), **inputs}
+        if getattr(args, "setup", None):
+            inputs["setup"] = Path(args.setup).resolve()
+        result = dataclasses.replace(result, inputs=inputs)
         command = ["fibres"] + sys.argv[1:] if sys.argv and Path(sys.argv[0]).name == "fibres" else None
         osim = None
         if args.osim:

@@ -10,6 +10,10 @@ sweeps monotonically, time otherwise (gait), no panel for a constant coordinate.
 margins, at most 6 ticks per axis and fast PNG compression: constrained layout, tick objects and
 zlib level 6 were most of the plotting time of a gait run.
 
+Legends sit outside the axes, right of the panels (`_legend_right`): the figure is widened by the
+legend's width, so the panels keep their size and no band or line is hidden behind a legend
+(``loc="best"`` does not count ``fill_between`` bands, and put legends on them and on lines).
+
 Dimension letters: F frames, N fibres, L action lines, C coordinates.
 """
 from __future__ import annotations
@@ -82,6 +86,33 @@ def _figure(ncols=1, width=7.0, height=4.2):
         ax.xaxis.set_major_locator(MaxNLocator(nbins=6))
         ax.yaxis.set_major_locator(MaxNLocator(nbins=6))
     return fig, axes
+
+
+#: legend text width per character at the "small" font (8.3 pt DejaVu Sans: lower case and digits
+#: about 0.5 em, capitals up to 0.75 em) and the width of the handle, its gaps, the frame and the
+#: margin right of it (inches); the example's legends measure 1.5-1.7 in
+_LEGEND_CHAR_IN, _LEGEND_CAPITAL_IN, _LEGEND_PAD_IN = 0.06, 0.088, 0.6
+
+
+def _legend_right(fig, ax):
+    """The legend of ``ax``'s artists outside the panels, right of them, top-aligned with them.
+
+    The figure is widened by the legend's width, estimated from its longest label (no text is
+    measured: that would cost a render), and the margins are rescaled so that every panel keeps
+    its size in inches."""
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    width_in, height_in = fig.get_size_inches()
+    extra = _LEGEND_PAD_IN + max(sum(_LEGEND_CAPITAL_IN if c.isupper() else _LEGEND_CHAR_IN for c in t)
+                                 for t in labels)
+    total = width_in + extra
+    sp = fig.subplotpars
+    left_in, right_in = sp.left * width_in, sp.right * width_in
+    fig.set_size_inches(total, height_in)
+    fig.subplots_adjust(left=left_in / total, right=right_in / total)
+    fig.legend(handles, labels, loc="upper left", bbox_to_anchor=((right_in + 0.1) / total, sp.top),
+               fontsize="small", framealpha=0.7, borderaxespad=0.0)
 
 
 def _save(fig, path) -> Path:
@@ -185,7 +216,7 @@ def _over_time(path, times, fibres, lines, line_names, *, names, scale, ylabel, 
     ax.set_ylabel(ylabel)
     ax.set_title(title, y=1.01)
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize="small", framealpha=0.7)
+    _legend_right(fig, ax)
     return _save(fig, path)
 
 
@@ -280,8 +311,7 @@ def plot_moment_arms(path, coordinate_values, fibre_moment_arms, line_moment_arm
         ax.set_ylabel("moment arm (mm)" if rot[c] else "−dL/dq (m/m)")
         ax.set_title(f"about {cnames[c]}", fontsize="medium", y=1.01)
         ax.grid(True, alpha=0.3)
-        if ax is axes[0]:
-            ax.legend(loc="best", fontsize="small", framealpha=0.7)
+    _legend_right(fig, axes[0])
     text = title or f"{muscle}: moment arms, r = −dL/dq ({fm.shape[1]} fibres)"
     if skipped and title is None:
         text += f"; constant, not drawn: {', '.join(skipped)}"
@@ -302,7 +332,8 @@ def _suptitle(fig, text):
     if len(lines) > 1:
         line_h = 1.25 * 10.0 / 72.0 / height_in      # one 10 pt line in figure fractions
         fig.subplots_adjust(top=fig.subplotpars.top - line_h * (len(lines) - 1))
-    fig.suptitle("\n".join(lines), fontsize="medium")
+    sp = fig.subplotpars      # centred over the panels (a legend may sit right of them)
+    fig.suptitle("\n".join(lines), fontsize="medium", x=0.5 * (sp.left + sp.right))
 
 
 def plot_length_histogram(path, fibre_lengths, rest_lengths, *, muscle: str, times=None,

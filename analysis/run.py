@@ -35,7 +35,7 @@ from .progress import progress, stage_notice
 from .result import RunResult
 from .spec import FibreModelSpec, load_spec
 
-__all__ = ["run", "FD_STEP", "fibre_lengths", "select_frames"]
+__all__ = ["run", "FD_STEP", "fibre_lengths", "select_frames", "read_motion"]
 
 def select_frames(frames, n_rows: int, *, file=None) -> np.ndarray:
     """Row indices from ``frames``: None (all), "START:STOP:STEP" or a ``FrameSelection``
@@ -64,7 +64,27 @@ def select_frames(frames, n_rows: int, *, file=None) -> np.ndarray:
 
 
 
+def read_motion(spec, motion, mspecs, frames, limit) -> tuple:
+    """The motion of a run and its rows: ``(path or None, motion.Motion, rows)``.
 
+    ``motion`` is a path, a ``motion.Motion`` or None (the fibre model's ``motion`` key); a file
+    is checked against the memory budget ``limit`` (bytes) and read with the coordinates that
+    the action lines of ``mspecs`` span, so that a missing one is named in a warning of its own
+    (`motion.load_motion`). ``frames`` as in `select_frames`. Bad input raises InputError.
+    """
+    import motion as motion_pkg
+    from motion.wrapping.action_lines import coordinates_spanned
+
+    if motion is not None and not isinstance(motion, (str, Path)):
+        return None, motion, select_frames(frames, len(motion.time))
+    mot_path = Path(motion) if motion is not None else spec.motion_path
+    if mot_path is None:
+        raise InputError("no motion given and the fibre model has no 'motion' key", file=spec.file,
+                         where="motion", fix="Pass --motion FILE or add motion = \"<file>.mot\".")
+    budget.check_motion_file(mot_path, limit)
+    spanned = coordinates_spanned(spec.model, dict.fromkeys(n for m in mspecs for n in m.action_lines))
+    full = motion_pkg.load_motion(mot_path, spec.model, spanned=spanned)
+    return mot_path, full, select_frames(frames, len(full.time), file=mot_path)
 
 
 @blas_single
@@ -127,20 +147,10 @@ def run(spec_path, motion=None, *, muscles=None, fibres=None, resolution=None, t
     with timed(timings, "load"):
         spec = spec_path if isinstance(spec_path, FibreModelSpec) else load_spec(spec_path)
         model = spec.model
-        mot_path = None
-        if motion is None or isinstance(motion, (str, Path)):
-            mot_path = Path(motion) if motion is not None else spec.motion_path
-            if mot_path is None:
-                raise InputError("no motion given and the fibre model has no 'motion' key", file=spec.file,
-                                 where="motion", fix="Pass --motion FILE or add motion = \"<file>.mot\".")
-            budget.check_motion_file(mot_path, limit)
-            full = motion_pkg.load_motion(mot_path, model)
-        else:
-            full = motion
-        rows = select_frames(frames, len(full.time), file=mot_path)
-        mot = motion_pkg.Motion.from_array(model, full.time[rows], full.q[rows], source=full.source)
         mspecs = _select_muscles(spec, muscles, fibres=fibres, resolution=resolution, template=template,
                                  slicing=slicing)
+        mot_path, full, rows = read_motion(spec, motion, mspecs, frames, limit)
+        mot = motion_pkg.Motion.from_array(model, full.time[rows], full.q[rows], source=full.source)
     names = tuple(dict.fromkeys(n for m in mspecs for n in m.action_lines))
     budget.check_lines(len(rows), len(names), len(model.coordinates), limit)
     interrupts.check()

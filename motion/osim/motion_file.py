@@ -36,7 +36,10 @@ Every other label that is not a coordinate of the model is ignored with ONE `Mot
 listing all of them (`Motion.unknown`). Coordinates of the model absent from the file take their
 default value (`Motion.missing`); ONE `MotionFileWarning` lists those that matter, i.e. all but the
 locked ones and the dependent coordinates of a CoordinateCouplerConstraint (their values are
-overwritten by the lock or the coupler anyway).
+overwritten by the lock or the coupler anyway). A caller that knows which coordinates its muscle
+paths span passes them as ``spanned``: the missing ones among them get a warning of their own,
+which says that they stay at their default value in every frame (the paths' lengths and moment
+arms are then those of that pose), and the other missing ones a second warning.
 
 ``inDegrees=yes`` converts only the columns of *rotational* coordinates to radians; coupled and
 translational coordinates are left as they are (OpenSim's ``SimbodyEngine::convertDegreesToRadians``
@@ -175,7 +178,7 @@ class Motion:
 # ----------------------------------------------------------------------------- reading
 
 
-def load_motion(path, model) -> Motion:
+def load_motion(path, model, *, spanned=None) -> Motion:
     """Read an OpenSim .mot or .sto file as the coordinates of ``model``; anything unexpected
     that goes wrong while reading it becomes one `InputError` naming the file.
 
@@ -183,6 +186,9 @@ def load_motion(path, model) -> Motion:
     ----------
     path : str or os.PathLike
     model : motion.Model
+    spanned : collection of str, optional, keyword-only
+        Coordinates the caller's muscle paths span: missing ones among them are named in a
+        warning of their own (module docstring).
 
     Returns
     -------
@@ -199,16 +205,18 @@ def load_motion(path, model) -> Motion:
     Warns
     -----
     MotionFileWarning
-        Once for the unknown columns, once for the missing coordinates, once for header counts
+        Once for the unknown columns, once for the missing coordinates (twice with ``spanned``:
+        the spanned ones, the others), once for header counts
         that disagree with the data, once for values far outside coordinate ranges (see module
         docstring).
     """
-    return read_guarded(lambda: _load_motion(path, model), path, what="motion file",
+    spanned = None if spanned is None else frozenset(spanned)
+    return read_guarded(lambda: _load_motion(path, model, spanned), path, what="motion file",
                         fix="Export the motion again from OpenSim (a header, 'endheader', labels, "
                             "rows of numbers).")
 
 
-def _load_motion(path, model) -> Motion:
+def _load_motion(path, model, spanned=None) -> Motion:
     path = Path(path)
     text = _read_text(path)
     lines = text.splitlines()
@@ -238,12 +246,28 @@ def _load_motion(path, model) -> Motion:
                       MotionFileWarning, stacklevel=3)
     silent = _locked_or_dependent(model)
     loud = [n for n in missing if n not in silent]
-    if loud:
-        warnings.warn(f"{path}: {len(loud)} coordinate(s) of model '{model_name(model)}' are not "
-                      f"in the file and keep their default value: {', '.join(loud)}",
+    held = [] if spanned is None else [n for n in loud if n in spanned]
+    if held:
+        values = ", ".join(f"{n} = {_shown_default(coords[names.index(n)])}" for n in held)
+        warnings.warn(f"{path}: {len(held)} coordinate(s) that the selected muscles' paths span are "
+                      f"not in the file, so they stay at their default value in every frame: {values}",
+                      MotionFileWarning, stacklevel=3)
+    rest = [n for n in loud if n not in held]
+    if rest:
+        other = "" if spanned is None else " other"
+        beside = "" if spanned is None else " (no selected muscle path spans them)"
+        warnings.warn(f"{path}: {len(rest)}{other} coordinate(s) of model '{model_name(model)}' are not "
+                      f"in the file and keep their default value{beside}: {', '.join(rest)}",
                       MotionFileWarning, stacklevel=3)
     return Motion(time=time, q=q, coordinate_names=names, source=str(path), in_degrees=in_degrees,
                   missing=missing, unknown=tuple(unknown))
+
+
+def _shown_default(coordinate) -> str:
+    """A coordinate's default value as a person reads it: degrees or metres."""
+    if coordinate.motion_type == "rotational":
+        return f"{np.degrees(coordinate.default_value):.4g} deg"
+    return f"{coordinate.default_value:.4g}" + (" m" if coordinate.motion_type == "translational" else "")
 
 
 def _locked_or_dependent(model) -> set:
@@ -430,7 +454,8 @@ def write_sto(path, time, columns, *, in_degrees=False, name=None) -> Path:
             + "\t".join(["time"] + labels) + "\n")
     with atomic_write(path) as tmp, open(tmp, "w", newline="\n") as handle:
         handle.write(head)
-        # %.17g: doubles survive the round trip exactly.
-        np.savetxt(handle, table, fmt="%.17g", delimiter="\t")
+        # repr: the shortest text that reads back as the same double (0.03, not %.17g's
+        # 0.029999999999999999), so the round trip stays exact
+        handle.writelines("\t".join(map(repr, row)) + "\n" for row in table.tolist())
     return path
 

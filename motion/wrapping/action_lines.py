@@ -45,7 +45,7 @@ from ..osim.model import Model, Path
 from .path_points import (_moving_local, _point_set, _point_set_active, _polyline_kernel,
                           path_points)
 
-__all__ = ["ActionLines", "action_lines", "spanned_coordinates", "polyline_length"]
+__all__ = ["ActionLines", "action_lines", "spanned_coordinates", "coordinates_spanned", "polyline_length"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,6 +158,15 @@ def spanned_coordinates(model: Model, path: Path) -> np.ndarray:
                 names.update(cp.independent)
                 changed = True
     return np.array([c in names for c in model.coordinate_names], dtype=bool)
+
+
+def coordinates_spanned(model: Model, path_names) -> tuple:
+    """Names of the coordinates, in model order, that any of the paths ``path_names`` spans
+    (`spanned_coordinates`; no motion needed)."""
+    span = np.zeros(len(model.coordinate_names), dtype=bool)
+    for name in path_names:
+        span |= spanned_coordinates(model, model.path(name))
+    return tuple(n for n, s in zip(model.coordinate_names, span) if s)
 
 
 def polyline_length(points: np.ndarray, active: np.ndarray, d_points: np.ndarray | None = None) -> tuple:

@@ -140,8 +140,10 @@ def test_writes_the_interface_columns(gait_out):
     lines = pd.read_csv(gait_out / "action_lines.csv")
     arms = pd.read_csv(gait_out / "action_line_moment_arms.csv")
     assert list(poses.columns) == ["frame", "time", "body", *POSE]
-    assert list(lines.columns) == ["frame", "time", "muscle", "length"]
-    assert list(arms.columns) == ["frame", "time", "muscle", "coordinate", "moment_arm"]
+    # the columns of `fibres run`'s files of the same names; each path is its own action line
+    assert list(lines.columns) == ["frame", "time", "muscle", "action_line", "length"]
+    assert list(arms.columns) == ["frame", "time", "muscle", "action_line", "coordinate", "moment_arm"]
+    assert (lines.muscle == lines.action_line).all() and (arms.muscle == arms.action_line).all()
     assert poses.frame.min() == 0 and poses.frame.max() == 210  # 211 rows in the motion
     assert len(lines) == 211 * 92 and len(arms) == 211 * 262
     # >= 9 significant digits: the text of a length has at least 9 digits
@@ -468,3 +470,20 @@ def test_first_run_says_it_compiles(tmp_path, capsys, monkeypatch):
     assert main(argv) == 0 and "compiling" not in capsys.readouterr().err
     monkeypatch.setattr(progress, "kernels_cached", lambda index_paths=None: False)
     assert main([*argv, "--quiet"]) == 0 and capsys.readouterr().err == ""
+
+
+def test_missing_spanned_coordinate_is_named_apart(lhdl_dir, tmp_path, capsys):
+    """A LHDL hip motion without hip_flexion_r: glut_med1_r spans it, so a warning of its own says
+    it stays at its default value; the pelvis coordinates nothing selected spans are listed apart."""
+    mot = tmp_path / "hip.mot"
+    mot.write_text("hip\nversion=1\ninDegrees=yes\nendheader\ntime\thip_adduction_r\thip_rotation_r\n"
+                   "0\t0\t0\n0.1\t5\t0\n")
+    code, _, err = _run([lhdl_dir / "model" / "LHDL_hip_r.osim", mot, "--muscle", "glut_med1_r",
+                         "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 0, err
+    warned = [line for line in err.splitlines() if "not in the file" in line]
+    assert len(warned) == 2, err
+    assert warned[0].endswith("paths span are not in the file, so they stay at their default "
+                              "value in every frame: hip_flexion_r = 0 deg"), warned[0]
+    assert "hip_flexion_r" not in warned[1] and "pelvis_tilt" in warned[1], warned[1]
+    assert "no selected muscle path spans them" in warned[1]

@@ -47,10 +47,11 @@ def test_plot_muscle_writes_three_pngs(synthetic, tmp_path):
     paths = plots.plot_muscle(tmp_path, "biceps", **synthetic)
     assert [p.name for p in paths] == ["biceps_lengths.png", "biceps_moment_arms.png",
                                        "biceps_length_histogram.png"]
-    for p, width in zip(paths, (7.0, 7.0, 7.0)):
+    for p, (lo, hi) in zip(paths, ((8.0, 9.5), (8.0, 9.5), (7.0, 7.0))):
         w, h = _png_size(p)
-        # figure size (width x 4.2 in) at 110 dpi, give or take a pixel of rounding
-        assert abs(w - width * 110) <= 1 and abs(h - 462) <= 1
+        # figure size (width x 4.2 in) at 110 dpi, give or take a pixel of rounding; the 7-inch
+        # figure is widened by its legend on the right (1-2.5 in for these labels)
+        assert lo * 110 - 1 <= w <= hi * 110 + 1 and abs(h - 462) <= 1
         assert 10_000 < p.stat().st_size < 500_000
     assert sorted(x.name for x in tmp_path.iterdir()) == sorted(p.name for p in paths)
 
@@ -62,7 +63,7 @@ def test_moment_arms_one_panel_per_coordinate(synthetic, tmp_path):
     p = plots.plot_moment_arms(tmp_path / "m.png", q, fm, lm, ["A", "B"], muscle="x",
                                coordinate_names=["flex", "slide"], rotational=[True, False])
     w, h = _png_size(p)
-    assert abs(w - 2 * 6.0 * 110) <= 1 and abs(h - 462) <= 1     # two 6-inch panels
+    assert 13 * 110 <= w <= 14.5 * 110 and abs(h - 462) <= 1     # two 6-inch panels + legend
 
 
 def test_histogram_pooled_and_nan_frames(synthetic, tmp_path):
@@ -157,7 +158,7 @@ def test_constant_coordinates_get_no_panel(synthetic, tmp_path):
     p = plots.plot_moment_arms(tmp_path / "m.png", q, fm, lm, ["A", "B"], muscle="x",
                                coordinate_names=["hip", "fixed"], times=t)
     w, _ = _png_size(p)
-    assert abs(w - 770) <= 1                                   # one 7-inch panel, not two
+    assert 8 * 110 <= w <= 9.5 * 110                           # one 7-inch panel + legend, not two
     # all constant: drawn against time rather than not at all
     p = plots.plot_moment_arms(tmp_path / "c.png", np.full(F, 0.2), synthetic["fibre_moment_arms"],
                                synthetic["line_moment_arms"], ["A", "B"], muscle="x", coordinate_names=["c"],
@@ -187,3 +188,40 @@ def test_long_titles_stay_inside_the_figure(synthetic, tmp_path, monkeypatch):
         panel_title = fig.axes[0].title.get_window_extent(renderer)
         assert box.y0 >= panel_title.y1, (box, panel_title)     # no overlap with "about ..."
         assert "hip_rotation_r" in fig._suptitle.get_text()
+
+
+@pytest.mark.parametrize("which", ["lengths", "normalized", "moment_arms", "moment_arms_2"])
+def test_legends_cover_no_data(synthetic, tmp_path, monkeypatch, which):
+    """The legend lies outside every panel (so over no band or line), inside the figure, and the
+    panels keep their size in inches (7 or 6 in figure minus the fixed margins of `_figure`)."""
+    figures = []
+    save = plots._save
+    monkeypatch.setattr(plots, "_save", lambda fig, path: (figures.append(fig), save(fig, path))[1])
+    s = synthetic
+    if which == "lengths":
+        plots.plot_fibre_lengths(tmp_path / "l.png", s["times"], s["fibre_lengths"], s["line_lengths"],
+                                 ["A", "WIDE_MW_CAPITALS_LINE_NAME"], muscle="m")
+    elif which == "normalized":
+        plots.plot_normalized_lengths(tmp_path / "n.png", s["times"], s["fibre_lengths"] / 0.2,
+                                      s["line_lengths"] / 0.2, ["A", "B"], muscle="m")
+    else:
+        n_c = 1 if which == "moment_arms" else 2
+        q = np.stack([s["coordinate_values"]] * n_c, axis=1)
+        fm = np.stack([s["fibre_moment_arms"]] * n_c, axis=2)
+        lm = np.stack([s["line_moment_arms"]] * n_c, axis=2)
+        plots.plot_moment_arms(tmp_path / "m.png", q, fm, lm, ["A", "B"], muscle="m",
+                               coordinate_names=[f"c{k}" for k in range(n_c)])
+    fig = figures[-1]
+    renderer = fig.canvas.get_renderer()
+    legends = fig.legends + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    assert len(legends) == 1
+    box = legends[0].get_window_extent(renderer)
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.width and box.y0 >= 0 and box.y1 <= fig.bbox.height
+    for ax in fig.axes:
+        panel = ax.get_window_extent(renderer)
+        assert not box.overlaps(panel), (box, panel)
+        # the data area is as wide as without a legend: figure width minus the 0.75 + 0.15 in margins
+        panel_in = panel.width / fig.dpi
+        n = len(fig.axes)
+        expected = 7.0 - 0.9 if n == 1 else (6.0 * n - 0.9) / (n + (n - 1) * 0.9 / 6.0)
+        assert abs(panel_in - expected) < 0.02, (panel_in, expected)

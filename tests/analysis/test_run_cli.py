@@ -70,6 +70,32 @@ def test_motion_with_coordinates_the_model_lacks(example, tmp_path, capsys):
     _no_output(out)
 
 
+def test_motion_error_comes_before_the_start_line(example, tmp_path, capsys):
+    """Not quiet: a broken motion file is the one line printed (no "fibres: 3 muscle(s) ..." start
+    line before it), exit 2, no output folder."""
+    mot = tmp_path / "bad.mot"
+    mot.write_text("bad\nversion=1\nnRows=2\nnColumns=2\ninDegrees=yes\nendheader\n"
+                   "time\telbow_flexion\n0\t0\n0.1\tten\n")
+    out = tmp_path / "out"
+    line = _fails(capsys, ["run", str(example / "arm_example.toml"), "--motion", str(mot), "--out", str(out)],
+                  str(mot))
+    assert line.startswith("fibres run: error"), line
+    assert not out.exists()
+
+
+def test_motion_is_read_with_the_muscles_spanned_coordinates(example, tmp_path, capsys, monkeypatch):
+    """The motion is read with the coordinates the chosen muscles' paths span (the example's
+    elbow paths: elbow_flexion), so that a missing one is warned about apart from the others."""
+    import motion
+
+    seen = []
+    load = motion.load_motion
+    monkeypatch.setattr(motion, "load_motion", lambda path, model, **kw: (seen.append(kw), load(path, model, **kw))[1])
+    _fails(capsys, ["run", str(example / "arm_example.toml"), "--muscle", "brachialis", "--frames", "500:600",
+                    "--out", str(tmp_path / "out")], "out of range")
+    assert seen == [{"spanned": ("elbow_flexion",)}]
+
+
 def test_frames_out_of_range(example, tmp_path, capsys):
     out = tmp_path / "out"
     line = _fails(capsys, ["run", str(example / "arm_example.toml"), "--frames", "500:600", "--out", str(out),

@@ -196,6 +196,27 @@ def test_missing_coordinates_take_defaults_and_warn_once(tmp_path):
     assert "a, c" in str(caught[0].message)
 
 
+def test_missing_spanned_coordinates_are_named_apart(tmp_path):
+    """LHDL hip motion without hip_flexion_r: the coordinates the muscles' paths span are named in
+    a warning of their own, with the default value they keep, apart from the irrelevant ones."""
+    model = _model([_coordinate("a", "rotational", 0.1), _coordinate("b", "translational", 0.2),
+                    _coordinate("c", "rotational", -0.3), _coordinate("d", "translational", 0.05)])
+    path = _write(tmp_path, "s\nversion=1\nendheader\ntime\tb\n0\t1\n1\t2\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        motion = load_motion(path, model, spanned={"b", "c", "d"})
+    messages = [str(w.message) for w in caught if issubclass(w.category, MotionFileWarning)]
+    assert motion.missing == ("a", "c", "d")
+    np.testing.assert_array_equal(motion.column("c"), [-0.3, -0.3])
+    assert len(messages) == 2 and all("\n" not in m for m in messages)
+    spanned, other = messages
+    # -0.3 rad = -17.19 deg; the translational default in metres
+    assert "2 coordinate(s) that the selected muscles' paths span" in spanned
+    assert "stay at their default value in every frame: c = -17.19 deg, d = 0.05 m" in spanned
+    assert "'a'" not in spanned and " a " not in spanned
+    assert other.endswith("(no selected muscle path spans them): a")
+
+
 def test_two_columns_for_one_coordinate_is_an_error(tmp_path, toy):
     text = "s\nversion=1\nendheader\ntime\trot\t/jointset/hinge/rot/value\n0\t1\t1\n"
     with pytest.raises(InputError, match=r"line 4: columns 'rot' and '/jointset/hinge/rot/value'"):
@@ -305,8 +326,16 @@ def test_round_trip_is_exact(tmp_path, toy):
     back, caught = _load(path, toy)
     assert caught == []
     assert not back.in_degrees
-    np.testing.assert_array_equal(back.time, time)  # %.17g: every double survives
+    np.testing.assert_array_equal(back.time, time)  # shortest repr: every double survives
     np.testing.assert_array_equal(back.q, q)
+
+
+def test_written_numbers_are_shortest_round_trip(tmp_path):
+    """0.03 is written as 0.03 (Python's repr: the shortest text that reads back as the same
+    double), not %.17g's 0.029999999999999999; 1e-12 and -0.0 stay exact."""
+    path = write_sto(tmp_path / "s.sto", [0.0, 0.01, 0.03], {"a": [0.1, 1e-12, -0.0]})
+    rows = path.read_text().splitlines()[-3:]
+    assert rows == ["0.0\t0.1", "0.01\t1e-12", "0.03\t-0.0"]
 
 
 def test_write_dataframe_and_degrees_flag(tmp_path, toy):
@@ -349,7 +378,7 @@ def test_opensim_storage_reads_our_sto(tmp_path, osim):
         column = osim.ArrayDouble()
         storage.getDataColumn(name, column)
         got = np.array([column.get(i) for i in range(column.getSize())])
-        # OpenSim parses the %.17g text with strtod: bit-identical doubles.
+        # OpenSim parses the shortest round-trip text with strtod: bit-identical doubles.
         np.testing.assert_array_equal(got, expected)
     times = osim.ArrayDouble()
     storage.getTimeColumn(times)
