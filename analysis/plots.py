@@ -12,7 +12,8 @@ zlib level 6 were most of the plotting time of a gait run.
 
 Legends sit outside the axes, right of the panels (`_legend_right`): the figure is widened by the
 legend's width, so the panels keep their size and no band or line is hidden behind a legend
-(``loc="best"`` does not count ``fill_between`` bands, and put legends on them and on lines).
+(``loc="best"`` counts where outlines cross the legend, not the area a band covers, and put
+legends on bands and lines).
 
 Dimension letters: F frames, N fibres, L action lines, C coordinates.
 """
