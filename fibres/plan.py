@@ -38,7 +38,7 @@ the vertex positions:
 - loop: where a plane cuts several loops, the loop carrying the plan's anchors (smallest
   summed squared distance to them, `fibres.slicing.contours.anchored_loops`) -- this only changes
   where two loops are equally near the anchors;
-- correspondence points (`_soft_anchor_loop`, below): the anchors (material
+- correspondence points (`fibres.slicing.soft_anchor`): the anchors (material
   points, projected along the axis onto their planes) are placed on the contour at a *soft*
   closest point: a Gaussian-weighted mean arc position, the weights integrated exactly
   along each segment (so splitting a segment changes nothing) with a width proportional
@@ -71,9 +71,6 @@ import numpy as np
 from .errors import InputError
 from .fit.fitting import Box, _frame_for, _norm, cross3, principal_frame
 from .slicing.planes import MeshTopology
-from .slicing.soft_anchor import (ARC_GAP, ARC_WINDOW, SOFT_CUTOFF, SOFT_FLOOR,  # noqa: F401 - re-exported (old name)
-                          SOFT_SPREAD, _erfcx, _gauss_segment, _order_arcs, _soft_anchor_loop,
-                          anchor_kernel)
 
 __all__ = ["DecompositionPlan", "kabsch_rotation", "box_from_plan", "box_and_local",
            "rest_geometry", "rest_loop_counts"]

@@ -26,7 +26,6 @@ faces (their points are still returned: a point cloud). 3D cells are refused (ex
 """
 from __future__ import annotations
 
-import re
 
 import numpy as np
 

@@ -282,7 +282,7 @@ def anchored_maps(sections: Sections, chosen, extents, anchors_uv, *,
     carrying them (`fibres.slicing.contours.anchored_loops`, not the per-frame choice ``chosen``
     where a plane cuts several loops); each anchor is placed on the contour at a soft
     closest point and the split points are put in order by a continuous rule
-    (`fibres.plan._soft_anchor_loop`); the points are inserted into the contour
+    (`fibres.slicing.soft_anchor._soft_anchor_loop`); the points are inserted into the contour
     and serve as ``P0`` and the split points. No choice is re-made per frame, so the
     result depends continuously (piecewise smoothly) on the vertex positions -- no vertex
     snapping, no re-minimised split, no fresh fallback (except for a contour of zero
