@@ -335,19 +335,26 @@ def _pose_start(model: Model, q: np.ndarray):
     return q_used, jac, n_frames, n_coords, n_bodies, model._coord_index, tf
 
 
-def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
-    q_used, jac, n_frames, n_coords, n_bodies, cidx, tf = _pose_start(model, q)
-    dtf = np.zeros((n_frames, n_bodies, n_coords, 4, 4)) if derivatives else None
-    # columns k where d tf_ground_body / dq_k may be nonzero (the others stay exactly 0)
-    support = np.zeros((n_bodies, n_coords), dtype=bool)
+def _joint_steps(model: Model, q_used, cidx, tf):
+    """Walk the joints root to leaf, filling ``tf[:, child]`` (ground <- body) for each; yields
+    ``(joint, parent index, child index, X_FM (F, 4, 4), dX_FM/dq, inv(X_BM), tf_ground_parent
+    @ X_PF)`` for the caller's derivatives."""
     for joint in model.joints:
         p = model.body_index(joint.parent)
         b = model.body_index(joint.child)
         statics = _joint_statics(model, joint)
         tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx, statics)
-        inv_child = statics[0]
         left = tf[:, p] @ joint.tf_parent_jointframe           # (F, 4, 4) ground <- F
-        tf[:, b] = left @ tf_fm @ inv_child
+        tf[:, b] = left @ tf_fm @ statics[0]
+        yield joint, p, b, tf_fm, dtf_fm, statics[0], left
+
+
+def _poses(model: Model, q: np.ndarray, *, derivatives: bool) -> tuple:
+    q_used, jac, n_frames, n_coords, n_bodies, cidx, tf = _pose_start(model, q)
+    dtf = np.zeros((n_frames, n_bodies, n_coords, 4, 4)) if derivatives else None
+    # columns k where d tf_ground_body / dq_k may be nonzero (the others stay exactly 0)
+    support = np.zeros((n_bodies, n_coords), dtype=bool)
+    for joint, p, b, tf_fm, dtf_fm, inv_child, left in _joint_steps(model, q_used, cidx, tf):
         if derivatives:
             # parent's motion carried along: d(parent) @ (X_PF X_FM X_MB)
             rest = joint.tf_parent_jointframe @ tf_fm @ inv_child           # (F, 4, 4)
@@ -384,14 +391,7 @@ def _pose_twists(model: Model, motion) -> tuple:
     q_used, jac, n_frames, n_coords, n_bodies, cidx, tf = _pose_start(model, _assembled_q(model, motion))
     twist = np.zeros((n_bodies, n_coords, n_frames, 6))       # (B, C, F, 6) while building
     support = np.zeros((n_bodies, n_coords), dtype=bool)      # columns that may be nonzero
-    for joint in model.joints:
-        p = model.body_index(joint.parent)
-        b = model.body_index(joint.child)
-        statics = _joint_statics(model, joint)
-        tf_fm, dtf_fm = _joint_transform(joint, q_used, cidx, statics)
-        inv_child = statics[0]
-        left = tf[:, p] @ joint.tf_parent_jointframe
-        tf[:, b] = left @ tf_fm @ inv_child
+    for joint, p, b, tf_fm, dtf_fm, inv_child, left in _joint_steps(model, q_used, cidx, tf):
         keep = np.flatnonzero(support[p])
         if len(keep):
             w = twist[p, keep, :, :3]                                              # (K, F, 3)
