@@ -151,7 +151,7 @@ def _parity(x, pv, faces, frame, origin, cell, dims, start, items):
         px = frame[2, 0] * x[i, 0] + frame[2, 1] * x[i, 1] + frame[2, 2] * x[i, 2]
         q = min(max(int((py - origin[0]) / cell), 0), dims[0] - 1) * dims[1] \
             + min(max(int((pz - origin[1]) / cell), 0), dims[1] - 1)
-        hits = 0
+        hits = np.int64(0)            # not a literal 0: one pass of type inference
         for m in range(start[q], start[q + 1]):
             a, b, c = faces[items[m], 0], faces[items[m], 1], faces[items[m], 2]
             e0 = (pv[b, 0] - pv[a, 0]) * (pz - pv[a, 1]) \
@@ -197,7 +197,7 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
         rings = max(dims[0], dims[1], dims[2]) if gap <= limits[i] * limits[i] else 0
         for k in range(3):            # int() truncates towards 0: the same after clamping
             home[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)
-        m = 0
+        m = np.int64(0)               # not a literal 0: one pass of type inference
         dmin = np.inf
         bound = limits[i]             # the triangles farther than bound are not needed
         for ring in range(rings):     # the cells at Chebyshev distance ring from home
