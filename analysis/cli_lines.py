@@ -174,11 +174,9 @@ def execute(args) -> int:
         mot = load_motion(args.motion, model, spanned=spanned)
         rows = resolve_frames(args.frames, mot.n_frames, source=args.motion)
         mot = mot.select_frames(rows)
-        if not args.quiet:
-            from . import progress
+        from .progress import compile_notice
 
-            if progress.kernels_cached() is False:     # else up to ~40 s without a word
-                print(f"fibres lines: {progress.COMPILE_NOTICE}", file=sys.stderr, flush=True)
+        compile_notice("fibres lines", args.quiet)
         result = compute_lines(model, mot, muscles=muscles, quiet=args.quiet)
 
     tables = {

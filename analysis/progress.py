@@ -5,30 +5,34 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["progress", "start_notice", "kernels_cached", "stage_notice"]
+__all__ = ["progress", "start_notice", "compile_notice", "kernels_cached", "stage_notice"]
 
-#: What a first run in a new environment prints: numba compiles the package's kernels (the
-#: wrapping kernels of the action lines most of it) once and caches them; measured with an
-#: empty cache on the shared 2-core machine, `fibres run` of the bundled example spent 38 s of
-#: its 54 s in the action lines' stage, 0.5 s once cached.
+#: What a first run in a new environment prints: numba compiles the package's kernels once per
+#: environment and caches them on disk (timings: bench/README.md, "Cold start").
 COMPILE_NOTICE = ("first run with this installation: compiling the numerical kernels "
-                  "(about a minute, once; later runs reuse them)")
+                  "(about half a minute, once; later runs reuse them)")
 
 
 def start_notice(what: str, quiet=False, *, compiling=None) -> bool:
     """Print ``fibres: <what>`` on stderr at once (unless quiet), so that a run is never silent
     before its first muscle is done (issue 13: progress within 5 s of starting). When the
-    compiled kernels are not cached yet (``compiling`` true, default: ``not kernels_cached()``)
-    a second line says so: the first run in a new environment spends most of a minute
-    compiling before its first muscle is done. Returns whether anything was printed."""
+    compiled kernels are not cached yet a second line says so (`compile_notice`): the first run
+    in a new environment compiles before its first muscle is done. Returns whether anything was
+    printed."""
     if quiet:
         return False
     print(f"fibres: {what}", file=sys.stderr, flush=True)
+    compile_notice("fibres", compiling=compiling)
+    return True
+
+
+def compile_notice(prefix: str, quiet=False, *, compiling=None) -> None:
+    """Print ``<prefix>: `COMPILE_NOTICE``` on stderr when the compiled kernels are not cached
+    yet (``compiling`` true, default: ``kernels_cached() is False``) and not quiet."""
     if compiling is None:
         compiling = kernels_cached() is False
-    if compiling:
-        print(f"fibres: {COMPILE_NOTICE}", file=sys.stderr, flush=True)
-    return True
+    if compiling and not quiet:
+        print(f"{prefix}: {COMPILE_NOTICE}", file=sys.stderr, flush=True)
 
 
 def kernels_cached(index_paths=None):
