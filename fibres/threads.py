@@ -8,9 +8,8 @@ by the last to leave, under a lock, so no thread restores the limits while anoth
 
 Why: the decomposition's BLAS calls are small (3 x 3 frames against a few thousand vertices,
 small least squares); a BLAS thread pool gains nothing on them and, on a busy machine or beside
-other processes, its spinning threads oversubscribe the cores (issue 13: a 15K-vertex muscle in
-160 ms with the default environment against 18 ms with ``OMP_NUM_THREADS=1`` on a loaded
-2-core machine). Parallelism comes from our own level instead: muscles, frames, processes
+other processes, its spinning threads oversubscribe the cores (measurements: bench/README.md,
+``bench/threads.py``). Parallelism comes from our own level instead: muscles, frames, processes
 (``fibres run --jobs``), Dask workers. Method: threadpoolctl's `ThreadpoolController.limit`
 (one controller, made once: listing the loaded libraries costs more than the limit itself).
 No compiled (numba) code of the package runs in parallel, so numba's threads need no limit.

@@ -5,9 +5,7 @@ that continues a fibre's last kept segment; `fibres.attachments.filtering`).
 Ray/triangle hit: Moeller & Trumbore, "Fast, minimum storage ray-triangle intersection",
 J. Graphics Tools 2(1), 1997. Closest points of a ray and a segment: Ericson, Real-Time
 Collision Detection (2005), §5.1.9 (clamped segment-segment closest points), with the ray's
-upper bound removed. Vectorised over rays x triangles in numpy (blocks of rays). (A compiled
-version that pruned pairs by exact lower bounds was ~2x faster on the bench areas; it was
-dropped with the other compiled kernels: docs/decisions.md, issue 13.)
+upper bound removed. Vectorised over rays x triangles in numpy (blocks of rays).
 """
 from __future__ import annotations
 

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..errors import InputError
 from .box import Box, _check_in_box, check_landmarks  # noqa: F401 - re-exported
-from .support_screen import polygon_screen_numpy
+from .support_screen import polygon_screen
 from ..template.templates import Template, get_template
 
 __all__ = ["Box", "PrincipalFrame", "principal_frame", "fit_box", "check_landmarks",
@@ -177,14 +177,14 @@ def _boxes(vertices, c, u, v0, w0, theta, *, blas=False):
 def _support_candidates(a, b):
     """Indices (V',) int64, increasing, of the 2D points a, b (V,) that can attain a minimum
     or maximum of a projection ``cos(t) a + sin(t) b`` for some angle t (a superset of the
-    convex hull's vertices; `fibres.fit.support_screen`: numpy's three polygons)."""
+    convex hull's vertices; `fibres.fit.support_screen`: three polygons)."""
     return _polygon_screen(a, b)
 
 
 def _polygon_screen(a, b):
     """`_support_candidates` by the polygons of `fibres.fit.support_screen`."""
     spread = max(float(np.ptp(a)), float(np.ptp(b))) if a.size else 0.0
-    return polygon_screen_numpy(a, b, spread)
+    return polygon_screen(a, b, spread)
 
 
 def _centred(vertices, c):
@@ -310,21 +310,13 @@ def _transposed(vertices):
     return np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)
 
 
-def _mean_rows(vertices):
-    """``vertices.mean(axis=0)`` (3,) of a (V, 3) array, bit for bit: for a C-contiguous
-    array numpy adds the rows one after the other (a 3-element inner loop per row, ~10x
-    slower than this compiled loop); other layouts go to numpy (whose summation order
-    then differs)."""
-    return vertices.mean(axis=0)
-
-
 class Prepared(NamedTuple):
     """Arrays of one vertex set that several stages of a decomposition use (`prepare`)."""
 
     vt: np.ndarray        # (3, V) C-contiguous transposed vertices (`_transposed`)
     lo: np.ndarray        # (3,) coordinate-wise minimum
     hi: np.ndarray        # (3,) coordinate-wise maximum
-    centroid: np.ndarray  # (3,) `_mean_rows`
+    centroid: np.ndarray  # (3,) mean of the vertices
 
 
 def prepare(vertices) -> Prepared:
@@ -332,7 +324,7 @@ def prepare(vertices) -> Prepared:
     decomposition that would each make them (`principal_frame`, `fit_box`, the attachment
     filter, the containment grid): the same arrays, bit for bit."""
     vertices = np.asarray(vertices, dtype=np.float64)
-    vt, centroid = _transposed(vertices), _mean_rows(vertices)
+    vt, centroid = _transposed(vertices), vertices.mean(axis=0)
     return Prepared(vt, vt.min(axis=1), vt.max(axis=1), centroid)
 
 
@@ -346,7 +338,7 @@ def _principal_frame(vertices, vt, origin, insertion, *, axis, v_ref, template,
     """`principal_frame` on vertices (V, 3), the same transposed ``vt`` (3, V) and checked
     landmark sets; ``prepared``: `prepare` of these vertices when at hand."""
     if prepared is None:
-        centroid, size = _mean_rows(vertices), _size(vt)
+        centroid, size = vertices.mean(axis=0), _size(vt)
     else:
         centroid, size = prepared.centroid, _norm(prepared.hi - prepared.lo)   # `_size`
 

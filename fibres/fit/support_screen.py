@@ -14,7 +14,7 @@ Polygon screen (Akl & Toussaint 1978, "A fast convex hull algorithm", Inf. Proce
 inside the hull; a point farther than delta inside every edge is dropped. Passes of
 `_SCREEN_DIRECTIONS` (8, 32, 128) directions; the first, coarse polygon is spanned by the
 extremes of every `_SCREEN_STRIDE`-th point only (any points of the set span a polygon inside
-the hull; this one is found 8x faster). numpy (`polygon_screen_numpy`).
+the hull; this one costs an eighth of the projections).
 """
 from __future__ import annotations
 
@@ -22,14 +22,14 @@ import numpy as np
 
 __all__ = []
 
-#: directions of the polygons that screen the support candidates (numpy: three passes; the
+#: directions of the polygons that screen the support candidates (three passes; the
 #: third cuts ~1200 candidates of a twisted 15K-vertex spindle to ~350)
 _SCREEN_DIRECTIONS = (8, 32, 128)
 #: the first screening pass takes its polygon from every 8th point
 _SCREEN_STRIDE = 8
 
 
-def polygon_screen_numpy(a, b, spread):
+def polygon_screen(a, b, spread):
     """The polygon screen (module docstring) with arrays: indices (V',) int64, increasing,
     of the points a, b (V,) kept; ``spread`` = max(ptp a, ptp b)."""
     idx = np.arange(a.size)

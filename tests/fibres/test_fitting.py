@@ -236,17 +236,6 @@ def test_support_screen_keeps_every_extreme_point(shape):
 
 
 
-def test_mean_rows_is_numpy_mean_bit_for_bit():
-    from fibres.fit.fitting import _mean_rows
-
-    rng = np.random.default_rng(5)
-    for n in (4, 999, 15002):
-        v = rng.normal(size=(n, 3)) * 0.05 + 0.3
-        np.testing.assert_array_equal(_mean_rows(v), v.mean(axis=0))
-        f = np.asfortranarray(v)                  # numpy sums columns pairwise here
-        np.testing.assert_array_equal(_mean_rows(f), f.mean(axis=0))
-
-
 
 def _bent_spindle(n_z=24, n_t=32, length=0.2):
     """Closed spindle (elliptic sections, twisted, bowed to +x) and two rings of 8 landmarks
