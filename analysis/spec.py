@@ -257,10 +257,8 @@ class _Ctx:
 
 def _check_template_params(ctx, template, params, where):
     """The template's own checks (`fibres.get_template`), any failure as one InputError here."""
-    try:
-        from fibres import get_template
-    except ImportError:  # pragma: no cover - a checkout without fibres.get_template
-        return
+    from fibres import get_template
+
     try:
         get_template(template, **params)
     except Exception as exc:  # noqa: BLE001 - a wrong value of any type is bad input
@@ -333,10 +331,8 @@ def _load_spec(path, *, model=None) -> FibreModelSpec:
     if not isinstance(muscles, dict) or not muscles:
         ctx.fail("muscles", "no muscles", "Add at least one [muscles.<name>] table.")
     if model is None:
-        try:
-            from motion import load_model
-        except ImportError:  # not yet exported by this checkout's motion/__init__.py
-            from motion.osim.reader import load_model
+        from motion import load_model
+
         model = load_model(model_path)
     specs = []
     for name, table in muscles.items():

@@ -237,11 +237,6 @@ def _roll_and_subdivide(pts, m, offs, start, split, rect):
         ``P = pts[roll]``.
     split : (S, 3) int64
     """
-    return _roll_and_subdivide_numpy(pts, m, offs, start, split, rect)
-
-
-def _roll_and_subdivide_numpy(pts, m, offs, start, split, rect):
-    """`_roll_and_subdivide` with arrays."""
     n_s = m.size
     sl = np.repeat(np.arange(n_s), m)
     j = np.arange(offs[-1]) - offs[sl]

@@ -235,7 +235,7 @@ def slice_mesh(vertices, topology: MeshTopology, tf_world_plane, heights, *,
     # below); the "up" half-edge's twin is the down half-edge of the next node.
     node_face, node_slice, down, nxt = _crossings(d, faces, topology.neighbours, h)
     order, loop_start = _loop_order(nxt, node_slice, h.size)
-    node_face = node_face[order]                            # pragma: no cover - optional
+    node_face = node_face[order]
     node_slice = node_slice[order]
     down = down[order]
     node_edge = face_edges[node_face, down]
@@ -256,7 +256,7 @@ def _loop_order(nxt, node_slice, n_s):
 
     A lexsort of the cycles' labels and ranks.
     """
-    label, rank = _cycles(nxt)                              # pragma: no cover - optional
+    label, rank = _cycles(nxt)
     order = np.lexsort((rank, label, node_slice))
     lab_sorted = label[order]
     new_loop = np.ones(nxt.size, dtype=bool)
@@ -268,18 +268,11 @@ def _crossings(d, faces, neighbours, h):
     """Every (plane, face) crossing as a node of the chaining: its face, plane, "down"
     half-edge (above -> below) and the node its "up" half-edge leads to.
 
-    On arrays (`_crossings_numpy`).
-
     Returns
     -------
     node_face, node_slice, down, nxt : (Q,) int64
         Nodes ordered by face, then plane.
     """
-    return _crossings_numpy(d, faces, neighbours, h)            # pragma: no cover
-
-
-def _crossings_numpy(d, faces, neighbours, h):
-    """`_crossings` with arrays."""
     df = d[faces]                                              # (T, 3)
     f_lo = np.minimum(np.minimum(df[:, 0], df[:, 1]), df[:, 2])
     f_hi = np.maximum(np.maximum(df[:, 0], df[:, 1]), df[:, 2])

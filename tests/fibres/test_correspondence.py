@@ -128,11 +128,12 @@ def test_all_planes_at_once_equals_plane_by_plane():
         assert np.abs(f1 - f2).max() <= 1e-9 * ext.max()
 
 
-def test_compiled_roll_and_subdivide_equals_the_array_version():
-    # the compiled loops of fibres.slicing.morph must do the same arithmetic in the same order as
-    # the array expressions: identical P, Q, roll and split (fresh split and given split)
-    pytest.importorskip("numba")
-    from fibres.slicing.morph import _roll_and_subdivide, _roll_and_subdivide_numpy
+def test_roll_and_subdivide_keeps_the_arc_length_ratios():
+    # each contour starts at its start point (P = pts[roll], a rotation of the contour), and the
+    # rectangle's four sides are subdivided like the contour's four parts: the point of Q at
+    # local index j lies on side `part` at the part's arc-length fraction (measured here with
+    # an independent loop over each contour)
+    from fibres.slicing.morph import _roll_and_subdivide
 
     rng = np.random.default_rng(9)
     m = rng.integers(4, 60, 12)
@@ -142,12 +143,26 @@ def test_compiled_roll_and_subdivide_equals_the_array_version():
     pts = np.c_[0.02 * r * np.cos(t) + 0.03, 0.01 * r * np.sin(t) + 0.02]
     start = rng.integers(0, m)
     rect = rectangle(0.06, 0.04)
-    for split in (None, np.stack([np.sort(rng.choice(np.arange(1, k), 3, replace=False))
+    for given in (None, np.stack([np.sort(rng.choice(np.arange(1, k), 3, replace=False))
                                   for k in m])):
-        got = _roll_and_subdivide(pts, m, offs, start, split, rect)
-        ref = _roll_and_subdivide_numpy(pts, m, offs, start, split, rect)
-        for a, b in zip(got, ref):
-            np.testing.assert_array_equal(a, b)
+        P, Q, roll, split = _roll_and_subdivide(pts, m, offs, start, given, rect)
+        np.testing.assert_array_equal(P, pts[roll])
+        if given is not None:
+            np.testing.assert_array_equal(split, given)
+        for s in range(m.size):
+            c = pts[offs[s]:offs[s + 1]]
+            rolled = np.roll(c, -start[s], axis=0)
+            np.testing.assert_array_equal(P[offs[s]:offs[s + 1]], rolled)
+            seg = np.linalg.norm(np.roll(rolled, -1, axis=0) - rolled, axis=1)
+            arc = np.concatenate([[0.0], np.cumsum(seg)])
+            bounds = [0, *split[s], m[s]]
+            for part in range(4):
+                lo, hi = bounds[part], bounds[part + 1]
+                a0, a1 = arc[lo], arc[hi]
+                for j in range(lo, hi):
+                    frac = (arc[j] - a0) / (a1 - a0)
+                    want = rect[part] + frac * (rect[(part + 1) % 4] - rect[part])
+                    np.testing.assert_allclose(Q[offs[s] + j], want, atol=1e-12)
 
 
 def test_soft_anchor_points():

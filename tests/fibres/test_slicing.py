@@ -105,10 +105,12 @@ def test_clockwise_orientation_and_open_mesh_refused():
         mesh_topology(m.faces[:-1], len(v))
 
 
-def test_compiled_crossings_equal_the_array_version():
-    # the compiled face-crossing enumeration must give the same integers as the array
-    # expressions, including planes exactly through vertices and planes missing the mesh
-    from fibres.slicing.planes import _crossings, _crossings_numpy, mesh_topology
+def test_crossings_are_every_face_plane_crossing_once():
+    # independent count: face f crosses plane s iff min d <= h_s < max d over its corners (a
+    # brute-force double loop); each node's "down" edge runs from a corner at or above h_s to
+    # one below it, and following ``nxt`` stays on the node's plane; including planes exactly
+    # through vertices and a plane missing the mesh
+    from fibres.slicing.planes import _crossings, mesh_topology
 
     m = trimesh.creation.icosphere(subdivisions=3)
     v = np.asarray(m.vertices) * [1.0, 0.7, 2.0]
@@ -119,10 +121,17 @@ def test_compiled_crossings_equal_the_array_version():
               np.sort(rng.uniform(d.min(), d.max(), 17)),
               np.unique(d[[5, 90, 40]]),                   # through vertices
               np.array([d.max() + 1.0])):                  # misses the mesh
-        got, ref = _crossings(d, topo.faces, topo.neighbours, h), \
-            _crossings_numpy(d, topo.faces, topo.neighbours, h)
-        for a, b in zip(got, ref):
-            np.testing.assert_array_equal(a, b)
+        node_face, node_slice, down, nxt = _crossings(d, topo.faces, topo.neighbours, h)
+        expected = {(f, s) for f, tri in enumerate(topo.faces) for s, hs in enumerate(h)
+                    if d[tri].min() <= hs < d[tri].max()}
+        got = set(zip(node_face.tolist(), node_slice.tolist()))
+        assert got == expected and len(got) == node_face.size
+        tri = topo.faces[node_face]
+        a = tri[np.arange(tri.shape[0]), down]
+        b = tri[np.arange(tri.shape[0]), (down + 1) % 3]
+        assert np.all(d[a] > h[node_slice]) and np.all(d[b] <= h[node_slice])
+        assert np.array_equal(node_slice[nxt], node_slice)
+        assert np.array_equal(np.sort(nxt), np.arange(nxt.size))      # a permutation: closed loops
 
 
 
