@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FD_STEP", "stacked_motion", "active_set_changes", "difference_quotients"]
+__all__ = ["FD_STEP", "stacked_motion", "active_set_changes", "range_limits", "difference_quotients"]
 
 #: central-difference step per motion type (SI): see the module docstring.
 FD_STEP = {"rotational": 1e-4, "translational": 1e-5, "coupled": 1e-4}
@@ -32,10 +32,11 @@ FD_STEP = {"rotational": 1e-4, "translational": 1e-5, "coupled": 1e-4}
 def stacked_motion(model, q, source, coord_idx, step):
     """The base motion ``q`` (F, C) followed by +h and -h perturbations of each coordinate of
     ``coord_idx`` (K,): a `motion.Motion` of F (1 + 2K) frames, the steps (K,) and F. ``step``
-    maps a motion type to its h (`FD_STEP`)."""
+    maps a motion type to its h (`FD_STEP`). Clamped coordinates are clamped first (module
+    docstring)."""
     import motion as motion_pkg
 
-    q = np.asarray(q, dtype=float)
+    q = _clamped(model, q)
     n_f = len(q)
     coords = model.coordinates
     steps = np.array([step[coords[c].motion_type] for c in coord_idx], dtype=float)
@@ -49,6 +50,36 @@ def stacked_motion(model, q, source, coord_idx, step):
     t_all = np.arange(len(q_all), dtype=float)   # a placeholder clock: poses do not depend on time
     stacked = motion_pkg.Motion.from_array(model, t_all, q_all, source=source)
     return stacked, steps, n_f
+
+
+def _clamped(model, q):
+    """``q`` (F, C) with clamped coordinates clipped to their range where posing clips them
+    (models with constraints, the rule of `motion.osim.kinematics.coordinate_values`)."""
+    q = np.array(q, dtype=float)
+    if model.couplers or model.welds:
+        for i, c in enumerate(model.coordinates):
+            if c.clamped:
+                q[:, i] = np.clip(q[:, i], c.range[0], c.range[1])
+    return q
+
+
+def range_limits(model, q_stacked, n_f, coord_idx):
+    """(K, F) bool masks: the +h (-h) pose of coordinate k leaves the range of a clamped
+    coordinate (it would be clamped back: the quotient must not use it)."""
+    q = np.asarray(q_stacked, dtype=float)
+    n_k = len(coord_idx)
+    blocks = q.reshape(1 + 2 * n_k, n_f, -1)
+    plus = np.zeros((n_k, n_f), dtype=bool)
+    minus = np.zeros((n_k, n_f), dtype=bool)
+    if not (model.couplers or model.welds):
+        return plus, minus
+    for k, c in enumerate(coord_idx):
+        coord = model.coordinates[c]
+        if coord.clamped:
+            lo, hi = coord.range
+            plus[k] = (blocks[1 + 2 * k, :, c] > hi) | (blocks[1 + 2 * k, :, c] < lo)
+            minus[k] = (blocks[2 + 2 * k, :, c] > hi) | (blocks[2 + 2 * k, :, c] < lo)
+    return plus, minus
 
 
 def active_set_changes(model, mspec, q_stacked, n_f):

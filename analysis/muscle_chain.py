@@ -25,7 +25,7 @@ from . import interrupts
 from .budget import POSES_PER_CHUNK
 from .errors import FibreWarning
 from .fibre_checks import line_normalized_lengths, moment_arm_notes, optimal_lengths, short_path_notes
-from .fibre_moment_arms import active_set_changes, difference_quotients, stacked_motion
+from .fibre_moment_arms import active_set_changes, difference_quotients, range_limits, stacked_motion
 from .fibre_transport import bind_transport, decompose_transport, fibre_lengths
 from .progress import progress
 from .result import MuscleResult
@@ -162,7 +162,8 @@ def run_muscle(ctx, mspec):
     n_fib = bundle0.points.shape[0]
     lengths = np.empty((n_poses, n_f, n_fib))
     points = np.empty((n_f,) + bundle0.points.shape) if ctx.keep_points else None
-    # whether the +h / -h pose of each frame switches a conditional path point (K, F)
+    # whether the +h / -h pose of each frame switches a conditional path point or leaves a clamped
+    # coordinate's range (K, F)
     plus_switch = np.zeros((len(coord_idx), n_f), dtype=bool)
     minus_switch = np.zeros_like(plus_switch)
     surfaces, chunk_notes, steps = [], [], None
@@ -180,6 +181,9 @@ def run_muscle(ctx, mspec):
                 surfaces.append(got.surfaces[:n_c])
             chunk_notes.append(got.notes)
             plus_switch[:, rows], minus_switch[:, rows] = active_set_changes(ctx.model, mspec, stacked.q, n_c)
+            out_plus, out_minus = range_limits(ctx.model, stacked.q, n_c, coord_idx)
+            plus_switch[:, rows] |= out_plus
+            minus_switch[:, rows] |= out_minus
     finally:
         if bar is not None:
             bar.close()
