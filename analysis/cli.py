@@ -81,7 +81,9 @@ def _settle(command: str) -> None:
 def _input_error_types():
     from . import errors
 
-    return (errors.InputError,)     # one class for the three packages (fibres.errors)
+    # one class for the three packages (fibres.errors); a missing optional dependency that an
+    # option needs (`--scheduler` without Dask) is the user's setup: one line naming the extra
+    return (errors.InputError, errors.MissingDependencyError)
 
 
 def _one_line_warnings(prefix: str) -> None:

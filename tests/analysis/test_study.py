@@ -246,3 +246,20 @@ def test_without_dask_the_pool_is_used_and_said(monkeypatch):
         study_module._choose_engine(None, "tcp://127.0.0.1:8786", said.append)
     with pytest.raises(InputError, match="--engine"):
         study_module._choose_engine("threads", None, said.append)
+
+
+@pytest.mark.parametrize("option", [["--scheduler", "tcp://127.0.0.1:8786"], ["--engine", "dask"]])
+def test_cli_without_dask_asked_for_dask_is_one_line_exit_2(tmp_path, monkeypatch, capsys, option):
+    """A Dask option without Dask installed is the user's setup, not an internal failure: exit 2
+    (docs/INTERFACE.md, "Errors"), one line naming the extra, before any trial runs."""
+    import importlib
+
+    from analysis.cli import main
+
+    study_module = importlib.import_module("analysis.study")
+    monkeypatch.setattr(study_module, "dask_available", lambda: False)
+    study = _write_study(tmp_path)
+    assert main(["study", str(study), "--out", str(tmp_path / "out"), "--quiet"] + option) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "error" in ln]
+    assert len(err) == 1 and "internal" not in err[0] and "musclefibres[dask]" in err[0], err
+    assert not (tmp_path / "out" / "study.json").exists()
