@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FD_STEP", "stacked_motion", "active_set_changes", "range_limits", "difference_quotients"]
+__all__ = ["FD_STEP", "stacked_motion", "active_set_changes", "range_limits", "clamped", "difference_quotients"]
 
 #: central-difference step per motion type (SI): see the module docstring.
 FD_STEP = {"rotational": 1e-4, "translational": 1e-5, "coupled": 1e-4}
@@ -36,7 +36,7 @@ def stacked_motion(model, q, source, coord_idx, step):
     docstring)."""
     import motion as motion_pkg
 
-    q = _clamped(model, q)
+    q = clamped(model, q)
     n_f = len(q)
     coords = model.coordinates
     steps = np.array([step[coords[c].motion_type] for c in coord_idx], dtype=float)
@@ -52,7 +52,7 @@ def stacked_motion(model, q, source, coord_idx, step):
     return stacked, steps, n_f
 
 
-def _clamped(model, q):
+def clamped(model, q):
     """``q`` (F, C) with clamped coordinates clipped to their range where posing clips them
     (models with constraints, the rule of `motion.osim.kinematics.coordinate_values`)."""
     q = np.array(q, dtype=float)

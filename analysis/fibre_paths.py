@@ -7,7 +7,11 @@ Method (`fit_fibre_paths`), per muscle of a finished run:
 1. Poses: ``n`` samples around the run's own frames (`analysis.path_fit.sample_poses`: the frames
    plus Latin-hypercube offsets within +-10 degrees / 2 cm on each spanned coordinate, as OpenSim's
    PolynomialPathFitter samples), plus the run's frames themselves; a separate validation set of
-   ``n // 2`` samples drawn the same way with another random stream.
+   ``n // 2`` samples drawn the same way with another random stream. Clamped coordinates (in a
+   model with constraints, where posing clamps them) are clipped to their range in the frames and
+   the samples: the lengths there are those of the clamped pose, so samples beyond the range
+   would put a kink at its bound into the data that no polynomial fits, and OpenSim's assembly
+   never evaluates the path function there.
 2. Fibre lengths and moment arms at those poses: the same chain as the run (`analysis.run` with the
    run's template, fibres, resolution and transport, the poses as a motion, in chunks of
    ``CHUNK`` poses). The rest decomposition is deterministic, so fibre k is the run's fibre k
@@ -36,6 +40,7 @@ import numpy as np
 
 from . import path_fit
 from .errors import InputError
+from .fibre_moment_arms import clamped
 
 __all__ = ["MuscleFit", "fit_fibre_paths", "muscle_parameters", "CHUNK", "LENGTH_TOL", "MOMENT_ARM_TOL"]
 
@@ -164,9 +169,10 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
         rng_v = np.random.default_rng([seed, 2])
         d = len(coord_idx)
         n = int(n_samples or 64 * d)
-        gates, reasons, limitations = _path_features(model, spec.muscle(name), m.coordinates, result.q, coord_idx, kinds)
+        q_run = clamped(model, result.q)      # the poses used: a clamped coordinate never leaves its range
+        gates, reasons, limitations = _path_features(model, spec.muscle(name), m.coordinates, q_run, coord_idx, kinds)
         top = path_fit.max_order_for(d, max_order)
-        q_val = path_fit.sample_poses(result.q, coord_idx, kinds, max(n // 2, 16), rng_v)
+        q_val = clamped(model, path_fit.sample_poses(q_run, coord_idx, kinds, max(n // 2, 16), rng_v))
         if announce:
             announce(f"fitting path functions of {name} ({m.n_fibres} fibres, {d} coordinates)")
         l_val, r_val, rest = _measure(spec, model, q_val, name, msettings, transport)
@@ -177,17 +183,17 @@ def fit_fibre_paths(spec, result, *, muscles=None, max_order: int = 8, n_samples
         l_tr = np.empty((0, m.n_fibres))
         r_tr = np.empty((0, m.n_fibres, d))
         while True:
-            q_new = path_fit.sample_poses(result.q, coord_idx, kinds, n - len(q_tr), rng)
+            q_new = clamped(model, path_fit.sample_poses(q_run, coord_idx, kinds, n - len(q_tr), rng))
             l_new, r_new, _ = _measure(spec, model, q_new, name, msettings, transport)
             q_tr, l_tr, r_tr = np.vstack([q_tr, q_new]), np.vstack([l_tr, l_new]), np.vstack([r_tr, r_new])
-            train = (np.vstack([q_tr, result.q])[:, coord_idx], np.vstack([l_tr, m.fibre_lengths]),
+            train = (np.vstack([q_tr, q_run])[:, coord_idx], np.vstack([l_tr, m.fibre_lengths]),
                      np.vstack([r_tr, m.fibre_moment_arms]))
             choice = path_fit.select_orders(train, (q_val[:, coord_idx], l_val, r_val), max_order=top,
                                             length_tol=length_tol, moment_arm_tol=moment_arm_tol, gates=gates)
             if choice.ok.all() or 2 * n > max_samples:
                 break
             n *= 2
-        l_m, r_m = _evaluate_each(choice, d, result.q[:, coord_idx], gates)
+        l_m, r_m = _evaluate_each(choice, d, q_run[:, coord_idx], gates)
         out[name] = MuscleFit(
             muscle=name, coordinates=tuple(m.coordinates), orders=choice.orders,
             coefficients=choice.coefficients, n_samples=len(train[0]),

@@ -78,3 +78,21 @@ def test_fibre_moment_arms_at_clamped_poses_are_those_of_the_clamped_pose(tmp_pa
     np.testing.assert_allclose(m.action_line_moment_arms[:, 0, knee], expected, atol=1e-9)
     # the fibres' median: within max(5 %, 1 mm) of it in every frame, inside, below and at the bounds
     np.testing.assert_allclose(median, expected, atol=1e-3)
+
+
+def test_path_functions_of_a_clamped_coordinate_fit_inside_its_range(tmp_path):
+    """`fibres export-osim`'s fit samples +-10 deg around the frames; a frame at -0.05 rad would
+    put samples down to -0.22 rad, where the pose is clamped to 0 and the length flat: a kink at
+    the bound that no polynomial fits. Inside the range the fitted function must give the fibre
+    lengths of a separate run at new poses (the fit's tolerance 0.1 mm, with a margin of 2 for
+    poses that are neither training nor validation samples)."""
+    from analysis.fibre_paths import _evaluate_each, fit_fibre_paths
+    from analysis.spec import load_spec
+
+    spec = load_spec(build(tmp_path, [-0.05, 0.0, 0.05, 0.1, 0.15]))
+    fit = fit_fibre_paths(spec, run(spec, quiet=True))["gas"]
+    q_new = np.array([0.0, 0.01, 0.03, 0.07, 0.12, 0.2])
+    (tmp_path / "new").mkdir()
+    fresh = run(build(tmp_path / "new", q_new), quiet=True).muscles[0].fibre_lengths
+    got, _ = _evaluate_each(fit, 1, q_new[:, None], fit.gates)
+    assert np.abs(got - fresh).max() < 2e-4
