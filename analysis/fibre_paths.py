@@ -105,17 +105,26 @@ class MuscleFit:
 
 
 def _measure(spec, model, q, name, msettings, transport):
-    """Fibre lengths (S, N), moment arms (S, N, D) and rest lengths of muscle ``name`` at poses q."""
+    """Fibre lengths (S, N), moment arms (S, N, D) and rest lengths of muscle ``name`` at poses q.
+
+    The runs' `FibreWarning`s are not passed on: they are about sampled poses, chunk by chunk
+    (one differently worded warning per chunk), not about the motion, whose own run has warned
+    already; the fit's quality is the fit report's."""
+    import warnings
+
     import motion as motion_pkg
 
+    from .errors import FibreWarning
     from .run import run
 
     lengths, arms, rest = [], [], None
     for start in range(0, len(q), CHUNK):
         block = q[start:start + CHUNK]
         mot = motion_pkg.Motion.from_array(model, np.arange(len(block), dtype=float), block)
-        res = run(spec, mot, muscles=[name], fibres=msettings["fibres"], resolution=msettings["resolution"],
-                  template=msettings["template"], quiet=True, keep_points=False, transport=transport)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FibreWarning)
+            res = run(spec, mot, muscles=[name], fibres=msettings["fibres"], resolution=msettings["resolution"],
+                      template=msettings["template"], quiet=True, keep_points=False, transport=transport)
         m = res.muscles[0]
         lengths.append(m.fibre_lengths)
         arms.append(m.fibre_moment_arms)

@@ -30,7 +30,7 @@ def _r_line(q):
     return (A * p2x - X0 * p2y) / np.hypot(p2x - X0, p2y - A)
 
 
-def build(tmp_path, q):
+def build(tmp_path, q, slack=0.3):
     from motion import write_sto
     from motion.osim.builder import ModelBuilder
 
@@ -38,7 +38,7 @@ def build(tmp_path, q):
           .add_body("shank").add_pin_joint("knee", "thigh", "shank", "knee", range=(0.0, HI), clamped=True)
           .add_body("pat", mass=0.01).add_pin_joint("patj", "thigh", "pat", "beta", range=(-3.0, 3.0)))
     mb.add_muscle("gas", [("thigh", (X0, A, 0.0)), ("shank", (X0, -B, 0.0))],
-                  optimal_fiber_length=0.1, tendon_slack_length=0.3, max_isometric_force=800.0)
+                  optimal_fiber_length=0.1, tendon_slack_length=slack, max_isometric_force=800.0)
     doc = mb.to_element()
     cs = ET.SubElement(ET.SubElement(doc.find("Model"), "ConstraintSet", name="constraintset"), "objects")
     cc = ET.SubElement(cs, "CoordinateCouplerConstraint", name="beta_con")
@@ -96,3 +96,24 @@ def test_path_functions_of_a_clamped_coordinate_fit_inside_its_range(tmp_path):
     fresh = run(build(tmp_path / "new", q_new), quiet=True).muscles[0].fibre_lengths
     got, _ = _evaluate_each(fit, 1, q_new[:, None], fit.gates)
     assert np.abs(got - fresh).max() < 2e-4
+
+
+def test_path_fit_does_not_repeat_the_runs_warnings_per_chunk_of_samples(tmp_path):
+    """A path shorter than its tendon slack length (0.55 m < 0.56 m) warns in the motion's run; the
+    fit's runs on sampled poses (chunks of `CHUNK`) said it again per chunk, each worded with its
+    own frame count: ~20 lines on stderr for a Rajagopal export. They say nothing now."""
+    import warnings
+
+    from analysis.errors import FibreWarning
+    from analysis.fibre_paths import fit_fibre_paths
+    from analysis.spec import load_spec
+
+    spec = load_spec(build(tmp_path, [0.0, 0.05, 0.1], slack=0.56))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        result = run(spec, quiet=True)
+    assert any(issubclass(w.category, FibreWarning) and "tendon slack" in str(w.message) for w in seen)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        fit_fibre_paths(spec, result)
+    assert not [w for w in seen if issubclass(w.category, FibreWarning)]
