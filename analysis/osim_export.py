@@ -256,17 +256,22 @@ def write_fibre_model(model_file, out_path, muscles, *, keep_original=False, mus
 
 
 def _warn_dangling(model_el, removed):
-    """One warning naming elements that still mention a removed force (controllers, probes ...)."""
+    """One warning naming elements that still mention a removed force (controllers, probes,
+    groups ...), each by its owner's tag and name: ``ObjectGroup 'hip_add_r' <members>``."""
     if not removed:
         return
     names = set(removed)
+    owner = {child: parent for parent in model_el.iter() for child in parent}
     hits = []
     for el in model_el.iter():
         words = set((el.text or "").replace("/", " ").split())
         if words & names and el.tag not in ("PathPoint",):
-            hits.append(f"<{el.tag}> ({', '.join(sorted(words & names))})")
+            up = owner.get(el)
+            where = f"{up.tag} '{up.get('name')}' <{el.tag}>" if up is not None and up.get("name") else f"<{el.tag}>"
+            hits.append(f"{where} ({', '.join(sorted(words & names))})")
     if hits:
-        warnings.warn("the exported model still mentions replaced muscles in " + "; ".join(hits[:5])
+        more = f" and {len(hits) - 5} more" if len(hits) > 5 else ""
+        warnings.warn("the exported model still mentions replaced muscles in " + "; ".join(hits[:5]) + more
                       + ": edit those elements to use the fibre muscles", ExportWarning, stacklevel=3)
 
 

@@ -239,3 +239,22 @@ def test_4x_content_behind_a_30000_header_exports_as_4x(arm_export, tmp_path):
     model = osim.Model(str(out))
     model.initSystem()
     assert model.getMuscles().get("brachialis_fibre000").getPath().getConcreteClassName() == "FunctionBasedPath"
+
+
+def test_dangling_mentions_name_their_owner_and_count():
+    """Rajagopal's ObjectGroups list every muscle: the warning said `<members> (vaslat_r)` four
+    times without saying which group; it names the owner now, and how many it left out."""
+    import warnings
+    import xml.etree.ElementTree as ET
+
+    from analysis.osim_export import ExportWarning, _warn_dangling
+
+    groups = "".join(f'<ObjectGroup name="g{k}"><members> a vaslat_r b</members></ObjectGroup>' for k in range(7))
+    model = ET.fromstring(f'<Model name="m"><ForceSet><groups>{groups}</groups></ForceSet></Model>')
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        _warn_dangling(model, ["vaslat_r"])
+    (w,) = [w for w in seen if issubclass(w.category, ExportWarning)]
+    text = str(w.message)
+    assert "ObjectGroup 'g0' <members> (vaslat_r)" in text and "ObjectGroup 'g4'" in text
+    assert "g5" not in text and "and 2 more" in text
