@@ -11,6 +11,7 @@ the muscle-parameter rules. ``fibres run --osim`` does the same inside a run's o
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -85,6 +86,12 @@ def execute(args) -> int:
     if not out.parent.is_dir():
         raise InputError("the folder of the exported model does not exist", file=out.parent, where="--out",
                          fix="Create it first or choose another --out.")
+    if out.is_dir():
+        raise InputError("the exported model's name is a folder", file=out, where="--out",
+                         fix="Give --out a file name ending in .osim.")
+    if not os.access(out.parent, os.W_OK | os.X_OK):     # before the long computation, not after it
+        raise InputError("the folder of the exported model is not writable", file=out.parent, where="--out",
+                         fix="Choose a folder you can write to with --out.")
     say = announcer(args.quiet)
     from .progress import start_notice
 

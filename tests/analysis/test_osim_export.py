@@ -166,6 +166,31 @@ def test_cli_export_osim_bad_options(tmp_path, capsys):
     assert ".osim" in capsys.readouterr().err
 
 
+def test_cli_export_osim_unwritable_folder_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    """The export wrote its model only after minutes of fitting, and an unwritable folder then
+    ended as an internal error (exit 1, PermissionError). The folder is read-only (0o555); the
+    superuser, whom modes do not bind, is given the answer a user would get from os.access."""
+    import os
+
+    from analysis.cli import main
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p) == folder and mode & os.W_OK
+                        else real_access(p, mode, **kw))
+    try:
+        assert main(["export-osim", str(ARM), "--out", str(folder / "x.osim"), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "not writable" in err[0] and str(folder) in err[0], err
+        (tmp_path / "m.osim").mkdir()
+        assert main(["export-osim", str(ARM), "--out", str(tmp_path / "m.osim"), "--quiet"]) == 2
+        assert "is a folder" in capsys.readouterr().err
+    finally:
+        folder.chmod(0o755)
+
+
 @pytest.mark.shared
 @pytest.mark.slow
 def test_lhdl_export_from_a_3x_model(tmp_path):
