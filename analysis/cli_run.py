@@ -86,8 +86,9 @@ def add_arguments(parser) -> None:
                         help="an OpenSim AnalyzeTool setup: its coordinates_file, initial/final time and "
                              "MuscleAnalysis muscle list in place of --motion/--frames (analysis/setup_file.py)")
     parser.add_argument("--slicing", default=None, choices=("harmonic", "planes"),
-                        help="cross-sections for every muscle: isolines of a harmonic field (the TOML's "
-                             "default) or parallel planes (Kohout 2012)")
+                        help="cross-sections for every muscle: isolines of a harmonic field or parallel "
+                             "planes (Kohout 2012); default: each muscle's slicing in the TOML, else "
+                             "harmonic with a mesh and planes for a generated surface")
     add_frames_argument(parser)
     parser.add_argument("--jobs", type=int, default=1, metavar="N", help="muscles in parallel (default 1)")
     parser.add_argument("--transport", choices=("bind", "decompose"), default="bind",

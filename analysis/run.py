@@ -225,8 +225,11 @@ def _select_muscles(spec, muscles, *, fibres, resolution, template, slicing=None
     if muscles:
         unknown = [m for m in muscles if m not in spec.muscle_names]
         if unknown:
+            owners = [m.name for m in spec.muscles if unknown[0] in m.action_lines]
+            hint = (f"'{unknown[0]}' is an OpenSim muscle, an action line of {', '.join(owners)}: use "
+                    f"--muscle {owners[0]}" if owners else f"Use one of: {', '.join(spec.muscle_names)}")
             raise InputError(f"no muscle '{unknown[0]}' in the fibre model", file=spec.file, where="--muscle",
-                             fix=f"Use one of: {', '.join(spec.muscle_names)}.")
+                             fix=hint + ".")
         chosen = [spec.muscle(m) for m in dict.fromkeys(muscles)]
     else:
         chosen = list(spec.muscles)

@@ -219,6 +219,16 @@ def test_unknown_muscle_option(example, tmp_path, capsys):
     _no_output(out)
 
 
+def test_muscle_option_given_an_action_line_names_its_muscle(example, tmp_path, capsys):
+    """An OpenSim muscle name (the example's biceps surface is driven by BIClong and BICshort) is
+    the likely mistake of a user who knows the model: the fix names the fibre-model muscle."""
+    out = tmp_path / "out"
+    line = _fails(capsys, ["run", str(example / "arm_example.toml"), "--muscle", "BICshort", "--out", str(out),
+                           "--quiet"], "--muscle", "'BICshort'")
+    assert "action line of biceps" in line and "--muscle biceps" in line
+    _no_output(out)
+
+
 def test_muscle_without_mesh_gets_a_generated_surface(example):
     """No `mesh`: a belly is generated around the fibre part of the action line (tendons of the
     model's tendon slack length join it to the attachments), so at the rest pose (frame 0) the
