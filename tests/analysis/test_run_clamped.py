@@ -13,7 +13,6 @@ dL/dq = (p1 x p2)_z / L its moment arm is r(q) = (A p2x - X0 p2y) / L(q), and r(
 """
 from __future__ import annotations
 
-import textwrap
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -49,14 +48,8 @@ def build(tmp_path, q, slack=0.3):
     cc.append(_text("scale_factor", "1"))
     (tmp_path / "knee.osim").write_text(ET.tostring(doc, encoding="unicode"))
     write_sto(tmp_path / "walk.mot", np.arange(len(q)) * 0.01, {"knee": np.asarray(q), "beta": np.asarray(q)})
-    (tmp_path / "gas.toml").write_text(textwrap.dedent("""
-        model = "knee.osim"
-        motion = "walk.mot"
-        [muscles.gas]
-        action_lines = ["gas"]
-        fibres = 30
-        resolution = 16
-        """))
+    (tmp_path / "gas.toml").write_text('model = "knee.osim"\nmotion = "walk.mot"\n'
+                                       '[muscles.gas]\naction_lines = ["gas"]\nfibres = 30\nresolution = 16\n')
     return tmp_path / "gas.toml"
 
 
