@@ -53,6 +53,21 @@ def _find_geometry(model_file, name):
     return None
 
 
+def _warn_missing(missing: dict, model_file) -> None:
+    """One warning naming the bodies drawn without a bone (body -> a missing file name)."""
+    if not missing:
+        return
+    import warnings
+
+    from .errors import FibreWarning
+
+    names = sorted(missing)
+    shown = ", ".join(f"{b} ({missing[b]})" for b in names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+    warnings.warn(f"{model_file}: the 3D scene has no bone for {shown}: the model's geometry files are not "
+                  "beside it nor in its Geometry folder; copy that folder next to the .osim file to see "
+                  "the bones", FibreWarning, stacklevel=3)
+
+
 def _read_mesh(path):
     """(V, 3) vertices, (T, 3) faces of a mesh file (.vtp, .vtk, .stl, .obj, .ply): read with
     `fibres.mesh.surface.read_mesh`, which validates the file before use (model geometry is untrusted
@@ -71,15 +86,18 @@ def bone_meshes(model, spec=None, bodies=None) -> list:
     """Bone meshes in their body frames: list of (body index, vertices (V, 3), faces (T, 3)).
 
     The model's geometry files where found (module docstring), else the fibre model's ``bones``.
-    ``bodies``: body names to keep (default all)."""
+    ``bodies``: body names to keep (default all). Bodies whose geometry files are all missing and
+    that no ``bones`` mesh stands in for are named in one `FibreWarning` (the scene shows no bone
+    there; OpenSim, too, only warns)."""
     keep = set(model.body_names if bodies is None else bodies)
-    out, covered = [], set()
+    out, covered, missing = [], set(), {}
     for b, body in enumerate(model.bodies):
         if body.name not in keep:
             continue
         for geom in body.geometry:
             path = _find_geometry(model.file, geom.mesh_file)
             if path is None:
+                missing.setdefault(body.name, geom.mesh_file)
                 continue
             try:
                 v, f = _read_mesh(path)
@@ -108,6 +126,7 @@ def bone_meshes(model, spec=None, bodies=None) -> list:
                 out.append((b, _apply(tf_body_data, np.asarray(surf.vertices, dtype=float)),
                             np.asarray(surf.faces, dtype=np.int64)))
             covered.update(body for body, _ in mspec.bones)
+    _warn_missing({b: f for b, f in missing.items() if b not in covered}, model.file)
     return out
 
 

@@ -93,6 +93,37 @@ def test_bones_fall_back_to_the_fibre_models_meshes(tmp_path):
     np.testing.assert_allclose(placed, np.asarray(raw.points), atol=1e-9)
 
 
+def test_missing_geometry_files_are_named_once(tmp_path):
+    """Rajagopal's folder has no Geometry: the scene had no bones and nothing said why. The bodies
+    without a bone are named in one warning; a body the fibre model's `bones` covers is not."""
+    import dataclasses
+    import warnings
+
+    from analysis.errors import FibreWarning
+    from analysis.scene import bone_meshes
+
+    spec = load_spec(ROOT / "models" / "arm_example.toml")
+    model = spec.model
+    gone = dataclasses.replace(model, bodies=tuple(
+        dataclasses.replace(b, geometry=tuple(dataclasses.replace(g, mesh_file=f"gone_{b.name}.vtp")
+                                              for g in b.geometry)) for b in model.bodies))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert bone_meshes(gone, None) == []
+    (w,) = [w for w in seen if issubclass(w.category, FibreWarning)]
+    assert "humerus (gone_humerus.vtp)" in str(w.message) and "forearm (gone_forearm.vtp)" in str(w.message)
+    m0 = dataclasses.replace(spec.muscles[0], bones=(("forearm", ROOT / "models" / "meshes" / "forearm.stl"),))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        bone_meshes(gone, dataclasses.replace(spec, model=gone, muscles=(m0,) + spec.muscles[1:]))
+    (w,) = [w for w in seen if issubclass(w.category, FibreWarning)]
+    assert "humerus" in str(w.message) and "forearm" not in str(w.message)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        assert len(bone_meshes(model, None)) == 2                   # the example's own meshes
+    assert not [w for w in seen if issubclass(w.category, FibreWarning)]
+
+
 @pytest.mark.slow
 def test_render_writes_a_picture(scene_run, tmp_path, capfd):
     from analysis.cli import main
