@@ -369,7 +369,11 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
             ctx.fail(f"{src['action_lines']}[{i}]", f"expected a muscle name (string), got {ln!r}",
                      "Write action_lines = [\"<muscle in the .osim>\", ...].")
         if ln not in paths:
+            import difflib
+
+            close = difflib.get_close_matches(ln, sorted(paths), n=3)
             ctx.fail(f"{src['action_lines']}[{i}]", f"'{ln}' is not a muscle of the model",
+                     f"Did you mean {', '.join(close)}?" if close else
                      f"Use one of: {', '.join(sorted(paths)[:12])}{' ...' if len(paths) > 12 else ''}.")
     if len(set(lines)) != len(lines):
         ctx.fail(src["action_lines"], "an action line is listed twice", "List each one once.")

@@ -60,6 +60,17 @@ def test_toml_mistakes_exit_2_with_one_line(example, tmp_path, capsys, old, new,
     _no_output(out)
 
 
+def test_misspelt_action_line_gets_the_close_names(example, tmp_path, capsys):
+    """Rajagopal has 80 muscles: the first 12 in alphabetical order (addbrev_l ...) do not help
+    with 'vaslat'; the close names do. Here 'TRIlon' -> TRIlong (the example's paths)."""
+    toml = example / "arm_example.toml"
+    toml.write_text(toml.read_text().replace('action_lines = ["TRIlong", "TRIlat"]',
+                                             'action_lines = ["TRIlon", "TRIlat"]', 1))
+    line = _fails(capsys, ["run", str(toml), "--out", str(tmp_path / "out"), "--quiet"],
+                  "muscles.triceps.action_lines[0]", "'TRIlon'")
+    assert "Did you mean TRIlong" in line and "BICshort" not in line
+
+
 def test_motion_with_coordinates_the_model_lacks(example, tmp_path, capsys):
     mot = tmp_path / "knee.mot"
     mot.write_text("knee\nversion=1\nnRows=2\nnColumns=2\ninDegrees=yes\nendheader\n"
