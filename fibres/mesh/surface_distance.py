@@ -140,11 +140,11 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _parity(x, pv, faces, frame, origin, cell, dims, start, items):
-    """Whether each point x (n, 3) is inside by ray parity (module docstring): frame (3, 3)
-    rows (y, z, ray), pv (V, 3) the vertices in it, the triangles binned by their (y, z)
-    bounding boxes in the 2-d grid (origin, cell, dims, start, items) of `_bin_triangles`."""
-    inside = np.empty(x.shape[0], np.bool_)
+def _parity(x, pv, faces, frame, origin, cell, dims, start, items, inside):
+    """Whether each point x (n, 3) is inside by ray parity (module docstring), into
+    ``inside`` (n,) bool: frame (3, 3) rows (y, z, ray), pv (V, 3) the vertices in it, the
+    triangles binned by their (y, z) bounding boxes in the 2-d grid (origin, cell, dims,
+    start, items) of `_bin_triangles`."""
     for i in range(x.shape[0]):
         py = frame[0, 0] * x[i, 0] + frame[0, 1] * x[i, 1] + frame[0, 2] * x[i, 2]
         pz = frame[1, 0] * x[i, 0] + frame[1, 1] * x[i, 1] + frame[1, 2] * x[i, 2]
@@ -168,24 +168,46 @@ def _parity(x, pv, faces, frame, origin, cell, dims, start, items):
     return inside
 
 
+#: columns of `_triangle_table`: corners a, b, c; edges b - a, c - b, a - c; their squared
+#: lengths; c - a; ab . ac; the Gram determinant; the unit normal
+_A, _EDGE, _LENGTH, _AC, _D01, _DEN, _NORMAL, _TABLE = 0, 9, 18, 21, 24, 25, 26, 29
+
+
+def _triangle_table(vertices, faces):
+    """(T, `_TABLE`) per-triangle data of the closest-point test in `_blend_sums` (column
+    offsets above; ``ab . ab`` and ``ac . ac`` are the squared lengths of edges 0 and 2, the
+    normal is 0 for a triangle without area), each entry rounded as the kernel would round it
+    from the vertices."""
+    a, b, c = (vertices[faces[:, j]] for j in range(3))
+    ab, ac = b - a, c - a
+    table = np.empty((len(faces), _TABLE))
+    for j, (corner, edge) in enumerate(((a, ab), (b, c - b), (c, a - c))):
+        table[:, _A + 3 * j:_A + 3 * j + 3] = corner
+        table[:, _EDGE + 3 * j:_EDGE + 3 * j + 3] = edge
+        table[:, _LENGTH + j] = edge[:, 0] ** 2 + edge[:, 1] ** 2 + edge[:, 2] ** 2
+    table[:, _AC:_AC + 3] = ac
+    table[:, _D01] = ab[:, 0] * ac[:, 0] + ab[:, 1] * ac[:, 1] + ab[:, 2] * ac[:, 2]
+    table[:, _DEN] = table[:, _LENGTH] * table[:, _LENGTH + 2] - table[:, _D01] * table[:, _D01]
+    n = table[:, _NORMAL:_NORMAL + 3]
+    n[:, 0] = ab[:, 1] * ac[:, 2] - ab[:, 2] * ac[:, 1]
+    n[:, 1] = ab[:, 2] * ac[:, 0] - ab[:, 0] * ac[:, 2]
+    n[:, 2] = ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0]
+    size = np.sqrt(n[:, 0] ** 2 + n[:, 1] ** 2 + n[:, 2] ** 2)[:, None]
+    n[:] = np.where(size > 0.0, n / np.where(size > 0.0, size, 1.0), 0.0)
+    return table
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, tau, reach):
+def _blend_sums(x, limits, table, origin, cell, dims, start, items, tau, reach,
+                sums, seen, found, near, box):
     """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
-    (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of `_bin_triangles`:
-    rows ``[sum w, sum w d, sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]`` (n, 9), zero
-    where no triangle lies within ``limits[i]``. The closest point c of a triangle to x: the
-    projection of x on its plane when inside it, else the nearest of the three edges' closest
-    points (the closest point of a convex set is unique: Ericson 2005 §5.1.5 finds the same)."""
-    sums = np.zeros((x.shape[0], 9))
-    seen = np.empty(faces.shape[0], np.int64)    # the last point that measured a triangle
-    seen[:] = -1
-    found = np.empty((faces.shape[0], 7))        # per triangle measured: d, x - c, unit normal
-    home = np.empty(3, np.int64)                 # the point's cell
-    lo = np.empty(3, np.int64)                   # the ring's cell range
-    hi = np.empty(3, np.int64)
-    ab = np.empty(3)
-    ac = np.empty(3)
-    ap = np.empty(3)
+    ``table`` (`_triangle_table`) of the 3-d grid (origin, cell, dims, start, items) of
+    `_bin_triangles`, added into ``sums`` (n, 9) (zeros): rows ``[sum w, sum w d,
+    sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]``, left zero where no triangle lies
+    within ``limits[i]``. Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 4), ``near``
+    (T,) int64, ``box`` (9,) int64. The closest point c of a triangle to x: the projection
+    of x on its plane when inside it, else the nearest of the three edges' closest points
+    (the closest point of a convex set is unique: Ericson 2005 §5.1.5 finds the same)."""
     keep = KAPPA * tau
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
     for i in range(x.shape[0]):
@@ -195,27 +217,28 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
             y = max(origin[k] - p[k], p[k] - origin[k] - dims[k] * cell, 0.0)
             gap += y * y
         rings = max(dims[0], dims[1], dims[2]) if gap <= limits[i] * limits[i] else 0
-        for k in range(3):            # int() truncates towards 0: the same after clamping
-            home[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)
+        for k in range(3):            # box[:3]: the point's cell (int() truncates towards 0:
+            box[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)   # clamped)
         m = np.int64(0)               # not a literal 0: one pass of type inference
         dmin = np.inf
         bound = limits[i]             # the triangles farther than bound are not needed
         for ring in range(rings):     # the cells at Chebyshev distance ring from home
-            for k in range(3):
-                lo[k] = max(home[k] - ring, 0)
-                hi[k] = min(home[k] + ring, dims[k] - 1)
-            for ci in range(lo[0], hi[0] + 1):
-                for cj in range(lo[1], hi[1] + 1):
-                    face = abs(ci - home[0]) == ring or abs(cj - home[1]) == ring
-                    for ck in range(lo[2], hi[2] + 1):
-                        if not face and abs(ck - home[2]) != ring:
+            for k in range(3):        # box[3:6], box[6:9]: the ring's cell range
+                box[3 + k] = max(box[k] - ring, 0)
+                box[6 + k] = min(box[k] + ring, dims[k] - 1)
+            for ci in range(box[3], box[6] + 1):
+                y = origin[0] + ci * cell - p[0]      # squared distance from the point to
+                gi = max(y, -y - cell, 0.0)           # the cell: per axis, past either side
+                for cj in range(box[4], box[7] + 1):
+                    y = origin[1] + cj * cell - p[1]
+                    gj = max(y, -y - cell, 0.0)
+                    face = abs(ci - box[0]) == ring or abs(cj - box[1]) == ring
+                    for ck in range(box[5], box[8] + 1):
+                        if not face and abs(ck - box[2]) != ring:
                             continue
-                        gap = 0.0             # squared distance from the point to the cell
-                        for k, c in ((0, ci), (1, cj), (2, ck)):
-                            y = origin[k] + c * cell - p[k]
-                            gap += y * y if y > 0.0 else (0.0 if y + cell >= 0.0 else
-                                                          (y + cell) * (y + cell))
-                        if gap > (bound + slack) * (bound + slack):
+                        y = origin[2] + ck * cell - p[2]
+                        gk = max(y, -y - cell, 0.0)
+                        if 0.0 + gi * gi + gj * gj + gk * gk > (bound + slack) * (bound + slack):
                             continue
                         q = (ci * dims[1] + cj) * dims[2] + ck
                         for e in range(start[q], start[q + 1]):
@@ -223,51 +246,37 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                             if seen[t] == i:
                                 continue
                             seen[t] = i
-                            for k in range(3):
-                                ab[k] = vertices[faces[t, 1], k] - vertices[faces[t, 0], k]
-                                ac[k] = vertices[faces[t, 2], k] - vertices[faces[t, 0], k]
-                                ap[k] = p[k] - vertices[faces[t, 0], k]
-                            d00 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]
-                            d01 = ab[0] * ac[0] + ab[1] * ac[1] + ab[2] * ac[2]
-                            d11 = ac[0] * ac[0] + ac[1] * ac[1] + ac[2] * ac[2]
-                            d1 = ab[0] * ap[0] + ab[1] * ap[1] + ab[2] * ap[2]
-                            d2 = ac[0] * ap[0] + ac[1] * ap[1] + ac[2] * ap[2]
-                            den = d00 * d11 - d01 * d01
-                            u = (d11 * d1 - d01 * d2) / den if den > 0.0 else -1.0
-                            w = (d00 * d2 - d01 * d1) / den if den > 0.0 else -1.0
-                            d = np.inf
+                            tri = table[t]
+                            ap0, ap1, ap2 = p[0] - tri[0], p[1] - tri[1], p[2] - tri[2]
+                            d1 = tri[9] * ap0 + tri[10] * ap1 + tri[11] * ap2      # ab . ap
+                            d2 = tri[21] * ap0 + tri[22] * ap1 + tri[23] * ap2     # ac . ap
+                            den = tri[25]
+                            u = (tri[20] * d1 - tri[24] * d2) / den if den > 0.0 else -1.0
+                            w = (tri[18] * d2 - tri[24] * d1) / den if den > 0.0 else -1.0
                             if u >= 0.0 and w >= 0.0 and u + w <= 1.0:
                                 for k in range(3):
-                                    found[m, 1 + k] = ap[k] - u * ab[k] - w * ac[k]
+                                    found[m, 1 + k] = p[k] - tri[k] - u * tri[9 + k] \
+                                        - w * tri[21 + k]
                                 d = math.sqrt(found[m, 1] ** 2 + found[m, 2] ** 2
                                               + found[m, 3] ** 2)
                             else:
-                                for j in range(3):            # edge (corner j, corner j + 1)
-                                    e0, e1 = faces[t, j], faces[t, (j + 1) % 3]
+                                d = np.inf
+                                for j in range(0, 9, 3):     # edge from corner j / 3 on
                                     num = 0.0
-                                    length = 0.0
                                     for k in range(3):
-                                        num += (p[k] - vertices[e0, k]) \
-                                            * (vertices[e1, k] - vertices[e0, k])
-                                        length += (vertices[e1, k] - vertices[e0, k]) ** 2
+                                        num += (p[k] - tri[j + k]) * tri[9 + j + k]
+                                    length = tri[18 + j // 3]
                                     f = min(max(num / length, 0.0), 1.0) if length > 0.0 else 0.0
                                     r = 0.0
                                     for k in range(3):
-                                        r += (p[k] - vertices[e0, k] - f * (vertices[e1, k]
-                                                                            - vertices[e0, k])) ** 2
+                                        r += (p[k] - tri[j + k] - f * tri[9 + j + k]) ** 2
                                     if math.sqrt(r) < d:
                                         d = math.sqrt(r)
                                         for k in range(3):
-                                            found[m, 1 + k] = p[k] - vertices[e0, k] \
-                                                - f * (vertices[e1, k] - vertices[e0, k])
+                                            found[m, 1 + k] = p[k] - tri[j + k] \
+                                                - f * tri[9 + j + k]
                             found[m, 0] = d
-                            found[m, 4] = ab[1] * ac[2] - ab[2] * ac[1]
-                            found[m, 5] = ab[2] * ac[0] - ab[0] * ac[2]
-                            found[m, 6] = ab[0] * ac[1] - ab[1] * ac[0]
-                            size = math.sqrt(found[m, 4] ** 2 + found[m, 5] ** 2
-                                             + found[m, 6] ** 2)
-                            for k in range(4, 7):
-                                found[m, k] = found[m, k] / size if size > 0.0 else 0.0
+                            near[m] = t
                             m += 1
                             if d < dmin:
                                 dmin = d
@@ -277,10 +286,10 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
             # grid's border): stop once they are all farther than bound
             beyond = np.inf
             for k in range(3):
-                if home[k] - ring > 0:
-                    beyond = min(beyond, p[k] - (origin[k] + (home[k] - ring) * cell))
-                if home[k] + ring < dims[k] - 1:
-                    beyond = min(beyond, origin[k] + (home[k] + ring + 1) * cell - p[k])
+                if box[k] - ring > 0:
+                    beyond = min(beyond, p[k] - (origin[k] + (box[k] - ring) * cell))
+                if box[k] + ring < dims[k] - 1:
+                    beyond = min(beyond, origin[k] + (box[k] + ring + 1) * cell - p[k])
             if beyond > bound + slack:
                 break
         for j in range(m if dmin <= limits[i] else 0):
@@ -290,10 +299,11 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                 w = math.exp(-delta / tau) * (f * f * (3.0 - 2.0 * f) if f < 1.0 else 1.0)
                 sums[i, 0] += w
                 sums[i, 1] += w * found[j, 0]
+                tri = table[near[j]]
                 for k in range(3):
-                    sums[i, 2] += w * found[j, 1 + k] * found[j, 4 + k]
+                    sums[i, 2] += w * found[j, 1 + k] * tri[26 + k]
                     sums[i, 3 + k] += w * found[j, 1 + k]
-                    sums[i, 6 + k] += w * found[j, 4 + k]
+                    sums[i, 6 + k] += w * tri[26 + k]
     return sums
 
 
@@ -370,6 +380,7 @@ class SurfaceGrid:
         self._grid = _bin_triangles(self.vertices, self.faces, np.eye(3), 3,
                                     _search_density(self.vertices, self.faces))[1:] \
             if len(self.faces) else None
+        self._table = _triangle_table(self.vertices, self.faces)
         self._ray = None
 
     def inside(self, points):
@@ -382,7 +393,7 @@ class SurfaceGrid:
             frame = _RAY_FRAME
             pv, *grid = _bin_triangles(self.vertices, self.faces, frame, 2, PARITY_DENSITY)
             self._ray = (pv, self.faces, frame, *grid)
-        return _parity(x, *self._ray)
+        return _parity(x, *self._ray, np.empty(len(x), bool))
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,
                         offset: bool = False):
@@ -403,8 +414,11 @@ class SurfaceGrid:
             return np.full(len(x), -np.inf), np.zeros((len(x), 3))
         inside = self.inside(x)
         limits = np.where(inside, min(watch, self.reach), self.reach)
-        s, g = _blend(_blend_sums(x, limits, self.vertices, self.faces, *self._grid, float(tau),
-                                  self.reach), float(tau), bool(offset))
+        t = len(self.faces)
+        sums = _blend_sums(x, limits, self._table, *self._grid, float(tau), self.reach,
+                           np.zeros((len(x), 9)), np.full(t, -1, np.int64), np.empty((t, 4)),
+                           np.empty(t, np.int64), np.empty(9, np.int64))
+        s, g = _blend(sums, float(tau), bool(offset))
         if not offset:   # inside by parity: negative whatever the blend's vote
             s = np.where(inside & np.isfinite(s), -np.abs(s), s)
         return s, g
