@@ -73,7 +73,6 @@ def _ray_basis():
 _RAY_FRAME = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
 def _bin_triangles(vertices, faces, frame, n_axes, density):
     """The triangles (vertices, faces) binned by their bounding boxes in a uniform grid along
     the first ``n_axes`` (2 or 3) rows of ``frame`` (3, 3) (a further axis: one cell), of about
@@ -82,61 +81,66 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     origin (3,), cell, dims (3,), start, items):
     cell (i, j, k) spans ``origin + cell * [i, i + 1)`` etc. along the frame's axes; the
     triangles meeting it are ``items[start[q]:start[q + 1]]``, ``q = (i * dims[1] + j) *
-    dims[2] + k``, in increasing order (CSR)."""
+    dims[2] + k``, in increasing order (CSR; counted, then placed by `_bin_cells`)."""
     pv = np.empty((vertices.shape[0], 3))       # the vertices in the frame
+    for k in range(3):
+        pv[:, k] = frame[k, 0] * vertices[:, 0] + frame[k, 1] * vertices[:, 1] \
+            + frame[k, 2] * vertices[:, 2]
     origin = np.zeros(3)
     top = np.zeros(3)
-    for k in range(3):
-        if k < n_axes:
-            origin[k] = np.inf
-            top[k] = -np.inf
-        for v in range(vertices.shape[0]):
-            pv[v, k] = frame[k, 0] * vertices[v, 0] + frame[k, 1] * vertices[v, 1] \
-                + frame[k, 2] * vertices[v, 2]
-            if k < n_axes:
-                origin[k] = min(origin[k], pv[v, k])
-                top[k] = max(top[k], pv[v, k])
-    widest = 0.0
-    for k in range(n_axes):
-        widest = max(widest, top[k] - origin[k])
+    if len(pv):
+        origin[:n_axes] = pv[:, :n_axes].min(axis=0)
+        top[:n_axes] = pv[:, :n_axes].max(axis=0)
+    side = (top - origin).tolist()
+    widest = max([0.0] + side[:n_axes])
     volume = 1.0
     for k in range(n_axes):
-        volume *= max(top[k] - origin[k], 1e-3 * widest)
+        volume *= max(side[k], 1e-3 * widest)
     cell = (volume / (density * faces.shape[0])) ** (1.0 / n_axes)
     if not cell > 0.0:
         cell = 1.0                   # every vertex at one point
-    dims = np.empty(3, np.int64)
-    for k in range(3):
-        dims[k] = int((top[k] - origin[k]) / cell) + 1
-    span = np.empty((faces.shape[0], 6), np.int64)     # the cells of each triangle's box
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
-    for t in range(faces.shape[0]):
-        for k in range(3):            # int() truncates towards 0: the same after clamping
-            span[t, k] = 0
-            span[t, k + 3] = 0
-            if k < n_axes:
-                y0 = min(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
-                y1 = max(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
-                span[t, k] = min(max(int((y0 - origin[k]) / cell), 0), dims[k] - 1)
-                span[t, k + 3] = min(max(int((y1 - origin[k]) / cell), 0), dims[k] - 1)
-    items = np.empty(0, np.int64)
-    for fill in range(2):            # count the triangles of each cell, then place them
-        if fill == 1:
-            for q in range(1, start.shape[0]):
-                start[q] += start[q - 1]
-            items = np.empty(start[-1], np.int64)
-        for t in range(faces.shape[0]):
-            for i in range(span[t, 0], span[t, 3] + 1):
-                for j in range(span[t, 1], span[t, 4] + 1):
-                    for k in range(span[t, 2], span[t, 5] + 1):
-                        q = (i * dims[1] + j) * dims[2] + k
-                        if fill == 1:
-                            items[start[q]] = t
-                        start[q + 1 - fill] += 1
-    for q in range(start.shape[0] - 1, 0, -1):   # the fill advanced start[q] to start[q + 1]
-        start[q] = start[q - 1]
-    start[0] = 0
+    dims = np.array([int(s / cell) + 1 for s in side], np.int64)
+    span = np.empty((faces.shape[0], 6), np.int64)
+    start = np.zeros(int(dims.prod()) + 1, np.int64)
+    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, start[:0], False)
+    items = np.empty(start[-1], np.int64)
+    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, True)
     return pv, origin, cell, dims, start, items
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, fill):
+    """`_bin_triangles`' two passes over the triangles (faces of the vertices pv (V, 3) in
+    the grid's frame): without ``fill``, each triangle's cell box into ``span`` (T, 6) (first
+    and last cell per axis) and ``start`` (zeros) the offsets of each cell's triangles;
+    with ``fill``, the triangles into ``items`` (start[-1],) at those offsets."""
+    if not fill:
+        for t in range(faces.shape[0]):
+            for k in range(3):        # int() truncates towards 0: the same after clamping
+                span[t, k] = 0
+                span[t, k + 3] = 0
+                if k < n_axes:
+                    y0 = min(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
+                    y1 = max(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
+                    span[t, k] = min(max(int((y0 - origin[k]) / cell), 0), dims[k] - 1)
+                    span[t, k + 3] = min(max(int((y1 - origin[k]) / cell), 0), dims[k] - 1)
+    for t in range(faces.shape[0]):  # count the triangles of each cell, or place them
+        for i in range(span[t, 0], span[t, 3] + 1):
+            for j in range(span[t, 1], span[t, 4] + 1):
+                for k in range(span[t, 2], span[t, 5] + 1):
+                    q = (i * dims[1] + j) * dims[2] + k
+                    if fill:
+                        items[start[q]] = t
+                        start[q] += 1
+                    else:
+                        start[q + 1] += 1
+    if fill:                         # the fill advanced start[q] to start[q + 1]
+        for q in range(start.shape[0] - 1, 0, -1):
+            start[q] = start[q - 1]
+        start[0] = 0
+    else:
+        for q in range(1, start.shape[0]):
+            start[q] += start[q - 1]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -168,40 +172,11 @@ def _parity(x, pv, faces, frame, origin, cell, dims, start, items, inside):
     return inside
 
 
-#: columns of `_triangle_table`: corners a, b, c; edges b - a, c - b, a - c; their squared
-#: lengths; c - a; ab . ac; the Gram determinant; the unit normal
-_A, _EDGE, _LENGTH, _AC, _D01, _DEN, _NORMAL, _TABLE = 0, 9, 18, 21, 24, 25, 26, 29
-
-
-def _triangle_table(vertices, faces):
-    """(T, `_TABLE`) per-triangle data of the closest-point test in `_blend_sums` (column
-    offsets above; ``ab . ab`` and ``ac . ac`` are the squared lengths of edges 0 and 2, the
-    normal is 0 for a triangle without area), each entry rounded as the kernel would round it
-    from the vertices."""
-    a, b, c = (vertices[faces[:, j]] for j in range(3))
-    ab, ac = b - a, c - a
-    table = np.empty((len(faces), _TABLE))
-    for j, (corner, edge) in enumerate(((a, ab), (b, c - b), (c, a - c))):
-        table[:, _A + 3 * j:_A + 3 * j + 3] = corner
-        table[:, _EDGE + 3 * j:_EDGE + 3 * j + 3] = edge
-        table[:, _LENGTH + j] = edge[:, 0] ** 2 + edge[:, 1] ** 2 + edge[:, 2] ** 2
-    table[:, _AC:_AC + 3] = ac
-    table[:, _D01] = ab[:, 0] * ac[:, 0] + ab[:, 1] * ac[:, 1] + ab[:, 2] * ac[:, 2]
-    table[:, _DEN] = table[:, _LENGTH] * table[:, _LENGTH + 2] - table[:, _D01] * table[:, _D01]
-    n = table[:, _NORMAL:_NORMAL + 3]
-    n[:, 0] = ab[:, 1] * ac[:, 2] - ab[:, 2] * ac[:, 1]
-    n[:, 1] = ab[:, 2] * ac[:, 0] - ab[:, 0] * ac[:, 2]
-    n[:, 2] = ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0]
-    size = np.sqrt(n[:, 0] ** 2 + n[:, 1] ** 2 + n[:, 2] ** 2)[:, None]
-    n[:] = np.where(size > 0.0, n / np.where(size > 0.0, size, 1.0), 0.0)
-    return table
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def _blend_sums(x, limits, table, origin, cell, dims, start, items, tau, reach,
+def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, tau, reach,
                 sums, seen, found, near, box):
     """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
-    ``table`` (`_triangle_table`) of the 3-d grid (origin, cell, dims, start, items) of
+    (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of
     `_bin_triangles`, added into ``sums`` (n, 9) (zeros): rows ``[sum w, sum w d,
     sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]``, left zero where no triangle lies
     within ``limits[i]``. Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 4), ``near``
@@ -246,35 +221,44 @@ def _blend_sums(x, limits, table, origin, cell, dims, start, items, tau, reach,
                             if seen[t] == i:
                                 continue
                             seen[t] = i
-                            tri = table[t]
-                            ap0, ap1, ap2 = p[0] - tri[0], p[1] - tri[1], p[2] - tri[2]
-                            d1 = tri[9] * ap0 + tri[10] * ap1 + tri[11] * ap2      # ab . ap
-                            d2 = tri[21] * ap0 + tri[22] * ap1 + tri[23] * ap2     # ac . ap
-                            den = tri[25]
-                            u = (tri[20] * d1 - tri[24] * d2) / den if den > 0.0 else -1.0
-                            w = (tri[18] * d2 - tri[24] * d1) / den if den > 0.0 else -1.0
+                            a = vertices[faces[t, 0]]
+                            b = vertices[faces[t, 1]]
+                            c = vertices[faces[t, 2]]
+                            ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                            ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+                            ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
+                            d00 = ab0 * ab0 + ab1 * ab1 + ab2 * ab2
+                            d01 = ab0 * ac0 + ab1 * ac1 + ab2 * ac2
+                            d11 = ac0 * ac0 + ac1 * ac1 + ac2 * ac2
+                            d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
+                            d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
+                            den = d00 * d11 - d01 * d01
+                            u = (d11 * d1 - d01 * d2) / den if den > 0.0 else -1.0
+                            w = (d00 * d2 - d01 * d1) / den if den > 0.0 else -1.0
                             if u >= 0.0 and w >= 0.0 and u + w <= 1.0:
-                                for k in range(3):
-                                    found[m, 1 + k] = p[k] - tri[k] - u * tri[9 + k] \
-                                        - w * tri[21 + k]
+                                found[m, 1] = ap0 - u * ab0 - w * ac0
+                                found[m, 2] = ap1 - u * ab1 - w * ac1
+                                found[m, 3] = ap2 - u * ab2 - w * ac2
                                 d = math.sqrt(found[m, 1] ** 2 + found[m, 2] ** 2
                                               + found[m, 3] ** 2)
                             else:
                                 d = np.inf
-                                for j in range(0, 9, 3):     # edge from corner j / 3 on
+                                for j in range(3):            # edge (corner j, corner j + 1)
+                                    e0 = vertices[faces[t, j]]
+                                    e1 = vertices[faces[t, (j + 1) % 3]]
                                     num = 0.0
+                                    length = 0.0
                                     for k in range(3):
-                                        num += (p[k] - tri[j + k]) * tri[9 + j + k]
-                                    length = tri[18 + j // 3]
+                                        num += (p[k] - e0[k]) * (e1[k] - e0[k])
+                                        length += (e1[k] - e0[k]) ** 2
                                     f = min(max(num / length, 0.0), 1.0) if length > 0.0 else 0.0
                                     r = 0.0
                                     for k in range(3):
-                                        r += (p[k] - tri[j + k] - f * tri[9 + j + k]) ** 2
+                                        r += (p[k] - e0[k] - f * (e1[k] - e0[k])) ** 2
                                     if math.sqrt(r) < d:
                                         d = math.sqrt(r)
                                         for k in range(3):
-                                            found[m, 1 + k] = p[k] - tri[j + k] \
-                                                - f * tri[9 + j + k]
+                                            found[m, 1 + k] = p[k] - e0[k] - f * (e1[k] - e0[k])
                             found[m, 0] = d
                             near[m] = t
                             m += 1
@@ -299,11 +283,28 @@ def _blend_sums(x, limits, table, origin, cell, dims, start, items, tau, reach,
                 w = math.exp(-delta / tau) * (f * f * (3.0 - 2.0 * f) if f < 1.0 else 1.0)
                 sums[i, 0] += w
                 sums[i, 1] += w * found[j, 0]
-                tri = table[near[j]]
+                t = near[j]
+                a = vertices[faces[t, 0]]
+                b = vertices[faces[t, 1]]
+                c = vertices[faces[t, 2]]
+                ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+                n0 = ab1 * ac2 - ab2 * ac1
+                n1 = ab2 * ac0 - ab0 * ac2
+                n2 = ab0 * ac1 - ab1 * ac0
+                size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
+                if size > 0.0:
+                    n0, n1, n2 = n0 / size, n1 / size, n2 / size
+                else:
+                    n0, n1, n2 = 0.0, 0.0, 0.0
+                sums[i, 2] += w * found[j, 1] * n0
+                sums[i, 2] += w * found[j, 2] * n1
+                sums[i, 2] += w * found[j, 3] * n2
                 for k in range(3):
-                    sums[i, 2] += w * found[j, 1 + k] * tri[26 + k]
                     sums[i, 3 + k] += w * found[j, 1 + k]
-                    sums[i, 6 + k] += w * tri[26 + k]
+                sums[i, 6] += w * n0
+                sums[i, 7] += w * n1
+                sums[i, 8] += w * n2
     return sums
 
 
@@ -380,7 +381,6 @@ class SurfaceGrid:
         self._grid = _bin_triangles(self.vertices, self.faces, np.eye(3), 3,
                                     _search_density(self.vertices, self.faces))[1:] \
             if len(self.faces) else None
-        self._table = _triangle_table(self.vertices, self.faces)
         self._ray = None
 
     def inside(self, points):
@@ -415,7 +415,8 @@ class SurfaceGrid:
         inside = self.inside(x)
         limits = np.where(inside, min(watch, self.reach), self.reach)
         t = len(self.faces)
-        sums = _blend_sums(x, limits, self._table, *self._grid, float(tau), self.reach,
+        sums = _blend_sums(x, limits, self.vertices, self.faces, *self._grid, float(tau),
+                           self.reach,
                            np.zeros((len(x), 9)), np.full(t, -1, np.int64), np.empty((t, 4)),
                            np.empty(t, np.int64), np.empty(9, np.int64))
         s, g = _blend(sums, float(tau), bool(offset))

@@ -62,9 +62,13 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
     list of Loop
     """
     u = np.ascontiguousarray(u, dtype=np.float64)
-    nodes, seg_face, starts = _walk(u, float(level), np.ascontiguousarray(edges, dtype=np.int64),
-                                    np.ascontiguousarray(face_edges, dtype=np.int64),
-                                    np.ascontiguousarray(faces, dtype=np.int64))
+    n = len(edges)
+    work = np.empty((6, n + 1), dtype=np.int64)
+    count, n_loops = _walk(u, float(level), np.ascontiguousarray(edges, dtype=np.int64),
+                           np.ascontiguousarray(face_edges, dtype=np.int64),
+                           np.ascontiguousarray(faces, dtype=np.int64), work,
+                           np.empty(n, dtype=np.bool_))
+    nodes, seg_face, starts = work[3, :count], work[0, :count], work[5, :n_loops + 1]
     ea, eb = edges[nodes, 0], edges[nodes, 1]
     ua, ub = u[ea], u[eb]
     s = (level - ua) / (ub - ua)
@@ -76,28 +80,23 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _walk(u, level, edges, face_edges, faces):
-    """The crossed edges of the isoline ``u = level`` in loop order: (edge index of each loop
-    point, face of the segment from it to the next point, loop start offsets (n_loops + 1)).
-    A crossed edge is a node; each crossed face links its falling side's node to its rising
-    side's (module docstring). Loops are listed by their smallest crossed edge index and each
-    starts there."""
-    n_edges = edges.shape[0]
-    node = np.empty(n_edges, dtype=np.int64)
+def _walk(u, level, edges, face_edges, faces, work, seen):
+    """The crossed edges of the isoline ``u = level`` in loop order, into ``work`` (6, E + 1)
+    int64 (E edges) and ``seen`` (E,) bool: rows 3, 0, 5 hold the edge index of each loop
+    point, the face of the segment from it to the next point, and the loop start offsets
+    (n_loops + 1); returns (count of points, n_loops). A crossed edge is a node; each crossed
+    face links its falling side's node to its rising side's (module docstring). Loops are
+    listed by their smallest crossed edge index and each starts there."""
+    node, edge_of, nxt, order, seg_face, starts = \
+        work[0], work[1], work[2], work[3], work[4], work[5]
     count = 0
-    for e in range(n_edges):
+    for e in range(edges.shape[0]):
         if (u[edges[e, 0]] >= level) != (u[edges[e, 1]] >= level):
             node[e] = count
+            edge_of[count] = e
             count += 1
         else:
             node[e] = -1
-    edge_of = np.empty(count, dtype=np.int64)
-    for e in range(n_edges):
-        if node[e] >= 0:
-            edge_of[node[e]] = e
-    nxt = np.empty(count, dtype=np.int64)
-    seg_face = np.empty(count, dtype=np.int64)
-    seen = np.empty(count, dtype=np.bool_)
     for m in range(count):
         nxt[m], seg_face[m], seen[m] = -1, -1, False
     for f in range(faces.shape[0]):
@@ -116,10 +115,8 @@ def _walk(u, level, edges, face_edges, faces):
                 dst = face_edges[f, k]
         nxt[node[src]] = node[dst]
         seg_face[node[src]] = f
-    order = np.empty(count, dtype=np.int64)
-    faces_out = np.empty(count, dtype=np.int64)
-    starts = np.empty(count + 1, dtype=np.int64)
     n_out, n_loops = 0, 0
+    faces_out = work[0]                # node is no longer needed
     for first in range(count):
         if seen[first]:
             continue
@@ -133,7 +130,7 @@ def _walk(u, level, edges, face_edges, faces):
             n_out += 1
             k = nxt[k]
     starts[n_loops] = n_out
-    return order[:n_out], faces_out[:n_out], starts[:n_loops + 1]
+    return n_out, n_loops
 
 
 def _length(points) -> float:

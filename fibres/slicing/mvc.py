@@ -69,22 +69,20 @@ def mean_value_coordinates(points, polygon) -> np.ndarray:
         raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
     if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3:
         raise ValueError(f"polygon must have shape (K, 2) with K >= 3, got {poly.shape}")
-    return _finish(_mvc_kernel(pts, poly), pts, poly)
+    return _finish(_mvc_kernel(pts, poly, np.empty((len(pts), len(poly))),
+                               np.empty((4, len(poly)))), pts, poly)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _mvc_kernel(pts, poly):
-    """(N, K) coordinates, one point at a time: ``s_i``, ``r_i``, the half-angle tangents
+def _mvc_kernel(pts, poly, lam, work):
+    """(N, K) coordinates into ``lam`` (N, K) (work space ``work`` (4, K)), one point at a
+    time: ``s_i``, ``r_i``, the half-angle tangents
     ``2 A_i / (r_i r_{i+1} + D_i)``, then ``w_i``; a point on a vertex (``r_i == 0``) gets
     the unit vector of the first such vertex, a point on an edge (``|2 A_i| <= _ON_EDGE
     r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and ``r_i r_{i+1} > 0``) the linear
     interpolation weights of the first such edge."""
     n, k = pts.shape[0], poly.shape[0]
-    lam = np.empty((n, k))
-    sx = np.empty(k)
-    sy = np.empty(k)
-    r = np.empty(k)
-    tan_half = np.empty(k)
+    sx, sy, r, tan_half = work[0], work[1], work[2], work[3]
     for p in range(n):
         vertex = -1
         for i in range(k):
