@@ -82,15 +82,16 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     cell (i, j, k) spans ``origin + cell * [i, i + 1)`` etc. along the frame's axes; the
     triangles meeting it are ``items[start[q]:start[q + 1]]``, ``q = (i * dims[1] + j) *
     dims[2] + k``, in increasing order (CSR; counted, then placed by `_bin_cells`)."""
-    pv = np.empty((vertices.shape[0], 3))       # the vertices in the frame
+    rows = np.empty((3, vertices.shape[0]))     # the vertices in the frame, by axis
     for k in range(3):
-        pv[:, k] = frame[k, 0] * vertices[:, 0] + frame[k, 1] * vertices[:, 1] \
+        rows[k] = frame[k, 0] * vertices[:, 0] + frame[k, 1] * vertices[:, 1] \
             + frame[k, 2] * vertices[:, 2]
+    pv = np.ascontiguousarray(rows.T)
     origin = np.zeros(3)
     top = np.zeros(3)
-    if len(pv):
-        origin[:n_axes] = pv[:, :n_axes].min(axis=0)
-        top[:n_axes] = pv[:, :n_axes].max(axis=0)
+    if rows.shape[1]:
+        origin[:n_axes] = rows[:n_axes].min(axis=1)
+        top[:n_axes] = rows[:n_axes].max(axis=1)
     side = (top - origin).tolist()
     widest = max([0.0] + side[:n_axes])
     volume = 1.0
@@ -144,26 +145,22 @@ def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, fill):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _parity(x, pv, faces, frame, origin, cell, dims, start, items, inside):
-    """Whether each point x (n, 3) is inside by ray parity (module docstring), into
-    ``inside`` (n,) bool: frame (3, 3) rows (y, z, ray), pv (V, 3) the vertices in it, the
-    triangles binned by their (y, z) bounding boxes in the 2-d grid (origin, cell, dims,
-    start, items) of `_bin_triangles`."""
-    for i in range(x.shape[0]):
-        py = frame[0, 0] * x[i, 0] + frame[0, 1] * x[i, 1] + frame[0, 2] * x[i, 2]
-        pz = frame[1, 0] * x[i, 0] + frame[1, 1] * x[i, 1] + frame[1, 2] * x[i, 2]
-        px = frame[2, 0] * x[i, 0] + frame[2, 1] * x[i, 1] + frame[2, 2] * x[i, 2]
-        q = min(max(int((py - origin[0]) / cell), 0), dims[0] - 1) * dims[1] \
-            + min(max(int((pz - origin[1]) / cell), 0), dims[1] - 1)
+def _parity(yzx, column, pv, faces, start, items, inside):
+    """Whether each point is inside by ray parity (module docstring), into ``inside`` (n,)
+    bool: ``yzx`` (3, n) the points in the frame of rows (y, z, ray), ``column`` (n,) their
+    cells of the 2-d grid (start, items) of `_bin_triangles` (the triangles binned by their
+    (y, z) bounding boxes), pv (V, 3) the vertices in the frame."""
+    for i in range(column.shape[0]):
+        py, pz, px = yzx[0, i], yzx[1, i], yzx[2, i]
+        q = column[i]
         hits = np.int64(0)            # not a literal 0: one pass of type inference
         for m in range(start[q], start[q + 1]):
-            a, b, c = faces[items[m], 0], faces[items[m], 1], faces[items[m], 2]
-            e0 = (pv[b, 0] - pv[a, 0]) * (pz - pv[a, 1]) \
-                - (pv[b, 1] - pv[a, 1]) * (py - pv[a, 0])
-            e1 = (pv[c, 0] - pv[b, 0]) * (pz - pv[b, 1]) \
-                - (pv[c, 1] - pv[b, 1]) * (py - pv[b, 0])
-            e2 = (pv[a, 0] - pv[c, 0]) * (pz - pv[c, 1]) \
-                - (pv[a, 1] - pv[c, 1]) * (py - pv[c, 0])
+            t = items[m]
+            a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+            ay, az, by, bz, cy, cz = pv[a, 0], pv[a, 1], pv[b, 0], pv[b, 1], pv[c, 0], pv[c, 1]
+            e0 = (by - ay) * (pz - az) - (bz - az) * (py - ay)
+            e1 = (cy - by) * (pz - bz) - (cz - bz) * (py - by)
+            e2 = (ay - cy) * (pz - cz) - (az - cz) * (py - cy)
             if (e0 > 0.0 and e1 > 0.0 and e2 > 0.0) or (e0 < 0.0 and e1 < 0.0 and e2 < 0.0):
                 # the crossing's ray coordinate: barycentric in the (y, z) edge functions
                 if (e1 * pv[a, 2] + e2 * pv[b, 2] + e0 * pv[c, 2]) / (e0 + e1 + e2) > px:
@@ -174,15 +171,16 @@ def _parity(x, pv, faces, frame, origin, cell, dims, start, items, inside):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, tau, reach,
-                sums, seen, found, near, box):
+                sums, seen, found, box):
     """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
     (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of
     `_bin_triangles`, added into ``sums`` (n, 9) (zeros): rows ``[sum w, sum w d,
     sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]``, left zero where no triangle lies
-    within ``limits[i]``. Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 4), ``near``
-    (T,) int64, ``box`` (9,) int64. The closest point c of a triangle to x: the projection
-    of x on its plane when inside it, else the nearest of the three edges' closest points
-    (the closest point of a convex set is unique: Ericson 2005 §5.1.5 finds the same)."""
+    within ``limits[i]``. Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 7) (per
+    triangle measured: d, x - c, unit normal), ``box`` (9,) int64. The closest point c of a
+    triangle to x: the projection of x on its plane when inside it, else the nearest of the
+    three edges' closest points (the closest point of a convex set is unique: Ericson 2005
+    §5.1.5 finds the same)."""
     keep = KAPPA * tau
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
     for i in range(x.shape[0]):
@@ -221,12 +219,13 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                             if seen[t] == i:
                                 continue
                             seen[t] = i
-                            a = vertices[faces[t, 0]]
-                            b = vertices[faces[t, 1]]
-                            c = vertices[faces[t, 2]]
-                            ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-                            ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-                            ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
+                            ia, ib, ic = faces[t, 0], faces[t, 1], faces[t, 2]
+                            a0, a1, a2 = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
+                            ab0, ab1, ab2 = (vertices[ib, 0] - a0, vertices[ib, 1] - a1,
+                                             vertices[ib, 2] - a2)
+                            ac0, ac1, ac2 = (vertices[ic, 0] - a0, vertices[ic, 1] - a1,
+                                             vertices[ic, 2] - a2)
+                            ap0, ap1, ap2 = p[0] - a0, p[1] - a1, p[2] - a2
                             d00 = ab0 * ab0 + ab1 * ab1 + ab2 * ab2
                             d01 = ab0 * ac0 + ab1 * ac1 + ab2 * ac2
                             d11 = ac0 * ac0 + ac1 * ac1 + ac2 * ac2
@@ -252,15 +251,23 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                                         num += (p[k] - e0[k]) * (e1[k] - e0[k])
                                         length += (e1[k] - e0[k]) ** 2
                                     f = min(max(num / length, 0.0), 1.0) if length > 0.0 else 0.0
-                                    r = 0.0
+                                    r = 0.0                   # x - c into found[m, 4:7]
                                     for k in range(3):
-                                        r += (p[k] - e0[k] - f * (e1[k] - e0[k])) ** 2
-                                    if math.sqrt(r) < d:
-                                        d = math.sqrt(r)
-                                        for k in range(3):
-                                            found[m, 1 + k] = p[k] - e0[k] - f * (e1[k] - e0[k])
+                                        found[m, 4 + k] = p[k] - e0[k] - f * (e1[k] - e0[k])
+                                        r += found[m, 4 + k] ** 2
+                                    r = math.sqrt(r)
+                                    if r < d:
+                                        d = r
+                                        for k in range(1, 4):
+                                            found[m, k] = found[m, 3 + k]
+                            # the unit normal (0 without area: +-0 / inf)
+                            n0 = ab1 * ac2 - ab2 * ac1
+                            n1 = ab2 * ac0 - ab0 * ac2
+                            n2 = ab0 * ac1 - ab1 * ac0
+                            size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
+                            size = size if size > 0.0 else np.inf
+                            found[m, 4], found[m, 5], found[m, 6] = n0 / size, n1 / size, n2 / size
                             found[m, 0] = d
-                            near[m] = t
                             m += 1
                             if d < dmin:
                                 dmin = d
@@ -283,28 +290,10 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                 w = math.exp(-delta / tau) * (f * f * (3.0 - 2.0 * f) if f < 1.0 else 1.0)
                 sums[i, 0] += w
                 sums[i, 1] += w * found[j, 0]
-                t = near[j]
-                a = vertices[faces[t, 0]]
-                b = vertices[faces[t, 1]]
-                c = vertices[faces[t, 2]]
-                ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-                ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-                n0 = ab1 * ac2 - ab2 * ac1
-                n1 = ab2 * ac0 - ab0 * ac2
-                n2 = ab0 * ac1 - ab1 * ac0
-                size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
-                if size > 0.0:
-                    n0, n1, n2 = n0 / size, n1 / size, n2 / size
-                else:
-                    n0, n1, n2 = 0.0, 0.0, 0.0
-                sums[i, 2] += w * found[j, 1] * n0
-                sums[i, 2] += w * found[j, 2] * n1
-                sums[i, 2] += w * found[j, 3] * n2
                 for k in range(3):
+                    sums[i, 2] += w * found[j, 1 + k] * found[j, 4 + k]
                     sums[i, 3 + k] += w * found[j, 1 + k]
-                sums[i, 6] += w * n0
-                sums[i, 7] += w * n1
-                sums[i, 8] += w * n2
+                    sums[i, 6 + k] += w * found[j, 4 + k]
     return sums
 
 
@@ -390,10 +379,17 @@ class SurfaceGrid:
         if len(self.faces) == 0:
             return np.zeros(len(x), bool)
         if self._ray is None:
-            frame = _RAY_FRAME
-            pv, *grid = _bin_triangles(self.vertices, self.faces, frame, 2, PARITY_DENSITY)
-            self._ray = (pv, self.faces, frame, *grid)
-        return _parity(x, *self._ray, np.empty(len(x), bool))
+            self._ray = _bin_triangles(self.vertices, self.faces, _RAY_FRAME, 2,
+                                       PARITY_DENSITY)
+        pv, origin, cell, dims, start, items = self._ray
+        f = _RAY_FRAME
+        yzx = np.empty((3, len(x)))
+        for k in range(3):
+            yzx[k] = f[k, 0] * x[:, 0] + f[k, 1] * x[:, 1] + f[k, 2] * x[:, 2]
+        # the (y, z) cell: int() truncates towards 0, the same after clamping
+        cy, cz = ((yzx[:2] - origin[:2, None]) / cell).astype(np.int64)
+        column = np.clip(cy, 0, dims[0] - 1) * dims[1] + np.clip(cz, 0, dims[1] - 1)
+        return _parity(yzx, column, pv, self.faces, start, items, np.empty(len(x), bool))
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,
                         offset: bool = False):
@@ -416,9 +412,8 @@ class SurfaceGrid:
         limits = np.where(inside, min(watch, self.reach), self.reach)
         t = len(self.faces)
         sums = _blend_sums(x, limits, self.vertices, self.faces, *self._grid, float(tau),
-                           self.reach,
-                           np.zeros((len(x), 9)), np.full(t, -1, np.int64), np.empty((t, 4)),
-                           np.empty(t, np.int64), np.empty(9, np.int64))
+                           self.reach, np.zeros((len(x), 9)), np.full(t, -1, np.int64),
+                           np.empty((t, 7)), np.empty(9, np.int64))
         s, g = _blend(sums, float(tau), bool(offset))
         if not offset:   # inside by parity: negative whatever the blend's vote
             s = np.where(inside & np.isfinite(s), -np.abs(s), s)
