@@ -101,7 +101,7 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     if not cell > 0.0:
         cell = 1.0                   # every vertex at one point
     dims = np.array([int(s / cell) + 1 for s in side], np.int64)
-    span = np.empty((faces.shape[0], 6), np.int64)
+    span = np.zeros((faces.shape[0], 6), np.int64)
     start = np.zeros(int(dims.prod()) + 1, np.int64)
     _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, start[:0], False)
     items = np.empty(start[-1], np.int64)
@@ -113,18 +113,17 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
 def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, fill):
     """`_bin_triangles`' two passes over the triangles (faces of the vertices pv (V, 3) in
     the grid's frame): without ``fill``, each triangle's cell box into ``span`` (T, 6) (first
-    and last cell per axis) and ``start`` (zeros) the offsets of each cell's triangles;
+    and last cell per axis; zeros: a further axis has one cell) and ``start`` (zeros) the
+    offsets of each cell's triangles;
     with ``fill``, the triangles into ``items`` (start[-1],) at those offsets."""
     if not fill:
         for t in range(faces.shape[0]):
-            for k in range(3):        # int() truncates towards 0: the same after clamping
-                span[t, k] = 0
-                span[t, k + 3] = 0
-                if k < n_axes:
-                    y0 = min(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
-                    y1 = max(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
-                    span[t, k] = min(max(int((y0 - origin[k]) / cell), 0), dims[k] - 1)
-                    span[t, k + 3] = min(max(int((y1 - origin[k]) / cell), 0), dims[k] - 1)
+            a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+            for k in range(n_axes):   # int() truncates towards 0: the same after clamping
+                ya, yb, yc = pv[a, k], pv[b, k], pv[c, k]
+                span[t, k] = min(max(int((min(ya, yb, yc) - origin[k]) / cell), 0), dims[k] - 1)
+                span[t, k + 3] = min(max(int((max(ya, yb, yc) - origin[k]) / cell), 0),
+                                     dims[k] - 1)
     for t in range(faces.shape[0]):  # count the triangles of each cell, or place them
         for i in range(span[t, 0], span[t, 3] + 1):
             for j in range(span[t, 1], span[t, 4] + 1):
@@ -170,14 +169,15 @@ def _parity(yzx, column, pv, faces, start, items, inside):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, tau, reach,
-                sums, seen, found, box):
+def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, items, tau,
+                reach, sums, seen, found, box):
     """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
     (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of
     `_bin_triangles`, added into ``sums`` (n, 9) (zeros): rows ``[sum w, sum w d,
     sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]``, left zero where no triangle lies
-    within ``limits[i]``. Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 7) (per
-    triangle measured: d, x - c, unit normal), ``box`` (9,) int64. The closest point c of a
+    within ``limits[i]``. ``cells`` (n, 4) int64: each point's cell and how many rings to
+    search (`_start_cells`). Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 7) (per
+    triangle measured: d, x - c, unit normal), ``box`` (6,) int64. The closest point c of a
     triangle to x: the projection of x on its plane when inside it, else the nearest of the
     three edges' closest points (the closest point of a convex set is unique: Ericson 2005
     §5.1.5 finds the same)."""
@@ -185,29 +185,23 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
     for i in range(x.shape[0]):
         p = x[i]
-        gap = 0.0                     # squared distance from the point to the grid's box
-        for k in range(3):
-            y = max(origin[k] - p[k], p[k] - origin[k] - dims[k] * cell, 0.0)
-            gap += y * y
-        rings = max(dims[0], dims[1], dims[2]) if gap <= limits[i] * limits[i] else 0
-        for k in range(3):            # box[:3]: the point's cell (int() truncates towards 0:
-            box[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)   # clamped)
+        home = cells[i]               # the point's cell
         m = np.int64(0)               # not a literal 0: one pass of type inference
         dmin = np.inf
         bound = limits[i]             # the triangles farther than bound are not needed
-        for ring in range(rings):     # the cells at Chebyshev distance ring from home
-            for k in range(3):        # box[3:6], box[6:9]: the ring's cell range
-                box[3 + k] = max(box[k] - ring, 0)
-                box[6 + k] = min(box[k] + ring, dims[k] - 1)
-            for ci in range(box[3], box[6] + 1):
+        for ring in range(home[3]):   # the cells at Chebyshev distance ring from home
+            for k in range(3):        # box[:3], box[3:]: the ring's cell range
+                box[k] = max(home[k] - ring, 0)
+                box[3 + k] = min(home[k] + ring, dims[k] - 1)
+            for ci in range(box[0], box[3] + 1):
                 y = origin[0] + ci * cell - p[0]      # squared distance from the point to
                 gi = max(y, -y - cell, 0.0)           # the cell: per axis, past either side
-                for cj in range(box[4], box[7] + 1):
+                for cj in range(box[1], box[4] + 1):
                     y = origin[1] + cj * cell - p[1]
                     gj = max(y, -y - cell, 0.0)
-                    face = abs(ci - box[0]) == ring or abs(cj - box[1]) == ring
-                    for ck in range(box[5], box[8] + 1):
-                        if not face and abs(ck - box[2]) != ring:
+                    face = abs(ci - home[0]) == ring or abs(cj - home[1]) == ring
+                    for ck in range(box[2], box[5] + 1):
+                        if not face and abs(ck - home[2]) != ring:
                             continue
                         y = origin[2] + ck * cell - p[2]
                         gk = max(y, -y - cell, 0.0)
@@ -277,10 +271,10 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
             # grid's border): stop once they are all farther than bound
             beyond = np.inf
             for k in range(3):
-                if box[k] - ring > 0:
-                    beyond = min(beyond, p[k] - (origin[k] + (box[k] - ring) * cell))
-                if box[k] + ring < dims[k] - 1:
-                    beyond = min(beyond, origin[k] + (box[k] + ring + 1) * cell - p[k])
+                if home[k] - ring > 0:
+                    beyond = min(beyond, p[k] - (origin[k] + (home[k] - ring) * cell))
+                if home[k] + ring < dims[k] - 1:
+                    beyond = min(beyond, origin[k] + (home[k] + ring + 1) * cell - p[k])
             if beyond > bound + slack:
                 break
         for j in range(m if dmin <= limits[i] else 0):
@@ -295,6 +289,19 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                     sums[i, 3 + k] += w * found[j, 1 + k]
                     sums[i, 6 + k] += w * found[j, 4 + k]
     return sums
+
+
+def _start_cells(x, limits, origin, cell, dims):
+    """(n, 4) int64 for `_blend_sums`: the cell of each point x (n, 3) (clamped into the grid
+    (origin, cell, dims); int() truncates towards 0: the same after clamping) and the rings
+    of cells to search about it: every ring (max(dims)) if the grid's box lies within
+    ``limits`` of the point, else none."""
+    out = np.empty((len(x), 4), np.int64)
+    out[:, :3] = np.clip(((x - origin) / cell).astype(np.int64), 0, dims - 1)
+    y = np.maximum(np.maximum(origin - x, x - origin - dims * cell), 0.0)
+    gap = y[:, 0] * y[:, 0] + y[:, 1] * y[:, 1] + y[:, 2] * y[:, 2]
+    out[:, 3] = np.where(gap <= limits * limits, dims.max(), 0)
+    return out
 
 
 def _unit_rows(x):
@@ -411,9 +418,10 @@ class SurfaceGrid:
         inside = self.inside(x)
         limits = np.where(inside, min(watch, self.reach), self.reach)
         t = len(self.faces)
-        sums = _blend_sums(x, limits, self.vertices, self.faces, *self._grid, float(tau),
-                           self.reach, np.zeros((len(x), 9)), np.full(t, -1, np.int64),
-                           np.empty((t, 7)), np.empty(9, np.int64))
+        sums = _blend_sums(x, limits, _start_cells(x, limits, *self._grid[:3]), self.vertices,
+                           self.faces, *self._grid, float(tau), self.reach,
+                           np.zeros((len(x), 9)), np.full(t, -1, np.int64), np.empty((t, 7)),
+                           np.empty(6, np.int64))
         s, g = _blend(sums, float(tau), bool(offset))
         if not offset:   # inside by parity: negative whatever the blend's vote
             s = np.where(inside & np.isfinite(s), -np.abs(s), s)

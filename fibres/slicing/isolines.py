@@ -64,10 +64,12 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
     u = np.ascontiguousarray(u, dtype=np.float64)
     n = len(edges)
     work = np.empty((6, n + 1), dtype=np.int64)
-    count, n_loops = _walk(u, float(level), np.ascontiguousarray(edges, dtype=np.int64),
+    work[[2, 4]] = -1
+    count, n_loops = _walk((u >= level).astype(np.int64),
+                           np.ascontiguousarray(edges, dtype=np.int64),
                            np.ascontiguousarray(face_edges, dtype=np.int64),
                            np.ascontiguousarray(faces, dtype=np.int64), work,
-                           np.empty(n, dtype=np.bool_))
+                           np.zeros(n, dtype=np.bool_))
     nodes, seg_face, starts = work[3, :count], work[0, :count], work[5, :n_loops + 1]
     ea, eb = edges[nodes, 0], edges[nodes, 1]
     ua, ub = u[ea], u[eb]
@@ -80,39 +82,32 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _walk(u, level, edges, face_edges, faces, work, seen):
-    """The crossed edges of the isoline ``u = level`` in loop order, into ``work`` (6, E + 1)
-    int64 (E edges) and ``seen`` (E,) bool: rows 3, 0, 5 hold the edge index of each loop
-    point, the face of the segment from it to the next point, and the loop start offsets
-    (n_loops + 1); returns (count of points, n_loops). A crossed edge is a node; each crossed
-    face links its falling side's node to its rising side's (module docstring). Loops are
-    listed by their smallest crossed edge index and each starts there."""
+def _walk(above, edges, face_edges, faces, work, seen):
+    """The crossed edges of the isoline in loop order, ``above`` (V,) int64 1 where ``u >=
+    level`` else 0, into ``work`` (6, E + 1) int64 (E edges; rows 2 and 4 all -1) and
+    ``seen`` (E,) bool (all False): rows 3, 0, 5 hold the edge index of each loop point, the
+    face of the segment from it to the next point, and the loop start offsets (n_loops + 1);
+    returns (count of points, n_loops). A crossed edge is a node; each crossed face links
+    its falling side's node to its rising side's (module docstring). Loops are listed by
+    their smallest crossed edge index and each starts there."""
     node, edge_of, nxt, order, seg_face, starts = \
         work[0], work[1], work[2], work[3], work[4], work[5]
     count = 0
     for e in range(edges.shape[0]):
-        if (u[edges[e, 0]] >= level) != (u[edges[e, 1]] >= level):
+        if above[edges[e, 0]] != above[edges[e, 1]]:
             node[e] = count
             edge_of[count] = e
             count += 1
         else:
             node[e] = -1
-    for m in range(count):
-        nxt[m], seg_face[m], seen[m] = -1, -1, False
     for f in range(faces.shape[0]):
-        a0 = u[faces[f, 0]] >= level
-        a1 = u[faces[f, 1]] >= level
-        a2 = u[faces[f, 2]] >= level
+        a0, a1, a2 = above[faces[f, 0]], above[faces[f, 1]], above[faces[f, 2]]
         if a0 == a1 and a1 == a2:
             continue
-        ab = (a0, a1, a2)
-        src, dst = -1, -1
-        for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
-            here, there = ab[k], ab[(k + 1) % 3]
-            if here and not there and src < 0:
-                src = face_edges[f, k]
-            elif there and not here and dst < 0:
-                dst = face_edges[f, k]
+        # side k runs corner k -> k + 1; a crossed face has one falling side (k above,
+        # k + 1 below) and one rising side
+        src = face_edges[f, (a1 > a2) + 2 * (a2 > a0)]
+        dst = face_edges[f, (a2 > a1) + 2 * (a0 > a2)]
         nxt[node[src]] = node[dst]
         seg_face[node[src]] = f
     n_out, n_loops = 0, 0
