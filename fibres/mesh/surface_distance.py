@@ -226,8 +226,10 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                             d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
                             d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
                             den = d00 * d11 - d01 * d01
-                            u = (d11 * d1 - d01 * d2) / den if den > 0.0 else -1.0
-                            w = (d00 * d2 - d01 * d1) / den if den > 0.0 else -1.0
+                            u = w = -1.0
+                            if den > 0.0:
+                                u = (d11 * d1 - d01 * d2) / den
+                                w = (d00 * d2 - d01 * d1) / den
                             if u >= 0.0 and w >= 0.0 and u + w <= 1.0:
                                 found[m, 1] = ap0 - u * ab0 - w * ac0
                                 found[m, 2] = ap1 - u * ab1 - w * ac1
@@ -259,8 +261,11 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                             n1 = ab2 * ac0 - ab0 * ac2
                             n2 = ab0 * ac1 - ab1 * ac0
                             size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
-                            size = size if size > 0.0 else np.inf
-                            found[m, 4], found[m, 5], found[m, 6] = n0 / size, n1 / size, n2 / size
+                            if not size > 0.0:
+                                size = np.inf
+                            found[m, 4] = n0 / size
+                            found[m, 5] = n1 / size
+                            found[m, 6] = n2 / size
                             found[m, 0] = d
                             m += 1
                             if d < dmin:
@@ -277,7 +282,9 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                     beyond = min(beyond, origin[k] + (home[k] + ring + 1) * cell - p[k])
             if beyond > bound + slack:
                 break
-        for j in range(m if dmin <= limits[i] else 0):
+        if not dmin <= limits[i]:
+            m = 0
+        for j in range(m):
             delta = found[j, 0] - dmin
             if found[j, 0] <= reach and delta <= keep:
                 f = (keep - delta) / tau
