@@ -35,9 +35,12 @@ the blend has been measured. ``limit`` is ``reach`` for a point outside and ``mi
 reach)`` for one inside: a point with no triangle within its limit gets ``s = -inf`` (no
 triangle in reach, or inside deeper than ``watch``).
 
-Compiled: the grids' binning (`_bin_triangles`), the parity test (`_parity`) and the search
+Compiled: the grids' binning passes (`_bin_cells`), the parity test (`_parity`) and the search
 with the blend's per-point sums (`_blend_sums`) are loops over triangles and points in numba
-(module level, ``cache=True``: compiled once per environment); the blend is finished in numpy
+(module level, ``cache=True``: compiled once per environment); what is one vectorised step
+per point or per grid (the grid's size, each point's frame coordinates and start cell, the
+outputs and work arrays) is numpy around them, so that the kernels allocate nothing and stay
+short (numba's compile time grows with every statement); the blend is finished in numpy
 (`_blend`). `tests/fibres/distance_oracle.py` is the brute-force numpy oracle they are tested
 against.
 """
@@ -304,8 +307,9 @@ def _start_cells(x, limits, origin, cell, dims):
     of cells to search about it: every ring (max(dims)) if the grid's box lies within
     ``limits`` of the point, else none."""
     out = np.empty((len(x), 4), np.int64)
-    out[:, :3] = np.clip(((x - origin) / cell).astype(np.int64), 0, dims - 1)
-    y = np.maximum(np.maximum(origin - x, x - origin - dims * cell), 0.0)
+    d = x - origin
+    np.minimum(np.maximum((d / cell).astype(np.int64), 0), dims - 1, out=out[:, :3])
+    y = np.maximum(np.maximum(-d, d - dims * cell), 0.0)
     gap = y[:, 0] * y[:, 0] + y[:, 1] * y[:, 1] + y[:, 2] * y[:, 2]
     out[:, 3] = np.where(gap <= limits * limits, dims.max(), 0)
     return out
@@ -401,8 +405,8 @@ class SurfaceGrid:
         for k in range(3):
             yzx[k] = f[k, 0] * x[:, 0] + f[k, 1] * x[:, 1] + f[k, 2] * x[:, 2]
         # the (y, z) cell: int() truncates towards 0, the same after clamping
-        cy, cz = ((yzx[:2] - origin[:2, None]) / cell).astype(np.int64)
-        column = np.clip(cy, 0, dims[0] - 1) * dims[1] + np.clip(cz, 0, dims[1] - 1)
+        cy, cz = np.maximum(((yzx[:2] - origin[:2, None]) / cell).astype(np.int64), 0)
+        column = np.minimum(cy, dims[0] - 1) * dims[1] + np.minimum(cz, dims[1] - 1)
         return _parity(yzx, column, pv, self.faces, start, items, np.empty(len(x), bool))
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,
