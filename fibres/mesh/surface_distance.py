@@ -35,9 +35,12 @@ the blend has been measured. ``limit`` is ``reach`` for a point outside and ``mi
 reach)`` for one inside: a point with no triangle within its limit gets ``s = -inf`` (no
 triangle in reach, or inside deeper than ``watch``).
 
-Compiled: the grids' binning (`_bin_triangles`), the parity test (`_parity`) and the search
+Compiled: the grids' binning passes (`_bin_cells`), the parity test (`_parity`) and the search
 with the blend's per-point sums (`_blend_sums`) are loops over triangles and points in numba
-(module level, ``cache=True``: compiled once per environment); the blend is finished in numpy
+(module level, ``cache=True``: compiled once per environment); what is one vectorised step
+per point or per grid (the grid's size, each point's frame coordinates and start cell, the
+outputs and work arrays) is numpy around them, so that the kernels allocate nothing and stay
+short (numba's compile time grows with every statement); the blend is finished in numpy
 (`_blend`). `tests/fibres/distance_oracle.py` is the brute-force numpy oracle they are tested
 against.
 """
@@ -73,7 +76,6 @@ def _ray_basis():
 _RAY_FRAME = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
 def _bin_triangles(vertices, faces, frame, n_axes, density):
     """The triangles (vertices, faces) binned by their bounding boxes in a uniform grid along
     the first ``n_axes`` (2 or 3) rows of ``frame`` (3, 3) (a further axis: one cell), of about
@@ -82,84 +84,85 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     origin (3,), cell, dims (3,), start, items):
     cell (i, j, k) spans ``origin + cell * [i, i + 1)`` etc. along the frame's axes; the
     triangles meeting it are ``items[start[q]:start[q + 1]]``, ``q = (i * dims[1] + j) *
-    dims[2] + k``, in increasing order (CSR)."""
-    pv = np.empty((vertices.shape[0], 3))       # the vertices in the frame
+    dims[2] + k``, in increasing order (CSR; counted, then placed by `_bin_cells`)."""
+    rows = np.empty((3, vertices.shape[0]))     # the vertices in the frame, by axis
+    for k in range(3):
+        rows[k] = frame[k, 0] * vertices[:, 0] + frame[k, 1] * vertices[:, 1] \
+            + frame[k, 2] * vertices[:, 2]
+    pv = np.ascontiguousarray(rows.T)
     origin = np.zeros(3)
     top = np.zeros(3)
-    for k in range(3):
-        if k < n_axes:
-            origin[k] = np.inf
-            top[k] = -np.inf
-        for v in range(vertices.shape[0]):
-            pv[v, k] = frame[k, 0] * vertices[v, 0] + frame[k, 1] * vertices[v, 1] \
-                + frame[k, 2] * vertices[v, 2]
-            if k < n_axes:
-                origin[k] = min(origin[k], pv[v, k])
-                top[k] = max(top[k], pv[v, k])
-    widest = 0.0
-    for k in range(n_axes):
-        widest = max(widest, top[k] - origin[k])
+    if rows.shape[1]:
+        origin[:n_axes] = rows[:n_axes].min(axis=1)
+        top[:n_axes] = rows[:n_axes].max(axis=1)
+    side = (top - origin).tolist()
+    widest = max([0.0] + side[:n_axes])
     volume = 1.0
     for k in range(n_axes):
-        volume *= max(top[k] - origin[k], 1e-3 * widest)
+        volume *= max(side[k], 1e-3 * widest)
     cell = (volume / (density * faces.shape[0])) ** (1.0 / n_axes)
     if not cell > 0.0:
         cell = 1.0                   # every vertex at one point
-    dims = np.empty(3, np.int64)
-    for k in range(3):
-        dims[k] = int((top[k] - origin[k]) / cell) + 1
-    span = np.empty((faces.shape[0], 6), np.int64)     # the cells of each triangle's box
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
-    for t in range(faces.shape[0]):
-        for k in range(3):            # int() truncates towards 0: the same after clamping
-            span[t, k] = 0
-            span[t, k + 3] = 0
-            if k < n_axes:
-                y0 = min(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
-                y1 = max(pv[faces[t, 0], k], pv[faces[t, 1], k], pv[faces[t, 2], k])
-                span[t, k] = min(max(int((y0 - origin[k]) / cell), 0), dims[k] - 1)
-                span[t, k + 3] = min(max(int((y1 - origin[k]) / cell), 0), dims[k] - 1)
-    items = np.empty(0, np.int64)
-    for fill in range(2):            # count the triangles of each cell, then place them
-        if fill == 1:
-            for q in range(1, start.shape[0]):
-                start[q] += start[q - 1]
-            items = np.empty(start[-1], np.int64)
-        for t in range(faces.shape[0]):
-            for i in range(span[t, 0], span[t, 3] + 1):
-                for j in range(span[t, 1], span[t, 4] + 1):
-                    for k in range(span[t, 2], span[t, 5] + 1):
-                        q = (i * dims[1] + j) * dims[2] + k
-                        if fill == 1:
-                            items[start[q]] = t
-                        start[q + 1 - fill] += 1
-    for q in range(start.shape[0] - 1, 0, -1):   # the fill advanced start[q] to start[q + 1]
-        start[q] = start[q - 1]
-    start[0] = 0
+    dims = np.array([int(s / cell) + 1 for s in side], np.int64)
+    span = np.zeros((faces.shape[0], 6), np.int64)
+    start = np.zeros(int(dims.prod()) + 1, np.int64)
+    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, start[:0], False)
+    items = np.empty(start[-1], np.int64)
+    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, True)
     return pv, origin, cell, dims, start, items
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _parity(x, pv, faces, frame, origin, cell, dims, start, items):
-    """Whether each point x (n, 3) is inside by ray parity (module docstring): frame (3, 3)
-    rows (y, z, ray), pv (V, 3) the vertices in it, the triangles binned by their (y, z)
-    bounding boxes in the 2-d grid (origin, cell, dims, start, items) of `_bin_triangles`."""
-    inside = np.empty(x.shape[0], np.bool_)
-    for i in range(x.shape[0]):
-        py = frame[0, 0] * x[i, 0] + frame[0, 1] * x[i, 1] + frame[0, 2] * x[i, 2]
-        pz = frame[1, 0] * x[i, 0] + frame[1, 1] * x[i, 1] + frame[1, 2] * x[i, 2]
-        px = frame[2, 0] * x[i, 0] + frame[2, 1] * x[i, 1] + frame[2, 2] * x[i, 2]
-        q = min(max(int((py - origin[0]) / cell), 0), dims[0] - 1) * dims[1] \
-            + min(max(int((pz - origin[1]) / cell), 0), dims[1] - 1)
+def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, fill):
+    """`_bin_triangles`' two passes over the triangles (faces of the vertices pv (V, 3) in
+    the grid's frame): without ``fill``, each triangle's cell box into ``span`` (T, 6) (first
+    and last cell per axis; zeros: a further axis has one cell) and ``start`` (zeros) the
+    offsets of each cell's triangles;
+    with ``fill``, the triangles into ``items`` (start[-1],) at those offsets."""
+    if not fill:
+        for t in range(faces.shape[0]):
+            a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+            for k in range(n_axes):   # int() truncates towards 0: the same after clamping
+                ya, yb, yc = pv[a, k], pv[b, k], pv[c, k]
+                span[t, k] = min(max(int((min(ya, yb, yc) - origin[k]) / cell), 0), dims[k] - 1)
+                span[t, k + 3] = min(max(int((max(ya, yb, yc) - origin[k]) / cell), 0),
+                                     dims[k] - 1)
+    for t in range(faces.shape[0]):  # count the triangles of each cell, or place them
+        for i in range(span[t, 0], span[t, 3] + 1):
+            for j in range(span[t, 1], span[t, 4] + 1):
+                for k in range(span[t, 2], span[t, 5] + 1):
+                    q = (i * dims[1] + j) * dims[2] + k
+                    if fill:
+                        items[start[q]] = t
+                        start[q] += 1
+                    else:
+                        start[q + 1] += 1
+    if fill:                         # the fill advanced start[q] to start[q + 1]
+        for q in range(start.shape[0] - 1, 0, -1):
+            start[q] = start[q - 1]
+        start[0] = 0
+    else:
+        for q in range(1, start.shape[0]):
+            start[q] += start[q - 1]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _parity(yzx, column, pv, faces, start, items, inside):
+    """Whether each point is inside by ray parity (module docstring), into ``inside`` (n,)
+    bool: ``yzx`` (3, n) the points in the frame of rows (y, z, ray), ``column`` (n,) their
+    cells of the 2-d grid (start, items) of `_bin_triangles` (the triangles binned by their
+    (y, z) bounding boxes), pv (V, 3) the vertices in the frame."""
+    for i in range(column.shape[0]):
+        py, pz, px = yzx[0, i], yzx[1, i], yzx[2, i]
+        q = column[i]
         hits = np.int64(0)            # not a literal 0: one pass of type inference
         for m in range(start[q], start[q + 1]):
-            a, b, c = faces[items[m], 0], faces[items[m], 1], faces[items[m], 2]
-            e0 = (pv[b, 0] - pv[a, 0]) * (pz - pv[a, 1]) \
-                - (pv[b, 1] - pv[a, 1]) * (py - pv[a, 0])
-            e1 = (pv[c, 0] - pv[b, 0]) * (pz - pv[b, 1]) \
-                - (pv[c, 1] - pv[b, 1]) * (py - pv[b, 0])
-            e2 = (pv[a, 0] - pv[c, 0]) * (pz - pv[c, 1]) \
-                - (pv[a, 1] - pv[c, 1]) * (py - pv[c, 0])
+            t = items[m]
+            a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+            ay, az, by, bz, cy, cz = pv[a, 0], pv[a, 1], pv[b, 0], pv[b, 1], pv[c, 0], pv[c, 1]
+            e0 = (by - ay) * (pz - az) - (bz - az) * (py - ay)
+            e1 = (cy - by) * (pz - bz) - (cz - bz) * (py - by)
+            e2 = (ay - cy) * (pz - cz) - (az - cz) * (py - cy)
             if (e0 > 0.0 and e1 > 0.0 and e2 > 0.0) or (e0 < 0.0 and e1 < 0.0 and e2 < 0.0):
                 # the crossing's ray coordinate: barycentric in the (y, z) edge functions
                 if (e1 * pv[a, 2] + e2 * pv[b, 2] + e0 * pv[c, 2]) / (e0 + e1 + e2) > px:
@@ -169,53 +172,43 @@ def _parity(x, pv, faces, frame, origin, cell, dims, start, items):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, tau, reach):
+def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, items, tau,
+                reach, sums, seen, found, box):
     """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
-    (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of `_bin_triangles`:
-    rows ``[sum w, sum w d, sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]`` (n, 9), zero
-    where no triangle lies within ``limits[i]``. The closest point c of a triangle to x: the
-    projection of x on its plane when inside it, else the nearest of the three edges' closest
-    points (the closest point of a convex set is unique: Ericson 2005 §5.1.5 finds the same)."""
-    sums = np.zeros((x.shape[0], 9))
-    seen = np.empty(faces.shape[0], np.int64)    # the last point that measured a triangle
-    seen[:] = -1
-    found = np.empty((faces.shape[0], 7))        # per triangle measured: d, x - c, unit normal
-    home = np.empty(3, np.int64)                 # the point's cell
-    lo = np.empty(3, np.int64)                   # the ring's cell range
-    hi = np.empty(3, np.int64)
-    ab = np.empty(3)
-    ac = np.empty(3)
-    ap = np.empty(3)
+    (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of
+    `_bin_triangles`, added into ``sums`` (n, 9) (zeros): rows ``[sum w, sum w d,
+    sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]``, left zero where no triangle lies
+    within ``limits[i]``. ``cells`` (n, 4) int64: each point's cell and how many rings to
+    search (`_start_cells`). Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 7) (per
+    triangle measured: d, x - c, unit normal), ``box`` (6,) int64. The closest point c of a
+    triangle to x: the projection of x on its plane when inside it, else the nearest of the
+    three edges' closest points (the closest point of a convex set is unique: Ericson 2005
+    §5.1.5 finds the same)."""
     keep = KAPPA * tau
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
     for i in range(x.shape[0]):
         p = x[i]
-        gap = 0.0                     # squared distance from the point to the grid's box
-        for k in range(3):
-            y = max(origin[k] - p[k], p[k] - origin[k] - dims[k] * cell, 0.0)
-            gap += y * y
-        rings = max(dims[0], dims[1], dims[2]) if gap <= limits[i] * limits[i] else 0
-        for k in range(3):            # int() truncates towards 0: the same after clamping
-            home[k] = min(max(int((p[k] - origin[k]) / cell), 0), dims[k] - 1)
+        home = cells[i]               # the point's cell
         m = np.int64(0)               # not a literal 0: one pass of type inference
         dmin = np.inf
         bound = limits[i]             # the triangles farther than bound are not needed
-        for ring in range(rings):     # the cells at Chebyshev distance ring from home
-            for k in range(3):
-                lo[k] = max(home[k] - ring, 0)
-                hi[k] = min(home[k] + ring, dims[k] - 1)
-            for ci in range(lo[0], hi[0] + 1):
-                for cj in range(lo[1], hi[1] + 1):
+        for ring in range(home[3]):   # the cells at Chebyshev distance ring from home
+            for k in range(3):        # box[:3], box[3:]: the ring's cell range
+                box[k] = max(home[k] - ring, 0)
+                box[3 + k] = min(home[k] + ring, dims[k] - 1)
+            for ci in range(box[0], box[3] + 1):
+                y = origin[0] + ci * cell - p[0]      # squared distance from the point to
+                gi = max(y, -y - cell, 0.0)           # the cell: per axis, past either side
+                for cj in range(box[1], box[4] + 1):
+                    y = origin[1] + cj * cell - p[1]
+                    gj = max(y, -y - cell, 0.0)
                     face = abs(ci - home[0]) == ring or abs(cj - home[1]) == ring
-                    for ck in range(lo[2], hi[2] + 1):
+                    for ck in range(box[2], box[5] + 1):
                         if not face and abs(ck - home[2]) != ring:
                             continue
-                        gap = 0.0             # squared distance from the point to the cell
-                        for k, c in ((0, ci), (1, cj), (2, ck)):
-                            y = origin[k] + c * cell - p[k]
-                            gap += y * y if y > 0.0 else (0.0 if y + cell >= 0.0 else
-                                                          (y + cell) * (y + cell))
-                        if gap > (bound + slack) * (bound + slack):
+                        y = origin[2] + ck * cell - p[2]
+                        gk = max(y, -y - cell, 0.0)
+                        if 0.0 + gi * gi + gj * gj + gk * gk > (bound + slack) * (bound + slack):
                             continue
                         q = (ci * dims[1] + cj) * dims[2] + ck
                         for e in range(start[q], start[q + 1]):
@@ -223,51 +216,60 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                             if seen[t] == i:
                                 continue
                             seen[t] = i
-                            for k in range(3):
-                                ab[k] = vertices[faces[t, 1], k] - vertices[faces[t, 0], k]
-                                ac[k] = vertices[faces[t, 2], k] - vertices[faces[t, 0], k]
-                                ap[k] = p[k] - vertices[faces[t, 0], k]
-                            d00 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]
-                            d01 = ab[0] * ac[0] + ab[1] * ac[1] + ab[2] * ac[2]
-                            d11 = ac[0] * ac[0] + ac[1] * ac[1] + ac[2] * ac[2]
-                            d1 = ab[0] * ap[0] + ab[1] * ap[1] + ab[2] * ap[2]
-                            d2 = ac[0] * ap[0] + ac[1] * ap[1] + ac[2] * ap[2]
+                            ia, ib, ic = faces[t, 0], faces[t, 1], faces[t, 2]
+                            a0, a1, a2 = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
+                            ab0, ab1, ab2 = (vertices[ib, 0] - a0, vertices[ib, 1] - a1,
+                                             vertices[ib, 2] - a2)
+                            ac0, ac1, ac2 = (vertices[ic, 0] - a0, vertices[ic, 1] - a1,
+                                             vertices[ic, 2] - a2)
+                            ap0, ap1, ap2 = p[0] - a0, p[1] - a1, p[2] - a2
+                            d00 = ab0 * ab0 + ab1 * ab1 + ab2 * ab2
+                            d01 = ab0 * ac0 + ab1 * ac1 + ab2 * ac2
+                            d11 = ac0 * ac0 + ac1 * ac1 + ac2 * ac2
+                            d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
+                            d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
                             den = d00 * d11 - d01 * d01
-                            u = (d11 * d1 - d01 * d2) / den if den > 0.0 else -1.0
-                            w = (d00 * d2 - d01 * d1) / den if den > 0.0 else -1.0
-                            d = np.inf
+                            u = w = -1.0
+                            if den > 0.0:
+                                u = (d11 * d1 - d01 * d2) / den
+                                w = (d00 * d2 - d01 * d1) / den
                             if u >= 0.0 and w >= 0.0 and u + w <= 1.0:
-                                for k in range(3):
-                                    found[m, 1 + k] = ap[k] - u * ab[k] - w * ac[k]
+                                found[m, 1] = ap0 - u * ab0 - w * ac0
+                                found[m, 2] = ap1 - u * ab1 - w * ac1
+                                found[m, 3] = ap2 - u * ab2 - w * ac2
                                 d = math.sqrt(found[m, 1] ** 2 + found[m, 2] ** 2
                                               + found[m, 3] ** 2)
                             else:
+                                d = np.inf
                                 for j in range(3):            # edge (corner j, corner j + 1)
-                                    e0, e1 = faces[t, j], faces[t, (j + 1) % 3]
+                                    e0 = vertices[faces[t, j]]
+                                    e1 = vertices[faces[t, (j + 1) % 3]]
                                     num = 0.0
                                     length = 0.0
                                     for k in range(3):
-                                        num += (p[k] - vertices[e0, k]) \
-                                            * (vertices[e1, k] - vertices[e0, k])
-                                        length += (vertices[e1, k] - vertices[e0, k]) ** 2
+                                        num += (p[k] - e0[k]) * (e1[k] - e0[k])
+                                        length += (e1[k] - e0[k]) ** 2
                                     f = min(max(num / length, 0.0), 1.0) if length > 0.0 else 0.0
-                                    r = 0.0
+                                    r = 0.0                   # x - c into found[m, 4:7]
                                     for k in range(3):
-                                        r += (p[k] - vertices[e0, k] - f * (vertices[e1, k]
-                                                                            - vertices[e0, k])) ** 2
-                                    if math.sqrt(r) < d:
-                                        d = math.sqrt(r)
-                                        for k in range(3):
-                                            found[m, 1 + k] = p[k] - vertices[e0, k] \
-                                                - f * (vertices[e1, k] - vertices[e0, k])
+                                        found[m, 4 + k] = p[k] - e0[k] - f * (e1[k] - e0[k])
+                                        r += found[m, 4 + k] ** 2
+                                    r = math.sqrt(r)
+                                    if r < d:
+                                        d = r
+                                        for k in range(1, 4):
+                                            found[m, k] = found[m, 3 + k]
+                            # the unit normal (0 without area: +-0 / inf)
+                            n0 = ab1 * ac2 - ab2 * ac1
+                            n1 = ab2 * ac0 - ab0 * ac2
+                            n2 = ab0 * ac1 - ab1 * ac0
+                            size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
+                            if not size > 0.0:
+                                size = np.inf
+                            found[m, 4] = n0 / size
+                            found[m, 5] = n1 / size
+                            found[m, 6] = n2 / size
                             found[m, 0] = d
-                            found[m, 4] = ab[1] * ac[2] - ab[2] * ac[1]
-                            found[m, 5] = ab[2] * ac[0] - ab[0] * ac[2]
-                            found[m, 6] = ab[0] * ac[1] - ab[1] * ac[0]
-                            size = math.sqrt(found[m, 4] ** 2 + found[m, 5] ** 2
-                                             + found[m, 6] ** 2)
-                            for k in range(4, 7):
-                                found[m, k] = found[m, k] / size if size > 0.0 else 0.0
                             m += 1
                             if d < dmin:
                                 dmin = d
@@ -283,7 +285,9 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                     beyond = min(beyond, origin[k] + (home[k] + ring + 1) * cell - p[k])
             if beyond > bound + slack:
                 break
-        for j in range(m if dmin <= limits[i] else 0):
+        if not dmin <= limits[i]:
+            m = 0
+        for j in range(m):
             delta = found[j, 0] - dmin
             if found[j, 0] <= reach and delta <= keep:
                 f = (keep - delta) / tau
@@ -295,6 +299,20 @@ def _blend_sums(x, limits, vertices, faces, origin, cell, dims, start, items, ta
                     sums[i, 3 + k] += w * found[j, 1 + k]
                     sums[i, 6 + k] += w * found[j, 4 + k]
     return sums
+
+
+def _start_cells(x, limits, origin, cell, dims):
+    """(n, 4) int64 for `_blend_sums`: the cell of each point x (n, 3) (clamped into the grid
+    (origin, cell, dims); int() truncates towards 0: the same after clamping) and the rings
+    of cells to search about it: every ring (max(dims)) if the grid's box lies within
+    ``limits`` of the point, else none."""
+    out = np.empty((len(x), 4), np.int64)
+    d = x - origin
+    np.minimum(np.maximum((d / cell).astype(np.int64), 0), dims - 1, out=out[:, :3])
+    y = np.maximum(np.maximum(-d, d - dims * cell), 0.0)
+    gap = y[:, 0] * y[:, 0] + y[:, 1] * y[:, 1] + y[:, 2] * y[:, 2]
+    out[:, 3] = np.where(gap <= limits * limits, dims.max(), 0)
+    return out
 
 
 def _unit_rows(x):
@@ -379,10 +397,17 @@ class SurfaceGrid:
         if len(self.faces) == 0:
             return np.zeros(len(x), bool)
         if self._ray is None:
-            frame = _RAY_FRAME
-            pv, *grid = _bin_triangles(self.vertices, self.faces, frame, 2, PARITY_DENSITY)
-            self._ray = (pv, self.faces, frame, *grid)
-        return _parity(x, *self._ray)
+            self._ray = _bin_triangles(self.vertices, self.faces, _RAY_FRAME, 2,
+                                       PARITY_DENSITY)
+        pv, origin, cell, dims, start, items = self._ray
+        f = _RAY_FRAME
+        yzx = np.empty((3, len(x)))
+        for k in range(3):
+            yzx[k] = f[k, 0] * x[:, 0] + f[k, 1] * x[:, 1] + f[k, 2] * x[:, 2]
+        # the (y, z) cell: int() truncates towards 0, the same after clamping
+        cy, cz = np.maximum(((yzx[:2] - origin[:2, None]) / cell).astype(np.int64), 0)
+        column = np.minimum(cy, dims[0] - 1) * dims[1] + np.minimum(cz, dims[1] - 1)
+        return _parity(yzx, column, pv, self.faces, start, items, np.empty(len(x), bool))
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,
                         offset: bool = False):
@@ -403,8 +428,12 @@ class SurfaceGrid:
             return np.full(len(x), -np.inf), np.zeros((len(x), 3))
         inside = self.inside(x)
         limits = np.where(inside, min(watch, self.reach), self.reach)
-        s, g = _blend(_blend_sums(x, limits, self.vertices, self.faces, *self._grid, float(tau),
-                                  self.reach), float(tau), bool(offset))
+        t = len(self.faces)
+        sums = _blend_sums(x, limits, _start_cells(x, limits, *self._grid[:3]), self.vertices,
+                           self.faces, *self._grid, float(tau), self.reach,
+                           np.zeros((len(x), 9)), np.full(t, -1, np.int64), np.empty((t, 7)),
+                           np.empty(6, np.int64))
+        s, g = _blend(sums, float(tau), bool(offset))
         if not offset:   # inside by parity: negative whatever the blend's vote
             s = np.where(inside & np.isfinite(s), -np.abs(s), s)
         return s, g

@@ -62,9 +62,15 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
     list of Loop
     """
     u = np.ascontiguousarray(u, dtype=np.float64)
-    nodes, seg_face, starts = _walk(u, float(level), np.ascontiguousarray(edges, dtype=np.int64),
-                                    np.ascontiguousarray(face_edges, dtype=np.int64),
-                                    np.ascontiguousarray(faces, dtype=np.int64))
+    n = len(edges)
+    work = np.empty((6, n + 1), dtype=np.int64)
+    work[[2, 4]] = -1
+    count, n_loops = _walk((u >= level).astype(np.int64),
+                           np.ascontiguousarray(edges, dtype=np.int64),
+                           np.ascontiguousarray(face_edges, dtype=np.int64),
+                           np.ascontiguousarray(faces, dtype=np.int64), work,
+                           np.zeros(n, dtype=np.bool_))
+    nodes, seg_face, starts = work[3, :count], work[0, :count], work[5, :n_loops + 1]
     ea, eb = edges[nodes, 0], edges[nodes, 1]
     ua, ub = u[ea], u[eb]
     s = (level - ua) / (ub - ua)
@@ -76,50 +82,36 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _walk(u, level, edges, face_edges, faces):
-    """The crossed edges of the isoline ``u = level`` in loop order: (edge index of each loop
-    point, face of the segment from it to the next point, loop start offsets (n_loops + 1)).
-    A crossed edge is a node; each crossed face links its falling side's node to its rising
-    side's (module docstring). Loops are listed by their smallest crossed edge index and each
-    starts there."""
-    n_edges = edges.shape[0]
-    node = np.empty(n_edges, dtype=np.int64)
+def _walk(above, edges, face_edges, faces, work, seen):
+    """The crossed edges of the isoline in loop order, ``above`` (V,) int64 1 where ``u >=
+    level`` else 0, into ``work`` (6, E + 1) int64 (E edges; rows 2 and 4 all -1) and
+    ``seen`` (E,) bool (all False): rows 3, 0, 5 hold the edge index of each loop point, the
+    face of the segment from it to the next point, and the loop start offsets (n_loops + 1);
+    returns (count of points, n_loops). A crossed edge is a node; each crossed face links
+    its falling side's node to its rising side's (module docstring). Loops are listed by
+    their smallest crossed edge index and each starts there."""
+    node, edge_of, nxt, order, seg_face, starts = \
+        work[0], work[1], work[2], work[3], work[4], work[5]
     count = 0
-    for e in range(n_edges):
-        if (u[edges[e, 0]] >= level) != (u[edges[e, 1]] >= level):
+    for e in range(edges.shape[0]):
+        if above[edges[e, 0]] != above[edges[e, 1]]:
             node[e] = count
+            edge_of[count] = e
             count += 1
         else:
             node[e] = -1
-    edge_of = np.empty(count, dtype=np.int64)
-    for e in range(n_edges):
-        if node[e] >= 0:
-            edge_of[node[e]] = e
-    nxt = np.empty(count, dtype=np.int64)
-    seg_face = np.empty(count, dtype=np.int64)
-    seen = np.empty(count, dtype=np.bool_)
-    for m in range(count):
-        nxt[m], seg_face[m], seen[m] = -1, -1, False
     for f in range(faces.shape[0]):
-        a0 = u[faces[f, 0]] >= level
-        a1 = u[faces[f, 1]] >= level
-        a2 = u[faces[f, 2]] >= level
+        a0, a1, a2 = above[faces[f, 0]], above[faces[f, 1]], above[faces[f, 2]]
         if a0 == a1 and a1 == a2:
             continue
-        ab = (a0, a1, a2)
-        src, dst = -1, -1
-        for k in range(3):  # side k runs corner k -> k + 1; rising: below -> above
-            here, there = ab[k], ab[(k + 1) % 3]
-            if here and not there and src < 0:
-                src = face_edges[f, k]
-            elif there and not here and dst < 0:
-                dst = face_edges[f, k]
+        # side k runs corner k -> k + 1; a crossed face has one falling side (k above,
+        # k + 1 below) and one rising side
+        src = face_edges[f, (a1 > a2) + 2 * (a2 > a0)]
+        dst = face_edges[f, (a2 > a1) + 2 * (a0 > a2)]
         nxt[node[src]] = node[dst]
         seg_face[node[src]] = f
-    order = np.empty(count, dtype=np.int64)
-    faces_out = np.empty(count, dtype=np.int64)
-    starts = np.empty(count + 1, dtype=np.int64)
     n_out, n_loops = 0, 0
+    faces_out = work[0]                # node is no longer needed
     for first in range(count):
         if seen[first]:
             continue
@@ -133,7 +125,7 @@ def _walk(u, level, edges, face_edges, faces):
             n_out += 1
             k = nxt[k]
     starts[n_loops] = n_out
-    return order[:n_out], faces_out[:n_out], starts[:n_loops + 1]
+    return n_out, n_loops
 
 
 def _length(points) -> float:

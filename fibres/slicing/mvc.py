@@ -69,44 +69,42 @@ def mean_value_coordinates(points, polygon) -> np.ndarray:
         raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
     if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3:
         raise ValueError(f"polygon must have shape (K, 2) with K >= 3, got {poly.shape}")
-    return _finish(_mvc_kernel(pts, poly), pts, poly)
+    return _finish(_mvc_kernel(pts, poly, np.zeros((len(pts), len(poly))),
+                               np.empty((4, len(poly)))), pts, poly)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _mvc_kernel(pts, poly):
-    """(N, K) coordinates, one point at a time: ``s_i``, ``r_i``, the half-angle tangents
-    ``2 A_i / (r_i r_{i+1} + D_i)``, then ``w_i``; a point on a vertex (``r_i == 0``) gets
+def _mvc_kernel(pts, poly, lam, work):
+    """(N, K) coordinates into ``lam`` (N, K) (zeros; work space ``work`` (4, K)), one
+    point at a time: ``s_i``, ``r_i``, the half-angle tangents ``2 A_i / (r_i r_{i+1} +
+    D_i)``, then ``w_i``; a point on a vertex (``r_i == 0``) gets
     the unit vector of the first such vertex, a point on an edge (``|2 A_i| <= _ON_EDGE
     r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and ``r_i r_{i+1} > 0``) the linear
     interpolation weights of the first such edge."""
     n, k = pts.shape[0], poly.shape[0]
-    lam = np.empty((n, k))
-    sx = np.empty(k)
-    sy = np.empty(k)
-    r = np.empty(k)
-    tan_half = np.empty(k)
+    sx, sy, r, tan_half = work[0], work[1], work[2], work[3]
     for p in range(n):
         vertex = -1
+        px, py = pts[p, 0], pts[p, 1]
         for i in range(k):
-            sx[i] = poly[i, 0] - pts[p, 0]
-            sy[i] = poly[i, 1] - pts[p, 1]
-            r[i] = math.sqrt(sx[i] * sx[i] + sy[i] * sy[i])
+            xi, yi = poly[i, 0] - px, poly[i, 1] - py
+            sx[i], sy[i] = xi, yi
+            r[i] = math.sqrt(xi * xi + yi * yi)
             if r[i] == 0.0 and vertex < 0:
                 vertex = i
         edge = -1
         if vertex < 0:
             for i in range(k):
                 j = i + 1 if i + 1 < k else 0
+                xi, yi, xj, yj = sx[i], sy[i], sx[j], sy[j]
                 rr = r[i] * r[j]
-                cross = sx[i] * sy[j] - sy[i] * sx[j]
-                dot = sx[i] * sx[j] + sy[i] * sy[j]
+                cross = xi * yj - yi * xj
+                dot = xi * xj + yi * yj
                 denom = rr + dot
                 if dot < 0.0 and rr > 0.0 and (abs(cross) <= _ON_EDGE * rr or denom <= 0.0):
                     edge = i
                     break
                 tan_half[i] = cross / denom
-        for i in range(k):
-            lam[p, i] = 0.0
         if vertex >= 0:
             lam[p, vertex] = 1.0
         elif edge >= 0:
