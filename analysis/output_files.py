@@ -26,14 +26,14 @@ from .errors import InputError
 
 __all__ = ["atomic_path", "write_csv", "write_text", "prepare_out_dir", "confined_to", "checked_path"]
 
-#: (resolved root folder, set of paths written) while inside `confined_to`
+#: (resolved root folder, set of paths written, resolved folders by name) inside `confined_to`
 _CONFINED = contextvars.ContextVar("analysis_output_root", default=None)
 
 
 @contextlib.contextmanager
 def confined_to(folder):
     """Within the block, `atomic_path` refuses any path outside ``folder`` (module docstring)."""
-    token = _CONFINED.set((Path(folder).resolve(), set()))
+    token = _CONFINED.set((Path(folder).resolve(), set(), {}))
     try:
         yield
     finally:
@@ -47,8 +47,12 @@ def checked_path(path) -> Path:
     state = _CONFINED.get()
     if state is None:
         return path
-    root, seen = state
-    full = path.parent.resolve() / path.name
+    root, seen, folders = state
+    # a folder is resolved once per run (thousands of frame files share one)
+    parent = folders.get(path.parent)
+    if parent is None:
+        parent = folders[path.parent] = path.parent.resolve()
+    full = parent / path.name
     if path.name in ("", ".", "..") or full == root or not full.is_relative_to(root):
         raise InputError("refused to write a file outside the output folder", file=path,
                          fix="Report this: a name in the input files was not made safe.")
