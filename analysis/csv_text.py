@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DIGITS", "csv_bytes", "write_csv_part"]
+__all__ = ["DIGITS", "arrow_table", "csv_bytes", "write_csv_part"]
 
 #: significant digits of the numbers in every CSV table
 DIGITS = 12
@@ -100,8 +100,20 @@ def _header(names) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
-def csv_bytes(frame, *, header: bool = True) -> bytes:
-    """The CSV text (UTF-8 bytes) of a pandas DataFrame (module docstring); no index column."""
+def arrow_table(frame):
+    """``pyarrow.Table.from_pandas(frame, preserve_index=False)``, or None where Arrow cannot
+    hold a column (the CSV then falls back to pandas)."""
+    import pyarrow as pa
+
+    try:
+        return pa.Table.from_pandas(frame, preserve_index=False)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
+        return None
+
+
+def csv_bytes(frame, *, header: bool = True, table=None) -> bytes:
+    """The CSV text (UTF-8 bytes) of a pandas DataFrame (module docstring); no index column.
+    ``table``: its `arrow_table` when the caller has made it already (for Parquet)."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -109,10 +121,8 @@ def csv_bytes(frame, *, header: bool = True) -> bytes:
     head = _header(names) if header else b""
     if len(frame) == 0:
         return head
-    try:
-        table = pa.Table.from_pandas(frame, preserve_index=False)
-    except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
-        table = None
+    if table is None:
+        table = arrow_table(frame)
     fields = None if table is None else [_field(c.combine_chunks()) for c in table.columns]
     if fields is None or any(f is None for f in fields):
         text = frame.to_csv(index=False, header=header, float_format=f"%.{DIGITS}g", lineterminator="\n")
@@ -127,6 +137,6 @@ def csv_bytes(frame, *, header: bool = True) -> bytes:
     return head + memoryview(lines.buffers()[2])[int(offsets[0]):int(offsets[-1])]
 
 
-def write_csv_part(frame, fh, *, header: bool = True) -> None:
-    """Append the CSV text of ``frame`` to the binary file ``fh``."""
-    fh.write(csv_bytes(frame, header=header))
+def write_csv_part(frame, fh, *, header: bool = True, table=None) -> None:
+    """Append the CSV text of ``frame`` to the binary file ``fh`` (``table`` as in `csv_bytes`)."""
+    fh.write(csv_bytes(frame, header=header, table=table))

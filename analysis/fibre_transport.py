@@ -211,11 +211,11 @@ def _carry_loop(x, ends0, ends1, u, frames, use_frames, every, lengths, points):
 
 
 def bind_transport(model, sspec, rest, bundle0):
-    """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked, keep=None)``
-    wraps the rest surface with the rest fibres' material points as riders at every pose of
-    ``stacked`` (a `motion.Motion`) and returns a `Carried` (the polylines of the first ``keep``
-    poses). The muscle is bound once (`motion.surface.wrap.SurfaceWrapper`), whatever the number of
-    calls.
+    """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked, keep=None,
+    poses=None)`` wraps the rest surface with the rest fibres' material points as riders at every
+    pose of ``stacked`` (a `motion.Motion`; ``poses``: its `motion.BodyPoses` when already known)
+    and returns a `Carried` (the polylines of the first ``keep`` poses). The muscle is bound
+    once (`motion.surface.wrap.SurfaceWrapper`), whatever the number of calls.
 
     ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its surface wrapped at one
     frame (its rest geometry in ground), ``bundle0`` the rest-pose `fibres.FibreBundle`."""
@@ -242,8 +242,8 @@ def bind_transport(model, sspec, rest, bundle0):
 
     wrapper = SurfaceWrapper(model, bound)
 
-    def carry(stacked, keep=None) -> Carried:
-        wrapped = wrapper(stacked, keep=keep)
+    def carry(stacked, keep=None, poses=None) -> Carried:
+        wrapped = wrapper(stacked, keep=keep, poses=poses)
         n_all = wrapped.radial_scale.shape[0]
         frames = wrapped.rider_frames
         lengths, points = _ends_ride_their_bodies(
@@ -258,15 +258,15 @@ def bind_transport(model, sspec, rest, bundle0):
 
 
 def decompose_transport(model, sspec, bundle0, options, bar):
-    """The ``"decompose"`` transport of one muscle (module docstring): ``carry(stacked)`` wraps the
-    surface at every pose of ``stacked`` and decomposes each with the rest plan of ``bundle0``
-    (``options``: the `fibres.decompose` keywords of the rest decomposition); ``bar`` counts
-    the decompositions (`analysis.progress`)."""
+    """The ``"decompose"`` transport of one muscle (module docstring): ``carry(stacked, keep=None,
+    poses=None)`` wraps the surface at every pose of ``stacked`` (``poses`` as in `bind_transport`)
+    and decomposes each with the rest plan of ``bundle0`` (``options``: the `fibres.decompose`
+    keywords of the rest decomposition); ``bar`` counts the decompositions (`analysis.progress`)."""
     from fibres import decompose
     from motion import wrap_surfaces
 
-    def carry(stacked, keep=None) -> Carried:
-        (wrapped,) = wrap_surfaces(model, stacked, [sspec])
+    def carry(stacked, keep=None, poses=None) -> Carried:
+        (wrapped,) = wrap_surfaces(model, stacked, [sspec], poses=poses)
         points = np.empty((wrapped.vertices.shape[0],) + bundle0.points.shape)
         for f in range(len(points)):  # one decomposition per (perturbed) frame, the plan frozen
             interrupts.check()

@@ -14,8 +14,10 @@ Per muscle (docs/DESIGN.md):
 """
 from __future__ import annotations
 
+import collections
 import dataclasses
 import re
+import threading
 import time as _time
 import warnings
 
@@ -31,7 +33,33 @@ from .progress import progress
 from .result import MuscleResult
 from .spec import FibreModelSpec
 
-__all__ = ["Ctx", "run_muscle", "spanned_coordinates", "surface_spec", "timed"]
+__all__ = ["Ctx", "PoseCache", "run_muscle", "spanned_coordinates", "surface_spec", "timed"]
+
+
+class PoseCache:
+    """The body poses of the stacked motions (`analysis.fibre_moment_arms.stacked_motion`) shared
+    by the muscles of a run: muscles that span the same coordinates (the three hip muscles
+    glut_med1-3, ...) move the bones through the same poses, chunk by chunk. Keyed by the
+    spanned coordinates and the chunk's frames; the last ``size`` chunks are kept (a chunk of
+    ``POSES_PER_CHUNK`` poses of a 20-body model is ~1.3 MB). Thread-safe (``jobs`` threads)."""
+
+    def __init__(self, size: int = 16):
+        self.size = int(size)
+        self._kept = collections.OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key, make):
+        """The value kept for ``key``, else ``make()`` (outside the lock), kept."""
+        with self._lock:
+            if key in self._kept:
+                self._kept.move_to_end(key)
+                return self._kept[key]
+        value = make()
+        with self._lock:
+            self._kept[key] = value
+            while len(self._kept) > self.size:
+                self._kept.popitem(last=False)
+        return value
 
 
 @dataclasses.dataclass
@@ -47,6 +75,7 @@ class Ctx:
     keep_surfaces: bool
     step: dict
     transport: str = "bind"
+    poses: PoseCache = dataclasses.field(default_factory=PoseCache)
 
 
 def timed(timings, stage, *, process: bool = False):
@@ -172,7 +201,9 @@ def run_muscle(ctx, mspec):
             interrupts.check()
             stacked, steps, n_c = stacked_motion(ctx.model, q[rows], ctx.motion.source, coord_idx, ctx.step)
             with timed(timings, stage):
-                got = carry(stacked, keep=n_c if points is not None else 0)
+                poses = ctx.poses.get((tuple(coord_idx.tolist()), rows.start, rows.stop),
+                                      lambda: motion_pkg.body_poses(ctx.model, stacked))
+                got = carry(stacked, keep=n_c if points is not None else 0, poses=poses)
             with timed(timings, "lengths"):
                 lengths[:, rows] = got.lengths.reshape(n_poses, n_c, n_fib)
             if points is not None:

@@ -26,14 +26,14 @@ from .errors import InputError
 
 __all__ = ["atomic_path", "write_csv", "write_text", "prepare_out_dir", "confined_to", "checked_path"]
 
-#: (resolved root folder, set of paths written) while inside `confined_to`
+#: (resolved root folder, paths written, resolved folders by name), strings, inside `confined_to`
 _CONFINED = contextvars.ContextVar("analysis_output_root", default=None)
 
 
 @contextlib.contextmanager
 def confined_to(folder):
     """Within the block, `atomic_path` refuses any path outside ``folder`` (module docstring)."""
-    token = _CONFINED.set((Path(folder).resolve(), set()))
+    token = _CONFINED.set((os.fspath(Path(folder).resolve()), set(), {}))
     try:
         yield
     finally:
@@ -47,16 +47,23 @@ def checked_path(path) -> Path:
     state = _CONFINED.get()
     if state is None:
         return path
-    root, seen = state
-    full = path.parent.resolve() / path.name
-    if path.name in ("", ".", "..") or full == root or not full.is_relative_to(root):
+    root, seen, folders = state
+    head, name = os.path.split(os.fspath(path))
+    # each folder is resolved once per run (thousands of frame files share one); the checks are
+    # on the strings of resolved, normalised paths (what `Path.is_relative_to` compares)
+    parent = folders.get(head)
+    if parent is None:
+        parent = folders[head] = os.fspath(Path(head or ".").resolve())
+    full = os.path.join(parent, name)
+    if name in ("", ".", "..") or full == root or not full.startswith(root.rstrip(os.sep) + os.sep):
         raise InputError("refused to write a file outside the output folder", file=path,
                          fix="Report this: a name in the input files was not made safe.")
-    if full in seen:
+    key = os.path.normcase(full)           # the same file for the file system's path equality
+    if key in seen:
         raise InputError("two outputs of this run would be written to the same file", file=path,
                          fix="Give the muscles (and coordinates) names that differ in more than "
                              "upper/lower case.")
-    seen.add(full)
+    seen.add(key)
     return path
 
 

@@ -283,16 +283,17 @@ class _Stream:
         import pyarrow as pa
         import pyarrow.parquet as papq
 
-        from .csv_text import write_csv_part
+        from .csv_text import arrow_table, write_csv_part
 
         if part.empty:
             self.empty = part if self.empty is None else self.empty
             if not self.first:
                 return
-        write_csv_part(part, self.fh, header=self.first)
+        table = None if part.empty else arrow_table(part)      # one conversion for both files
+        write_csv_part(part, self.fh, header=self.first, table=table)
         self.first = False
         if self.pq_tmp is not None and not part.empty:
-            table = pa.Table.from_pandas(part, preserve_index=False)
+            table = pa.Table.from_pandas(part, preserve_index=False) if table is None else table
             if self.writer is None:
                 self.writer = self.stack.enter_context(papq.ParquetWriter(self.pq_tmp, table.schema))
             self.writer.write_table(table.cast(self.writer.schema))

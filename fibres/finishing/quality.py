@@ -130,9 +130,12 @@ def fibre_quality(points, vertices, faces, origin_faces, insertion_faces) -> Fib
     inside = inside_grid(v, f, h)
     dense = _resampled(pts, FIBRE_STEP)
     tree = cKDTree(dense)
-    dist = tree.query(inside, distance_upper_bound=1.0)[0] if len(inside) else np.zeros(0)
     n, length = len(pts), float(np.linalg.norm(np.diff(pts, axis=1), axis=2).sum(axis=1).mean())
     spacing = float(np.sqrt(abs(volume) / max(n * length, 1e-300)))
+    # only "farther than NEAR / spacing" is asked: a search bounded just above both is exact for
+    # every distance up to the bound and inf beyond (the same shares, a third less searching)
+    bound = max(NEAR, spacing) * (1.0 + 1e-9)
+    dist = tree.query(inside, distance_upper_bound=bound)[0] if len(inside) else np.zeros(0)
     empty5 = float((dist > NEAR).mean()) if dist.size else 0.0
     empty_sp = float((dist > spacing).mean()) if dist.size else 0.0
     turns = _turns(pts)

@@ -51,7 +51,7 @@ from .curves import (resample_polylines, smoothed_tangents, rotation_minimizing_
                      twist_frames)
 from .volume import combine_vf, mesh_volume, solve_radial_scale, volume_cubic_vf
 
-__all__ = ["SurfaceBinding", "SurfaceFrames", "smoothstep"]
+__all__ = ["RowBlocks", "SurfaceBinding", "SurfaceFrames", "smoothstep"]
 
 
 def smoothstep(x) -> np.ndarray:
@@ -74,6 +74,69 @@ def _check_tf(tf, name: str, n_frames: int | None = None) -> np.ndarray:
     if n_frames is not None and tf.shape[0] not in (1, n_frames):
         raise ValueError(f"{name} has {tf.shape[0]} frames, expected {n_frames}")
     return tf
+
+
+class RowBlocks:
+    """A sparse matrix (R, C) kept for products with wide dense matrices (C, K): its rows grouped
+    by their pattern of nonzero columns, each group one small dense block (rows x its columns).
+
+    Method: ``A @ X`` is, group by group, the block times the rows of ``X`` at the group's columns
+    (one dense BLAS product) written to the group's rows. The sums are CSR's, in another order
+    (round-off only). Why: a bound surface's rows have a few nonzeros each on a handful of
+    patterns (one per line segment: 39 for 40 samples) and ``K = 3 F`` is in the thousands;
+    scipy's CSR kernel does one axpy per nonzero, several times slower per multiply-add than the
+    blocked BLAS product (docs/decisions.md, "Blocked rider products"). Narrow products (``K <
+    WIDE``) and matrices with more than ``max(16, R / 8)`` patterns keep the CSR product; the
+    groups are made at the first wide product.
+    """
+
+    WIDE = 48
+
+    def __init__(self, matrix):
+        a = sp.csr_matrix(matrix, dtype=float, copy=True)
+        a.sum_duplicates()
+        a.sort_indices()
+        self.csr, self.shape, self._groups = a, a.shape, None
+
+    def _grouped(self):
+        """The groups ``[(rows, cols, block)]`` (rows a slice where contiguous), or ``[]``: CSR."""
+        if self._groups is None:
+            a, n_r = self.csr, self.shape[0]
+            nnz = np.diff(a.indptr)
+            width = int(nnz.max(initial=0))
+            where = (np.repeat(np.arange(n_r), nnz), np.arange(a.nnz) - np.repeat(a.indptr[:-1], nnz))
+            cols = np.full((n_r, width), -1, dtype=np.int64)   # each row's columns, padded with -1
+            cols[where] = a.indices
+            vals = np.zeros((n_r, width))
+            vals[where] = a.data
+            keys, inverse = np.unique(cols, axis=0, return_inverse=True)
+            groups = []
+            if n_r and len(keys) <= max(16, n_r // 8):
+                order = np.argsort(inverse.ravel(), kind="stable")
+                starts = np.searchsorted(inverse.ravel()[order], np.arange(len(keys) + 1))
+                for g, key in enumerate(keys):
+                    rows = order[starts[g]:starts[g + 1]]
+                    used = key[key >= 0]
+                    block = np.ascontiguousarray(vals[rows][:, :len(used)])
+                    if rows[-1] - rows[0] == len(rows) - 1:
+                        rows = slice(int(rows[0]), int(rows[-1]) + 1)     # contiguous: no scatter
+                    groups.append((rows, used, block))
+            self._groups = groups
+        return self._groups
+
+    def __matmul__(self, x) -> np.ndarray:
+        """``A @ x`` for a dense ``x`` (C, K): (R, K) float."""
+        x = np.asarray(x, dtype=float)
+        groups = self._grouped() if x.ndim == 2 and x.shape[1] >= self.WIDE else []
+        if not groups:
+            return np.asarray(self.csr @ x)
+        out = np.empty((self.shape[0],) + x.shape[1:])
+        for rows, cols, block in groups:
+            if len(cols):
+                out[rows] = block @ x[cols]
+            else:
+                out[rows] = 0.0
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,8 +268,9 @@ class SurfaceBinding:
         centres, frames = self.line_frames(curves, tf_origin, tf_insertion, anchors)
         fixed_feat, radial_feat = self._features(centres, frames, tf_origin, tf_insertion)
         n_v, f_count = self.rest_vertices.shape[0], centres.shape[0]
-        p = np.asarray(self.fixed_matrix @ fixed_feat).reshape(n_v, f_count, 3)
-        q = np.asarray(self.radial_matrix @ radial_feat).reshape(n_v, f_count, 3)
+        fixed, radial, _ = self._split(0)
+        p = (fixed @ fixed_feat).reshape(n_v, f_count, 3)
+        q = (radial @ radial_feat).reshape(n_v, f_count, 3)
         return (p, q, self._rider_frames(frames, riders, rider_major)) if riders else (p, q)
 
     def _rider_frames(self, frames, riders: int, rider_major: bool) -> np.ndarray:
@@ -214,7 +278,10 @@ class SurfaceBinding:
         ``rider_major``), from the lines' frames (F, L, n, 3, 3)."""
         f_n = frames.shape[0]
         feat = np.ascontiguousarray(frames.reshape(f_n, -1, 9).transpose(1, 0, 2)).reshape(-1, f_n * 9)
-        at = np.asarray(self.frame_matrix[-int(riders):] @ feat).reshape(int(riders), f_n, 3, 3)
+        cache = self.__dict__.setdefault("_frame_rows", {})
+        if riders not in cache:
+            cache[riders] = RowBlocks(self.frame_matrix[-int(riders):])
+        at = (cache[riders] @ feat).reshape(int(riders), f_n, 3, 3)
         return at if rider_major else np.ascontiguousarray(at.transpose(1, 0, 2, 3))
 
     def _features(self, centres, frames, tf_origin, tf_insertion):
@@ -235,12 +302,13 @@ class SurfaceBinding:
 
     def _split(self, apart: int) -> tuple:
         """The fixed and radial rows of the leading vertices and, for the last ``apart`` ones,
-        ``[fixed | radial]`` in one matrix (made once per ``apart``, kept on the binding)."""
+        ``[fixed | radial]`` in one matrix, as `RowBlocks` (made once per ``apart``, kept on the
+        binding)."""
         cache = self.__dict__.setdefault("_splits", {})
         if apart not in cache:
             n_s = self.rest_vertices.shape[0] - apart
-            cache[apart] = (self.fixed_matrix[:n_s], self.radial_matrix[:n_s],
-                            sp.hstack([self.fixed_matrix[n_s:], self.radial_matrix[n_s:]], format="csr"))
+            cache[apart] = (RowBlocks(self.fixed_matrix[:n_s]), RowBlocks(self.radial_matrix[:n_s]),
+                            RowBlocks(sp.hstack([self.fixed_matrix[n_s:], self.radial_matrix[n_s:]], format="csr")))
         return cache[apart]
 
     def _free(self, curves, tf_origin, tf_insertion, anchors, preserve_volume, rider_frames, apart, keep):
@@ -251,8 +319,8 @@ class SurfaceBinding:
         fixed_feat, radial_feat = self._features(centres, frames, tf_origin, tf_insertion)
         n_f, n_s = centres.shape[0], self.rest_vertices.shape[0] - apart
         fixed, radial, both = self._split(apart)
-        p = np.asarray(fixed @ fixed_feat).reshape(n_s, n_f, 3)
-        q = np.asarray(radial @ radial_feat).reshape(n_s, n_f, 3)
+        p = (fixed @ fixed_feat).reshape(n_s, n_f, 3)
+        q = (radial @ radial_feat).reshape(n_s, n_f, 3)
         target = self.rest_volume
         if preserve_volume:
             coeffs = volume_cubic_vf(p, q, self.faces)
@@ -266,7 +334,7 @@ class SurfaceBinding:
         riders = None
         if apart:
             radial_feat.reshape(-1, n_f, 3)[...] *= k[None, :, None]
-            riders = np.asarray(both @ np.vstack([fixed_feat, radial_feat])).reshape(apart, n_f, 3)
+            riders = (both @ np.vstack([fixed_feat, radial_feat])).reshape(apart, n_f, 3)
             riders.setflags(write=False)
         at = self._rider_frames(frames, rider_frames, bool(apart)) if rider_frames else None
         return SurfaceFrames(vertices, k, volume, target, at, riders)

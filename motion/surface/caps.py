@@ -107,14 +107,24 @@ def tilt_frames(frames, target, weight) -> np.ndarray:
     sin = np.linalg.norm(axis, axis=-1)
     angle = saturated_tilt(np.arctan2(sin, np.sum(a * target, axis=-1)))
     k = axis / np.maximum(sin, 1e-300)[:, None]                                   # (F, 3)
-    phi = angle[:, None] * np.asarray(weight, dtype=float)[None, :]               # (F, n)
-    c, s = np.cos(phi)[..., None, None], np.sin(phi)[..., None, None]
-    cross = np.zeros(k.shape + (3,))                                               # [k]x, (F, 3, 3)
-    cross[:, 0, 1], cross[:, 0, 2], cross[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    cross[:, 1, 0], cross[:, 2, 0], cross[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    kk = k[:, None, :, None]                                                       # (F, 1, 3, 1)
-    dot = np.matmul(k[:, None, None, :], fr)                                       # (F, n, 1, 3)
-    return c * fr + s * np.matmul(cross[:, None], fr) + (1.0 - c) * kk * dot
+    weight = np.asarray(weight, dtype=float)
+    # samples of weight 0 keep their frames (the rotation is the identity there, exactly)
+    turned = np.flatnonzero(weight != 0.0)
+    if len(turned) and turned[-1] - turned[0] == len(turned) - 1:
+        turned = slice(int(turned[0]), int(turned[-1]) + 1)
+    phi = angle[:, None] * weight[None, turned]                                   # (F, n')
+    c, s = np.cos(phi)[..., None], np.sin(phi)[..., None]                         # (F, n', 1)
+    # R v = c v + s (k x v) + (1 - c) k (k . v) for the three columns v at once, written out
+    # component by component (a stack of 3 x 3 matmuls costs more than the arithmetic)
+    k0, k1, k2 = (k[:, j, None, None] for j in range(3))                          # (F, 1, 1)
+    part = fr[:, turned]
+    v0, v1, v2 = part[..., 0, :], part[..., 1, :], part[..., 2, :]                # (F, n', 3)
+    along = (1.0 - c) * (k0 * v0 + k1 * v1 + k2 * v2)
+    out = fr.copy()
+    out[:, turned, 0, :] = c * v0 + s * (k1 * v2 - k2 * v1) + along * k0
+    out[:, turned, 1, :] = c * v1 + s * (k2 * v0 - k0 * v2) + along * k1
+    out[:, turned, 2, :] = c * v2 + s * (k0 * v1 - k1 * v0) + along * k2
+    return out
 
 
 @dataclass(frozen=True, eq=False)

@@ -171,13 +171,26 @@ def rotation_minimizing_frames(curve, r0, *, tangents=None) -> np.ndarray:
     v2 = t[:, 1:] - t_l
     c2 = np.sum(v2 * v2, axis=-1, keepdims=True)
     a2 = np.where(c2 > _TINY, 2.0 / np.where(c2 > _TINY, c2, 1.0), 0.0)
+    # the sweep below on component-major copies (3, n, F): each step works on contiguous
+    # rows of F values and writes its dot products out (the same sums in the same order)
+    w1s, w2s = np.ascontiguousarray(v1.transpose(2, 1, 0)), np.ascontiguousarray(v2.transpose(2, 1, 0))
+    ts = np.ascontiguousarray(t.transpose(2, 1, 0))
+    a1s, a2s = np.ascontiguousarray(a1[..., 0].T), np.ascontiguousarray(a2[..., 0].T)   # (n-1, F)
+    r0, r1, r2 = r[:, 0].copy(), r[:, 1].copy(), r[:, 2].copy()
+    out = np.empty((3, x.shape[1], x.shape[0]))
+    out[:, 0] = r.T
     for i in range(x.shape[1] - 1):  # loop over the curve's samples (tens), vectorised over frames
-        w1, w2, t1 = v1[:, i], v2[:, i], t[:, i + 1]
-        r_l = r - a1[:, i] * np.sum(w1 * r, axis=-1, keepdims=True) * w1
-        r = r_l - a2[:, i] * np.sum(w2 * r_l, axis=-1, keepdims=True) * w2
+        for w, a in ((w1s[:, i], a1s[i]), (w2s[:, i], a2s[i])):       # the two reflections
+            f = a * (w[0] * r0 + w[1] * r1 + w[2] * r2)
+            r0, r1, r2 = r0 - f * w[0], r1 - f * w[1], r2 - f * w[2]
         # re-orthogonalise against the tangent to stop round-off drift
-        r = _unit(r - np.sum(r * t1, axis=-1, keepdims=True) * t1)
-        normals[:, i + 1] = r
+        t0, t1, t2 = ts[0, i + 1], ts[1, i + 1], ts[2, i + 1]
+        d = r0 * t0 + r1 * t1 + r2 * t2
+        r0, r1, r2 = r0 - d * t0, r1 - d * t1, r2 - d * t2
+        norm = np.maximum(np.sqrt(r0 * r0 + r1 * r1 + r2 * r2), _TINY)
+        r0, r1, r2 = r0 / norm, r1 / norm, r2 / norm
+        out[0, i + 1], out[1, i + 1], out[2, i + 1] = r0, r1, r2
+    normals[:] = out.transpose(2, 1, 0)
     binormals = np.cross(t, normals)
     return np.stack([normals, binormals, t], axis=-1)
 
@@ -296,8 +309,11 @@ def closest_on_polyline(points: np.ndarray, curve: np.ndarray):
     step = max(1, 2_000_000 // max(1, len(a)))
     for s in range(0, points.shape[0], step):  # chunks of vertices, not single vertices
         p = points[s:s + step]
-        t = np.clip(np.einsum("vsk,sk->vs", p[:, None, :] - a[None], ab) / denom, 0.0, 1.0)
-        d2 = np.sum((a[None] + t[..., None] * ab[None] - p[:, None, :]) ** 2, axis=-1)
+        # component by component on (V, n-1) arrays: no (V, n-1, 3) temporaries
+        dx = [p[:, None, k] - a[None, :, k] for k in range(3)]
+        t = np.clip((dx[0] * ab[:, 0] + dx[1] * ab[:, 1] + dx[2] * ab[:, 2]) / denom, 0.0, 1.0)
+        e = [a[:, k] + t * ab[:, k] - p[:, None, k] for k in range(3)]
+        d2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
         j = np.argmin(d2, axis=1)
         rows = np.arange(p.shape[0])
         best_j[s:s + step] = j
