@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from motion.osim.kinematics import clipped_coordinates
+
 __all__ = ["FD_STEP", "stacked_motion", "active_set_changes", "range_limits", "clamped", "difference_quotients"]
 
 #: central-difference step per motion type (SI): see the module docstring.
@@ -54,12 +56,10 @@ def stacked_motion(model, q, source, coord_idx, step):
 
 def clamped(model, q):
     """``q`` (F, C) with clamped coordinates clipped to their range where posing clips them
-    (models with constraints, the rule of `motion.osim.kinematics.coordinate_values`)."""
+    (`motion.osim.kinematics.clipped_coordinates`, the rule posing follows)."""
     q = np.array(q, dtype=float)
-    if model.couplers or model.welds:
-        for i, c in enumerate(model.coordinates):
-            if c.clamped:
-                q[:, i] = np.clip(q[:, i], c.range[0], c.range[1])
+    for i, lo, hi in clipped_coordinates(model):
+        q[:, i] = np.clip(q[:, i], lo, hi)
     return q
 
 
@@ -71,12 +71,10 @@ def range_limits(model, q_stacked, n_f, coord_idx):
     blocks = q.reshape(1 + 2 * n_k, n_f, -1)
     plus = np.zeros((n_k, n_f), dtype=bool)
     minus = np.zeros((n_k, n_f), dtype=bool)
-    if not (model.couplers or model.welds):
-        return plus, minus
+    limits = {i: (lo, hi) for i, lo, hi in clipped_coordinates(model)}
     for k, c in enumerate(coord_idx):
-        coord = model.coordinates[c]
-        if coord.clamped:
-            lo, hi = coord.range
+        if c in limits:
+            lo, hi = limits[c]
             plus[k] = (blocks[1 + 2 * k, :, c] > hi) | (blocks[1 + 2 * k, :, c] < lo)
             minus[k] = (blocks[2 + 2 * k, :, c] > hi) | (blocks[2 + 2 * k, :, c] < lo)
     return plus, minus

@@ -121,6 +121,15 @@ def _coupler_order(model: Model) -> list:
     return out
 
 
+def clipped_coordinates(model: Model) -> list:
+    """``[(index, lo, hi)]`` of the clamped coordinates that posing clips to their range: in
+    models with constraints (couplers or welds), where OpenSim's assembly enforces the clamp;
+    elsewhere a clamped coordinate keeps the motion's value, as OpenSim's posing does."""
+    if not (model.couplers or model.welds):
+        return []
+    return [(i, c.range[0], c.range[1]) for i, c in enumerate(model.coordinates) if c.clamped]
+
+
 def coordinate_values(model: Model, q) -> tuple:
     """Assembled coordinates and their Jacobian w.r.t. each coordinate.
 
@@ -141,10 +150,8 @@ def coordinate_values(model: Model, q) -> tuple:
     for i, c in enumerate(model.coordinates):
         if c.locked:
             q[:, i] = c.default_value
-    if model.couplers or model.welds:
-        for i, c in enumerate(model.coordinates):
-            if c.clamped:
-                q[:, i] = np.clip(q[:, i], c.range[0], c.range[1])
+    for i, lo, hi in clipped_coordinates(model):
+        q[:, i] = np.clip(q[:, i], lo, hi)
     jac = np.broadcast_to(np.eye(n_coords), (n_frames, n_coords, n_coords)).copy()
     for cp in _coupler_order(model):
         d = model.coordinate_index(cp.dependent)
