@@ -90,7 +90,7 @@ def short_path_notes(model, action_lines, line_lengths) -> tuple:
             "tendon_slack_length and optimal_fiber_length",)
 
 
-def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms) -> tuple:
+def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms, *, mixed_passes=False) -> tuple:
     """Warnings (module docstring) for one muscle.
 
     Parameters
@@ -98,6 +98,9 @@ def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms) -> tuple:
     coordinates : sequence of C str
     fibre_moment_arms : (F, N, C) float
     line_moment_arms : (F, L, C) float
+    mixed_passes : bool
+        An action line's OpenSim length mixes wrapping passes (`motion.surface.wrap`'s note);
+        the hint then points there rather than at the mesh.
 
     Returns
     -------
@@ -123,6 +126,8 @@ def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms) -> tuple:
         notes.append(f"warning: the median fibre moment arm about {name} leaves the action lines' range "
                      f"[{1e3 * lo[f, c]:.1f}, {1e3 * hi[f, c]:.1f}] mm by more than max({MARGIN_RELATIVE:.0%}, "
                      f"{1e3 * MARGIN_ABSOLUTE:.0f} mm) in {int(bad.sum())} of {int(checked[:, c].sum())} frames "
-                     f"(worst: frame {f}, median {1e3 * median[f, c]:.1f} mm); check the mesh's rest pose, "
-                     "its attachments and the wrap objects")
+                     f"(worst: frame {f}, median {1e3 * median[f, c]:.1f} mm); "
+                     + ("the action line's -dL/dq follows OpenSim's length over wrap objects in series, which "
+                        "the fibres do not (see the note on the first wrapping pass)" if mixed_passes else
+                        "check the mesh's rest pose, its attachments and the wrap objects"))
     return tuple(notes)

@@ -238,7 +238,9 @@ def run_muscle(ctx, mspec):
     if getattr(rest, "rest_residual", 0.0):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)
     rest_lengths = fibre_lengths(bundle0.points)
-    warned = tuple(f"warning: {n}" for n in _merged_notes(chunk_notes)) + moment_arm_notes(names, r, al_r)
+    merged = _merged_notes(chunk_notes)
+    warned = tuple(f"warning: {n}" for n in merged) + moment_arm_notes(
+        names, r, al_r, mixed_passes=any("first wrapping pass" in n for n in merged))
     if mspec.mesh is not None:    # a generated belly warns about a short path itself (motion.surface.wrap)
         warned += short_path_notes(ctx.model, mspec.action_lines, al_len)
     for note in warned:

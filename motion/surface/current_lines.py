@@ -1,8 +1,9 @@
 """The current action lines of the muscle surfaces as polylines per frame (`motion.surface.wrap`).
 
 A path without wrap objects is its active path points in path order (ConditionalPathPoints
-dropped where inactive, NaN-padded); a wrapped path also gets the arc over every wrap object
-between its two tangent points (cylinder: the helix, i.e. the geodesic; sphere: the great
+dropped where inactive, NaN-padded); a wrapped path is the path OpenSim draws: its tangent points
+from the last wrapping pass (`motion.wrapping.batch.WrappedPath.drawn`), and the arc over every
+wrap object between its two tangent points (cylinder: the helix, i.e. the geodesic; sphere: the great
 circle in the direction the path arrives; ellipsoid: the great circle of the scaled unit sphere
 mapped back; torus: the chord). With each polyline come the anchor positions (the path points
 that are always present) and which entries are ConditionalPathPoints, which the binding uses
@@ -48,7 +49,12 @@ def _conditional(path, ids: np.ndarray) -> np.ndarray:
 
 def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) -> dict:
     """Mapping path name -> ((F, N, 3) current polyline with wrap arcs, NaN-padded;
-    (F, K) anchor positions or None; (F, N) bool, the points that are ConditionalPathPoints)."""
+    (F, K) anchor positions or None; (F, N) bool, the points that are ConditionalPathPoints;
+    (F,) how much longer the polyline is than OpenSim's length of the path, m).
+
+    The last is 0 except on paths over several wrap objects whose later wrapping passes moved
+    a tangent point: OpenSim 4.6's length keeps the first pass' positions there, while the
+    polyline is the path OpenSim draws (`motion.wrapping.batch.WrappedPath.drawn`)."""
     out = {}
     table = getattr(lines, "muscle_names", None) if lines is not None else None
     for name in names:
@@ -57,7 +63,7 @@ def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) 
             m = table.index(name)
             pts, ids = _compact(np.asarray(lines.points)[:, m, :len(path.points)],
                                 np.asarray(lines.point_mask)[:, m, :len(path.points)])
-            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids))
+            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids), np.zeros(len(pts)))
     missing = [n for n in names if n not in out]
     if missing:
         from ..osim.kinematics import body_pose_derivatives
@@ -77,9 +83,11 @@ def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) 
 
                 wrapped = wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
                 pts, ids = _path_polyline_ids(model, wrapped, tf)
+                gap = wrapped.drawn_length - wrapped.length
             else:
                 pts, ids = _compact(pp.points, np.asarray(pp.active, dtype=bool))
-            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids))
+                gap = np.zeros(len(pts))
+            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids), gap)
     return out
 
 
@@ -139,7 +147,7 @@ def path_polylines(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POI
 def _path_polyline_ids(model, wrapped, tf_ground_body, *, arc_points: int = _ARC_POINTS):
     """`path_polylines`, plus what each point of the polyline is (second return value)."""
     order = np.asarray(wrapped.order)
-    pts = np.asarray(wrapped.points)
+    pts = np.asarray(wrapped.drawn)
     nf, nk = order.shape
     valid = order >= 0
     ordered = np.take_along_axis(pts, np.where(valid, order, 0)[..., None], axis=1)

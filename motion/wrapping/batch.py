@@ -144,6 +144,12 @@ class WrappedPath:
     arc : (F, W) float
         Arc length on each wrap object (0 where it does not wrap).
     wrap_objects : (W,) str
+    drawn : (F, N, 3) float
+        Node positions of OpenSim's last wrapping pass (NaN where absent): the tangent points
+        the arcs belong to, so the path drawn through them is one continuous curve. They equal
+        ``points`` except on paths over several wrap objects whose later passes moved a tangent
+        point; there OpenSim's length and ``points`` keep the first pass' positions
+        (`motion.wrapping.wrapped_rows`) and the drawn path is longer (`drawn_length`).
     """
 
     length: np.ndarray
@@ -155,14 +161,30 @@ class WrappedPath:
     kinds: tuple
     arc: np.ndarray
     wrap_objects: tuple
+    drawn: np.ndarray
 
     def __post_init__(self):
-        for name in ("length", "d_length", "points", "mask", "order", "arc"):
+        for name in ("length", "d_length", "points", "mask", "order", "arc", "drawn"):
             arr = np.array(getattr(self, name), copy=True)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "labels", tuple(self.labels))
         object.__setattr__(self, "kinds", tuple(self.kinds))
+
+    @property
+    def drawn_length(self) -> np.ndarray:
+        """(F,) length of the drawn path: straight pieces between the ``drawn`` nodes in path
+        order, and ``arc`` between the two tangent points of one wrap object. Equals ``length``
+        except where OpenSim's length mixes passes (see ``drawn``)."""
+        n_points = len(self.kinds) - 2 * len(self.wrap_objects)
+        a, b = self.order[:, :-1], self.order[:, 1:]
+        pieces = (a >= 0) & (b >= 0)
+        pa = np.take_along_axis(self.drawn, np.where(pieces, a, 0)[..., None], axis=1)
+        pb = np.take_along_axis(self.drawn, np.where(pieces, b, 0)[..., None], axis=1)
+        over = pieces & (a >= n_points) & (b == a + 1) & ((a - n_points) % 2 == 0)
+        w = np.where(over, (a - n_points) // 2, 0)
+        piece = np.where(over, np.take_along_axis(self.arc, w, axis=1), np.linalg.norm(pb - pa, axis=-1))
+        return np.where(pieces, piece, 0.0).sum(axis=1)
 
     @property
     def ordered_points(self) -> np.ndarray:
@@ -207,15 +229,16 @@ def wrap_path(path, model, points, active, d_points, tf_ground_body, d_tf_ground
     n_coords = d_points.shape[2]
     pts, act, dpts, n_dirs, slots = group_rows([path], model, [points], [active], [d_points], tf,
                                                np.asarray(d_tf_ground_body, dtype=float), [np.arange(n_coords)])
-    length, d_length, order, mask, seen, arc = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
-                                                                  _all_kinds(model) or None)
+    length, d_length, order, mask, seen, arc, latest = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
+                                                                          _all_kinds(model) or None)
     labels = [p.name for p in path.points]
     for pw in path.wraps:
         labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
     return WrappedPath(length=length, d_length=d_length, points=np.where(mask[..., None], seen, np.nan),
                        mask=mask, order=order, labels=tuple(labels),
                        kinds=("point",) * n_points + ("wrap",) * (2 * len(path.wraps)), arc=arc,
-                       wrap_objects=tuple(pw.wrap_object for pw in path.wraps))
+                       wrap_objects=tuple(pw.wrap_object for pw in path.wraps),
+                       drawn=np.where(mask[..., None], latest, np.nan))
 
 
 def wrap_paths(paths, model, points, active, d_points, tf_ground_body, d_tf_ground_body, columns) -> list:
@@ -292,7 +315,7 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
     n_frames = tf.shape[0]
     p_max = max(len(p.points) for p in paths)
     pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
-    length_v, d_length, order, mask, node_v, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
+    length_v, d_length, order, mask, node_v, _, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
                                                                     _all_kinds(model) or None)
     n_wraps = len(slots)
     results = []

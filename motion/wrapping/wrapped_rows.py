@@ -212,8 +212,9 @@ def _wrap_one(n, w, active, frame, wstart, wend, wkind, wparam, waxis, wsign, wa
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wkind, wparam, waxis, wsign, wadjust,
-                 wmethod, wactive, out_length, out_dlength, out_order, out_seen, out_arc):
-    """applyWrapObjects on every row along every direction: length, dL, order, reported nodes."""
+                 wmethod, wactive, out_length, out_dlength, out_order, out_seen, out_node, out_arc):
+    """applyWrapObjects on every row along every direction: length, dL, order, reported nodes,
+    nodes of the last pass."""
     n_rows, n_points = active.shape
     n_wraps = wtf.shape[0]
     n_nodes = n_points + 2 * n_wraps
@@ -279,6 +280,7 @@ def _rows_kernel(points, active, d_points, n_dirs, wtf, wdtf, wstart, wend, wkin
             out_order[n, k] = order[k]
             for i in range(3):
                 out_seen[n, k, i] = seen[k, i].real
+                out_node[n, k, i] = node[k, i].real
 
 
 def wrap_compiled_rows(points, active, d_points, n_dirs, slots, all_kinds=None) -> tuple:
@@ -302,7 +304,9 @@ def wrap_compiled_rows(points, active, d_points, n_dirs, slots, all_kinds=None) 
     length (N,), d_length (N, D), order (N, P + 2 W) int (the current path as node ids, -1
     padded; nodes ``P + 2 w`` and ``P + 2 w + 1`` are wrap w's tangent points), mask
     (N, P + 2 W) bool, seen (N, P + 2 W, 3) float (node positions as OpenSim reports them),
-    arc (N, W) float (the arc over each wrap object of the final path; 0 where it does not wrap).
+    arc (N, W) float (the arc over each wrap object of the final path; 0 where it does not wrap),
+    latest (N, P + 2 W, 3) float (node positions of the last pass, the ones the arcs join;
+    they differ from ``seen`` only where a later pass moved a tangent point).
     """
     n_rows, n_points = np.shape(active)
     n_wraps = len(slots)
@@ -330,11 +334,13 @@ def wrap_compiled_rows(points, active, d_points, n_dirs, slots, all_kinds=None) 
     d_length = np.zeros((n_rows, n_d))
     order = np.empty((n_rows, n_nodes), dtype=np.int64)
     seen = np.empty((n_rows, n_nodes, 3))
+    latest = np.empty((n_rows, n_nodes, 3))
     arc = np.empty((n_rows, n_wraps))
     _rows_kernel(np.ascontiguousarray(points, dtype=float), np.ascontiguousarray(active, dtype=np.bool_),
                  np.ascontiguousarray(d_points, dtype=float), np.asarray(n_dirs, dtype=np.int64), wtf, wdtf, wstart,
-                 wend, wkind, wparam, waxis, wsign, wadjust, wmethod, wactive, length, d_length, order, seen, arc)
+                 wend, wkind, wparam, waxis, wsign, wadjust, wmethod, wactive, length, d_length, order, seen, latest,
+                 arc)
     mask = np.zeros((n_rows, n_nodes), dtype=bool)
     rows, cols = np.nonzero(order >= 0)
     mask[rows, order[rows, cols]] = True
-    return length, d_length, order, mask, seen, np.where(mask[:, n_points::2], arc, 0.0)
+    return length, d_length, order, mask, seen, np.where(mask[:, n_points::2], arc, 0.0), latest

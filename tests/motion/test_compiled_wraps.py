@@ -72,7 +72,7 @@ def test_rows_equal_numpy(opensim_dir, model_rel, motion_rel, step):
     groups = _groups(opensim_dir, model_rel, motion_rel, step)
     assert groups, "the model must have wrapped paths"
     for pts, act, dpts, n_dirs, slots in groups:
-        length, d_length, order, mask, seen, arc = wrap_compiled_rows(pts, act, dpts, n_dirs, slots)
+        length, d_length, order, mask, seen, arc, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots)
         ref_len, ref_order, ref_mask, ref_seen, ref_arcs = wrap_rows(pts, act, dpts, slots)
         ref_d = np.broadcast_to(ref_len.d, d_length.shape)
         assert np.array_equal(order, ref_order)
