@@ -106,9 +106,12 @@ def _draw(parts, names, frames, k, out_png, *, view, size, bones, surfaces) -> P
     if fib.n_points:
         for m in np.unique(fib.cell_data["muscle"]):
             piece = fib.extract_cells(np.flatnonzero(fib.cell_data["muscle"] == m))
-            plotter.add_mesh(piece, color=_MUSCLE_COLOURS[int(m) % len(_MUSCLE_COLOURS)], line_width=1.5,
-                             label=names["muscles"][int(m)])
-        plotter.add_legend(bcolor="white", face="line", size=(0.18, 0.04 * (1 + len(np.unique(fib.cell_data["muscle"])))))
+            plotter.add_mesh(piece, color=_MUSCLE_COLOURS[int(m) % len(_MUSCLE_COLOURS)], line_width=1.5)
+        # the muscles' names in their colours under the title (VTK's legend box clips long names
+        # at the window's right edge)
+        for i, m in enumerate(np.unique(fib.cell_data["muscle"])):
+            plotter.add_text(f"— {names['muscles'][int(m)]}", position=(8, size[1] - 48 - 22 * i), font_size=9,
+                             color=_MUSCLE_COLOURS[int(m) % len(_MUSCLE_COLOURS)])
     direction, up = VIEWS[view]
     plotter.view_vector(direction, viewup=up)
     plotter.reset_camera()
