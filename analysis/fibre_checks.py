@@ -99,8 +99,9 @@ def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms, *, mixed_
     fibre_moment_arms : (F, N, C) float
     line_moment_arms : (F, L, C) float
     mixed_passes : bool
-        An action line's OpenSim length mixes wrapping passes (`motion.surface.wrap`'s note);
-        the hint then points there rather than at the mesh.
+        An action line's OpenSim length mixes wrapping passes (``ActionLines.drawn_lengths``,
+        warned about when the lines are made); the hint then says so rather than point at the
+        mesh.
 
     Returns
     -------
@@ -127,7 +128,8 @@ def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms, *, mixed_
                      f"[{1e3 * lo[f, c]:.1f}, {1e3 * hi[f, c]:.1f}] mm by more than max({MARGIN_RELATIVE:.0%}, "
                      f"{1e3 * MARGIN_ABSOLUTE:.0f} mm) in {int(bad.sum())} of {int(checked[:, c].sum())} frames "
                      f"(worst: frame {f}, median {1e3 * median[f, c]:.1f} mm); "
-                     + ("the action line's -dL/dq follows OpenSim's length over wrap objects in series, which "
-                        "the fibres do not (see the note on the first wrapping pass)" if mixed_passes else
+                     + ("the action line's -dL/dq is that of OpenSim's length over wrap objects in series, which "
+                        "keeps the first wrapping pass; the fibres follow the drawn path, as OpenSim's "
+                        "computeMomentArm does" if mixed_passes else
                         "check the mesh's rest pose, its attachments and the wrap objects"))
     return tuple(notes)

@@ -49,12 +49,7 @@ def _conditional(path, ids: np.ndarray) -> np.ndarray:
 
 def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) -> dict:
     """Mapping path name -> ((F, N, 3) current polyline with wrap arcs, NaN-padded;
-    (F, K) anchor positions or None; (F, N) bool, the points that are ConditionalPathPoints;
-    (F,) how much longer the polyline is than OpenSim's length of the path, m).
-
-    The last is 0 except on paths over several wrap objects whose later wrapping passes moved
-    a tangent point: OpenSim 4.6's length keeps the first pass' positions there, while the
-    polyline is the path OpenSim draws (`motion.wrapping.batch.WrappedPath.drawn`)."""
+    (F, K) anchor positions or None; (F, N) bool, the points that are ConditionalPathPoints)."""
     out = {}
     table = getattr(lines, "muscle_names", None) if lines is not None else None
     for name in names:
@@ -63,7 +58,7 @@ def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) 
             m = table.index(name)
             pts, ids = _compact(np.asarray(lines.points)[:, m, :len(path.points)],
                                 np.asarray(lines.point_mask)[:, m, :len(path.points)])
-            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids), np.zeros(len(pts)))
+            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids))
     missing = [n for n in names if n not in out]
     if missing:
         from ..osim.kinematics import body_pose_derivatives
@@ -83,11 +78,9 @@ def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) 
 
                 wrapped = wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
                 pts, ids = _path_polyline_ids(model, wrapped, tf)
-                gap = wrapped.drawn_length - wrapped.length
             else:
                 pts, ids = _compact(pp.points, np.asarray(pp.active, dtype=bool))
-                gap = np.zeros(len(pts))
-            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids), gap)
+            out[name] = (pts, _anchor_positions(path, ids), _conditional(path, ids))
     return out
 
 

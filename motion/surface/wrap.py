@@ -57,8 +57,6 @@ from .current_lines import current_polylines, path_polylines
 
 __all__ = ["WrappedSurface", "SurfaceWrapper", "wrap_surfaces", "path_polylines"]
 
-MIXED_PASSES_NOTE = 0.001   # m: a drawn path this much longer than OpenSim's length is noted
-
 
 @dataclass(frozen=True, eq=False)
 class WrappedSurface:
@@ -211,16 +209,6 @@ def wrap_surfaces(model, motion, muscles, *, lines=None, poses=None, n_samples: 
                  for spec in muscles)   # loop over muscles
 
 
-def _mixed_passes_note(name) -> str:
-    """The note for a path whose OpenSim length is shorter than the path it draws
-    (`motion.surface.current_lines.current_polylines`); the same text in every chunk of frames."""
-    return (f"action line {name}: OpenSim 4.6's length of this path is more than "
-            f"{1e3 * MIXED_PASSES_NOTE:.0f} mm shorter than the path it draws through its wrap objects in series "
-            "(the length keeps the tangent points of the first wrapping pass): the belly, and so the fibres, "
-            "follow the drawn path, as OpenSim's computeMomentArm does, while the action line reports "
-            "OpenSim's length and its -dL/dq")
-
-
 def _check_lines(model, muscles) -> None:
     """Every action line of the muscles is a path of the model, or InputError."""
     path_names = list(model.path_names)
@@ -350,8 +338,7 @@ class SurfaceWrapper:
         model, spec, rest, tendons = self.model, self.spec, self.rest, self.tendons
         curves = [current[name][0] for name in spec.action_lines]
         anchors = [current[name][1] for name in spec.action_lines]
-        notes = [_mixed_passes_note(name) for name in spec.action_lines
-                 if np.max(current[name][3], initial=0.0) > MIXED_PASSES_NOTE]
+        notes = []
         if tendons:
             for k, (name, slack) in enumerate(zip(spec.action_lines, self.slacks)):  # loop over lines (few)
                 curves[k], short = belly_polylines(curves[k], slack, corner_radius=self.corners[k])

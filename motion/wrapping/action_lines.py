@@ -77,6 +77,14 @@ class ActionLines:
     point_order : (F, M, K) int
         The current path in path order per frame, as indices into axis K of ``points``, padded
         with -1. ``ordered_points`` applies it.
+    drawn_lengths : (F, M) float
+        Length of the path OpenSim draws (the tangent points of its last wrapping pass,
+        `motion.wrapping.batch.drawn_lengths`). Equal to ``lengths`` except on paths over
+        several wrap objects whose later passes moved a tangent point: OpenSim 4.6's length
+        keeps the first pass' positions there (`motion.wrapping.wrapped_rows`), so it and its
+        -dL/dq (``moment_arms``) differ from the drawn path and from OpenSim's
+        ``computeMomentArm``, which follows the drawn path (Rajagopal 2023's gastrocnemii: up
+        to 8.8 mm shorter, knee moment arm 5.7 against 22.6 mm). Default: ``lengths``.
     """
 
     lengths: np.ndarray
@@ -91,10 +99,13 @@ class ActionLines:
     point_mask: np.ndarray
     point_labels: tuple
     point_order: np.ndarray
+    drawn_lengths: np.ndarray | None = None
 
     def __post_init__(self):
+        if self.drawn_lengths is None:
+            object.__setattr__(self, "drawn_lengths", self.lengths)
         for key in ("lengths", "moment_arms", "spanned", "time", "q", "points", "point_mask",
-                    "point_order"):
+                    "point_order", "drawn_lengths"):
             arr = getattr(self, key)
             if not (isinstance(arr, np.ndarray) and arr.flags.owndata and not arr.flags.writeable):
                 arr = np.array(arr, copy=True)       # a read-only array owning its data is kept as is
@@ -349,9 +360,9 @@ def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -
     else:                                    # body twists directly (no (F, B, C, 4, 4) array)
         tf, twist, q_used, jac = _pose_twists(model, q)
         twist = twist[:, plan.twist_body, plan.twist_coord]
-    lengths, dldq = out[:2]
+    lengths, dldq, drawn = out[0], out[1], out[5]
     if len(plan.unwrapped):
-        _unwrapped_paths(plan, model, q_used, jac, tf, twist, out)
+        _unwrapped_paths(plan, model, q_used, jac, tf, twist, out[:5])
     per_path = []
     if len(plan.wrapped):
         paths = [chosen[m] for m in plan.wrapped]
@@ -360,8 +371,9 @@ def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -
         cols = [np.flatnonzero(plan.spanned[m]) for m in plan.wrapped]
         results = _wrap_module().wrap_paths(paths, model, [pp.points for pp in pps], [pp.active for pp in pps],
                                             [pp.d_points for pp in pps], tf, dtf, cols)
-        for m, c, (length, d_length, pts, msk, labels, ordr) in zip(plan.wrapped, cols, results):
+        for m, c, (length, d_length, pts, msk, labels, ordr, drawn_m) in zip(plan.wrapped, cols, results):
             lengths[:, m] = length
+            drawn[:, m] = drawn_m
             dldq[:, m, c] = d_length
             per_path.append((pts, msk, labels, ordr))
     return q_used, per_path
@@ -405,8 +417,9 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
     order = np.full((n_frames, len(chosen), k_max), -1, dtype=np.int64)
     # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
+    drawn = np.zeros((n_frames, len(chosen)))
     blocks = [_block(model, chosen, plan, q[i:i + FRAME_BLOCK],
-                     tuple(a[i:i + FRAME_BLOCK] for a in (lengths, dldq, points, mask, order)))
+                     tuple(a[i:i + FRAME_BLOCK] for a in (lengths, dldq, points, mask, order, drawn)))
               for i in range(0, max(n_frames, 1), FRAME_BLOCK)]
     q_used = blocks[0][0] if len(blocks) == 1 else np.concatenate([b[0] for b in blocks])
     per_path = [(np.concatenate([b[1][w][0] for b in blocks]), np.concatenate([b[1][w][1] for b in blocks]),
@@ -414,6 +427,10 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
                 for w in range(len(plan.wrapped))]
     moment_arms = np.negative(dldq, out=dldq)
     moment_arms[:, ~spanned] = 0.0                 # exactly 0.0 where not spanned
+    unwrapped = np.setdiff1d(np.arange(len(chosen)), np.asarray(plan.wrapped, dtype=int))
+    drawn[:, unwrapped] = lengths[:, unwrapped]
+    _warn_mixed_passes(model, [chosen[m].name for m in plan.wrapped], lengths[:, plan.wrapped],
+                       drawn[:, plan.wrapped])
     labels = [tuple(p.name for p in path.points) for path in chosen]
     for m, (pts, msk, lab, ordr) in zip(plan.wrapped, per_path):
         k = pts.shape[1]
@@ -425,8 +442,31 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     dep = model.dependent_coordinates
     status = tuple("dependent" if dep[i] else ("locked" if c.locked else "independent")
                    for i, c in enumerate(model.coordinates))
-    for arr in (lengths, moment_arms, q_used, points, mask, order):
+    for arr in (lengths, moment_arms, q_used, points, mask, order, drawn):
         if arr.flags.owndata:
             arr.setflags(write=False)            # ours alone: ActionLines keeps it without a copy
     return ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
-                       status, time, q_used, points, mask, labels, order)
+                       status, time, q_used, points, mask, labels, order, drawn)
+
+
+MIXED_PASSES = 0.001   # m: a drawn path this much longer than OpenSim's length is warned about
+
+
+def _warn_mixed_passes(model: Model, names: list, lengths: np.ndarray, drawn: np.ndarray) -> None:
+    """One warning naming the paths whose OpenSim length is more than `MIXED_PASSES` shorter
+    than the path OpenSim draws (``ActionLines.drawn_lengths``)."""
+    gap = drawn - lengths
+    bad = [(n, gap[:, k]) for k, n in enumerate(names) if np.max(gap[:, k], initial=0.0) > MIXED_PASSES]
+    if not bad:
+        return
+    import warnings
+
+    from ..osim.reader import ModelFileWarning
+
+    listed = ", ".join(f"{n} (up to {1e3 * g.max():.1f} mm, {int((g > MIXED_PASSES).sum())} of {len(g)} frames)"
+                       for n, g in bad)
+    warnings.warn(f"{model.file}: OpenSim 4.6's length of path(s) over wrap objects in series is shorter than "
+                  f"the path it draws: {listed}; its length keeps the tangent points of the first wrapping "
+                  "pass. The action lines reproduce OpenSim's length and its -dL/dq; OpenSim's computeMomentArm "
+                  "and the moving surfaces follow the drawn path (ActionLines.drawn_lengths)",
+                  ModelFileWarning, stacklevel=3)

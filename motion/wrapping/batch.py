@@ -27,7 +27,8 @@ import numpy as np
 from .cylinder_line import ELLIPSOID_METHODS, quadrant_axis_sign
 from .wrapped_rows import CYLINDER, ELLIPSOID, SPHERE, TORUS, wrap_compiled_rows
 
-__all__ = ["wrap_paths", "wrap_path", "WrappedPath", "group_rows", "WrapSlot", "wrap_range", "wrap_spec"]
+__all__ = ["wrap_paths", "wrap_path", "WrappedPath", "group_rows", "WrapSlot", "wrap_range", "wrap_spec",
+           "drawn_lengths"]
 
 _KINDS = {"cylinder": CYLINDER, "sphere": SPHERE, "ellipsoid": ELLIPSOID, "torus": TORUS}
 
@@ -57,6 +58,22 @@ class WrapSlot:
     dtf: np.ndarray
     start: np.ndarray
     end: np.ndarray
+
+
+def drawn_lengths(drawn, order, arc, n_points: int) -> np.ndarray:
+    """(F,) length of a drawn path: straight pieces between the nodes ``drawn`` (F, N, 3) in the
+    path order ``order`` (F, N), and ``arc`` (F, W) between the two tangent points of one wrap
+    object (nodes ``n_points + 2 w``, ``+ 1``): OpenSim's calcLengthAfterPathComputation on
+    the positions of the last wrapping pass."""
+    order = np.asarray(order)
+    a, b = order[:, :-1], order[:, 1:]
+    pieces = (a >= 0) & (b >= 0)
+    pa = np.take_along_axis(drawn, np.where(pieces, a, 0)[..., None], axis=1)
+    pb = np.take_along_axis(drawn, np.where(pieces, b, 0)[..., None], axis=1)
+    over = pieces & (a >= n_points) & (b == a + 1) & ((a - n_points) % 2 == 0)
+    w = np.where(over, (a - n_points) // 2, 0)
+    piece = np.where(over, np.take_along_axis(arc, w, axis=1), np.linalg.norm(pb - pa, axis=-1))
+    return np.where(pieces, piece, 0.0).sum(axis=1)
 
 
 def wrap_range(path_wrap, n_points: int) -> tuple:
@@ -173,18 +190,9 @@ class WrappedPath:
 
     @property
     def drawn_length(self) -> np.ndarray:
-        """(F,) length of the drawn path: straight pieces between the ``drawn`` nodes in path
-        order, and ``arc`` between the two tangent points of one wrap object. Equals ``length``
-        except where OpenSim's length mixes passes (see ``drawn``)."""
-        n_points = len(self.kinds) - 2 * len(self.wrap_objects)
-        a, b = self.order[:, :-1], self.order[:, 1:]
-        pieces = (a >= 0) & (b >= 0)
-        pa = np.take_along_axis(self.drawn, np.where(pieces, a, 0)[..., None], axis=1)
-        pb = np.take_along_axis(self.drawn, np.where(pieces, b, 0)[..., None], axis=1)
-        over = pieces & (a >= n_points) & (b == a + 1) & ((a - n_points) % 2 == 0)
-        w = np.where(over, (a - n_points) // 2, 0)
-        piece = np.where(over, np.take_along_axis(self.arc, w, axis=1), np.linalg.norm(pb - pa, axis=-1))
-        return np.where(pieces, piece, 0.0).sum(axis=1)
+        """(F,) length of the drawn path (`drawn_lengths`); equals ``length`` except where
+        OpenSim's length mixes passes (see ``drawn``)."""
+        return drawn_lengths(self.drawn, self.order, self.arc, len(self.kinds) - 2 * len(self.wrap_objects))
 
     @property
     def ordered_points(self) -> np.ndarray:
@@ -259,7 +267,8 @@ def wrap_paths(paths, model, points, active, d_points, tf_ground_body, d_tf_grou
     Returns
     -------
     list of (length (F,), d_length (F, C_m), points (F, K_m, 3), mask (F, K_m), labels (K_m,),
-    order (F, K_m)) per path, with ``K_m = P_m + 2 W_m`` nodes numbered as `WrappedPath`'s.
+    order (F, K_m), drawn length (F,), `drawn_lengths`) per path, with ``K_m = P_m + 2 W_m``
+    nodes numbered as `WrappedPath`'s.
     """
     groups = {}
     for m, path in enumerate(paths):
@@ -315,8 +324,8 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
     n_frames = tf.shape[0]
     p_max = max(len(p.points) for p in paths)
     pts, act, dpts, n_dirs, slots = group_rows(paths, model, points, active, d_points, tf, dtf, columns)
-    length_v, d_length, order, mask, node_v, _, _ = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
-                                                                    _all_kinds(model) or None)
+    length_v, d_length, order, mask, node_v, arc, latest = wrap_compiled_rows(pts, act, dpts, n_dirs, slots,
+                                                                              _all_kinds(model) or None)
     n_wraps = len(slots)
     results = []
     for g, (path, cols) in enumerate(zip(paths, columns)):
@@ -331,5 +340,6 @@ def _wrap_group(paths, model, points, active, d_points, tf, dtf, columns) -> lis
             labels += [f"{pw.wrap_object}:1", f"{pw.wrap_object}:2"]
         ordr = new_id[order[rows]][:, :len(keep)]
         results.append((length_v[rows], d_length[rows, :len(cols)],
-                        np.where(msk[..., None], node_v[rows][:, keep], np.nan), msk, tuple(labels), ordr))
+                        np.where(msk[..., None], node_v[rows][:, keep], np.nan), msk, tuple(labels), ordr,
+                        drawn_lengths(latest[rows][:, keep], ordr, arc[rows], n_p)))
     return results
