@@ -12,8 +12,9 @@ Files (`write_scene`; ``<frame>`` the 0-based frame index of the run, zero-padde
   (``bones = [...]`` of its muscles, placed by the muscle's rest pose). Only the bodies the run's
   muscles attach to or wrap over are drawn.
 - ``scene/surfaces_<frame>.vtp``: the wrapped muscle surfaces; cell data ``muscle``.
-- ``scene/lines_<frame>.vtp``: the action lines in path order (wrap tangent points included), one
-  polyline each; cell data ``muscle``, ``action_line`` (index into ``action_lines``).
+- ``scene/lines_<frame>.vtp``: the action lines as OpenSim draws them, in path order, with the
+  arcs over their wrap objects (`motion.surface.current_lines.current_polylines`), one polyline
+  each; cell data ``muscle``, ``action_line`` (index into ``action_lines``).
 - ``scene/fibres_<frame>.vtp``: every fibre; cell data ``muscle``, ``fibre`` (its id in the
   muscle), ``length`` (m).
 - ``scene/names.json``: ``muscles``, ``bodies``, ``action_lines`` (the names of the ids above),
@@ -179,6 +180,7 @@ def write_scene(folder, result, spec, *, step=None, progress=None) -> Path:
     (``keep_surfaces``), at every frame or at the scene's frames only (`scene_frames`, as
     ``fibres run`` keeps them); a muscle without them contributes nothing to that part."""
     import motion as motion_pkg
+    from motion.surface.current_lines import current_polylines
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -203,6 +205,8 @@ def write_scene(folder, result, spec, *, step=None, progress=None) -> Path:
         bodies.update((mspec.origin.body, mspec.insertion.body))
     bones = bone_meshes(model, spec, bodies)
     tf = motion_pkg.body_poses(model, q).tf_ground_body                         # (F', B, 4, 4)
+    # the paths as OpenSim draws them, with their arcs over the wrap objects
+    drawn = current_polylines(model, q, line_names, lines, tf)
     files_per_frame = []
     iterator = progress(range(len(frames)), desc="3D scene", unit="frame") if progress else range(len(frames))
     for i in iterator:
@@ -216,9 +220,8 @@ def write_scene(folder, result, spec, *, step=None, progress=None) -> Path:
         _write_polydata(folder / names[1], pts, polys=(conn, offs), cell_data={"muscle": ids})
         curves, cm, cl = [], [], []
         for j, n in enumerate(line_names):
-            order = lines.point_order[i, j]
-            order = order[order >= 0]
-            curves.append(lines.points[i, j, order])
+            curve = drawn[n][0][i]
+            curves.append(curve[np.isfinite(curve).all(axis=1)])
             cm.append(line_muscle[n])
             cl.append(j)
         pts, conn, offs = _polylines(curves)

@@ -32,7 +32,7 @@ def test_scene_is_one_collection_with_four_parts_per_frame(scene_run):
     np.testing.assert_allclose(reader.time_values, result.time)
     names = json.loads((out / "scene" / "names.json").read_text())
     assert names["parts"] == ["bones", "surfaces", "lines", "fibres"] and names["frames"] == [0, 1, 2]
-    blocks = []
+    blocks, tri_points = [], []
     for k, t in enumerate(result.time):
         reader.set_active_time_value(t)
         block = reader.read()
@@ -54,7 +54,15 @@ def test_scene_is_one_collection_with_four_parts_per_frame(scene_run):
         seg = np.linalg.norm(np.diff(np.asarray(cell.points), axis=0), axis=1).sum()
         # float32 points (|x| < 1 m: each coordinate within 6e-8 m), a few segments
         assert seg == pytest.approx(result.muscle("brachialis").action_line_lengths[k, 0], abs=1e-6)
+        # TRIlong wraps over elbow_wrap: drawn with its arc, the polyline is the path (24 chords of
+        # the arc on a cylinder of radius 1.8 cm, over at most ~90 deg: < 0.02 mm shorter)
+        j = names["action_lines"].index("TRIlong")
+        pts = np.asarray(lines.extract_cells([j]).points)
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()
+        assert seg == pytest.approx(result.muscle("triceps").action_line_lengths[k, 0], abs=2e-5)
+        tri_points.append(len(pts))
         assert bones.n_points > 0
+    assert tri_points[0] == 2 and max(tri_points) > 20    # straight at 0 deg, wrapped when flexed
     # bones move rigidly: the forearm's vertices keep their distances, the humerus does not move
     body = names["bodies"].index("forearm")
     b0, b2 = blocks[0][0], blocks[2][0]
