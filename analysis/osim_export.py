@@ -18,7 +18,10 @@ muscle by ``<muscle>_fibreNNN`` muscles, one per fibre:
 The XML is edited as a tree (defusedxml to read, ElementTree to write). A model older than 4.0
 (``Version`` < 40000) is first upgraded by OpenSim itself (``opensim.Model(file).printToXML``),
 so that option needs the ``opensim`` package (the ``[opensim]`` extra). Mesh files the original
-names are re-pointed (relative paths) so that they resolve from the exported model's folder.
+names are re-pointed (relative paths) so that they resolve from the exported model's folder. The
+ForceSet's ObjectGroups (e.g. Rajagopal's ``hip_flex_r``) name the fibre muscles in place of the
+action lines they replace (beside them with ``keep_original``); any other element that still
+names a replaced muscle (controllers, probes ...) is named in one warning.
 """
 from __future__ import annotations
 
@@ -222,7 +225,7 @@ def write_fibre_model(model_file, out_path, muscles, *, keep_original=False, mus
                          "the fibre model names.")
     forces = {f.get("name"): f for f in objects}
     cpaths = _coordinate_paths(model_el)
-    removed = []
+    removed, successors = [], {}
     for mus in muscles:
         missing = [n for n in mus["action_lines"] if n not in forces]
         if missing:
@@ -241,10 +244,13 @@ def write_fibre_model(model_file, out_path, muscles, *, keep_original=False, mus
                                 _polynomial_path(paths, mus["coefficients"][k], mus["orders"][k], mus.get("gates", ())),
                                 mus["params"], k)
             objects.insert(index + 1 + k, el)
+        for n in mus["action_lines"]:
+            successors.setdefault(n, []).extend(names)
         if not keep_original:
             for n in mus["action_lines"]:
                 objects.remove(forces[n])
                 removed.append(n)
+    _update_groups(model_el, successors, keep_original)
     _warn_dangling(model_el, removed)
     if model_el.get("name"):
         model_el.set("name", model_el.get("name") + "_fibres")
@@ -253,6 +259,23 @@ def write_fibre_model(model_file, out_path, muscles, *, keep_original=False, mus
     text = '<?xml version="1.0" encoding="UTF-8" ?>\n' + ET.tostring(root, encoding="unicode") + "\n"
     write_text(text, out_path)
     return out_path
+
+
+def _update_groups(model_el, successors: dict, keep_original: bool) -> None:
+    """The ForceSet's ObjectGroups name the fibre muscles where they named an action line they
+    replace (``successors``: action line -> fibre muscle names), in its place, or after it with
+    ``keep_original``: a group such as Rajagopal's ``hip_flex_r`` keeps meaning what it meant."""
+    for members in model_el.findall("ForceSet/groups/ObjectGroup/members"):
+        words = (members.text or "").split()
+        if not any(w in successors for w in words):
+            continue
+        out = []
+        for w in words:
+            if w in successors:
+                out.extend(([w] if keep_original else []) + [n for n in successors[w] if n not in out])
+            else:
+                out.append(w)
+        members.text = " " + " ".join(out)
 
 
 def _warn_dangling(model_el, removed):

@@ -283,3 +283,31 @@ def test_dangling_mentions_name_their_owner_and_count():
     text = str(w.message)
     assert "ObjectGroup 'g0' <members> (vaslat_r)" in text and "ObjectGroup 'g4'" in text
     assert "g5" not in text and "and 2 more" in text
+
+
+def test_force_groups_name_the_fibre_muscles(arm_export, tmp_path):
+    """A ForceSet ObjectGroup (Rajagopal's hip_flex_r, ...) that named a replaced action line names
+    the muscle's fibre muscles in its place (beside it with keep_original), read back by OpenSim."""
+    import dataclasses
+
+    spec, result, _, _ = arm_export
+    src = (ROOT / "models" / "arm_example.osim").read_text()
+    tail = src.rindex("<groups />", 0, src.index("</ForceSet>"))
+    grouped = tmp_path / "models" / "arm_grouped.osim"
+    grouped.parent.mkdir()
+    grouped.write_text(src[:tail] + '<groups><ObjectGroup name="elbow_flexors"><members> BIClong BRA BICshort'
+                       '</members></ObjectGroup></groups>' + src[tail + len("<groups />"):])
+    for name in ("meshes", "elbow_flexion.mot"):       # the model's relative files
+        target = ROOT / "models" / name
+        if target.exists():
+            (tmp_path / "models" / name).symlink_to(target)
+    spec = dataclasses.replace(spec, model_path=grouped)
+    fibres = fibre_muscle_names("brachialis", 12)
+    for keep, want in ((False, ["BIClong"] + fibres + ["BICshort"]),
+                       (True, ["BIClong", "BRA"] + fibres + ["BICshort"])):
+        out = tmp_path / f"grouped_{keep}.osim"
+        export_osim(spec, result, out, muscles=["brachialis"], keep_original=keep)
+        model = osim.Model(str(out))
+        model.initSystem()
+        group = model.getForceSet().getGroup("elbow_flexors")
+        assert [group.getMembers().get(i).getName() for i in range(group.getMembers().getSize())] == want
