@@ -167,6 +167,8 @@ def main(argv=None) -> int:
     parser.add_argument("--first-call", action="store_true", help="also time a fresh process per model")
     parser.add_argument("--child", help=argparse.SUPPRESS)   # internal: first call of one model, JSON out
     args = parser.parse_args(argv)
+    # the wrapped models' notes (e.g. Rajagopal's paths over wraps in series) are not timings
+    warnings.filterwarnings("ignore", message=".*wrap objects in series")
     sys.path.insert(0, str(ROOT))
     if args.child:
         print(json.dumps(first_call(args.child)))
