@@ -129,7 +129,7 @@ def moment_arm_notes(coordinates, fibre_moment_arms, line_moment_arms, *, mixed_
                      f"{1e3 * MARGIN_ABSOLUTE:.0f} mm) in {int(bad.sum())} of {int(checked[:, c].sum())} frames "
                      f"(worst: frame {f}, median {1e3 * median[f, c]:.1f} mm); "
                      + ("the action line's -dL/dq is that of OpenSim's length over wrap objects in series, which "
-                        "keeps the first wrapping pass; the fibres follow the drawn path, as OpenSim's "
-                        "computeMomentArm does" if mixed_passes else
+                        "keeps the first wrapping pass; the fibres follow the drawn path (compare OpenSim's "
+                        "computeMomentArm)" if mixed_passes else
                         "check the mesh's rest pose, its attachments and the wrap objects"))
     return tuple(notes)

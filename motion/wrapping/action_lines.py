@@ -83,8 +83,9 @@ class ActionLines:
         several wrap objects whose later passes moved a tangent point: OpenSim 4.6's length
         keeps the first pass' positions there (`motion.wrapping.wrapped_rows`), so it and its
         -dL/dq (``moment_arms``) differ from the drawn path and from OpenSim's
-        ``computeMomentArm``, which follows the drawn path (Rajagopal 2023's gastrocnemii: up
-        to 8.8 mm shorter, knee moment arm 5.7 against 22.6 mm). Default: ``lengths``.
+        ``computeMomentArm`` (Rajagopal 2023's gastrocnemii: up to 8.8 mm shorter, knee moment
+        arm 5.7 against 22.6 mm at row 80; fibres on the drawn path give 21.5). Default:
+        ``lengths``.
     """
 
     lengths: np.ndarray
@@ -467,6 +468,6 @@ def _warn_mixed_passes(model: Model, names: list, lengths: np.ndarray, drawn: np
                        for n, g in bad)
     warnings.warn(f"{model.file}: OpenSim 4.6's length of path(s) over wrap objects in series is shorter than "
                   f"the path it draws: {listed}; its length keeps the tangent points of the first wrapping "
-                  "pass. The action lines reproduce OpenSim's length and its -dL/dq; OpenSim's computeMomentArm "
-                  "and the moving surfaces follow the drawn path (ActionLines.drawn_lengths)",
+                  "pass. The action lines reproduce OpenSim's length and its -dL/dq, which can differ there from "
+                  "OpenSim's computeMomentArm; the moving surfaces follow the drawn path (ActionLines.drawn_lengths)",
                   ModelFileWarning, stacklevel=3)

@@ -14,9 +14,9 @@ agree. They differ in three places:
 2. Wrapped paths: OpenSim's MomentArmSolver treats the wrap tangent points as fixed in the
    wrap object's body for the instant (0.05-4 mm off -dL/dq on Arm26). That is an
    approximation of -dL/dq, not another convention; it is not imitated here. Over wrap objects
-   in series OpenSim's length keeps the first wrapping pass' tangent points while
-   computeMomentArm follows the drawn path (``ActionLines.drawn_lengths``): there the two differ
-   by more (Rajagopal 2023's gastrocnemii at the knee: 5.7 against 22.6 mm).
+   in series OpenSim's length keeps the first wrapping pass' tangent points
+   (``ActionLines.drawn_lengths``), and there the two differ by more (Rajagopal 2023's
+   gastrocnemii at the knee: -dL/dq 5.7 against computeMomentArm 22.6 mm).
 3. Dependent coordinates of couplers: OpenSim's value is the projection of the unit-tension
    force onto a constrained mobility and is not a derivative of the length (the references
    show 1e4 or NaN); not imitated.

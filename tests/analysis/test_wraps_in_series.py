@@ -5,7 +5,7 @@ OpenSim repeats its wrapping passes until the length changes by less than 0.5 mm
 reads each tangent point's position as first cached in the state (the first pass), while later
 passes move the points and the arcs: the length is up to 8.8 mm shorter than the path OpenSim
 draws, and its -dL/dq (the action lines' contract, `motion.wrapping.wrapped_rows`) differs from
-OpenSim's own `computeMomentArm` (a unit tension along the drawn path) by about 11 mm at the knee.
+OpenSim's own `computeMomentArm` (a unit tension along the current path) by about 11 mm at the knee.
 The belly follows the drawn path (`motion.wrapping.batch.WrappedPath.drawn`), so its fibres'
 knee moment arms are computeMomentArm's; the action lines keep OpenSim's length, carry the drawn
 one (``ActionLines.drawn_lengths``) and warn, and the run says why fibres leave the line.
