@@ -52,7 +52,6 @@ def _size(text):
 def render_scene(scene_dir, out_png, *, frame=None, view="iso", size=(1200, 900), bones=True,
                  surfaces=True) -> Path:
     """Draw one frame of a scene folder (`analysis.scene`) to a PNG, off screen; returns its path."""
-    import numpy as np
     import pyvista as pv
 
     scene_dir = Path(scene_dir)

@@ -32,8 +32,6 @@ import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import numpy as np
-
 from .errors import InputError
 
 __all__ = ["export_osim", "write_fibre_model", "fibre_muscle_names", "MUSCLE_COMMON_PROPERTIES"]

@@ -64,19 +64,19 @@ def current_polylines(model, motion, names, lines, tf_ground_body, q_used=None) 
         from ..osim.kinematics import body_pose_derivatives
         from ..wrapping.path_points import path_points
 
-        # the pose derivatives only where a wrap object needs them (the tangent points' solve)
-        need_d = any(model.path(n).wraps for n in missing)
-        if need_d or q_used is None:
-            tf, dtf, q_used, jac = body_pose_derivatives(model, motion, derivatives=need_d)
+        # positions only: the polylines need no derivatives (the wrap kernel then runs each row
+        # once instead of once per coordinate)
+        if q_used is None:
+            tf, _, q_used, _ = body_pose_derivatives(model, motion, derivatives=False)
         else:       # the poses and assembled coordinates the caller has
-            tf, dtf, jac = np.asarray(tf_ground_body, dtype=float), None, None
+            tf = np.asarray(tf_ground_body, dtype=float)
         for name in missing:  # loop over paths (few)
             path = model.path(name)
-            pp = path_points(path, model, q_used, tf, jac=jac if need_d else None, d_tf_ground_body=dtf)
+            pp = path_points(path, model, q_used, tf)
             if path.wraps:
                 from ..wrapping.batch import wrap_path
 
-                wrapped = wrap_path(path, model, pp.points, pp.active, pp.d_points, tf, dtf)
+                wrapped = wrap_path(path, model, pp.points, pp.active, None, tf, None)
                 pts, ids = _path_polyline_ids(model, wrapped, tf)
             else:
                 pts, ids = _compact(pp.points, np.asarray(pp.active, dtype=bool))

@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .collision import BoneDistance, BoneObstacle, wrap_obstacle
+from .bone_obstacles import BoneDistance, BoneObstacle
+from .collision import wrap_obstacle
 from .thickness import INSET_MAX_FRACTION, local_half_thickness
 
 __all__ = ["muscle_obstacles", "line_samples", "WRAP_SAMPLE_ANGLE", "TANGENT_SMOOTHING"]

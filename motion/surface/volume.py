@@ -15,8 +15,10 @@ of ``P`` and ``Q``, so the corrected surface stays a smooth function of the body
 
 The cubic's sums run in one compiled loop (`_cubic_loop`: numba, module level, cached on
 disk, so compiled once per environment), triangle by triangle over all frames at once, reading
-the vertex-major layout of the binding in order; ``mesh_volume`` stays numpy. Why compiled:
-docs/decisions.md ("A whole model over a whole trial").
+the vertex-major layout of the binding in order; ``mesh_volume``'s sum in another
+(`_volume_loop`, frame by frame: the binding calls it for every step of its volume solve). Why
+compiled: docs/decisions.md ("A whole model over a whole trial", "Wrapped muscles' push-out and
+volume, compiled").
 """
 from __future__ import annotations
 
@@ -24,9 +26,6 @@ import numpy as np
 from numba import njit
 
 __all__ = ["mesh_volume", "volume_cubic", "volume_cubic_vf", "combine_vf", "solve_radial_scale"]
-
-_CHUNK = 8  # frames per numpy chunk of `mesh_volume`: a few (8, T, 3) temporaries
-
 
 def _as_frames(vertices) -> tuple[np.ndarray, bool]:
     v = np.ascontiguousarray(vertices, dtype=float)
@@ -62,10 +61,9 @@ def mesh_volume(vertices, faces) -> np.ndarray | float:
     """
     v, single = _as_frames(vertices)
     f = _check_faces(faces, v.shape[1])
-    out = np.concatenate([
-        np.einsum("ftk,ftk->f", v[s:s + _CHUNK, f[:, 0]],
-                  np.cross(v[s:s + _CHUNK, f[:, 1]], v[s:s + _CHUNK, f[:, 2]])) / 6.0
-        for s in range(0, v.shape[0], _CHUNK)])
+    out = np.zeros(v.shape[0])
+    _volume_loop(v, f, out)
+    out /= 6.0
     return float(out[0]) if single else out
 
 
@@ -108,6 +106,20 @@ def volume_cubic_vf(p_vf, q_vf, faces) -> np.ndarray:
     out = np.zeros((p_vf.shape[1], 4))
     _cubic_loop(p_vf, q_vf, f, out)
     return out / 6.0
+
+
+@njit(cache=True, nogil=True)
+def _volume_loop(v, faces, out):  # pragma: no cover
+    """``out[f] += v0 . (v1 x v2)`` over the triangles (6 x the volume of frame f)."""
+    for f in range(v.shape[0]):
+        acc = 0.0
+        for t in range(faces.shape[0]):
+            i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+            x1, y1, z1 = v[f, i1, 0], v[f, i1, 1], v[f, i1, 2]
+            x2, y2, z2 = v[f, i2, 0], v[f, i2, 1], v[f, i2, 2]
+            acc += (v[f, i0, 0] * (y1 * z2 - z1 * y2) + v[f, i0, 1] * (z1 * x2 - x1 * z2)
+                    + v[f, i0, 2] * (x1 * y2 - y1 * x2))
+        out[f] += acc
 
 
 @njit(cache=True, nogil=True)

@@ -352,7 +352,7 @@ def test_bone_obstacle_leading_is_the_first_vertices():
     """`BoneObstacle.leading(n)` pushes the first n vertices exactly as the whole obstacle does."""
     import trimesh
 
-    from motion.surface.collision import BoneDistance, BoneObstacle
+    from motion.surface.bone_obstacles import BoneDistance, BoneObstacle
 
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.02)
     dist = BoneDistance.from_mesh(ball.vertices, ball.faces, spacing=2e-3)
