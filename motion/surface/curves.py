@@ -19,9 +19,10 @@ __all__ = ["resample_polylines", "arc_fractions", "curve_tangents", "rotation_mi
 _TINY = 1e-15
 
 
-def _fill_nan_forward(points: np.ndarray) -> np.ndarray:
-    """Replace NaN rows (padding after the last valid point) by the last valid point."""
-    bad = ~np.isfinite(points).all(axis=-1)  # (F, P)
+def _fill_nan_forward(points: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+    """Replace NaN rows (padding after the last valid point) by the last valid point; ``valid``
+    (F, P): the rows' finiteness, if known."""
+    bad = ~(np.isfinite(points).all(axis=-1) if valid is None else valid)  # (F, P)
     if not bad.any():
         return points
     if bad[:, 0].any():
@@ -226,6 +227,12 @@ def point_at_arc_length(points, arc) -> np.ndarray:
     pts = _fill_nan_forward(np.asarray(points, dtype=float))
     seg = np.linalg.norm(np.diff(pts, axis=1), axis=-1)
     cum = np.concatenate([np.zeros((pts.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+    return _at_arc(pts, seg, cum, arc)
+
+
+def _at_arc(pts, seg, cum, arc) -> np.ndarray:
+    """`point_at_arc_length` on NaN-free polylines ``pts`` with their pieces' lengths ``seg``
+    (F, P - 1) and cumulative lengths ``cum`` (F, P)."""
     target = np.clip(np.asarray(arc, dtype=float), 0.0, cum[:, -1])
     j = np.sum(cum[:, 1:-1] <= target[:, None], axis=-1)                      # (F,) in [0, P-2]
     s0 = np.take_along_axis(cum, j[:, None], axis=1)[:, 0]
@@ -255,14 +262,14 @@ def trim_polylines(points, start, stop) -> np.ndarray:
     start = np.asarray(start, dtype=float)
     stop = np.asarray(stop, dtype=float)
     valid = np.isfinite(pts).all(axis=-1)
-    filled = _fill_nan_forward(pts)
+    filled = _fill_nan_forward(pts, valid)
     seg = np.linalg.norm(np.diff(filled, axis=1), axis=-1)
     cum = np.concatenate([np.zeros((pts.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
     inner = valid & (cum > start[:, None]) & (cum < stop[:, None])
-    both = np.concatenate([point_at_arc_length(filled, start)[:, None],
+    both = np.concatenate([_at_arc(filled, seg, cum, start)[:, None],
                            np.where(inner[..., None], filled, np.nan),
-                           point_at_arc_length(filled, stop)[:, None]], axis=1)
-    keep = np.isfinite(both).all(axis=-1)
+                           _at_arc(filled, seg, cum, stop)[:, None]], axis=1)
+    keep = np.concatenate([np.ones((pts.shape[0], 1), bool), inner, np.ones((pts.shape[0], 1), bool)], axis=1)
     perm = np.argsort(~keep, axis=1, kind="stable")
     return np.take_along_axis(both, perm[..., None], axis=1)
 
