@@ -233,7 +233,8 @@ def run_muscle(ctx, mspec):
 
         notes += (f"fibre quality below the usual limits: {'; '.join(problems)}",)
         warnings.warn(f"{mspec.name}: fibre quality below the usual limits: {'; '.join(problems)}"
-                      f" (see fibre_quality.csv; try --slicing or another template)",
+                      " (see fibre_quality.csv; try --slicing or another template, and check that the origin"
+                      " and insertion lie at the ends of the muscle's mesh)",
                       FibreQualityWarning, stacklevel=2)
     if getattr(rest, "rest_residual", 0.0):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)
