@@ -239,11 +239,8 @@ def run_muscle(ctx, mspec):
     if getattr(rest, "rest_residual", 0.0):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)
     rest_lengths = fibre_lengths(bundle0.points)
-    from motion.wrapping.action_lines import MIXED_PASSES
-
-    mixed = np.asarray(lines.drawn_lengths)[:, line_rows] - al_len > MIXED_PASSES
     warned = tuple(f"warning: {n}" for n in _merged_notes(chunk_notes)) + moment_arm_notes(
-        names, r, al_r, mixed_passes=bool(mixed.any()))
+        names, r, al_r, mixed_passes=bool(lines.mixes_passes()[line_rows].any()))
     if mspec.mesh is not None:    # a generated belly warns about a short path itself (motion.surface.wrap)
         warned += short_path_notes(ctx.model, mspec.action_lines, al_len)
     for note in warned:

@@ -22,7 +22,8 @@ import numpy as np
 
 from fibres.mesh.closest_point import closest_points_on_triangles
 
-from .collision import smoothstep5, soft_floor, to_obstacle_frame
+from .binding import smoothstep
+from .collision import soft_floor, to_obstacle_frame
 
 __all__ = ["BoneDistance", "BoneObstacle", "CLEARANCE", "SIDE_WEIGHT"]
 
@@ -200,7 +201,7 @@ class BoneObstacle:
         # vertices that start inside the bone (segmentation overlap) are not pushed: their rest
         # position is already inconsistent with the bone, and pushing them from deep inside a
         # thin part of the bone is ill-conditioned; the strength fades in over 1 mm of depth
-        strength = smoothstep5(d / 1e-3 + 1.0)
+        strength = smoothstep(d / 1e-3 + 1.0)
         # the floor keeps CLEARANCE (the grid's distance error) where the rest position allows
         return cls(distance, np.asarray(tf_ground_body, dtype=float), np.minimum(d, CLEARANCE), side,
                    strength, margin)

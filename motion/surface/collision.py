@@ -34,7 +34,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
-__all__ = ["WrapObstacle", "soft_floor", "wrap_obstacle", "to_obstacle_frame", "smoothstep5"]
+from .binding import smoothstep
+
+__all__ = ["WrapObstacle", "soft_floor", "wrap_obstacle", "to_obstacle_frame"]
 
 #: Knee of the through-thickness squeeze (`WrapObstacle.squeeze`): offsets reaching less than
 #: this fraction of the room between the line and a wrap object are not changed.
@@ -46,12 +48,6 @@ def soft_floor(x, margin: float) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     m = float(margin)
     return np.where(x >= m, x, m * np.exp(np.minimum(x - m, 0.0) / m))
-
-
-def smoothstep5(x):
-    """The quintic smoothstep 6x^5 - 15x^4 + 10x^3 of x clipped to [0, 1] (C2, 0 to 1)."""
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
 
 
 def to_obstacle_frame(tf: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -134,7 +130,7 @@ class WrapObstacle:
             n = np.stack([p[..., 0], p[..., 1], np.zeros_like(rad)], axis=-1) / np.maximum(rad, 1e-12)[..., None]
             half = 0.5 * self.radii[2] if np.isfinite(self.radii[2]) else np.inf
             over = np.maximum(np.abs(p[..., 2]) - half, 0.0) if np.isfinite(half) else np.zeros_like(rad)
-            window = 1.0 - smoothstep5(over / self.radii[0])
+            window = 1.0 - smoothstep(over / self.radii[0])
             return d, n, window
         if self.kind == "sphere":
             rad = np.linalg.norm(p, axis=-1)

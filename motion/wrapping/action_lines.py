@@ -45,7 +45,11 @@ from ..osim.model import Model, Path
 from .path_points import (_moving_local, _point_set, _point_set_active, _polyline_kernel,
                           path_points)
 
-__all__ = ["ActionLines", "action_lines", "spanned_coordinates", "coordinates_spanned", "polyline_length"]
+__all__ = ["ActionLines", "action_lines", "spanned_coordinates", "coordinates_spanned", "polyline_length",
+           "MIXED_PASSES"]
+
+#: m: a path whose drawn length exceeds OpenSim's length by more than this mixes wrapping passes
+MIXED_PASSES = 0.001
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,9 +87,8 @@ class ActionLines:
         several wrap objects whose later passes moved a tangent point: OpenSim 4.6's length
         keeps the first pass' positions there (`motion.wrapping.wrapped_rows`), so it and its
         -dL/dq (``moment_arms``) differ from the drawn path and from OpenSim's
-        ``computeMomentArm`` (Rajagopal 2023's gastrocnemii: up to 8.8 mm shorter, knee moment
-        arm 5.7 against 22.6 mm at row 80; fibres on the drawn path give 21.5). Default:
-        ``lengths``.
+        ``computeMomentArm`` (measured: docs/decisions.md, "Paths over wrap objects in series").
+        Default: ``lengths``.
     """
 
     lengths: np.ndarray
@@ -131,6 +134,11 @@ class ActionLines:
         m = self.muscle_names.index(muscle)
         pts, order = self.ordered_points[:, m], self.point_order[:, m]
         return [pts[f, order[f] >= 0] for f in range(pts.shape[0])]
+
+    def mixes_passes(self) -> np.ndarray:
+        """(M,) bool: paths whose OpenSim length is more than `MIXED_PASSES` shorter than their
+        drawn path in some frame (``drawn_lengths``)."""
+        return np.any(self.drawn_lengths - self.lengths > MIXED_PASSES, axis=0)
 
     def length(self, muscle: str) -> np.ndarray:
         """(F,) length of one path."""
@@ -352,18 +360,19 @@ def _wrap_module():
 FRAME_BLOCK = 512   # frames per block in `action_lines` (bounds memory, keeps arrays vectorised)
 
 
-def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple) -> tuple:
+def _block(model: Model, chosen: list, plan: _Plan, q: np.ndarray, out: tuple, drawn: np.ndarray) -> tuple:
     """One block of frames: fills its rows of ``out`` (see `_unwrapped_paths`; lengths and dldq
-    also for the wrapped paths); returns q_used and the wrapped paths' (points, mask, labels, order)."""
+    also for the wrapped paths) and the wrapped paths' columns of ``drawn`` (drawn lengths);
+    returns q_used and the wrapped paths' (points, mask, labels, order)."""
     if len(plan.wrapped):                    # the wrap helper works with d tf (F, B, C, 4, 4)
         tf, dtf, q_used, jac = body_pose_derivatives(model, q)
         twist = _twists(tf, dtf, plan.twist_body, plan.twist_coord) if len(plan.unwrapped) else None
     else:                                    # body twists directly (no (F, B, C, 4, 4) array)
         tf, twist, q_used, jac = _pose_twists(model, q)
         twist = twist[:, plan.twist_body, plan.twist_coord]
-    lengths, dldq, drawn = out[0], out[1], out[5]
+    lengths, dldq = out[:2]
     if len(plan.unwrapped):
-        _unwrapped_paths(plan, model, q_used, jac, tf, twist, out[:5])
+        _unwrapped_paths(plan, model, q_used, jac, tf, twist, out)
     per_path = []
     if len(plan.wrapped):
         paths = [chosen[m] for m in plan.wrapped]
@@ -417,10 +426,11 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     points = np.full((n_frames, len(chosen), k_max, 3), np.nan)
     mask = np.zeros((n_frames, len(chosen), k_max), dtype=bool)
     order = np.full((n_frames, len(chosen), k_max), -1, dtype=np.int64)
-    # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
     drawn = np.zeros((n_frames, len(chosen)))
+    # frames in blocks: memory stays bounded (d_tf is (F, B, C, 4, 4)) on long motions
     blocks = [_block(model, chosen, plan, q[i:i + FRAME_BLOCK],
-                     tuple(a[i:i + FRAME_BLOCK] for a in (lengths, dldq, points, mask, order, drawn)))
+                     tuple(a[i:i + FRAME_BLOCK] for a in (lengths, dldq, points, mask, order)),
+                     drawn[i:i + FRAME_BLOCK])
               for i in range(0, max(n_frames, 1), FRAME_BLOCK)]
     q_used = blocks[0][0] if len(blocks) == 1 else np.concatenate([b[0] for b in blocks])
     per_path = [(np.concatenate([b[1][w][0] for b in blocks]), np.concatenate([b[1][w][1] for b in blocks]),
@@ -430,8 +440,6 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     moment_arms[:, ~spanned] = 0.0                 # exactly 0.0 where not spanned
     unwrapped = np.setdiff1d(np.arange(len(chosen)), np.asarray(plan.wrapped, dtype=int))
     drawn[:, unwrapped] = lengths[:, unwrapped]
-    _warn_mixed_passes(model, [chosen[m].name for m in plan.wrapped], lengths[:, plan.wrapped],
-                       drawn[:, plan.wrapped])
     labels = [tuple(p.name for p in path.points) for path in chosen]
     for m, (pts, msk, lab, ordr) in zip(plan.wrapped, per_path):
         k = pts.shape[1]
@@ -446,18 +454,16 @@ def action_lines(model: Model, motion, *, muscles=None) -> ActionLines:
     for arr in (lengths, moment_arms, q_used, points, mask, order, drawn):
         if arr.flags.owndata:
             arr.setflags(write=False)            # ours alone: ActionLines keeps it without a copy
-    return ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
-                       status, time, q_used, points, mask, labels, order, drawn)
+    lines = ActionLines(lengths, moment_arms, spanned, tuple(p.name for p in chosen), model.coordinate_names,
+                        status, time, q_used, points, mask, labels, order, drawn)
+    _warn_mixed_passes(model, lines)
+    return lines
 
 
-MIXED_PASSES = 0.001   # m: a drawn path this much longer than OpenSim's length is warned about
-
-
-def _warn_mixed_passes(model: Model, names: list, lengths: np.ndarray, drawn: np.ndarray) -> None:
-    """One warning naming the paths whose OpenSim length is more than `MIXED_PASSES` shorter
-    than the path OpenSim draws (``ActionLines.drawn_lengths``)."""
-    gap = drawn - lengths
-    bad = [(n, gap[:, k]) for k, n in enumerate(names) if np.max(gap[:, k], initial=0.0) > MIXED_PASSES]
+def _warn_mixed_passes(model: Model, lines: ActionLines) -> None:
+    """One warning naming the paths that `ActionLines.mixes_passes`, with their largest gap."""
+    gap = lines.drawn_lengths - lines.lengths
+    bad = [(n, gap[:, k]) for k, n in enumerate(lines.muscle_names) if lines.mixes_passes()[k]]
     if not bad:
         return
     import warnings

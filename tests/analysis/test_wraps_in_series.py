@@ -73,6 +73,7 @@ def test_drawn_path_is_the_current_polyline_and_longer_than_opensims_length(raja
     np.testing.assert_allclose(lines.length("gasmed_r"), wrapped.length, atol=1e-12)
     np.testing.assert_allclose(lines.drawn_lengths[:, 0], wrapped.drawn_length, atol=1e-12)
     np.testing.assert_array_equal(lines.drawn_lengths[:, 1:], lines.lengths[:, 1:])   # one wrap / none
+    np.testing.assert_array_equal(lines.mixes_passes(), [True, False, False])
     # one wrap object: one pass, the drawn path is OpenSim's (vaslat_r over KnExtVL_at_fem_r)
     single, _ = _wrapped(rajagopal, q, "vaslat_r")
     np.testing.assert_array_equal(single.drawn, single.points)

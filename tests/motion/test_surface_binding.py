@@ -388,3 +388,41 @@ def test_riders_apart_without_obstacles_are_the_surface_deformation(pin_cylinder
     np.testing.assert_allclose(got.radial_scale, result.radial_scale, rtol=0, atol=1e-14)
     np.testing.assert_allclose(got.vertices, result.vertices[:4], rtol=0, atol=1e-15)
     np.testing.assert_allclose(got.riders.transpose(1, 0, 2), result.vertices[:, pick], rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("kind, radii", [("cylinder", (0.02, 0.02, 0.05)), ("cylinder", (0.02, 0.02, np.inf)),
+                                         ("sphere", (0.025,) * 3), ("ellipsoid", (0.03, 0.02, 0.015))])
+def test_push_out_is_the_soft_floor_along_the_obstacles_direction(kind, radii):
+    """The compiled push-out (`collision._push_loop`) moves every vertex as the module docstring
+    says, written here with the obstacle's own distance and direction (`_distance_direction`,
+    which the squeeze uses) and `soft_floor`: along n by g(d + inset) - (d + inset), times the
+    window; the ellipsoid radially in its scaled space. Random vertices around the object, many
+    of them inside its margin, per-vertex insets, one pose per frame and one for all."""
+    from scipy.spatial.transform import Rotation
+
+    from motion.surface.collision import soft_floor, to_obstacle_frame
+
+    rng = np.random.default_rng(4)
+    n_f, n_v = 5, 400
+    tf = np.tile(np.eye(4), (n_f, 1, 1))
+    tf[:, :3, :3] = Rotation.random(n_f, random_state=5).as_matrix()
+    tf[:, :3, 3] = rng.normal(0.0, 0.01, (n_f, 3))
+    v = rng.normal(0.0, 0.03, (n_f, n_v, 3))
+    inset = rng.uniform(0.0, 0.004, n_v)
+    for pose in (tf, tf[0]):
+        obstacle = WrapObstacle(kind, pose, np.array(radii), 5e-4, inset)
+        p = to_obstacle_frame(pose, v)
+        d, n, window = obstacle._distance_direction(p)
+        move = (soft_floor(d + inset, 5e-4) - d - inset) * window
+        if kind == "ellipsoid":
+            scaled = p / obstacle.radii
+            rad = np.linalg.norm(scaled, axis=-1)
+            delta = scaled * (((d + move) / obstacle.radii.min() + 1.0) / rad)[..., None] * obstacle.radii - p
+        else:
+            delta = move[..., None] * n
+        rot = np.broadcast_to(pose[..., :3, :3], (n_f, 3, 3))
+        want = v + np.einsum("fij,fvj->fvi", rot, delta)
+        got = obstacle.push_out(v)
+        assert (move != 0).mean() > 0.2                       # the check moves many vertices
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+        assert np.array_equal(got[move == 0], v[move == 0])   # outside the margin: untouched
