@@ -106,12 +106,6 @@ def _clean_topology_rest(v, f, volume, mean_edge, closed=None, extent=None):
     return topology, float(mean_edge)
 
 
-
-
-
-
-
-
 def _dot3(p, q):
     """Dot product of (3, T) arrays along axis 0."""
     return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
@@ -130,12 +124,6 @@ def _has_merged_vertices(v, scale):
     return _has_duplicate_rows((v * scale).round().astype(np.int64))
 
 
-
-
-
-
-
-
 def _has_duplicate_rows(q):
     """Whether two rows of the (V, 3) int64 array are equal, in numpy: one sort of a row hash
     (~4x faster than a lexsort of the rows), only rows of equal hashes compared row by row."""
@@ -152,14 +140,14 @@ def _has_duplicate_rows(q):
 
 def _n_pieces(neighbours):
     """Number of edge-connected pieces of a closed mesh from its (T, 3) face neighbours
-    (scipy's connected components). Only the path without the compiled topology pass needs
-    it: that pass counts the pieces itself (`fibres.slicing.planes._topology_loop`)."""
-    from scipy.sparse import coo_matrix
+    (scipy's weakly connected components of the graph face -> its 3 neighbours, built as
+    CSR straight from the table: 3 entries a row, int32 indices, float64 data, so that
+    scipy neither converts nor sorts it; the graph of a closed, consistently wound mesh is
+    symmetric, so its weak components are its pieces)."""
+    from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import connected_components
 
     n_f = len(neighbours)
-    rows = np.repeat(np.arange(n_f), 3)
-    graph = coo_matrix((np.ones(rows.size), (rows, neighbours.ravel())), shape=(n_f, n_f))
-    return connected_components(graph, directed=False, return_labels=False)
-
-
+    graph = csr_matrix((np.ones(3 * n_f), np.asarray(neighbours, dtype=np.int32).reshape(-1),
+                        np.arange(0, 3 * n_f + 1, 3, dtype=np.int32)), shape=(n_f, n_f))
+    return connected_components(graph, directed=True, connection="weak", return_labels=False)
