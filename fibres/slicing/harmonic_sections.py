@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from ..fit.box import shape_sign
-from .isolines import isoline_loops, isoline_moments
+from .isolines import isoline_loops_at, isoline_moments
 
 __all__ = ["SAMPLES"]
 
@@ -209,7 +209,7 @@ def _loop_samples(p, seam, k, seg=None):
     return pos, (1.0 - f) * p[i0] + f * p[(i0 + 1) % len(p)]
 
 
-def _registered_seam(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None):
+def _registered_seam(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None, ref=None):
     """The seam (fractional position) of loop ``pts`` whose `SAMPLES` arc-length samples lie
     nearest the previous loop's, in the least-squares sense with both sample sets centred
     (the loops move along the muscle; only the cyclic shift is sought): the shifts searched
@@ -218,9 +218,11 @@ def _registered_seam(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None):
     Shift ``t = q F + r`` (F = `_FINE`) takes every F-th fine sample from r, rolled by q:
     its centred sum of squares depends on r only, and the cross term with the reference is
     a circular cross-correlation over q, computed for all q at once by FFT. ``prev_seg``,
-    ``seg``: the loops' segment lengths, when at hand."""
+    ``seg``: the loops' segment lengths, and ``ref``: the previous loop's samples
+    (`_loop_samples` at ``prev_seam``), when at hand."""
     k = SAMPLES
-    _, ref = _loop_samples(prev_pts, prev_seam, k, prev_seg)
+    if ref is None:
+        _, ref = _loop_samples(prev_pts, prev_seam, k, prev_seg)
     pos, fine = _loop_samples(pts, guess, k * _FINE, seg)
     ref = ref - ref.mean(axis=0)
     sub = fine.reshape(k, _FINE, 3).transpose(1, 0, 2)                # (F, K, 3): [r, k]
@@ -253,8 +255,8 @@ def _slices(plan, resolution: int) -> _Slices:
         levels = levels[:1]
     v = plan.rest_vertices
     loops, notes = [], []
-    for j, t in enumerate(levels):
-        found = isoline_loops(plan.field, plan.faces, t, plan.edges, plan.face_edges, v)
+    every = isoline_loops_at(plan.field, plan.faces, levels, plan.edges, plan.face_edges, v)
+    for j, found in enumerate(every):
         if not found:
             raise InputError("the harmonic field has no isoline at a slice level",
                              where="mesh", fix="Check the attachment landmarks.")
@@ -284,13 +286,16 @@ def _slices(plan, resolution: int) -> _Slices:
     score = -x / max(np.ptp(x), 1e-12) - y / max(np.ptp(y), 1e-12)
     seams = [0.0] * len(loops)
     seams[mid] = float(np.argmax(score))
+    samples = [None] * len(loops)           # (positions, points) of each loop from its seam
+    samples[mid] = _loop_samples(pts[mid], seams[mid], SAMPLES, segs[mid])
     for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
         prev = mid
         for j in rng:
             q = _position_point(pts[prev], seams[prev])
             seams[j] = _closest_position(pts[j], q)
             seams[j] = _registered_seam(pts[prev], seams[prev], pts[j], seams[j],
-                                        segs[prev], segs[j])
+                                        segs[prev], segs[j], ref=samples[prev][1])
+            samples[j] = _loop_samples(pts[j], seams[j], SAMPLES, segs[j])
             prev = j
     shares = np.empty(len(loops))
     rows, cols, vals = [], [], []
@@ -298,7 +303,7 @@ def _slices(plan, resolution: int) -> _Slices:
         d = p - centres[j]
         a, b = np.ptp(d @ axes[j]), np.ptp(d @ np.cross(normals[j], axes[j]))
         shares[j] = a / max(a + b, 1e-300)
-        pos = _arc_positions(segs[j], seams[j], SAMPLES)
+        pos = samples[j][0]
         i0 = np.floor(pos).astype(np.int64) % len(lp)
         f = pos - np.floor(pos)
         i1 = (i0 + 1) % len(lp)

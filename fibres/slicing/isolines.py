@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["Loop", "isoline_loops"]
+__all__ = ["Loop", "isoline_loops", "isoline_loops_at"]
 
 
 @dataclass(frozen=True)
@@ -61,71 +61,105 @@ def isoline_loops(u, faces, level: float, edges, face_edges, vertices=None) -> l
     -------
     list of Loop
     """
+    return isoline_loops_at(u, faces, [level], edges, face_edges, vertices)[0]
+
+
+def isoline_loops_at(u, faces, levels, edges, face_edges, vertices=None) -> list:
+    """`isoline_loops` of each of many levels, in one pass of the compiled walk.
+
+    Returns
+    -------
+    list (one per level) of lists of Loop
+    """
     u = np.ascontiguousarray(u, dtype=np.float64)
-    n = len(edges)
-    work = np.empty((6, n + 1), dtype=np.int64)
-    work[[2, 4]] = -1
-    count, n_loops = _walk((u >= level).astype(np.int64),
-                           np.ascontiguousarray(edges, dtype=np.int64),
-                           np.ascontiguousarray(face_edges, dtype=np.int64),
-                           np.ascontiguousarray(faces, dtype=np.int64), work,
-                           np.zeros(n, dtype=np.bool_))
-    nodes, seg_face, starts = work[3, :count], work[0, :count], work[5, :n_loops + 1]
+    levels = np.ascontiguousarray(np.atleast_1d(levels), dtype=np.float64)
+    nodes, seg_face, starts, per_level = _walk(
+        u, levels, np.ascontiguousarray(edges, dtype=np.int64),
+        np.ascontiguousarray(face_edges, dtype=np.int64),
+        np.ascontiguousarray(faces, dtype=np.int64))
     ea, eb = edges[nodes, 0], edges[nodes, 1]
     ua, ub = u[ea], u[eb]
+    level = np.repeat(levels, np.diff(starts[per_level]))
     s = (level - ua) / (ub - ua)
+    bounds = starts.tolist()
     loops = [Loop(ea[i:j], eb[i:j], s[i:j], seg_face[i:j])
-             for i, j in zip(starts[:-1].tolist(), starts[1:].tolist())]
-    if vertices is not None and len(loops) > 1:
-        loops.sort(key=lambda lp: -_length(lp.points(vertices)))
-    return loops
+             for i, j in zip(bounds[:-1], bounds[1:])]
+    out = []
+    for i, j in zip(per_level[:-1].tolist(), per_level[1:].tolist()):
+        found = loops[i:j]
+        if vertices is not None and len(found) > 1:
+            found.sort(key=lambda lp: -_length(lp.points(vertices)))
+        out.append(found)
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _walk(above, edges, face_edges, faces, work, seen):
-    """The crossed edges of the isoline in loop order, ``above`` (V,) int64 1 where ``u >=
-    level`` else 0, into ``work`` (6, E + 1) int64 (E edges; rows 2 and 4 all -1) and
-    ``seen`` (E,) bool (all False): rows 3, 0, 5 hold the edge index of each loop point, the
-    face of the segment from it to the next point, and the loop start offsets (n_loops + 1);
-    returns (count of points, n_loops). A crossed edge is a node; each crossed face links
-    its falling side's node to its rising side's (module docstring). Loops are listed by
-    their smallest crossed edge index and each starts there."""
-    node, edge_of, nxt, order, seg_face, starts = \
-        work[0], work[1], work[2], work[3], work[4], work[5]
-    count = 0
-    for e in range(edges.shape[0]):
-        if above[edges[e, 0]] != above[edges[e, 1]]:
-            node[e] = count
-            edge_of[count] = e
-            count += 1
-        else:
-            node[e] = -1
-    for f in range(faces.shape[0]):
-        a0, a1, a2 = above[faces[f, 0]], above[faces[f, 1]], above[faces[f, 2]]
-        if a0 == a1 and a1 == a2:
-            continue
-        # side k runs corner k -> k + 1; a crossed face has one falling side (k above,
-        # k + 1 below) and one rising side
-        src = face_edges[f, (a1 > a2) + 2 * (a2 > a0)]
-        dst = face_edges[f, (a2 > a1) + 2 * (a0 > a2)]
-        nxt[node[src]] = node[dst]
-        seg_face[node[src]] = f
+def _walk(u, levels, edges, face_edges, faces):
+    """The crossed edges of the isolines ``u = levels[l]`` in loop order: (edge index of each
+    loop point, face of the segment from it to the next point (-1 where a loop is open),
+    loop start offsets (n_loops + 1), each level's first loop (L + 1)). Per level, a vertex
+    is above where ``u >= level``; a crossed edge is a node, and each crossed face links its
+    falling side's node to its rising side's (module docstring). A level's loops are listed
+    by their smallest crossed edge index and each starts there."""
+    n_e, n_l = edges.shape[0], levels.size
+    total = 0
+    for l in range(n_l):
+        t = levels[l]
+        for e in range(n_e):
+            if (u[edges[e, 0]] >= t) != (u[edges[e, 1]] >= t):
+                total += 1
+    out_edge = np.empty(total, np.int64)
+    out_face = np.empty(total, np.int64)
+    starts = np.empty(total + 1, np.int64)
+    per_level = np.empty(n_l + 1, np.int64)
+    above = np.empty(u.size, np.int64)
+    node = np.empty(n_e, np.int64)
+    edge_of = np.empty(n_e, np.int64)
+    nxt = np.empty(n_e, np.int64)
+    seg_face = np.empty(n_e, np.int64)
+    seen = np.empty(n_e, np.bool_)
     n_out, n_loops = 0, 0
-    faces_out = work[0]                # node is no longer needed
-    for first in range(count):
-        if seen[first]:
-            continue
-        starts[n_loops] = n_out
-        n_loops += 1
-        k = first
-        while k >= 0 and not seen[k]:
-            seen[k] = True
-            order[n_out] = edge_of[k]
-            faces_out[n_out] = seg_face[k]
-            n_out += 1
-            k = nxt[k]
+    for l in range(n_l):
+        per_level[l] = n_loops
+        t = levels[l]
+        for v in range(u.size):
+            above[v] = 1 if u[v] >= t else 0
+        count = 0
+        for e in range(n_e):
+            if above[edges[e, 0]] != above[edges[e, 1]]:
+                node[e] = count
+                edge_of[count] = e
+                count += 1
+            else:
+                node[e] = -1
+        nxt[:count] = -1
+        seg_face[:count] = -1
+        seen[:count] = False
+        for f in range(faces.shape[0]):
+            a0, a1, a2 = above[faces[f, 0]], above[faces[f, 1]], above[faces[f, 2]]
+            if a0 == a1 and a1 == a2:
+                continue
+            # side k runs corner k -> k + 1; a crossed face has one falling side (k above,
+            # k + 1 below) and one rising side
+            src = face_edges[f, (a1 > a2) + 2 * (a2 > a0)]
+            dst = face_edges[f, (a2 > a1) + 2 * (a0 > a2)]
+            nxt[node[src]] = node[dst]
+            seg_face[node[src]] = f
+        for first in range(count):
+            if seen[first]:
+                continue
+            starts[n_loops] = n_out
+            n_loops += 1
+            k = first
+            while k >= 0 and not seen[k]:
+                seen[k] = True
+                out_edge[n_out] = edge_of[k]
+                out_face[n_out] = seg_face[k]
+                n_out += 1
+                k = nxt[k]
+    per_level[n_l] = n_loops
     starts[n_loops] = n_out
-    return n_out, n_loops
+    return out_edge[:n_out], out_face[:n_out], starts[:n_loops + 1], per_level
 
 
 def _length(points) -> float:
