@@ -180,40 +180,47 @@ def isoline_moments(u, vertices, faces, levels, *, area: bool = True):
         Vector area, pointing along the field's gradient side (module docstring); None
         with ``area=False``.
     """
-    levels = np.asarray(levels, dtype=np.float64)
-    uf = np.asarray(u)[faces]                                         # (T, 3)
-    u0, u1, u2 = uf.T
-    lo = np.searchsorted(levels, np.minimum(np.minimum(u0, u1), u2), side="right")
-    hi = np.searchsorted(levels, np.maximum(np.maximum(u0, u1), u2), side="right")
-    count = hi - lo
-    face = np.repeat(np.arange(len(faces)), count)
-    start = np.repeat(np.cumsum(count) - count, count)
-    lev = np.repeat(lo, count) + np.arange(face.size) - start
-    t = levels[lev]
-    fu = np.take(uf, face, axis=0)
-    ab0, ab1, ab2 = (fu >= t[:, None]).T
-    flat = 3 * face                                       # rows of the faces' corners, flat
-    uflat, cflat = uf.reshape(-1), np.asarray(faces).reshape(-1)
-
-    def crossing(side):
-        k0, k1 = flat + side, flat + (side + 1) % 3
-        u0, u1 = np.take(uflat, k0), np.take(uflat, k1)
-        s = ((t - u0) / (u1 - u0))[:, None]
-        return ((1.0 - s) * np.take(vertices, np.take(cflat, k0), axis=0)
-                + s * np.take(vertices, np.take(cflat, k1), axis=0))
-
-    # one falling (corner k at or above, k + 1 below) and one rising side per crossing face:
-    # its index without an argmax
-    a = crossing((ab1 & ~ab2) + 2 * (ab2 & ~ab0))
-    b = crossing((~ab1 & ab2) + 2 * (~ab2 & ab0))
-    seg = np.linalg.norm(b - a, axis=1)
-    n = len(levels)
-    length = np.bincount(lev, seg, n)
-    mid = 0.5 * (a + b) * seg[:, None]
+    levels = np.ascontiguousarray(levels, dtype=np.float64)
+    sums = _moments(np.ascontiguousarray(u, dtype=np.float64),
+                    np.ascontiguousarray(vertices, dtype=np.float64),
+                    np.ascontiguousarray(faces, dtype=np.int64), levels)
+    length = sums[:, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
-        centroid = np.stack([np.bincount(lev, mid[:, d], n) for d in range(3)], axis=1) \
-            / length[:, None]
-    if not area:
-        return length, centroid, None
-    cr = 0.5 * np.cross(a, b)
-    return length, centroid, np.stack([np.bincount(lev, cr[:, d], n) for d in range(3)], axis=1)
+        centroid = sums[:, 1:4] / length[:, None]
+    return length, centroid, (sums[:, 4:] if area else None)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _moments(u, vertices, faces, levels):
+    """(L, 7) sums over each level's isoline segments, face by face: length, midpoint times
+    length (3), half the cross product of the segment's ends (3). Level l crosses face f
+    where ``min u < levels[l] <= max u`` over its corners (levels increasing); the segment
+    runs from the falling side's crossing to the rising side's (module docstring)."""
+    out = np.zeros((levels.size, 7))
+    p = np.empty((2, 3))
+    for f in range(faces.shape[0]):
+        c = faces[f]
+        uc = (u[c[0]], u[c[1]], u[c[2]])
+        lo = np.searchsorted(levels, min(min(uc[0], uc[1]), uc[2]), side="right")
+        hi = np.searchsorted(levels, max(max(uc[0], uc[1]), uc[2]), side="right")
+        for lv in range(lo, hi):
+            t = levels[lv]
+            ab0, ab1, ab2 = uc[0] >= t, uc[1] >= t, uc[2] >= t
+            # falling side (corner k at or above, k + 1 below), then the rising side
+            sides = ((ab1 and not ab2) + 2 * (ab2 and not ab0),
+                     (ab2 and not ab1) + 2 * (ab0 and not ab2))
+            for r in range(2):
+                k0 = sides[r]
+                k1 = (k0 + 1) % 3
+                s = (t - uc[k0]) / (uc[k1] - uc[k0])
+                for d in range(3):
+                    p[r, d] = (1.0 - s) * vertices[c[k0], d] + s * vertices[c[k1], d]
+            d0, d1, d2 = p[1, 0] - p[0, 0], p[1, 1] - p[0, 1], p[1, 2] - p[0, 2]
+            seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            out[lv, 0] += seg
+            for d in range(3):
+                out[lv, 1 + d] += 0.5 * (p[0, d] + p[1, d]) * seg
+            out[lv, 4] += 0.5 * (p[0, 1] * p[1, 2] - p[0, 2] * p[1, 1])
+            out[lv, 5] += 0.5 * (p[0, 2] * p[1, 0] - p[0, 0] * p[1, 2])
+            out[lv, 6] += 0.5 * (p[0, 0] * p[1, 1] - p[0, 1] * p[1, 0])
+    return out
