@@ -8,6 +8,7 @@ mean edge length are kept for the decomposition.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
 __all__ = ["clean_topology", "clean_mesh_geometry"]
@@ -35,8 +36,9 @@ def clean_topology(v, f):
     heights above trimesh's merge tolerance (with a factor 2 margin); no duplicate faces and
     one piece (edge-adjacent faces; a closed manifold mesh in one piece has no duplicate
     faces); closed, manifold and consistently wound (each edge used once in each
-    direction); positive volume. The geometry runs component-wise on (3, T) corner arrays
-    (numpy's cross and norm over a size-3 axis are ~10x slower).
+    direction); positive volume. The topology comes first (`fibres.slicing.planes.mesh_topology`),
+    then one compiled pass over the faces measures their shape, the volume, the edge lengths
+    and the pieces (`_face_sums`).
     """
     return clean_mesh_geometry(v, f)[0]
 
@@ -58,63 +60,76 @@ def clean_mesh_geometry(v, f):
     """
     from trimesh import tol, util
 
+    from ..slicing.planes import mesh_topology
+
     n_v = len(v)
     if len(f) < 4:
         return None, None
-    closed = None
     if f.min() < 0 or f.max() >= n_v or np.bincount(f.ravel(), minlength=n_v).min() == 0:
         return None, None
     if _has_merged_vertices(v, 10 ** util.decimal_to_digits(tol.merge)):
         return None, None
-    vt = np.ascontiguousarray(v.T)                                 # (3, V)
-    a, b, c = np.take(vt, np.ascontiguousarray(f.T), axis=1).transpose(1, 0, 2)  # (3, T) each
-    ab, ac, bc = b - a, c - a, c - b
-    lab, lbc, lac = np.sqrt(_dot3(ab, ab)), np.sqrt(_dot3(bc, bc)), np.sqrt(_dot3(ac, ac))
-    n = _cross3(ab, ac)                                             # (3, T), |n| = 2 area
-    area2 = np.sqrt(_dot3(n, n))
-    # trimesh: both edges from the first corner and the heights over them > tol.merge
-    if not ((np.minimum(np.minimum(lab, lbc), lac) > 2 * tol.merge)
-            & (area2 > 2 * tol.merge * np.maximum(np.maximum(lab, lbc), lac))).all():
+    try:
+        topology = mesh_topology(f, n_v)
+    except ValueError:
         return None, None
-    return _clean_topology_rest(v, f, float(_dot3(a, _cross3(b, c)).sum()),
-                                float((lab.sum() + lbc.sum() + lac.sum()) / (3 * len(f))),
-                                closed)
-
-
-def _clean_topology_rest(v, f, volume, mean_edge, closed=None, extent=None):
-    """The topological steps of `clean_mesh_geometry` and the volume check; ``closed``:
-    `fibres.slicing.planes._closed_topology` of the faces when at hand, ``extent`` the vertices'
-    bounding-box sides when known."""
-    from ..slicing.planes import mesh_topology
-
-    if closed is not None:
-        topology, n_pieces = closed[0], closed[1]
-    else:
-        try:
-            topology = mesh_topology(f, len(v))
-        except ValueError:
-            return None, None
-        n_pieces = _n_pieces(topology.neighbours) if topology.oriented else 0
-    if not topology.oriented or n_pieces != 1:
+    if not topology.oriented:
         return None, None
-    if extent is None:
-        vt = np.ascontiguousarray(v.T)
-        extent = vt.max(axis=1) - vt.min(axis=1)
-    size = float(np.linalg.norm(extent))
-    if not volume > 1e-9 * size ** 3:
+    well_shaped, volume, edge_sum, n_pieces = _face_sums(
+        np.ascontiguousarray(v, dtype=np.float64), topology.faces, topology.neighbours,
+        2.0 * float(tol.merge))
+    if not well_shaped or n_pieces != 1:
         return None, None
-    return topology, float(mean_edge)
+    extent = v.max(axis=0) - v.min(axis=0)
+    if not volume > 1e-9 * float(np.linalg.norm(extent)) ** 3:
+        return None, None
+    return topology, edge_sum / (3 * len(f))
 
 
-def _dot3(p, q):
-    """Dot product of (3, T) arrays along axis 0."""
-    return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
-
-
-def _cross3(p, q):
-    """Cross product of (3, T) arrays along axis 0."""
-    return np.stack([p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2],
-                     p[0] * q[1] - p[1] * q[0]])
+@njit(cache=True, nogil=True, error_model="numpy")
+def _face_sums(v, f, neighbours, limit):
+    """(well shaped, 6 x volume, sum of the faces' edge lengths, pieces) of a closed,
+    consistently wound mesh. Well shaped: every face's sides longer than ``limit`` and its
+    heights over its longest side above ``limit`` (trimesh drops the faces whose edges from
+    the first corner or heights are within its merge tolerance; ``limit`` is twice that).
+    Volume: the sum of ``a . (b x c)`` over the faces (a, b, c their corners). Pieces: the
+    edge-connected components of the faces, by union-find over the ``neighbours`` table."""
+    ok = True
+    volume, s_ab, s_bc, s_ac = 0.0, 0.0, 0.0, 0.0
+    for t in range(f.shape[0]):
+        a, b, c = v[f[t, 0]], v[f[t, 1]], v[f[t, 2]]
+        ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+        ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+        bc0, bc1, bc2 = c[0] - b[0], c[1] - b[1], c[2] - b[2]
+        lab = np.sqrt(ab0 * ab0 + ab1 * ab1 + ab2 * ab2)
+        lbc = np.sqrt(bc0 * bc0 + bc1 * bc1 + bc2 * bc2)
+        lac = np.sqrt(ac0 * ac0 + ac1 * ac1 + ac2 * ac2)
+        n0, n1, n2 = ab1 * ac2 - ab2 * ac1, ab2 * ac0 - ab0 * ac2, ab0 * ac1 - ab1 * ac0
+        area2 = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)                  # twice the area
+        if not (min(min(lab, lbc), lac) > limit and area2 > limit * max(max(lab, lbc), lac)):
+            ok = False
+        volume += (a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2])
+                   + a[2] * (b[0] * c[1] - b[1] * c[0]))
+        s_ab += lab
+        s_bc += lbc
+        s_ac += lac
+    root = np.arange(f.shape[0])
+    for t in range(f.shape[0]):
+        for k in range(3):
+            x, y = t, neighbours[t, k]
+            while root[x] != x:
+                root[x] = root[root[x]]
+                x = root[x]
+            while root[y] != y:
+                root[y] = root[root[y]]
+                y = root[y]
+            if x != y:
+                root[max(x, y)] = min(x, y)
+    pieces = 0
+    for t in range(f.shape[0]):
+        if root[t] == t:
+            pieces += 1
+    return ok, volume, s_ab + s_bc + s_ac, pieces
 
 
 def _has_merged_vertices(v, scale):
@@ -136,18 +151,3 @@ def _has_duplicate_rows(q):
     sub = np.unique(np.concatenate([order[same], order[same + 1]]))
     qs = q[sub][np.lexsort(q[sub].T)]
     return bool((np.diff(qs, axis=0) == 0).all(axis=1).any())
-
-
-def _n_pieces(neighbours):
-    """Number of edge-connected pieces of a closed mesh from its (T, 3) face neighbours
-    (scipy's weakly connected components of the graph face -> its 3 neighbours, built as
-    CSR straight from the table: 3 entries a row, int32 indices, float64 data, so that
-    scipy neither converts nor sorts it; the graph of a closed, consistently wound mesh is
-    symmetric, so its weak components are its pieces)."""
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    n_f = len(neighbours)
-    graph = csr_matrix((np.ones(3 * n_f), np.asarray(neighbours, dtype=np.int32).reshape(-1),
-                        np.arange(0, 3 * n_f + 1, 3, dtype=np.int32)), shape=(n_f, n_f))
-    return connected_components(graph, directed=True, connection="weak", return_labels=False)
