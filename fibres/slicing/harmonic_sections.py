@@ -59,7 +59,7 @@ def bending_measure(s, points, weight):
     c = np.stack([np.interp(t, s, points[:, d]) for d in range(3)], axis=1)
     d = np.gradient(c, axis=0)
     d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
-    turn = np.arctan2(np.linalg.norm(np.cross(d[:-1], d[1:]), axis=1),
+    turn = np.arctan2(np.linalg.norm(_cross(d[:-1], d[1:]), axis=1),
                       np.einsum("ij,ij->i", d[1:], d[:-1]))
     cum = np.concatenate([[0.0], np.cumsum(turn)]) * weight * total / np.pi
     return np.interp(s, t, cum)
@@ -102,6 +102,15 @@ def _levels(plan, resolution: int) -> np.ndarray:
     return levels
 
 
+def _cross(p, q):
+    """Row-wise cross products of (..., 3) arrays (numpy's formula, without its overhead)."""
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = p[..., 1] * q[..., 2] - p[..., 2] * q[..., 1]
+    out[..., 1] = p[..., 2] * q[..., 0] - p[..., 0] * q[..., 2]
+    out[..., 2] = p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]
+    return out
+
+
 def _loop_frame(points):
     """(centroid, unit normal, segment lengths) of a closed loop."""
     nxt = np.roll(points, -1, axis=0)
@@ -109,7 +118,7 @@ def _loop_frame(points):
     total = seg.sum()
     c = (0.5 * (points + nxt) * seg[:, None]).sum(axis=0) / total if total > 0 \
         else points.mean(axis=0)
-    area = 0.5 * np.cross(points - c, nxt - c).sum(axis=0)
+    area = 0.5 * _cross(points - c, nxt - c).sum(axis=0)
     norm = np.linalg.norm(area)
     n = area / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
     return c, n, seg
@@ -280,7 +289,8 @@ def _slices(plan, resolution: int) -> _Slices:
     # positions along each loop by arc length from a seam that starts at the middle loop's
     # point towards the square's corner (0, 0) and is carried to each next loop by its nearest
     # point (the field's flow lines cross its isolines at right angles)
-    e2m = np.cross(normals[mid], axes[mid])
+    e2 = _cross(normals, axes)
+    e2m = e2[mid]
     d = pts[mid] - centres[mid]
     x, y = d @ axes[mid], d @ e2m
     score = -x / max(np.ptp(x), 1e-12) - y / max(np.ptp(y), 1e-12)
@@ -301,7 +311,7 @@ def _slices(plan, resolution: int) -> _Slices:
     rows, cols, vals = [], [], []
     for j, (lp, p) in enumerate(zip(loops, pts)):
         d = p - centres[j]
-        a, b = np.ptp(d @ axes[j]), np.ptp(d @ np.cross(normals[j], axes[j]))
+        a, b = np.ptp(d @ axes[j]), np.ptp(d @ e2[j])
         shares[j] = a / max(a + b, 1e-300)
         pos = samples[j][0]
         i0 = np.floor(pos).astype(np.int64) % len(lp)

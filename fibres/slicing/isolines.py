@@ -102,15 +102,8 @@ def _walk(u, levels, edges, face_edges, faces):
     falling side's node to its rising side's (module docstring). A level's loops are listed
     by their smallest crossed edge index and each starts there."""
     n_e, n_l = edges.shape[0], levels.size
-    total = 0
-    for l in range(n_l):
-        t = levels[l]
-        for e in range(n_e):
-            if (u[edges[e, 0]] >= t) != (u[edges[e, 1]] >= t):
-                total += 1
-    out_edge = np.empty(total, np.int64)
-    out_face = np.empty(total, np.int64)
-    starts = np.empty(total + 1, np.int64)
+    # rows: edge of each point, face of its segment, loop starts; grown when a level needs it
+    out = np.empty((3, n_e + 1), np.int64)
     per_level = np.empty(n_l + 1, np.int64)
     above = np.empty(u.size, np.int64)
     node = np.empty(n_e, np.int64)
@@ -132,6 +125,10 @@ def _walk(u, levels, edges, face_edges, faces):
                 count += 1
             else:
                 node[e] = -1
+        if n_out + count >= out.shape[1]:
+            grown = np.empty((3, 2 * (n_out + count) + 1), np.int64)
+            grown[:, :n_out + 1] = out[:, :n_out + 1]
+            out = grown
         nxt[:count] = -1
         seg_face[:count] = -1
         seen[:count] = False
@@ -148,18 +145,18 @@ def _walk(u, levels, edges, face_edges, faces):
         for first in range(count):
             if seen[first]:
                 continue
-            starts[n_loops] = n_out
+            out[2, n_loops] = n_out
             n_loops += 1
             k = first
             while k >= 0 and not seen[k]:
                 seen[k] = True
-                out_edge[n_out] = edge_of[k]
-                out_face[n_out] = seg_face[k]
+                out[0, n_out] = edge_of[k]
+                out[1, n_out] = seg_face[k]
                 n_out += 1
                 k = nxt[k]
     per_level[n_l] = n_loops
-    starts[n_loops] = n_out
-    return out_edge[:n_out], out_face[:n_out], starts[:n_loops + 1], per_level
+    out[2, n_loops] = n_out
+    return out[0, :n_out], out[1, :n_out], out[2, :n_loops + 1], per_level
 
 
 def _length(points) -> float:
