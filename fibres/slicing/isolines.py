@@ -102,8 +102,10 @@ def _walk(u, levels, edges, face_edges, faces):
     falling side's node to its rising side's (module docstring). A level's loops are listed
     by their smallest crossed edge index and each starts there."""
     n_e, n_l = edges.shape[0], levels.size
-    # rows: edge of each point, face of its segment, loop starts; grown when a level needs it
-    out = np.empty((3, n_e + 1), np.int64)
+    # edge of each point, face of its segment, loop starts: grown when a level needs it
+    out_edge = np.empty(n_e + 1, np.int64)
+    out_face = np.empty(n_e + 1, np.int64)
+    starts = np.empty(n_e + 1, np.int64)
     per_level = np.empty(n_l + 1, np.int64)
     above = np.empty(u.size, np.int64)
     node = np.empty(n_e, np.int64)
@@ -125,10 +127,11 @@ def _walk(u, levels, edges, face_edges, faces):
                 count += 1
             else:
                 node[e] = -1
-        if n_out + count >= out.shape[1]:
-            grown = np.empty((3, 2 * (n_out + count) + 1), np.int64)
-            grown[:, :n_out + 1] = out[:, :n_out + 1]
-            out = grown
+        if n_out + count >= out_edge.size:
+            cap = 2 * (n_out + count) + 1
+            out_edge = np.concatenate((out_edge, np.empty(cap - out_edge.size, np.int64)))
+            out_face = np.concatenate((out_face, np.empty(cap - out_face.size, np.int64)))
+            starts = np.concatenate((starts, np.empty(cap - starts.size, np.int64)))
         nxt[:count] = -1
         seg_face[:count] = -1
         seen[:count] = False
@@ -145,18 +148,18 @@ def _walk(u, levels, edges, face_edges, faces):
         for first in range(count):
             if seen[first]:
                 continue
-            out[2, n_loops] = n_out
+            starts[n_loops] = n_out
             n_loops += 1
             k = first
             while k >= 0 and not seen[k]:
                 seen[k] = True
-                out[0, n_out] = edge_of[k]
-                out[1, n_out] = seg_face[k]
+                out_edge[n_out] = edge_of[k]
+                out_face[n_out] = seg_face[k]
                 n_out += 1
                 k = nxt[k]
     per_level[n_l] = n_loops
-    out[2, n_loops] = n_out
-    return out[0, :n_out], out[1, :n_out], out[2, :n_loops + 1], per_level
+    starts[n_loops] = n_out
+    return out_edge[:n_out], out_face[:n_out], starts[:n_loops + 1], per_level
 
 
 def _length(points) -> float:
@@ -195,23 +198,32 @@ def _moments(u, vertices, faces, levels):
     runs from the falling side's crossing to the rising side's (module docstring)."""
     out = np.zeros((levels.size, 7))
     p = np.empty((2, 3))
+    uc = np.empty(3)
     for f in range(faces.shape[0]):
-        c = faces[f]
-        uc = (u[c[0]], u[c[1]], u[c[2]])
-        lo = np.searchsorted(levels, min(min(uc[0], uc[1]), uc[2]), side="right")
-        hi = np.searchsorted(levels, max(max(uc[0], uc[1]), uc[2]), side="right")
-        for lv in range(lo, hi):
+        for k in range(3):
+            uc[k] = u[faces[f, k]]
+        low, high = min(min(uc[0], uc[1]), uc[2]), max(max(uc[0], uc[1]), uc[2])
+        lv, hi = 0, levels.size                      # lv: the first level above the lowest u
+        while lv < hi:
+            mid = (lv + hi) // 2
+            if levels[mid] <= low:
+                lv = mid + 1
+            else:
+                hi = mid
+        while lv < levels.size and levels[lv] <= high:
             t = levels[lv]
             ab0, ab1, ab2 = uc[0] >= t, uc[1] >= t, uc[2] >= t
-            # falling side (corner k at or above, k + 1 below), then the rising side
-            sides = ((ab1 and not ab2) + 2 * (ab2 and not ab0),
-                     (ab2 and not ab1) + 2 * (ab0 and not ab2))
             for r in range(2):
-                k0 = sides[r]
+                # the falling side (corner k at or above, k + 1 below), then the rising side
+                if r == 0:
+                    k0 = (ab1 and not ab2) + 2 * (ab2 and not ab0)
+                else:
+                    k0 = (ab2 and not ab1) + 2 * (ab0 and not ab2)
                 k1 = (k0 + 1) % 3
                 s = (t - uc[k0]) / (uc[k1] - uc[k0])
                 for d in range(3):
-                    p[r, d] = (1.0 - s) * vertices[c[k0], d] + s * vertices[c[k1], d]
+                    p[r, d] = (1.0 - s) * vertices[faces[f, k0], d] \
+                        + s * vertices[faces[f, k1], d]
             d0, d1, d2 = p[1, 0] - p[0, 0], p[1, 1] - p[0, 1], p[1, 2] - p[0, 2]
             seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             out[lv, 0] += seg
@@ -220,4 +232,5 @@ def _moments(u, vertices, faces, levels):
             out[lv, 4] += 0.5 * (p[0, 1] * p[1, 2] - p[0, 2] * p[1, 1])
             out[lv, 5] += 0.5 * (p[0, 2] * p[1, 0] - p[0, 0] * p[1, 2])
             out[lv, 6] += 0.5 * (p[0, 0] * p[1, 1] - p[0, 1] * p[1, 0])
+            lv += 1
     return out
