@@ -308,20 +308,23 @@ def _slices(plan, resolution: int) -> _Slices:
             samples[j] = _loop_samples(pts[j], seams[j], SAMPLES, segs[j])
             prev = j
     shares = np.empty(len(loops))
-    rows, cols, vals = [], [], []
-    for j, (lp, p) in enumerate(zip(loops, pts)):
+    for j, p in enumerate(pts):
         d = p - centres[j]
         a, b = np.ptp(d @ axes[j]), np.ptp(d @ e2[j])
         shares[j] = a / max(a + b, 1e-300)
-        pos = samples[j][0]
-        i0 = np.floor(pos).astype(np.int64) % len(lp)
-        f = pos - np.floor(pos)
-        i1 = (i0 + 1) % len(lp)
-        r = j * SAMPLES + np.arange(SAMPLES)
-        for idx, wgt in ((i0, 1.0 - f), (i1, f)):
-            rows += [r, r]
-            cols += [lp.a[idx], lp.b[idx]]
-            vals += [wgt * (1.0 - lp.s[idx]), wgt * lp.s[idx]]
-    mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+    # sample k of loop j blends loop points i0 and i1 = i0 + 1, each an edge point: four
+    # (row, vertex, weight) entries per sample, in the order (i0: a, b; i1: a, b) per loop
+    size = np.array([len(lp) for lp in loops])
+    first = np.cumsum(size) - size
+    ea, eb, es = (np.concatenate([getattr(lp, x) for lp in loops]) for x in "abs")
+    pos = np.stack([smp[0] for smp in samples])                             # (L, SAMPLES)
+    i0 = np.floor(pos).astype(np.int64) % size[:, None]
+    f = pos - np.floor(pos)
+    g0, g1 = i0 + first[:, None], (i0 + 1) % size[:, None] + first[:, None]
+    rows = np.repeat(np.arange(len(loops) * SAMPLES).reshape(-1, 1, SAMPLES), 4, axis=1)
+    cols = np.stack([ea[g0], eb[g0], ea[g1], eb[g1]], axis=1)
+    vals = np.stack([(1.0 - f) * (1.0 - es[g0]), (1.0 - f) * es[g0], f * (1.0 - es[g1]),
+                     f * es[g1]], axis=1)
+    mat = sp.csr_matrix((vals.reshape(-1), (rows.reshape(-1), cols.reshape(-1))),
                         shape=(len(loops) * SAMPLES, len(v)))
     return _Slices(mat, centres, normals, axes, shares, tuple(notes))
