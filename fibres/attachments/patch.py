@@ -89,7 +89,7 @@ def _graph(vertices, edges):
     """The mesh's edge graph (upper triangle, `_upper`) weighted by the edges' lengths, the
     row of each stored entry, and the lengths."""
     d = np.take(vertices, edges[:, 0], axis=0) - np.take(vertices, edges[:, 1], axis=0)
-    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
     lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
     graph = _upper(lo, hi, length, len(vertices))
     return graph, np.repeat(np.arange(len(vertices)), np.diff(graph.indptr)), length
@@ -168,16 +168,16 @@ def attachment_patches(vertices, faces, origin, insertion, edges, *,
     v = np.asarray(vertices, dtype=np.float64)
     graph, rows, length = _graph(v, edges)
     mean_edge = float(length.mean())
-    tree = cKDTree(v, balanced_tree=False, compact_nodes=False)   # exact queries, faster build
+    tree = cKDTree(v, leafsize=64, balanced_tree=False, compact_nodes=False)  # faster build
     notes = []
     fn = face_normals(v, faces) if normals is None else normals
-    areas = 0.5 * np.sqrt(np.einsum("ij,ij->i", fn, fn))
-    # each corner's (vertex, axis) bin: one pass sums the normals of a vertex's faces
-    at = (3 * faces.reshape(-1, 3, 1) + np.arange(3)).reshape(-1)
-    vn = np.bincount(at, np.broadcast_to(fn[:, None], (len(fn), 3, 3)).reshape(-1),
-                     3 * len(v)).reshape(-1, 3)
-    vn /= np.maximum(np.sqrt(np.einsum("ij,ij->i", vn, vn)), 1e-300)[:, None]
-    vertex_area = np.bincount(faces.reshape(-1), np.repeat(areas / 3.0, 3), len(v))
+    fx, fy, fz = fn[:, 0], fn[:, 1], fn[:, 2]
+    flat = faces.reshape(-1)
+    vx, vy, vz = (np.bincount(flat, np.repeat(c, 3), len(v)) for c in (fx, fy, fz))
+    size = np.maximum(np.sqrt(vx * vx + vy * vy + vz * vz), 1e-300)
+    vn = np.stack([vx / size, vy / size, vz / size], axis=1)
+    vertex_area = np.bincount(flat, np.repeat(0.5 * np.sqrt(fx * fx + fy * fy + fz * fz) / 3.0,
+                                              3), len(v))
     patches, dists, seed_sets = [], [], []
     for name, pts in (("origin", origin), ("insertion", insertion)):
         pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
@@ -240,8 +240,11 @@ def _enclosed(v, vn, landmarks, dist, mean_edge):
     coef = np.linalg.lstsq(basis(lx, ly), lz, rcond=None)[0]
     vx, vy, vz = ((v - centre) @ frame).T
     height = vz - basis(vx, vy) @ coef
-    # the muscle lies on one side: its vertices' median height says which
-    side = np.sign(np.median(height)) or 1.0
+    # the muscle lies on one side: its vertices' median height says which (its sign is the
+    # majority's, when more than half lie on one side)
+    n_up, n_down = np.count_nonzero(height > 0.0), np.count_nonzero(height < 0.0)
+    side = 1.0 if 2 * n_up > len(height) else -1.0 if 2 * n_down > len(height) else \
+        float(np.sign(np.median(height)) or 1.0)
     limit = 2.0 * float(np.median(dist)) + 2.0 * mean_edge
     near = np.abs(height) < limit
     try:

@@ -316,21 +316,13 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
         area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
         n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
         sub = _sub_centroids(n)                                        # (S, 3)
-        s = np.einsum("sk,tkd->tsd", sub, t).reshape(-1, 3)
-        p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
-        cen = t.mean(axis=1)
-        axis = int(np.argmax(np.ptp(s, axis=0)))                   # the sweeps' axis
-        order = np.argsort(cen[:, axis], kind="stable")
-        parts.append((i[order], t[order], cen[order], s,
-                      np.repeat(area / len(sub), len(sub)), p, axis))
-    idx, tri, cen, pts, w, p = (np.concatenate([part[j] for part in parts]) for j in range(6))
-    axes = np.array([part[6] for part in parts], dtype=np.int64)
-    starts = [np.cumsum([0] + [len(part[j]) for part in parts]) for j in (0, 3, 5)]
-    radius = np.sqrt(((tri - cen[:, None]) ** 2).sum(axis=2).max(axis=1))        # (T,)
-    tkey = cen[np.arange(len(cen)), np.repeat(axes, np.diff(starts[0]))]
+        parts.append((i, t, np.einsum("sk,tkd->tsd", sub, t).reshape(-1, 3),
+                      np.repeat(area / len(sub), len(sub)),
+                      np.einsum("nk,nkd->nd", bary, vertices[faces[face]])))
+    idx, tri, pts, w, p = (np.concatenate([part[j] for part in parts]) for j in range(5))
+    starts = [np.cumsum([0] + [len(part[j]) for part in parts]) for j in (0, 2, 4)]
     pick = np.full(len(p), -1, dtype=np.int64)
-    _lloyd(tri, cen, radius, tkey, pts, w, p, axes, *starts, int(iterations), pick,
-           np.empty(len(pts), dtype=np.int64), np.empty((len(p), 5)))
+    _lloyd(tri, pts, w, p, *starts, int(iterations), pick)
     moved = np.flatnonzero(pick >= 0)
     face = np.concatenate([out[k][0] for k in todo])
     bary = np.concatenate([out[k][1] for k in todo])
@@ -343,31 +335,47 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _lloyd(tri, cen, radius, tkey, pts, w, p, axes, tstart, sstart, pstart, iterations,
-           pick, owner, work):
+def _lloyd(tri, pts, w, p, tstart, sstart, pstart, iterations, pick):
     """The Lloyd steps of `relax_on_patch` on patches g (segments ``tstart``, ``sstart``,
-    ``pstart`` of the triangles ``tri`` (T, 3, 3), sorted by ``tkey``, their centroids'
-    coordinate along the axis ``axes[g]``; of the samples ``pts`` with weights ``w``; of the
-    points ``p``, moved in place). Per step: each sample to its nearest point (a sweep
-    outward from its place among the points sorted along the axis, stopped where the axis
-    gap alone exceeds the best distance; ties to the lower point), each point with samples
-    to the point of the patch nearest their weighted centroid c (its triangle into
-    ``pick``). ``d0``, the distance from c to its nearest own sample, bounds the patch's
-    distance, so only triangles whose centroid lies within d0 + their radius of c can hold
-    a nearer point (found by the axis range, then filtered); their closest points are
-    Ericson's (2005, §5.1.5; as `fibres.mesh.closest_point`), the nearest wins (ties to the
-    first in the sorted order). Work space: ``owner`` (S,) int64, ``work`` (N, 5)."""
+    ``pstart`` of the triangles ``tri`` (T, 3, 3), of the samples ``pts`` with weights ``w``
+    and of the points ``p``, moved in place). Per step: each sample to its nearest point (a
+    sweep outward from its place among the points sorted along the axis of the patch's
+    largest extent, stopped where the gap along the axis alone exceeds the best distance;
+    ties to the lower point), each point with samples to the point of the patch nearest
+    their weighted centroid c (its triangle into ``pick``). ``d0``, the distance from c to
+    its nearest own sample, bounds the patch's distance, so only triangles whose centroid
+    lies within d0 + their radius (centroid to corner) of c can hold a nearer point (found
+    in their order along the axis, then filtered); their closest points are Ericson's
+    (2005, §5.1.5; as `fibres.mesh.closest_point`), the nearest wins (ties to the first met).
+    """
     slack = 1.0 + 1e-9
-    for g in range(axes.shape[0]):
-        ax, p0, p1, m = axes[g], pstart[g], pstart[g + 1], pstart[g + 1] - pstart[g]
-        t0, t1 = tstart[g], tstart[g + 1]
+    owner = np.empty(pts.shape[0], dtype=np.int64)
+    work = np.empty((p.shape[0], 5))            # per point: centroid (3), mass, d0
+    cen = np.empty((tri.shape[0], 3))
+    radius = np.zeros(tri.shape[0])
+    for e in range(tri.shape[0]):
+        for k in range(3):
+            cen[e, k] = (tri[e, 0, k] + tri[e, 1, k] + tri[e, 2, k]) / 3.0
+        for c in range(3):
+            radius[e] = max(radius[e], math.sqrt((tri[e, c, 0] - cen[e, 0]) ** 2 + (
+                tri[e, c, 1] - cen[e, 1]) ** 2 + (tri[e, c, 2] - cen[e, 2]) ** 2))
+    for g in range(len(tstart) - 1):
+        p0, p1, m = pstart[g], pstart[g + 1], pstart[g + 1] - pstart[g]
+        t0, t1, s0, s1 = tstart[g], tstart[g + 1], sstart[g], sstart[g + 1]
+        low, high = np.full(3, np.inf), np.full(3, -np.inf)
+        for s in range(s0, s1):
+            for k in range(3):
+                low[k], high[k] = min(low[k], pts[s, k]), max(high[k], pts[s, k])
+        ax = np.argmax(high - low)
+        torder = np.argsort(cen[t0:t1, ax]) + t0
+        tkey = cen[torder, ax]
         reach = radius[t0:t1].max()
         for _ in range(iterations):
             order = np.argsort(p[p0:p1, ax]) + p0
             keys = p[order, ax]
             work[p0:p1] = 0.0
             work[p0:p1, 4] = np.inf
-            for s in range(sstart[g], sstart[g + 1]):
+            for s in range(s0, s1):
                 x = pts[s]
                 lo = np.searchsorted(keys, x[ax]) - 1
                 hi = lo + 1
@@ -393,7 +401,7 @@ def _lloyd(tri, cen, radius, tkey, pts, w, p, axes, tstart, sstart, pstart, iter
             for j in range(p0, p1):
                 for k in range(3):
                     work[j, k] = work[j, k] / work[j, 3]
-            for s in range(sstart[g], sstart[g + 1]):
+            for s in range(s0, s1):
                 o = owner[s]
                 d = math.sqrt((pts[s, 0] - work[o, 0]) ** 2 + (pts[s, 1] - work[o, 1]) ** 2
                               + (pts[s, 2] - work[o, 2]) ** 2)
@@ -404,9 +412,9 @@ def _lloyd(tri, cen, radius, tkey, pts, w, p, axes, tstart, sstart, pstart, iter
                 y0, y1, y2, d0 = work[j, 0], work[j, 1], work[j, 2], work[j, 4]
                 span = (d0 + reach) * slack
                 best = np.inf
-                for e in range(t0 + np.searchsorted(tkey[t0:t1], work[j, ax] - span),
-                               t0 + np.searchsorted(tkey[t0:t1], work[j, ax] + span,
-                                                    side="right")):
+                for at in range(np.searchsorted(tkey, work[j, ax] - span),
+                                np.searchsorted(tkey, work[j, ax] + span, side="right")):
+                    e = torder[at]
                     bound = (d0 + radius[e]) * slack
                     if ((cen[e, 0] - y0) ** 2 + (cen[e, 1] - y1) ** 2
                             + (cen[e, 2] - y2) ** 2 > bound * bound):
