@@ -316,13 +316,18 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
         area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
         n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
         sub = _sub_centroids(n)                                        # (S, 3)
-        parts.append((i, t, np.einsum("sk,tkd->tsd", sub, t).reshape(-1, 3),
-                      np.repeat(area / len(sub), len(sub)),
-                      np.einsum("nk,nkd->nd", bary, vertices[faces[face]])))
-    idx, tri, pts, w, p = (np.concatenate([part[j] for part in parts]) for j in range(5))
-    starts = [np.cumsum([0] + [len(part[j]) for part in parts]) for j in (0, 2, 4)]
+        cen = t.mean(axis=1)
+        axis = int(np.argmax(np.ptp(cen, axis=0)))       # the triangles in order along it
+        order = np.argsort(cen[:, axis], kind="stable")
+        parts.append((i[order], t[order], cen[order], np.einsum("sk,tkd->tsd", sub, t).reshape(
+            -1, 3), np.repeat(area / len(sub), len(sub)),
+            np.einsum("nk,nkd->nd", bary, vertices[faces[face]]), axis))
+    idx, tri, cen, pts, w, p = (np.concatenate([part[j] for part in parts]) for j in range(6))
+    starts = [np.cumsum([0] + [len(part[j]) for part in parts]) for j in (0, 3, 5)]
     pick = np.full(len(p), -1, dtype=np.int64)
-    _lloyd(tri, pts, w, p, *starts, int(iterations), pick)
+    _lloyd(tri, cen, np.array([part[6] for part in parts]), pts, w, p, *starts,
+           int(iterations), pick, np.empty(len(pts), dtype=np.int64), np.empty((len(p), 5)),
+           np.zeros(len(tri)))
     moved = np.flatnonzero(pick >= 0)
     face = np.concatenate([out[k][0] for k in todo])
     bary = np.concatenate([out[k][1] for k in todo])
@@ -335,73 +340,51 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _lloyd(tri, pts, w, p, tstart, sstart, pstart, iterations, pick):
+def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick, owner, work,
+           radius):
     """The Lloyd steps of `relax_on_patch` on patches g (segments ``tstart``, ``sstart``,
-    ``pstart`` of the triangles ``tri`` (T, 3, 3), of the samples ``pts`` with weights ``w``
-    and of the points ``p``, moved in place). Per step: each sample to its nearest point (a
-    sweep outward from its place among the points sorted along the axis of the patch's
-    largest extent, stopped where the gap along the axis alone exceeds the best distance;
-    ties to the lower point), each point with samples to the point of the patch nearest
-    their weighted centroid c (its triangle into ``pick``). ``d0``, the distance from c to
-    its nearest own sample, bounds the patch's distance, so only triangles whose centroid
-    lies within d0 + their radius (centroid to corner) of c can hold a nearer point (found
-    in their order along the axis, then filtered); their closest points are Ericson's
-    (2005, §5.1.5; as `fibres.mesh.closest_point`), the nearest wins (ties to the first met).
-    """
+    ``pstart`` of the triangles ``tri`` (T, 3, 3) with centroids ``cen``, in order along
+    the axis ``axes[g]``; of the samples ``pts`` with weights ``w``; of the points ``p``,
+    moved in place). Per step: each sample to its nearest point of its patch (ties to the
+    lower point), each point with samples to the point of the patch nearest their weighted
+    centroid c (its triangle into ``pick``). ``d0``, the distance from c to its nearest own
+    sample, bounds the patch's distance, so only triangles whose centroid lies within d0 +
+    their radius (centroid to corner) of c can hold a nearer point (those within d0 + the
+    largest radius along the axis are found by bisection, then filtered); their closest
+    points are Ericson's (2005, §5.1.5; as `fibres.mesh.closest_point`), the nearest wins
+    (ties to the first). The points (a hundred) are searched one by one. Work space:
+    ``owner`` (S,) int64, ``work`` (N, 5) (per point: centroid, mass, d0), ``radius`` (T,)
+    zeros."""
     slack = 1.0 + 1e-9
-    owner = np.empty(pts.shape[0], dtype=np.int64)
-    work = np.empty((p.shape[0], 5))            # per point: centroid (3), mass, d0
-    cen = np.empty((tri.shape[0], 3))
-    radius = np.zeros(tri.shape[0])
     for e in range(tri.shape[0]):
-        for k in range(3):
-            cen[e, k] = (tri[e, 0, k] + tri[e, 1, k] + tri[e, 2, k]) / 3.0
         for c in range(3):
             radius[e] = max(radius[e], math.sqrt((tri[e, c, 0] - cen[e, 0]) ** 2 + (
                 tri[e, c, 1] - cen[e, 1]) ** 2 + (tri[e, c, 2] - cen[e, 2]) ** 2))
     for g in range(len(tstart) - 1):
-        p0, p1, m = pstart[g], pstart[g + 1], pstart[g + 1] - pstart[g]
-        t0, t1, s0, s1 = tstart[g], tstart[g + 1], sstart[g], sstart[g + 1]
-        low, high = np.full(3, np.inf), np.full(3, -np.inf)
-        for s in range(s0, s1):
-            for k in range(3):
-                low[k], high[k] = min(low[k], pts[s, k]), max(high[k], pts[s, k])
-        ax = np.argmax(high - low)
-        torder = np.argsort(cen[t0:t1, ax]) + t0
-        tkey = cen[torder, ax]
-        reach = radius[t0:t1].max()
+        p0, p1, t0, t1, ax = pstart[g], pstart[g + 1], tstart[g], tstart[g + 1], axes[g]
+        reach = 0.0
+        for e in range(t0, t1):
+            reach = max(reach, radius[e])
         for _ in range(iterations):
-            order = np.argsort(p[p0:p1, ax]) + p0
-            keys = p[order, ax]
-            work[p0:p1] = 0.0
-            work[p0:p1, 4] = np.inf
-            for s in range(s0, s1):
-                x = pts[s]
-                lo = np.searchsorted(keys, x[ax]) - 1
-                hi = lo + 1
-                best, o = np.inf, -1
-                while True:
-                    dl = x[ax] - keys[lo] if lo >= 0 else np.inf
-                    dh = keys[hi] - x[ax] if hi < m else np.inf
-                    if min(dl, dh) ** 2 > best:
-                        break
-                    if dl <= dh:
-                        j = order[lo]
-                        lo -= 1
-                    else:
-                        j = order[hi]
-                        hi += 1
-                    d = (x[0] - p[j, 0]) ** 2 + (x[1] - p[j, 1]) ** 2 + (x[2] - p[j, 2]) ** 2
-                    if d < best or (d == best and j < o):
+            for j in range(p0, p1):
+                for k in range(5):
+                    work[j, k] = 0.0 if k < 4 else np.inf
+            for s in range(sstart[g], sstart[g + 1]):
+                x0, x1, x2 = pts[s, 0], pts[s, 1], pts[s, 2]
+                best, o = np.inf, p0
+                for j in range(p0, p1):
+                    d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
+                    if d < best:
                         best, o = d, j
                 owner[s] = o
                 work[o, 3] += w[s]
-                for k in range(3):
-                    work[o, k] += w[s] * x[k]
+                work[o, 0] += w[s] * x0
+                work[o, 1] += w[s] * x1
+                work[o, 2] += w[s] * x2
             for j in range(p0, p1):
                 for k in range(3):
                     work[j, k] = work[j, k] / work[j, 3]
-            for s in range(s0, s1):
+            for s in range(sstart[g], sstart[g + 1]):
                 o = owner[s]
                 d = math.sqrt((pts[s, 0] - work[o, 0]) ** 2 + (pts[s, 1] - work[o, 1]) ** 2
                               + (pts[s, 2] - work[o, 2]) ** 2)
@@ -411,10 +394,17 @@ def _lloyd(tri, pts, w, p, tstart, sstart, pstart, iterations, pick):
                     continue
                 y0, y1, y2, d0 = work[j, 0], work[j, 1], work[j, 2], work[j, 4]
                 span = (d0 + reach) * slack
+                lo, hi = t0, t1                        # the first centroid past y - span
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if cen[mid, ax] < work[j, ax] - span:
+                        lo = mid + 1
+                    else:
+                        hi = mid
                 best = np.inf
-                for at in range(np.searchsorted(tkey, work[j, ax] - span),
-                                np.searchsorted(tkey, work[j, ax] + span, side="right")):
-                    e = torder[at]
+                for e in range(lo, t1):
+                    if cen[e, ax] > work[j, ax] + span:
+                        break
                     bound = (d0 + radius[e]) * slack
                     if ((cen[e, 0] - y0) ** 2 + (cen[e, 1] - y1) ** 2
                             + (cen[e, 2] - y2) ** 2 > bound * bound):
