@@ -275,7 +275,7 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     The patch's area is sampled at the centroids of each triangle's split into n^2 equal
     parts (about ``samples`` in all); each step gives every sample to its nearest point and
     moves each point to the patch point nearest the area-weighted centroid of its own samples
-    (`_onto_patch`: a face and barycentric weights, continuous in the centroid). A point
+    (`_lloyd`: a face and barycentric weights, continuous in the centroid). A point
     moves by at most about half its distance to its neighbours per step and keeps its place
     among them (order is kept but for local swaps), while the holes of a quasi-random set
     (Sobol ends leave ~15 % of a patch more than half a spacing from any end) close.
