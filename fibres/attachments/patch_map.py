@@ -5,6 +5,10 @@ patches: template end coordinates ``(X, Y)`` in [0, 1]^2 go onto the patch by th
 Knothe-Rosenblatt rearrangement of the uniform square onto the patch's area measure
 (`area_points`). The result is a face and barycentric weights: a material point that rides
 a deformed copy of the surface.
+
+Compiled (numba, module level, ``cache=True``): the conditional measure's per-point sums
+(`_window`) and the Lloyd steps (`_lloyd`); what is one vectorised step per patch (triangles,
+samples, weights, the finishing barycentric weights) is numpy around them.
 """
 from __future__ import annotations
 
