@@ -86,12 +86,13 @@ def _upper(a, b, values, n):
 
 
 def _graph(vertices, edges):
-    """The mesh's edge graph (upper triangle, `_upper`) weighted by the edges' lengths, and
-    the lengths."""
+    """The mesh's edge graph (upper triangle, `_upper`) weighted by the edges' lengths, the
+    row of each stored entry, and the lengths."""
     d = np.take(vertices, edges[:, 0], axis=0) - np.take(vertices, edges[:, 1], axis=0)
-    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
     lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
-    return _upper(lo, hi, length, len(vertices)), length
+    graph = _upper(lo, hi, length, len(vertices))
+    return graph, np.repeat(np.arange(len(vertices)), np.diff(graph.indptr)), length
 
 
 def face_normals(vertices, faces):
@@ -102,55 +103,51 @@ def face_normals(vertices, faces):
 
 def _grow(graph, seeds, radius):
     """(V,) geodesic distance from the nearest seed, inf beyond ``radius``."""
-    d = dijkstra(graph, directed=False, indices=np.unique(seeds), limit=radius, min_only=True)
-    return d
+    return dijkstra(graph, directed=False, indices=np.unique(seeds), limit=radius,
+                    min_only=True)
 
 
-def _components(mask, edges):
-    """Connected components of the vertices ``mask`` over the mesh edges joining two of them:
-    (count, label of each of ``np.flatnonzero(mask)``)."""
-    idx = np.flatnonzero(mask)
-    where = np.full(mask.size, -1, dtype=np.int64)
-    where[idx] = np.arange(idx.size)
-    keep = mask[edges[:, 0]] & mask[edges[:, 1]]
-    a, b = where[edges[keep, 0]], where[edges[keep, 1]]      # where keeps the edges' order
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    return connected_components(_upper(lo, hi, np.ones(a.size), idx.size), directed=False)
+def _components(mask, graph, rows):
+    """Connected components of the graph (`_graph`, its entries' ``rows``) without the edges
+    that join a vertex of ``mask`` to one outside it: the pieces of ``mask`` and those of the
+    rest at once, (count, (V,) labels)."""
+    keep = mask[rows] == mask[graph.indices]
+    at = np.zeros(len(keep) + 1, dtype=np.int64)
+    np.cumsum(keep, out=at[1:])
+    cut = sp.csr_matrix((np.ones(int(at[-1])), graph.indices[keep], at[graph.indptr]),
+                        shape=graph.shape)
+    return connected_components(cut, directed=False)
 
 
-def _fill_holes(patch, edges, vertex_area):
-    """The patch plus every component of the rest of the surface smaller than half the
-    patch (holes between landmarks; not the muscle's free surface, nor a face that a ring of
-    landmarks round a thin muscle's rim happens to enclose)."""
-    rest = np.flatnonzero(~patch)
-    if rest.size == 0:
+def _pieces(patch, graph, rows, vertex_area, name, notes):
+    """The patch with its holes filled and its small pieces dropped (module docstring, steps
+    3 and 4): holes are the components of the rest of the surface smaller than half the
+    patch (not the muscle's free surface, the largest, nor a face that a ring of landmarks
+    round a thin muscle's rim happens to enclose); pieces under `MIN_PIECE` of the filled
+    patch's area are dropped, with a note."""
+    n, label = _components(patch, graph, rows)
+    rest = np.zeros(n, dtype=bool)
+    rest[label[~patch]] = True
+    area = np.bincount(label, vertex_area, n)
+    if rest.sum() > 1:
+        small = rest & (area < 0.5 * vertex_area[patch].sum())
+        small[np.flatnonzero(rest)[area[rest].argmax()]] = False
+        if small.any():
+            patch = patch | small[label]
+            n, label = _components(patch, graph, rows)
+            area = np.bincount(label, vertex_area, n)
+    piece = np.zeros(n, dtype=bool)
+    piece[label[patch]] = True
+    if piece.sum() <= 1:
         return patch
-    n, label = _components(~patch, edges)
-    if n <= 1:
-        return patch
-    area = np.bincount(label, vertex_area[rest])
-    small = area < 0.5 * vertex_area[patch].sum()
-    small[area.argmax()] = False
-    out = patch.copy()
-    out[rest[small[label]]] = True
-    return out
-
-
-def _drop_small_pieces(patch, edges, vertex_area, name, notes):
-    idx = np.flatnonzero(patch)
-    n, label = _components(patch, edges)
-    if n <= 1:
-        return patch
-    area = np.bincount(label, vertex_area[idx])
-    keep = area >= MIN_PIECE * area.sum()
+    keep = ~piece | (area >= MIN_PIECE * area[piece].sum())
     if keep.all():
-        notes.append(f"{name} patch: {n} separate pieces (the field has a saddle between them)")
+        notes.append(f"{name} patch: {int(piece.sum())} separate pieces (the field has a "
+                     "saddle between them)")
         return patch
-    out = np.zeros_like(patch)
-    out[idx[keep[label]]] = True
-    notes.append(f"{name} patch: {int((~keep).sum())} small piece(s) of {n} dropped "
-                 f"(under {MIN_PIECE:.0%} of the area: stray landmarks)")
-    return out
+    notes.append(f"{name} patch: {int((~keep).sum())} small piece(s) of {int(piece.sum())} "
+                 f"dropped (under {MIN_PIECE:.0%} of the area: stray landmarks)")
+    return patch & keep[label]
 
 
 def attachment_patches(vertices, faces, origin, insertion, edges, *,
@@ -169,16 +166,18 @@ def attachment_patches(vertices, faces, origin, insertion, edges, *,
         `face_normals` of the surface, when at hand.
     """
     v = np.asarray(vertices, dtype=np.float64)
-    graph, length = _graph(v, edges)
+    graph, rows, length = _graph(v, edges)
     mean_edge = float(length.mean())
-    tree = cKDTree(v, balanced_tree=False, compact_nodes=False)   # exact queries, faster build
+    tree = cKDTree(v, leafsize=64, balanced_tree=False, compact_nodes=False)  # faster build
     notes = []
     fn = face_normals(v, faces) if normals is None else normals
-    areas = 0.5 * np.linalg.norm(fn, axis=1)
+    fx, fy, fz = fn[:, 0], fn[:, 1], fn[:, 2]
     flat = faces.reshape(-1)
-    vn = np.stack([np.bincount(flat, np.repeat(fn[:, d], 3), len(v)) for d in range(3)], axis=1)
-    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
-    vertex_area = np.bincount(faces.reshape(-1), np.repeat(areas / 3.0, 3), len(v))
+    vx, vy, vz = (np.bincount(flat, np.repeat(c, 3), len(v)) for c in (fx, fy, fz))
+    size = np.maximum(np.sqrt(vx * vx + vy * vy + vz * vz), 1e-300)
+    vn = np.stack([vx / size, vy / size, vz / size], axis=1)
+    vertex_area = np.bincount(flat, np.repeat(0.5 * np.sqrt(fx * fx + fy * fy + fz * fz) / 3.0,
+                                              3), len(v))
     patches, dists, seed_sets = [], [], []
     for name, pts in (("origin", origin), ("insertion", insertion)):
         pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
@@ -200,8 +199,7 @@ def attachment_patches(vertices, faces, origin, insertion, edges, *,
         d = _grow(graph, seeds, radius)
         enclosed, facing = _enclosed(v, vn, pts, dist, mean_edge)
         patch = np.isfinite(d) if _STRIP else (np.isfinite(d) & facing) | enclosed
-        patch = _fill_holes(patch, edges, vertex_area)
-        patch = _drop_small_pieces(patch, edges, vertex_area, name, notes)
+        patch = _pieces(patch, graph, rows, vertex_area, name, notes)
         patches.append(patch)
         dists.append(dist)
         seed_sets.append(seeds)
@@ -218,8 +216,8 @@ def attachment_patches(vertices, faces, origin, insertion, edges, *,
         raise InputError("the origin and insertion landmarks project onto the same part of the "
                          "surface", where="attachments",
                          fix="Check that the landmarks belong to this muscle's two ends.")
-    of = o[faces].all(axis=1)
-    if_ = i[faces].all(axis=1)
+    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
+    of, if_ = o[f0] & o[f1] & o[f2], i[f0] & i[f1] & i[f2]
     return AttachmentPatches(o, i, of, if_, (dists[0], dists[1]), tuple(notes))
 
 
@@ -242,8 +240,11 @@ def _enclosed(v, vn, landmarks, dist, mean_edge):
     coef = np.linalg.lstsq(basis(lx, ly), lz, rcond=None)[0]
     vx, vy, vz = ((v - centre) @ frame).T
     height = vz - basis(vx, vy) @ coef
-    # the muscle lies on one side: its vertices' median height says which
-    side = np.sign(np.median(height)) or 1.0
+    # the muscle lies on one side: its vertices' median height says which (its sign is the
+    # majority's, when more than half lie on one side)
+    n_up, n_down = np.count_nonzero(height > 0.0), np.count_nonzero(height < 0.0)
+    side = 1.0 if 2 * n_up > len(height) else -1.0 if 2 * n_down > len(height) else \
+        float(np.sign(np.median(height)) or 1.0)
     limit = 2.0 * float(np.median(dist)) + 2.0 * mean_edge
     near = np.abs(height) < limit
     try:

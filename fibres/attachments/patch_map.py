@@ -5,10 +5,18 @@ patches: template end coordinates ``(X, Y)`` in [0, 1]^2 go onto the patch by th
 Knothe-Rosenblatt rearrangement of the uniform square onto the patch's area measure
 (`area_points`). The result is a face and barycentric weights: a material point that rides
 a deformed copy of the surface.
+
+Compiled (numba, module level, ``cache=True``): the conditional measure's per-point sums
+(`_window`) and the Lloyd steps (`_lloyd`); what is one vectorised step per patch (triangles,
+samples, weights, the finishing barycentric weights) is numpy around them.
 """
 from __future__ import annotations
 
+import math
+from functools import lru_cache
+
 import numpy as np
+from numba import njit
 
 __all__ = ["area_points", "relax_on_patch", "relax_on_patches", "LLOYD", "grid_area_map",
            "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
@@ -20,9 +28,10 @@ CANDIDATES = 12
 SAMPLES = 1500
 
 
+@lru_cache(maxsize=16)
 def _sub_centroids(n: int) -> np.ndarray:
     """(n^2, 3) barycentric weights of the centroids of a triangle's regular split into n^2
-    equal sub-triangles."""
+    equal sub-triangles (one read-only array per n)."""
     out = []
     for i in range(n):
         for j in range(n - i):
@@ -30,7 +39,11 @@ def _sub_centroids(n: int) -> np.ndarray:
             if i + j <= n - 2:
                 out.append(((i + 2 / 3) / n, (j + 2 / 3) / n))
     uv = np.array(out)
-    return np.c_[1.0 - uv.sum(axis=1), uv]
+    sub = np.c_[1.0 - uv.sum(axis=1), uv]
+    sub.flags.writeable = False
+    return sub
+
+
 #: conditional window width of `area_points`, as a share of the patch's extent along e1
 WINDOW = 0.08
 
@@ -44,19 +57,35 @@ def _quantile(values, weights, q):
     return np.interp(q, mid, v)
 
 
-def _window_weights(sx, sw, x, h):
-    """(N, S) sample weights ``sw`` times the Gaussian window of width ``h`` about each
-    ``x`` (N,) (all ``sw`` for a point no sample's window reaches) and their cumulative sums
-    along S."""
-    d = (sx[None] - np.asarray(x, dtype=np.float64)[:, None]) / h
-    w = np.exp(-0.5 * (d * d))
-    w *= sw[None]
-    cum = np.cumsum(w, axis=1)
-    empty = ~(cum[:, -1] > 0)                   # the weights are >= 0: the sum is the last
-    if empty.any():
-        w[empty] = sw[None]
-        cum[empty] = np.cumsum(sw)[None]
-    return w, cum
+@njit(cache=True, nogil=True, error_model="numpy")
+def _window(sx, sw, x, h, q, k, out, work):
+    """The conditional measure of `knothe_rosenblatt` and `kr_coordinates` at each ``x[i]``:
+    the samples' weights ``sw`` times the Gaussian window of width ``h`` about ``x[i]``
+    (``sw`` itself where no sample's window reaches), in the samples' order, and their
+    mid-point cumulative sums ``half_s = cum_s - w_s / 2``. Where ``k[i] < 0`` on entry it
+    becomes the count of ``half_s < q[i] * total`` clipped to [1, S - 1]; ``out[i]`` gets
+    ``half[k - 1], half[k], total, half[0], half[S - 1]``. Work space ``work`` (S,)."""
+    n = sx.shape[0]
+    for i in range(x.shape[0]):
+        total = 0.0
+        for s in range(n):
+            d = (sx[s] - x[i]) / h
+            work[s] = math.exp(-0.5 * (d * d)) * sw[s]
+            total += work[s]
+        if not total > 0.0:                       # the weights are >= 0: nothing reached
+            total = 0.0
+            for s in range(n):
+                work[s] = sw[s]
+                total += work[s]
+        cum, below, limit = 0.0, 0, q[i] * total
+        for s in range(n):
+            cum += work[s]
+            work[s] = cum - 0.5 * work[s]
+            below += work[s] < limit
+        if k[i] < 0:
+            k[i] = min(max(below, 1), n - 1)
+        out[i, 0], out[i, 1], out[i, 2] = work[k[i] - 1], work[k[i]], total
+        out[i, 3], out[i, 4] = work[0], work[n - 1]
 
 
 def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
@@ -76,19 +105,15 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    w, cum = _window_weights(sx, sw, xs, h)                              # (N, S)
-    # the mid-point cumulative weights, normalised only where they are used (the count of
-    # those below q compares before the division: the same up to rounding)
-    total = cum[:, -1].copy()
-    half = cum
-    half -= 0.5 * w
     q = np.clip(Y, 0.0, 1.0)
-    k = np.clip(np.count_nonzero(half < (q * total)[:, None], axis=1), 1, len(sy) - 1)
-    at = k + len(sy) * np.arange(len(xs))
-    m0, m1 = half.reshape(-1)[at - 1] / total, half.reshape(-1)[at] / total
+    k = np.full(len(xs), -1, dtype=np.int64)
+    half = np.empty((len(xs), 5))                    # (N, 5): `_window`'s sums
+    _window(sx, sw, xs, h, q, k, half, np.empty(len(sx)))
+    total = half[:, 2]
+    m0, m1 = half[:, 0] / total, half[:, 1] / total
     f = np.clip((q - m0) / np.maximum(m1 - m0, 1e-300), 0.0, 1.0)
     ys = sy[k - 1] + f * (sy[k] - sy[k - 1])
-    below, above = q <= half[:, 0] / total, q >= half[:, -1] / total
+    below, above = q <= half[:, 3] / total, q >= half[:, 4] / total
     ys = np.where(below, sy[0], np.where(above, sy[-1], ys))
     return xs, ys
 
@@ -153,12 +178,11 @@ def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
     h = WINDOW * max(float(sx.max() - sx.min()), 1e-12)
     order = np.argsort(sy, kind="stable")
     sy, sx, sw = sy[order], sx[order], sw[order]
-    w, cum = _window_weights(sx, sw, qx, h)
     k = np.clip(np.searchsorted(sy, qy, side="left"), 1, len(sy) - 1)   # #(sy < qy)
-    at = k + len(sy) * np.arange(len(k))
-    # the mid-point cumulative weights only where they are used
-    m0 = (cum.reshape(-1)[at - 1] - 0.5 * w.reshape(-1)[at - 1]) / cum[:, -1]
-    m1 = (cum.reshape(-1)[at] - 0.5 * w.reshape(-1)[at]) / cum[:, -1]
+    half = np.empty((len(k), 5))                     # (N, 5): `_window`'s sums
+    _window(sx, sw, np.asarray(qx, dtype=np.float64), h, np.zeros(len(k)), k, half,
+            np.empty(len(sx)))
+    m0, m1 = half[:, 0] / half[:, 2], half[:, 1] / half[:, 2]
     f = np.clip((qy - sy[k - 1]) / np.maximum(sy[k] - sy[k - 1], 1e-300), 0.0, 1.0)
     Y = m0 + f * (m1 - m0)
     return np.clip(X, 0.0, 1.0), np.clip(Y, 0.0, 1.0)
@@ -173,22 +197,25 @@ def locate(px, py, xs, ys):
 
     cx, cy = px.mean(axis=1), py.mean(axis=1)
     k = min(CANDIDATES, len(px))
-    near = cKDTree(np.c_[cx, cy]).query(np.c_[xs, ys], k=k)[1].reshape(len(xs), k)
-    pick, bary, ok = _barycentric(px, py, xs, ys, near)
+    near = cKDTree(np.stack([cx, cy], axis=1)).query(np.stack([xs, ys], axis=1), k=k)[1]
+    pick, bary, ok = _barycentric(px, py, xs, ys, near.reshape(len(xs), k))
     if not ok.all():
         miss = np.flatnonzero(~ok)
-        every = np.broadcast_to(np.arange(len(px)), (miss.size, len(px)))
-        p2, b2, ok2 = _barycentric(px, py, xs[miss], ys[miss], every)
+        p2, b2, ok2 = _barycentric(px, py, xs[miss], ys[miss], None)
         pick[miss[ok2]], bary[miss[ok2]] = p2[ok2], b2[ok2]
     return pick, bary
 
 
 def _barycentric(px, py, xs, ys, cand):
-    """Among candidate triangles ``cand`` (N, k) of each point: the first holding it (else the
-    first candidate, the nearest), its clipped barycentrics, and whether one held it."""
-    ax, ay = px[cand, 0], py[cand, 0]
-    bx, by = px[cand, 1] - ax, py[cand, 1] - ay
-    cx, cy = px[cand, 2] - ax, py[cand, 2] - ay
+    """Among candidate triangles ``cand`` (N, k) of each point (None: all triangles, in
+    order): the first holding it (else the first candidate, the nearest), its clipped
+    barycentrics, and whether one held it."""
+    def corner(c, k):                                # all: broadcast (1, T), no gather
+        return c[None, :, k] if cand is None else c[cand, k]
+
+    ax, ay, bx, by, cx, cy = (corner(c, k) for k in range(3) for c in (px, py))
+    bx, by = bx - ax, by - ay
+    cx, cy = cx - ax, cy - ay
     det = bx * cy - by * cx
     det = np.where(np.abs(det) < 1e-30, 1e-30, det)
     qx, qy = xs[:, None] - ax, ys[:, None] - ay
@@ -201,7 +228,7 @@ def _barycentric(px, py, xs, ys, cand):
     rows = np.arange(len(xs))
     bary = np.clip(np.stack([l0[rows, col], l1[rows, col], l2[rows, col]], axis=1), 0.0, None)
     bary /= np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
-    return cand[rows, col].copy(), bary, ok
+    return (col if cand is None else cand[rows, col].copy()), bary, ok
 
 
 def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
@@ -231,10 +258,9 @@ def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
         Barycentric weights of the face's corners (non-negative, summing to 1).
     """
     idx = np.flatnonzero(face_mask)
-    tri = np.take(vertices, faces[idx], axis=0)                    # (Tp, 3, 3)
+    tri = np.take(vertices, faces[idx], axis=0) - centre             # (Tp, 3, 3)
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    px = (tri - centre) @ e1
-    py = (tri - centre) @ e2
+    px, py = tri @ e1, tri @ e2
     xs, ys = knothe_rosenblatt(px, py, area, X, Y)
     pick, bary = locate(px, py, xs, ys)
     return idx[pick], bary
@@ -253,7 +279,7 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     The patch's area is sampled at the centroids of each triangle's split into n^2 equal
     parts (about ``samples`` in all); each step gives every sample to its nearest point and
     moves each point to the patch point nearest the area-weighted centroid of its own samples
-    (`_onto_patch`: a face and barycentric weights, continuous in the centroid). A point
+    (`_lloyd`: a face and barycentric weights, continuous in the centroid). A point
     moves by at most about half its distance to its neighbours per step and keeps its place
     among them (order is kept but for local swaps), while the holes of a quasi-random set
     (Sobol ends leave ~15 % of a patch more than half a spacing from any end) close.
@@ -278,119 +304,152 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
     """`relax_on_patch` of several patches at once: ``ends`` a sequence of ``(face_mask,
     face, bary)``; a list of ``(face, bary)``, each patch's as `relax_on_patch` makes it.
 
-    The patches share the k-d trees of each step: every point, sample and triangle centroid
-    gets a fourth coordinate, its patch's number times a length (`_apart`) beyond any
-    distance the steps look, so nothing sees another patch's samples or triangles, and the
-    distances within a patch are the three-dimensional ones (the fourth differences are 0)."""
-    from scipy.spatial import cKDTree
-
+    The samples and triangles are made in numpy; the steps run in one compiled loop over the
+    patches (`_lloyd`), each on its own points, samples and triangles."""
     out = [(np.asarray(f, dtype=np.int64).copy(), np.asarray(b, dtype=np.float64).copy())
            for _, f, b in ends]
     todo = [k for k, (mask, _, _) in enumerate(ends)
             if iterations > 0 and np.any(mask) and len(out[k][0]) >= 2]
     if not todo:
         return out
-    apart = _apart(vertices)
     parts = []
-    for slot, k in enumerate(todo):
+    for k in todo:
         face, bary = out[k]
         i = np.flatnonzero(ends[k][0])
         t = np.take(vertices, faces[i], axis=0)                        # (Tp, 3, 3)
         area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
         n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
         sub = _sub_centroids(n)                                        # (S, 3)
-        s = np.einsum("sk,tkd->tsd", sub, t).reshape(-1, 3)
-        p = np.einsum("nk,nkd->nd", bary, vertices[faces[face]])
-        parts.append((i, t, s, np.repeat(area / len(sub), len(sub)), p, face, bary,
-                      np.full(len(i), slot * apart), np.full(len(s), slot * apart),
-                      np.full(len(p), slot * apart), np.full(len(p), slot)))
-    idx, tri, pts, w, p, face, bary, tag, sample_tag, point_tag, point_slot = (
-        np.concatenate(x) for x in zip(*parts))
-    pts4 = np.c_[pts, sample_tag]
-    patch = _Patch(tri, pts4, tag)
-    # each patch's own largest triangle radius bounds its points' searches
-    reach = np.array([patch.radius[tag == slot * apart].max() for slot in range(len(todo))])
-    point_reach = reach[point_slot]
-    for _ in range(int(iterations)):
-        owner = cKDTree(np.c_[p, point_tag]).query(pts4)[1]
-        mass = np.bincount(owner, w, len(p))
-        has = mass > 0
-        c = np.stack([np.bincount(owner, w * pts[:, d], len(p)) for d in range(3)], axis=1)
-        sel = np.flatnonzero(has)
-        pick, b, q = _onto_patch(patch, c[sel] / mass[sel, None], point_tag[sel],
-                                 point_reach[sel])
-        face[sel], bary[sel], p[sel] = idx[pick], b, q
-    at = np.cumsum([0] + [len(part[4]) for part in parts])
+        cen = t.mean(axis=1)
+        axis = int(np.argmax(np.ptp(cen, axis=0)))       # the triangles in order along it
+        order = np.argsort(cen[:, axis], kind="stable")
+        parts.append((i[order], t[order], cen[order], np.einsum("sk,tkd->tsd", sub, t).reshape(
+            -1, 3), np.repeat(area / len(sub), len(sub)),
+            np.einsum("nk,nkd->nd", bary, vertices[faces[face]]), axis))
+    idx, tri, cen, pts, w, p = (np.concatenate([part[j] for part in parts]) for j in range(6))
+    starts = [np.cumsum([0] + [len(part[j]) for part in parts]) for j in (0, 3, 5)]
+    pick = np.full(len(p), -1, dtype=np.int64)
+    _lloyd(tri, cen, np.array([part[6] for part in parts]), pts, w, p, *starts,
+           int(iterations), pick, np.empty(len(pts), dtype=np.int64), np.empty((len(p), 5)),
+           np.zeros(len(tri)))
+    moved = np.flatnonzero(pick >= 0)
+    face = np.concatenate([out[k][0] for k in todo])
+    bary = np.concatenate([out[k][1] for k in todo])
+    face[moved] = idx[pick[moved]]
+    bary[moved] = _barycentric_3d(tri[pick[moved]], p[moved])
+    at = starts[2]
     for slot, k in enumerate(todo):
         out[k] = (face[at[slot]:at[slot + 1]], bary[at[slot]:at[slot + 1]])
     return out
 
 
-def _apart(vertices) -> float:
-    """A length beyond every distance `relax_on_patches` looks within one patch: 4 times the
-    largest extent of the vertices, at least 1."""
-    v = np.asarray(vertices, dtype=np.float64)
-    return 4.0 * max(float(np.ptp(v, axis=0).max()) if len(v) else 0.0, 1.0)
-
-
-class _Patch:
-    """Patches' triangles ``tri`` (Tp, 3, 3) and area samples (points of the patches with
-    their fourth coordinate, `relax_on_patches`) with the k-d trees and bound that
-    `_onto_patch` needs, built once for all Lloyd steps; ``tag`` (Tp,) the triangles' fourth
-    coordinate."""
-
-    def __init__(self, tri, samples, tag):
-        from scipy.spatial import cKDTree
-
-        self.tri = tri
-        cen = tri.mean(axis=1)
-        self.cen = cen
-        self.radius = np.sqrt(((tri - cen[:, None]) ** 2).sum(axis=2).max(axis=1))   # (Tp,)
-        self.reach = float(self.radius.max())
-        self.samples = cKDTree(samples)
-        self.centroids = cKDTree(np.c_[cen, tag])
-
-
-def _onto_patch(patch: _Patch, c, tag, reach=None):
-    """The point of the patch's triangles nearest each point ``c`` (M, 3) (with its fourth
-    coordinate ``tag`` (M,): among its own patch's triangles): its triangle (index into
-    ``patch.tri``), barycentric weights and position. ``reach`` (M,): the largest
-    centroid-to-corner distance of each point's own patch's triangles (default: of all).
-
-    Exact among all triangles: a sample (a point of the patch) at distance ``d0`` from c
-    bounds the distance to the patch, so only triangles whose centroid lies within ``d0``
-    plus their centroid-to-corner distance can hold a nearer point (those within ``d0`` plus
-    the largest such distance are found by a k-d tree, then filtered); the nearest point of
-    each is found by `fibres.mesh.closest_point.closest_points_on_triangles`. Where two
-    triangles hold the same nearest point (their shared edge or corner), either gives the
-    same position on any deformed copy."""
-    from itertools import chain
-
-    from ..mesh.closest_point import closest_points_on_triangles
-
-    tri = patch.tri
-    c4 = np.c_[c, tag]
-    d0 = patch.samples.query(c4)[0]
-    reach = patch.reach if reach is None else reach
-    near = patch.centroids.query_ball_point(c4, (d0 + reach) * (1.0 + 1e-9),
-                                            return_sorted=False)
-    count = np.fromiter(map(len, near), dtype=np.int64, count=len(c))
-    cand = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=int(count.sum()))
-    who = np.repeat(np.arange(len(c)), count)                          # (pairs,)
-    # a triangle's points lie within its own radius of its centroid
-    p = np.take(c, who, axis=0)
-    gap = np.take(patch.cen, cand, axis=0) - p
-    bound = (d0[who] + patch.radius[cand]) * (1.0 + 1e-9)
-    keep = np.einsum("kd,kd->k", gap, gap) <= bound * bound
-    cand, who = cand[keep], who[keep]
-    count = np.bincount(who, minlength=len(c))
-    t = np.take(tri, cand, axis=0)
-    p = p[keep]
-    q = closest_points_on_triangles(p, t[:, 0], t[:, 1], t[:, 2])
-    d2 = np.einsum("kd,kd->k", q - p, q - p)
-    best = np.lexsort((d2, who))[np.concatenate([[0], np.cumsum(count)[:-1]])]
-    pick, out = cand[best], q[best]
-    return pick, _barycentric_3d(tri[pick], out), out
+@njit(cache=True, nogil=True, error_model="numpy")
+def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick, owner, work,
+           radius):
+    """The Lloyd steps of `relax_on_patch` on patches g (segments ``tstart``, ``sstart``,
+    ``pstart`` of the triangles ``tri`` (T, 3, 3) with centroids ``cen``, in order along
+    the axis ``axes[g]``; of the samples ``pts`` with weights ``w``; of the points ``p``,
+    moved in place). Per step: each sample to its nearest point of its patch (ties to the
+    lower point), each point with samples to the point of the patch nearest their weighted
+    centroid c (its triangle into ``pick``). ``d0``, the distance from c to its nearest own
+    sample, bounds the patch's distance, so only triangles whose centroid lies within d0 +
+    their radius (centroid to corner) of c can hold a nearer point (those within d0 + the
+    largest radius along the axis are found by bisection, then filtered); their closest
+    points are Ericson's (2005, §5.1.5; as `fibres.mesh.closest_point`), the nearest wins
+    (ties to the first). The points (a hundred) are searched one by one. Work space:
+    ``owner`` (S,) int64, ``work`` (N, 5) (per point: centroid, mass, d0), ``radius`` (T,)
+    zeros."""
+    slack = 1.0 + 1e-9
+    for e in range(tri.shape[0]):
+        for c in range(3):
+            radius[e] = max(radius[e], math.sqrt((tri[e, c, 0] - cen[e, 0]) ** 2 + (
+                tri[e, c, 1] - cen[e, 1]) ** 2 + (tri[e, c, 2] - cen[e, 2]) ** 2))
+    for g in range(len(tstart) - 1):
+        p0, p1, t0, t1, ax = pstart[g], pstart[g + 1], tstart[g], tstart[g + 1], axes[g]
+        reach = 0.0
+        for e in range(t0, t1):
+            reach = max(reach, radius[e])
+        for _ in range(iterations):
+            for j in range(p0, p1):
+                for k in range(5):
+                    work[j, k] = 0.0 if k < 4 else np.inf
+            for s in range(sstart[g], sstart[g + 1]):
+                x0, x1, x2 = pts[s, 0], pts[s, 1], pts[s, 2]
+                best, o = np.inf, p0
+                for j in range(p0, p1):
+                    d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
+                    if d < best:
+                        best, o = d, j
+                owner[s] = o
+                work[o, 3] += w[s]
+                work[o, 0] += w[s] * x0
+                work[o, 1] += w[s] * x1
+                work[o, 2] += w[s] * x2
+            for j in range(p0, p1):
+                for k in range(3):
+                    work[j, k] = work[j, k] / work[j, 3]
+            for s in range(sstart[g], sstart[g + 1]):
+                o = owner[s]
+                d = math.sqrt((pts[s, 0] - work[o, 0]) ** 2 + (pts[s, 1] - work[o, 1]) ** 2
+                              + (pts[s, 2] - work[o, 2]) ** 2)
+                work[o, 4] = min(work[o, 4], d)
+            for j in range(p0, p1):
+                if not work[j, 3] > 0.0:
+                    continue
+                y0, y1, y2, d0 = work[j, 0], work[j, 1], work[j, 2], work[j, 4]
+                span = (d0 + reach) * slack
+                lo, hi = t0, t1                        # the first centroid past y - span
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if cen[mid, ax] < work[j, ax] - span:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                best = np.inf
+                for e in range(lo, t1):
+                    if cen[e, ax] > work[j, ax] + span:
+                        break
+                    bound = (d0 + radius[e]) * slack
+                    if ((cen[e, 0] - y0) ** 2 + (cen[e, 1] - y1) ** 2
+                            + (cen[e, 2] - y2) ** 2 > bound * bound):
+                        continue
+                    v = tri[e]
+                    ab0, ab1, ab2 = v[1, 0] - v[0, 0], v[1, 1] - v[0, 1], v[1, 2] - v[0, 2]
+                    ac0, ac1, ac2 = v[2, 0] - v[0, 0], v[2, 1] - v[0, 1], v[2, 2] - v[0, 2]
+                    d1 = ab0 * (y0 - v[0, 0]) + ab1 * (y1 - v[0, 1]) + ab2 * (y2 - v[0, 2])
+                    d2 = ac0 * (y0 - v[0, 0]) + ac1 * (y1 - v[0, 1]) + ac2 * (y2 - v[0, 2])
+                    d3 = ab0 * (y0 - v[1, 0]) + ab1 * (y1 - v[1, 1]) + ab2 * (y2 - v[1, 2])
+                    d4 = ac0 * (y0 - v[1, 0]) + ac1 * (y1 - v[1, 1]) + ac2 * (y2 - v[1, 2])
+                    d5 = ab0 * (y0 - v[2, 0]) + ab1 * (y1 - v[2, 1]) + ab2 * (y2 - v[2, 2])
+                    d6 = ac0 * (y0 - v[2, 0]) + ac1 * (y1 - v[2, 1]) + ac2 * (y2 - v[2, 2])
+                    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+                    # q = v[i0] + (v[i1] - v[i0]) f + (v[2] - v[0]) h: Ericson's regions
+                    # in his order (corner A, B, edge AB, C, edge AC, edge BC, face)
+                    i0, i1, f, h, num, den = 0, 1, 0.0, 0.0, 0.0, 0.0
+                    if d1 <= 0.0 and d2 <= 0.0:
+                        pass
+                    elif d3 >= 0.0 and d4 <= d3:
+                        i0, i1 = 1, 2
+                    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+                        num, den = d1, d1 - d3
+                    elif d6 >= 0.0 and d5 <= d6:
+                        i0 = 2
+                    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+                        i1, num, den = 2, d2, d2 - d6
+                    elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+                        i0, i1, num, den = 1, 2, d4 - d3, (d4 - d3) + (d5 - d6)
+                    elif va + vb + vc > 0.0:
+                        inv = 1.0 / (va + vb + vc)
+                        f, h = vb * inv, vc * inv
+                    if den != 0.0:
+                        f = num / den
+                    q0 = v[i0, 0] + (v[i1, 0] - v[i0, 0]) * f + ac0 * h
+                    q1 = v[i0, 1] + (v[i1, 1] - v[i0, 1]) * f + ac1 * h
+                    q2 = v[i0, 2] + (v[i1, 2] - v[i0, 2]) * f + ac2 * h
+                    d = (q0 - y0) ** 2 + (q1 - y1) ** 2 + (q2 - y2) ** 2
+                    if d < best:
+                        best, pick[j] = d, e
+                        p[j, 0], p[j, 1], p[j, 2] = q0, q1, q2
 
 
 def _barycentric_3d(tri, q):

@@ -1,0 +1,150 @@
+"""The compiled steps of the attachment ends (`fibres.attachments.patch_map`: `_lloyd`,
+`_window`) and the patch's holes and pieces (`fibres.attachments.patch._pieces`) against
+plain numpy oracles written here from their definitions: brute force over every point,
+sample and triangle, and one graph search per mask.
+"""
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull
+
+from fibres.attachments import patch as P
+from fibres.attachments import patch_map as PM
+from fibres.mesh.closest_point import closest_points_on_triangles
+from fibres.slicing.harmonic_field import mesh_edges
+
+
+def _sphere(n=600, seed=0):
+    """A closed triangulated unit sphere (the hull of a Fibonacci point set, jittered)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    th = np.pi * (1.0 + 5 ** 0.5) * k
+    v = np.c_[np.sqrt(1 - z * z) * np.cos(th), np.sqrt(1 - z * z) * np.sin(th), z]
+    f = ConvexHull(v).simplices.astype(np.int64)                # every point on the hull
+    return v * (1.0 + 0.02 * np.random.default_rng(seed).standard_normal((n, 1))), f
+
+
+def _ends(v, f, mask, n, rng):
+    face = rng.choice(np.flatnonzero(mask), n)
+    bary = rng.dirichlet(np.ones(3), n)
+    return mask, face, bary
+
+
+def _lloyd_oracle(v, f, mask, face, bary, samples=PM.SAMPLES):
+    """One Lloyd step by brute force: samples to their nearest point, each point with
+    samples to the patch point nearest their weighted centroid (all triangles measured)."""
+    i = np.flatnonzero(mask)
+    t = v[f[i]]
+    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    n = int(np.clip(np.sqrt(samples / len(i)), 1, 8))
+    sub = PM._sub_centroids(n)
+    s = np.einsum("sk,tkd->tsd", sub, t).reshape(-1, 3)
+    w = np.repeat(area / len(sub), len(sub))
+    p = np.einsum("nk,nkd->nd", bary, v[f[face]])
+    owner = np.argmin(((s[:, None] - p[None]) ** 2).sum(axis=2), axis=1)
+    mass = np.bincount(owner, w, len(p))
+    c = np.stack([np.bincount(owner, w * s[:, d], len(p)) for d in range(3)], 1)
+    out = p.copy()
+    for j in np.flatnonzero(mass > 0):
+        y = c[j] / mass[j]
+        q = closest_points_on_triangles(y, t[:, 0], t[:, 1], t[:, 2])
+        out[j] = q[np.argmin(((q - y) ** 2).sum(axis=1))]
+    return out
+
+
+def test_lloyd_kernel_matches_a_brute_force_step_on_two_curved_patches():
+    """Two caps of a bumpy sphere relaxed together (the kernel's patch segments): one step
+    puts every point where the brute-force oracle does, to rounding, and the returned face
+    and barycentric weights give that point."""
+    v, f = _sphere()
+    cz = v[f].mean(axis=1)[:, 2]
+    rng = np.random.default_rng(1)
+    ends = [_ends(v, f, cz > 0.5, 40, rng), _ends(v, f, cz < -0.7, 25, rng)]
+    got = PM.relax_on_patches(v, f, ends, iterations=1)
+    for (mask, face, bary), (gf, gb) in zip(ends, got):
+        want = _lloyd_oracle(v, f, mask, face, bary)
+        at = np.einsum("nk,nkd->nd", gb, v[f[gf]])
+        np.testing.assert_allclose(at, want, atol=1e-12)
+        assert mask[gf].all()
+
+
+def _window_oracle(px, py, area, X, Y, samples=PM.SAMPLES):
+    """`knothe_rosenblatt` with the (N, S) window weights and cumulative sums in numpy."""
+    n = int(np.clip(np.sqrt(samples / len(px)), 1, 8))
+    sub = PM._sub_centroids(n)
+    sx, sy = (px @ sub.T).reshape(-1), (py @ sub.T).reshape(-1)
+    sw = np.repeat(area / len(sub), len(sub))
+    xs = PM._quantile(sx, sw, np.clip(X, 0.0, 1.0))
+    h = PM.WINDOW * (sx.max() - sx.min())
+    order = np.argsort(sy, kind="stable")
+    sy, sx, sw = sy[order], sx[order], sw[order]
+    w = np.exp(-0.5 * ((sx[None] - xs[:, None]) / h) ** 2) * sw
+    cum = np.cumsum(w, axis=1)
+    mid = (cum - 0.5 * w) / cum[:, -1:]
+    ys = np.array([np.interp(q, m, sy) for q, m in zip(np.clip(Y, 0, 1), mid)])
+    return xs, ys
+
+
+def test_window_kernel_matches_the_numpy_conditional_quantile():
+    """The Knothe-Rosenblatt targets of a curved patch's projection: the compiled
+    conditional (`_window`) gives the numpy window's quantiles (piecewise linear in the
+    mid-point cumulative weights, clamped at the ends), to rounding."""
+    v, f = _sphere()
+    tri = v[f[v[f].mean(axis=1)[:, 2] > 0.3]]
+    px, py = tri[..., 0], tri[..., 1]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    rng = np.random.default_rng(2)
+    X, Y = rng.uniform(0, 1, 60), np.r_[rng.uniform(0, 1, 58), 0.0, 1.0]
+    xs, ys = PM.knothe_rosenblatt(px, py, area, X, Y)
+    wx, wy = _window_oracle(px, py, area, X, Y)
+    np.testing.assert_allclose(xs, wx, atol=1e-12)
+    np.testing.assert_allclose(ys, wy, atol=1e-12)
+
+
+def _pieces_oracle(patch, edges, vertex_area):
+    """Holes filled, then small pieces dropped, each from the components of the masked
+    vertices alone (module docstring of `fibres.attachments.patch`, steps 3 and 4)."""
+    def components(mask):
+        idx = np.flatnonzero(mask)
+        where = np.full(mask.size, -1)
+        where[idx] = np.arange(idx.size)
+        keep = mask[edges[:, 0]] & mask[edges[:, 1]]
+        a, b = where[edges[keep, 0]], where[edges[keep, 1]]
+        return idx, connected_components(coo_matrix((np.ones(a.size), (a, b)),
+                                                    (idx.size, idx.size)), directed=False)[1]
+    rest, label = components(~patch)
+    area = np.bincount(label, vertex_area[rest])
+    small = area < 0.5 * vertex_area[patch].sum()
+    small[area.argmax()] = False
+    patch = patch.copy()
+    patch[rest[small[label]]] = True
+    idx, label = components(patch)
+    area = np.bincount(label, vertex_area[idx])
+    out = np.zeros_like(patch)
+    out[idx[(area >= P.MIN_PIECE * area.sum())[label]]] = True
+    return out
+
+
+def test_holes_and_pieces_from_one_components_search_match_two():
+    """A patch with holes (rings of free vertices inside it), a small stray piece and a
+    large second piece: `_pieces` (one components search of the patch and the rest at
+    once, a second only when holes were filled) fills and drops what the oracle does."""
+    v, f = _sphere(900)
+    edges, _ = mesh_edges(f, len(v))
+    graph, rows, _ = P._graph(v, edges)
+    area = np.full(len(v), 1.0)
+    z = v[:, 2]
+    rng = np.random.default_rng(3)
+    cap = z > 0.4
+    holey = cap & ~((np.abs(z - 0.7) < 0.05) & (v[:, 0] > 0.2))          # a hole inside
+    holey[rng.choice(np.flatnonzero(cap), 8)] = False                     # pinholes
+    stray = holey.copy()
+    stray[np.argmin(z)] = True                                          # a stray vertex
+    two = (z > 0.8) | ((z < -0.3) & (z > -0.7))                          # two large pieces
+    cases = [cap, holey, stray, two]
+    notes = []
+    for patch in cases:
+        np.testing.assert_array_equal(P._pieces(patch, graph, rows, area, "origin", notes),
+                                      _pieces_oracle(patch, edges, area))
+    assert P._pieces(holey, graph, rows, area, "o", []).sum() > holey.sum()      # filled
+    assert any("dropped" in n for n in notes) and any("separate" in n for n in notes)
