@@ -99,14 +99,44 @@ def _gather(x, k):
     return np.take(x.reshape((n * p,) + x.shape[2:]), k + p * np.arange(n)[:, None], axis=0)
 
 
+def _search(s, t, side):
+    """Row by row ``searchsorted(s, t, side)`` of ``t`` (B, M) in the nondecreasing rows of
+    ``s`` (B, P), both >= 0: one search in the rows laid end to end (each shifted past the
+    one before), checked against the unshifted values (a shift can round a near tie either
+    way); rows that fail the check are searched alone."""
+    n, p = s.shape
+    rows = np.arange(n)[:, None]
+    shift = (2.0 * max(float(s.max(initial=0.0)), float(t.max(initial=0.0))) + 1.0) * rows
+    k = np.searchsorted((s + shift).ravel(), (t + shift).ravel(), side=side)
+    k = k.reshape(t.shape) - p * rows
+    at = np.clip(k, 1, p - 1) + p * rows
+    before, after = s.ravel()[at - 1], s.ravel()[at]
+    ok = (k >= 0) & (k <= p) & ((k == 0) | ((before <= t) if side == "right" else (before < t))) \
+        & ((k == p) | ((after > t) if side == "right" else (after >= t)))
+    for row in np.flatnonzero(~ok.all(axis=1)):
+        k[row] = np.searchsorted(s[row], t[row], side=side)
+    return k
+
+
+def _count_le(s, t):
+    """Row by row ``searchsorted(s, t, side="right")`` (`_search`) of ``t`` (B, M) in ``s``
+    (B, P), both >= 0, nondecreasing rows: by searching the shorter rows in the other."""
+    n, p = s.shape
+    m = t.shape[1]
+    if m <= p:
+        return _search(s, t, "right")
+    # s_i <= t_j for the j at or after the number of t below s_i (t's rows nondecreasing)
+    first = _search(t, s, "left") + (m + 1) * np.arange(n)[:, None]
+    return np.cumsum(np.bincount(first.ravel(), minlength=n * (m + 1)).reshape(n, m + 1)[:, :m],
+                     axis=1)
+
+
 def _spline_weights(s, h, t):
     """Knot interval ``k`` (B, M) of each ``t`` (B, M) in the knots ``s`` (B, P) (row by
     row ``searchsorted(s, t, side="right") - 1``, clipped to the intervals), the linear
     weights ``a``, ``b`` and the cubic factors ``(a^3 - a) h^2 / 6``, ``(b^3 - b) h^2 / 6``."""
     p = s.shape[1]
-    k = np.empty(t.shape, dtype=np.int64)
-    for row, (sr, tr) in enumerate(zip(s, t)):
-        k[row] = np.searchsorted(sr, tr, side="right")
+    k = _count_le(s, t)
     np.clip(k - 1, 0, p - 2, out=k)
     hk = _gather(h, k)
     b = (t - _gather(s, k)) / hk
@@ -191,13 +221,21 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
                + float(turning) * share / np.pi)
     cum = np.concatenate([np.zeros((n, 1)), np.cumsum(measure, axis=1)], axis=1)
     target = np.linspace(0.0, cum[:, -1], p, axis=1)
-    j = np.clip((cum[:, None, :] <= target[:, :, None]).sum(axis=2) - 1, 0, m - 2)  # (N, P)
+    j = np.clip(_count_le(cum, target) - 1, 0, m - 2)                      # (N, P)
     c0, c1 = _gather(cum, j), _gather(cum, j + 1)
     w = np.clip((target - c0) / np.maximum(c1 - c0, 1e-300), 0.0, 1.0)
-    # each new point a blend of dense points j and j + 1: their rows of the spline matrix
+    # each new point a blend of dense points j and j + 1, each a blend of the values and
+    # second derivatives at the two knots round it: the values' weights ``lin`` and the
+    # second derivatives' ``cub`` (N, P, P), summed per knot
     jj = np.concatenate([j, j + 1], axis=1)                                 # (N, 2 P)
-    up = _spline_rows(second, *(_gather(x, jj) for x in (k, a, b, ca, cb)))
-    out = ((1.0 - w)[..., None] * up[:, :p] + w[..., None] * up[:, p:]) @ taubin
+    kj, aj, bj, caj, cbj = (_gather(x, jj) for x in (k, a, b, ca, cb))
+    wj = np.concatenate([1.0 - w, w], axis=1)
+    at = ((np.arange(n)[:, None] * p + np.arange(2 * p) % p) * p + kj).ravel()
+    at = np.concatenate([at, at + 1])
+    lin, cub = (np.bincount(at, np.concatenate([(wj * u).ravel(), (wj * v).ravel()]),
+                            minlength=n * p * p).reshape(n, p, p)
+                for u, v in ((aj, bj), (caj, cbj)))
+    out = (lin + cub @ second) @ taubin
     out[:, 0] = 0.0
     out[:, -1] = 0.0
     out[:, 0, 0] = 1.0
