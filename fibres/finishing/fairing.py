@@ -38,8 +38,11 @@ no point stays outside.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from .smoothing import smooth_taubin
 
@@ -99,44 +102,14 @@ def _gather(x, k):
     return np.take(x.reshape((n * p,) + x.shape[2:]), k + p * np.arange(n)[:, None], axis=0)
 
 
-def _search(s, t, side):
-    """Row by row ``searchsorted(s, t, side)`` of ``t`` (B, M) in the nondecreasing rows of
-    ``s`` (B, P), both >= 0: one search in the rows laid end to end (each shifted past the
-    one before), checked against the unshifted values (a shift can round a near tie either
-    way); rows that fail the check are searched alone."""
-    n, p = s.shape
-    rows = np.arange(n)[:, None]
-    shift = (2.0 * max(float(s.max(initial=0.0)), float(t.max(initial=0.0))) + 1.0) * rows
-    k = np.searchsorted((s + shift).ravel(), (t + shift).ravel(), side=side)
-    k = k.reshape(t.shape) - p * rows
-    at = np.clip(k, 1, p - 1) + p * rows
-    before, after = s.ravel()[at - 1], s.ravel()[at]
-    ok = (k >= 0) & (k <= p) & ((k == 0) | ((before <= t) if side == "right" else (before < t))) \
-        & ((k == p) | ((after > t) if side == "right" else (after >= t)))
-    for row in np.flatnonzero(~ok.all(axis=1)):
-        k[row] = np.searchsorted(s[row], t[row], side=side)
-    return k
-
-
-def _count_le(s, t):
-    """Row by row ``searchsorted(s, t, side="right")`` (`_search`) of ``t`` (B, M) in ``s``
-    (B, P), both >= 0, nondecreasing rows: by searching the shorter rows in the other."""
-    n, p = s.shape
-    m = t.shape[1]
-    if m <= p:
-        return _search(s, t, "right")
-    # s_i <= t_j for the j at or after the number of t below s_i (t's rows nondecreasing)
-    first = _search(t, s, "left") + (m + 1) * np.arange(n)[:, None]
-    return np.cumsum(np.bincount(first.ravel(), minlength=n * (m + 1)).reshape(n, m + 1)[:, :m],
-                     axis=1)
-
-
 def _spline_weights(s, h, t):
     """Knot interval ``k`` (B, M) of each ``t`` (B, M) in the knots ``s`` (B, P) (row by
     row ``searchsorted(s, t, side="right") - 1``, clipped to the intervals), the linear
     weights ``a``, ``b`` and the cubic factors ``(a^3 - a) h^2 / 6``, ``(b^3 - b) h^2 / 6``."""
     p = s.shape[1]
-    k = _count_le(s, t)
+    k = np.empty(t.shape, dtype=np.int64)
+    for row, (sr, tr) in enumerate(zip(s, t)):
+        k[row] = np.searchsorted(sr, tr, side="right")
     np.clip(k - 1, 0, p - 2, out=k)
     hk = _gather(h, k)
     b = (t - _gather(s, k)) / hk
@@ -180,6 +153,70 @@ def _taubin_matrix(p, iterations):
     return smooth_taubin(eye, iterations=int(iterations))[0]
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _resample(knots, values, turning, pick, coef, weight, work, dk):
+    """The turn-aware resampling (module docstring, step 3) of N natural splines with
+    ``knots`` (N, P) (increasing, from 0) and ``values`` (N, P, 6) (the points and the second
+    derivatives at the knots): the dense curve at M = ``len(dk)`` points evenly spaced in the
+    chord parameter (as ``linspace``), its measure, and P new points at equal steps of it,
+    new point i a blend ``(1 - w) D_j + w D_{j+1}`` of dense points j, j + 1. Out:
+    ``pick`` (N, 2 P) the knot interval of dense point j (first P) and j + 1 (last P),
+    ``coef`` (N, 2 P, 4) their spline weights ``a, b, (a^3 - a) h^2 / 6, (b^3 - b) h^2 / 6``
+    (`_spline_weights`), ``weight`` (N, P) w. Work space: ``work`` (M, 10) (the dense
+    points, their weights, segment lengths, turning shares, cumulated measure) and ``dk``
+    (M,) int64 (their knot intervals)."""
+    p, m = knots.shape[1], dk.shape[0]
+    for n in range(knots.shape[0]):
+        length = knots[n, p - 1]
+        step = length / (m - 1)
+        k = 0
+        for j in range(m):              # the dense curve
+            t = j * step if j < m - 1 else length
+            while k < p - 2 and knots[n, k + 1] <= t:
+                k += 1
+            hk = knots[n, k + 1] - knots[n, k]
+            b = (t - knots[n, k]) / hk
+            a = 1.0 - b
+            work[j, 3], work[j, 4] = a, b
+            work[j, 5] = (a ** 3 - a) * hk ** 2 / 6.0
+            work[j, 6] = (b ** 3 - b) * hk ** 2 / 6.0
+            dk[j] = k
+            for c in range(3):
+                work[j, c] = a * values[n, k, c] + b * values[n, k + 1, c] \
+                    + work[j, 5] * values[n, k, 3 + c] + work[j, 6] * values[n, k + 1, 3 + c]
+        total = x0 = y0 = z0 = 0.0
+        for j in range(m - 1):          # segment lengths; turns shared by their segments
+            x1, y1, z1 = (work[j + 1, 0] - work[j, 0], work[j + 1, 1] - work[j, 1],
+                          work[j + 1, 2] - work[j, 2])
+            work[j, 7] = math.sqrt(x1 * x1 + y1 * y1 + z1 * z1)
+            total += work[j, 7]
+            size = max(work[j, 7], 1e-300)
+            x1, y1, z1 = x1 / size, y1 / size, z1 / size
+            work[j, 8] = 0.0
+            if j:                       # the turn from segment j - 1 to j
+                theta = math.atan2(math.sqrt((y0 * z1 - z0 * y1) ** 2 + (z0 * x1 - x0 * z1) ** 2
+                                             + (x0 * y1 - y0 * x1) ** 2),
+                                   x0 * x1 + y0 * y1 + z0 * z1)
+                work[j - 1, 8] += 0.5 * theta
+                work[j, 8] += 0.5 * theta
+            x0, y0, z0 = x1, y1, z1
+        work[0, 9] = 0.0
+        for j in range(m - 1):
+            work[j + 1, 9] = work[j, 9] + (work[j, 7] / max(total, 1e-300)
+                                           + turning * work[j, 8] / np.pi)
+        j = 0
+        for i in range(p):               # the new points at equal steps of the measure
+            target = i * (work[m - 1, 9] / (p - 1)) if i < p - 1 else work[m - 1, 9]
+            while j < m - 2 and work[j + 1, 9] <= target:
+                j += 1
+            weight[n, i] = min(max((target - work[j, 9])
+                                   / max(work[j + 1, 9] - work[j, 9], 1e-300), 0.0), 1.0)
+            for r in range(2):
+                pick[n, i + r * p] = dk[j + r]
+                for c in range(4):
+                    coef[n, i + r * p, c] = work[j + r, 3 + c]
+
+
 def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     """Per-fibre fairing matrices (N, P, P) of rest fibres ``points`` (N, P, 3) (module
     docstring): ``F[k] @ points[k]`` are fibre k's faired points; ``iterations`` lambda|mu
@@ -196,45 +233,21 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     floor = 1e-12 * np.maximum(seg.sum(axis=1, keepdims=True), 1e-300)
     knots = np.concatenate([np.zeros((n, 1)), np.cumsum(np.maximum(seg, floor), axis=1)],
                            axis=1)
-    t = np.linspace(0.0, knots[:, -1], m, axis=1)
-    # the dense curve straight from the spline's values and second derivatives (the whole
-    # (N, M, P) spline matrix is needed only at the two dense points round each new point)
     h = np.diff(knots, axis=1)
     second = _spline_second(knots, h)
-    k, a, b, ca, cb = _spline_weights(knots, h, t)
-    # coordinates first (6, N P): the values and second derivatives at the knots
-    both = np.concatenate([smoothed, second @ smoothed], axis=2).reshape(n * p, 6).T
-    at = k + p * np.arange(n)[:, None]
-    g0, g1 = np.take(both, at, axis=1), np.take(both, at + 1, axis=1)        # (6, N, M)
-    curve = a * g0[:3] + b * g1[:3] + ca * g0[3:] + cb * g1[3:]            # (3, N, M)
-    step = np.diff(curve, axis=2)
-    ds = np.sqrt((step * step).sum(axis=0))
-    x, y, z = step / np.maximum(ds, 1e-300)
-    x0, y0, z0, x1, y1, z1 = x[:, :-1], y[:, :-1], z[:, :-1], x[:, 1:], y[:, 1:], z[:, 1:]
-    theta = np.arctan2(np.sqrt((y0 * z1 - z0 * y1) ** 2 + (z0 * x1 - x0 * z1) ** 2
-                               + (x0 * y1 - y0 * x1) ** 2),
-                       x0 * x1 + y0 * y1 + z0 * z1)
-    share = np.zeros((n, m - 1))
-    share[:, :-1] += 0.5 * theta
-    share[:, 1:] += 0.5 * theta
-    measure = (ds / np.maximum(ds.sum(axis=1, keepdims=True), 1e-300)
-               + float(turning) * share / np.pi)
-    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(measure, axis=1)], axis=1)
-    target = np.linspace(0.0, cum[:, -1], p, axis=1)
-    j = np.clip(_count_le(cum, target) - 1, 0, m - 2)                      # (N, P)
-    c0, c1 = _gather(cum, j), _gather(cum, j + 1)
-    w = np.clip((target - c0) / np.maximum(c1 - c0, 1e-300), 0.0, 1.0)
+    # the values and second derivatives at the knots; per new point, its two dense points'
+    # knot intervals and spline weights, and its share of the second one
+    pick, coef, w = np.empty((n, 2 * p), np.int64), np.empty((n, 2 * p, 4)), np.empty((n, p))
+    _resample(knots, np.concatenate([smoothed, second @ smoothed], axis=2), float(turning),
+              pick, coef, w, np.empty((m, 10)), np.empty(m, np.int64))
     # each new point a blend of dense points j and j + 1, each a blend of the values and
     # second derivatives at the two knots round it: the values' weights ``lin`` and the
     # second derivatives' ``cub`` (N, P, P), summed per knot
-    jj = np.concatenate([j, j + 1], axis=1)                                 # (N, 2 P)
-    kj, aj, bj, caj, cbj = (_gather(x, jj) for x in (k, a, b, ca, cb))
-    wj = np.concatenate([1.0 - w, w], axis=1)
-    at = ((np.arange(n)[:, None] * p + np.arange(2 * p) % p) * p + kj).ravel()
+    wj = np.concatenate([1.0 - w, w], axis=1)[..., None] * coef                # (N, 2 P, 4)
+    at = ((np.arange(n)[:, None] * p + np.arange(2 * p) % p) * p + pick).ravel()
     at = np.concatenate([at, at + 1])
-    lin, cub = (np.bincount(at, np.concatenate([(wj * u).ravel(), (wj * v).ravel()]),
-                            minlength=n * p * p).reshape(n, p, p)
-                for u, v in ((aj, bj), (caj, cbj)))
+    lin, cub = (np.bincount(at, np.concatenate([wj[..., u].ravel(), wj[..., u + 1].ravel()]),
+                            minlength=n * p * p).reshape(n, p, p) for u in (0, 2))
     out = (lin + cub @ second) @ taubin
     out[:, 0] = 0.0
     out[:, -1] = 0.0
