@@ -323,7 +323,8 @@ def _blend(x, inside, watch, vertices, faces, origin, cell, dims, start, items, 
         if not dmin <= limit:
             m = 0
         sw = sd = vote = 0.0
-        vec[:2] = 0.0
+        for k in range(6):
+            vec[k // 3, k % 3] = 0.0
         for j in range(m):
             delta = found[j, 0] - dmin
             if found[j, 0] <= reach and delta <= keep:
@@ -337,7 +338,8 @@ def _blend(x, inside, watch, vertices, faces, origin, cell, dims, start, items, 
                     vec[1, k] += w * found[j, 4 + k]
         if not sw > 0.0:
             s[i] = -np.inf
-            g[i] = 0.0
+            for k in range(3):
+                g[i, k] = 0.0
             continue
         dist = sd / sw
         sign = 1.0 if vote > 0.0 else (-1.0 if vote < 0.0 else 0.0)
@@ -360,7 +362,8 @@ def _blend(x, inside, watch, vertices, faces, origin, cell, dims, start, items, 
             if size > 0.0:
                 for k in range(3):
                     vec[r, k] /= size
-        g[i] = vec[2]
+        for k in range(3):
+            g[i, k] = vec[2, k]
         if inside[i] and not offset:          # inside by parity: negative, whatever the vote
             s[i] = -abs(s[i])
     return s, g
