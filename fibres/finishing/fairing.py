@@ -268,14 +268,12 @@ def fairing_operator(points, *, iterations, turning=TURNING, dense=DENSE):
 
 
 def _along(a, weights):
-    """``a`` (N, P, K) plus its neighbours' values along each fibre times ``weights``."""
-    out = a.copy()
-    for k, w in enumerate(weights, start=1):
-        if k >= a.shape[1]:
-            break
-        out[:, k:] += w * a[:, :-k]
-        out[:, :-k] += w * a[:, k:]
-    return out
+    """``a`` (N, P, K) plus its neighbours' values along each fibre times ``weights``: one
+    product with the (P, P) band matrix of 1 and the weights."""
+    p = a.shape[1]
+    band = np.concatenate([[1.0], np.asarray(weights, dtype=np.float64), np.zeros(p)])
+    gap = np.abs(np.arange(p)[:, None] - np.arange(p)[None])
+    return np.matmul(band[gap], a)
 
 
 def spread_pull(before, after):
