@@ -104,7 +104,7 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     if not cell > 0.0:
         cell = 1.0                   # every vertex at one point
     dims = np.array([int(s / cell) + 1 for s in side], np.int64)
-    span = np.zeros((faces.shape[0], 6), np.int64)
+    span = np.empty((faces.shape[0], 6), np.int32)
     start = np.zeros(int(dims.prod()) + 1, np.int64)
     ball = np.empty((faces.shape[0] if n_axes == 3 else 0, 4))
     _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, start[:0], ball, False)
@@ -132,11 +132,12 @@ def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, ball, 
                     r = max(r, (pv[j, 0] - ball[t, 0]) ** 2 + (pv[j, 1] - ball[t, 1]) ** 2
                             + (pv[j, 2] - ball[t, 2]) ** 2)
                 ball[t, 3] = math.sqrt(r)
-            for k in range(n_axes):   # int() truncates towards 0: the same after clamping
+            for k in range(3):        # int() truncates towards 0: the same after clamping
                 ya, yb, yc = pv[a, k], pv[b, k], pv[c, k]
-                span[t, k] = min(max(int((min(ya, yb, yc) - origin[k]) / cell), 0), dims[k] - 1)
+                span[t, k] = min(max(int((min(ya, yb, yc) - origin[k]) / cell), 0),
+                                 dims[k] - 1) if k < n_axes else 0
                 span[t, k + 3] = min(max(int((max(ya, yb, yc) - origin[k]) / cell), 0),
-                                     dims[k] - 1)
+                                     dims[k] - 1) if k < n_axes else 0
     for t in range(faces.shape[0]):  # count the triangles of each cell, or place them
         for i in range(span[t, 0], span[t, 3] + 1):
             for j in range(span[t, 1], span[t, 4] + 1):
