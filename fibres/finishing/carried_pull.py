@@ -176,8 +176,9 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     a, b, c = np.take(v, np.ascontiguousarray(f.T), axis=0)
     cross = np.cross(b - a, c - a) if normals is None else normals
     k = min(CARRY_CANDIDATES, len(f))
-    # an unbalanced tree (sliding midpoint) builds in half the time; its queries are exact
-    tree = cKDTree((a + b + c) / 3.0, balanced_tree=False, compact_nodes=False)
+    # an unbalanced tree (sliding midpoint) builds in half the time, compact nodes and larger
+    # leaves answer these queries faster; its queries are exact
+    tree = cKDTree((a + b + c) / 3.0, leafsize=32, balanced_tree=False, compact_nodes=True)
     _, near = tree.query(out.reshape(-1, 3)[rows], k=k)
     near = np.asarray(near).reshape(len(rows), k)
     vec = np.take(cross, near, axis=0)                                      # (M, k, 3)
@@ -187,10 +188,16 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     if not (size[:, 0] > 0).all():
         raise InputError("a triangle of the surface near a pulled fibre point has no area",
                          where="mesh", fix="Repair the mesh (degenerate triangles).")
-    used, local = np.unique(near, return_inverse=True)
-    local = local.reshape(near.shape)
-    patches = sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(len(rows)), k),
-                                               local.ravel())), shape=(len(rows), len(used)))
+    # the triangles in any patch, in order, and each patch's columns among them: sorted per
+    # row (canonical CSR), as the rows' sums in _frames run in that order
+    mark = np.zeros(len(f), bool)
+    mark[near] = True
+    used = np.flatnonzero(mark)
+    local = (np.cumsum(mark) - 1)[near]
+    order = np.argsort(local, axis=1, kind="stable")
+    patches = sp.csr_matrix((np.take_along_axis(weights, order, axis=1).ravel(),
+                             np.take_along_axis(local, order, axis=1).ravel(),
+                             np.arange(0, len(rows) * k + 1, k)), shape=(len(rows), len(used)))
     patches.eliminate_zeros()
     frames, side = _frames(v, f[used], patches, local[:, 0])
     coefficients = np.einsum("md,mkd->mk", e[rows], frames) / side[:, None]

@@ -38,8 +38,11 @@ no point stays outside.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from .smoothing import smooth_taubin
 
@@ -150,6 +153,70 @@ def _taubin_matrix(p, iterations):
     return smooth_taubin(eye, iterations=int(iterations))[0]
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _resample(knots, values, turning, pick, coef, weight, work, dk):
+    """The turn-aware resampling (module docstring, step 3) of N natural splines with
+    ``knots`` (N, P) (increasing, from 0) and ``values`` (N, P, 6) (the points and the second
+    derivatives at the knots): the dense curve at M = ``len(dk)`` points evenly spaced in the
+    chord parameter (as ``linspace``), its measure, and P new points at equal steps of it,
+    new point i a blend ``(1 - w) D_j + w D_{j+1}`` of dense points j, j + 1. Out:
+    ``pick`` (N, 2 P) the knot interval of dense point j (first P) and j + 1 (last P),
+    ``coef`` (N, 2 P, 4) their spline weights ``a, b, (a^3 - a) h^2 / 6, (b^3 - b) h^2 / 6``
+    (`_spline_weights`), ``weight`` (N, P) w. Work space: ``work`` (M, 10) (the dense
+    points, their weights, segment lengths, turning shares, cumulated measure) and ``dk``
+    (M,) int64 (their knot intervals)."""
+    p, m = knots.shape[1], dk.shape[0]
+    for n in range(knots.shape[0]):
+        length = knots[n, p - 1]
+        step = length / (m - 1)
+        k = 0
+        for j in range(m):              # the dense curve
+            t = j * step if j < m - 1 else length
+            while k < p - 2 and knots[n, k + 1] <= t:
+                k += 1
+            hk = knots[n, k + 1] - knots[n, k]
+            b = (t - knots[n, k]) / hk
+            a = 1.0 - b
+            work[j, 3], work[j, 4] = a, b
+            work[j, 5] = (a ** 3 - a) * hk ** 2 / 6.0
+            work[j, 6] = (b ** 3 - b) * hk ** 2 / 6.0
+            dk[j] = k
+            for c in range(3):
+                work[j, c] = a * values[n, k, c] + b * values[n, k + 1, c] \
+                    + work[j, 5] * values[n, k, 3 + c] + work[j, 6] * values[n, k + 1, 3 + c]
+        total = x0 = y0 = z0 = 0.0
+        for j in range(m - 1):          # segment lengths; turns shared by their segments
+            x1, y1, z1 = (work[j + 1, 0] - work[j, 0], work[j + 1, 1] - work[j, 1],
+                          work[j + 1, 2] - work[j, 2])
+            work[j, 7] = math.sqrt(x1 * x1 + y1 * y1 + z1 * z1)
+            total += work[j, 7]
+            size = max(work[j, 7], 1e-300)
+            x1, y1, z1 = x1 / size, y1 / size, z1 / size
+            work[j, 8] = 0.0
+            if j:                       # the turn from segment j - 1 to j
+                theta = math.atan2(math.sqrt((y0 * z1 - z0 * y1) ** 2 + (z0 * x1 - x0 * z1) ** 2
+                                             + (x0 * y1 - y0 * x1) ** 2),
+                                   x0 * x1 + y0 * y1 + z0 * z1)
+                work[j - 1, 8] += 0.5 * theta
+                work[j, 8] += 0.5 * theta
+            x0, y0, z0 = x1, y1, z1
+        work[0, 9] = 0.0
+        for j in range(m - 1):
+            work[j + 1, 9] = work[j, 9] + (work[j, 7] / max(total, 1e-300)
+                                           + turning * work[j, 8] / np.pi)
+        j = 0
+        for i in range(p):               # the new points at equal steps of the measure
+            target = i * (work[m - 1, 9] / (p - 1)) if i < p - 1 else work[m - 1, 9]
+            while j < m - 2 and work[j + 1, 9] <= target:
+                j += 1
+            weight[n, i] = min(max((target - work[j, 9])
+                                   / max(work[j + 1, 9] - work[j, 9], 1e-300), 0.0), 1.0)
+            for r in range(2):
+                pick[n, i + r * p] = dk[j + r]
+                for c in range(4):
+                    coef[n, i + r * p, c] = work[j + r, 3 + c]
+
+
 def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     """Per-fibre fairing matrices (N, P, P) of rest fibres ``points`` (N, P, 3) (module
     docstring): ``F[k] @ points[k]`` are fibre k's faired points; ``iterations`` lambda|mu
@@ -166,38 +233,22 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     floor = 1e-12 * np.maximum(seg.sum(axis=1, keepdims=True), 1e-300)
     knots = np.concatenate([np.zeros((n, 1)), np.cumsum(np.maximum(seg, floor), axis=1)],
                            axis=1)
-    t = np.linspace(0.0, knots[:, -1], m, axis=1)
-    # the dense curve straight from the spline's values and second derivatives (the whole
-    # (N, M, P) spline matrix is needed only at the two dense points round each new point)
     h = np.diff(knots, axis=1)
     second = _spline_second(knots, h)
-    k, a, b, ca, cb = _spline_weights(knots, h, t)
-    # coordinates first (6, N P): the values and second derivatives at the knots
-    both = np.concatenate([smoothed, second @ smoothed], axis=2).reshape(n * p, 6).T
-    at = k + p * np.arange(n)[:, None]
-    g0, g1 = np.take(both, at, axis=1), np.take(both, at + 1, axis=1)        # (6, N, M)
-    curve = a * g0[:3] + b * g1[:3] + ca * g0[3:] + cb * g1[3:]            # (3, N, M)
-    step = np.diff(curve, axis=2)
-    ds = np.sqrt((step * step).sum(axis=0))
-    x, y, z = step / np.maximum(ds, 1e-300)
-    x0, y0, z0, x1, y1, z1 = x[:, :-1], y[:, :-1], z[:, :-1], x[:, 1:], y[:, 1:], z[:, 1:]
-    theta = np.arctan2(np.sqrt((y0 * z1 - z0 * y1) ** 2 + (z0 * x1 - x0 * z1) ** 2
-                               + (x0 * y1 - y0 * x1) ** 2),
-                       x0 * x1 + y0 * y1 + z0 * z1)
-    share = np.zeros((n, m - 1))
-    share[:, :-1] += 0.5 * theta
-    share[:, 1:] += 0.5 * theta
-    measure = (ds / np.maximum(ds.sum(axis=1, keepdims=True), 1e-300)
-               + float(turning) * share / np.pi)
-    cum = np.concatenate([np.zeros((n, 1)), np.cumsum(measure, axis=1)], axis=1)
-    target = np.linspace(0.0, cum[:, -1], p, axis=1)
-    j = np.clip((cum[:, None, :] <= target[:, :, None]).sum(axis=2) - 1, 0, m - 2)  # (N, P)
-    c0, c1 = _gather(cum, j), _gather(cum, j + 1)
-    w = np.clip((target - c0) / np.maximum(c1 - c0, 1e-300), 0.0, 1.0)
-    # each new point a blend of dense points j and j + 1: their rows of the spline matrix
-    jj = np.concatenate([j, j + 1], axis=1)                                 # (N, 2 P)
-    up = _spline_rows(second, *(_gather(x, jj) for x in (k, a, b, ca, cb)))
-    out = ((1.0 - w)[..., None] * up[:, :p] + w[..., None] * up[:, p:]) @ taubin
+    # the values and second derivatives at the knots; per new point, its two dense points'
+    # knot intervals and spline weights, and its share of the second one
+    pick, coef, w = np.empty((n, 2 * p), np.int64), np.empty((n, 2 * p, 4)), np.empty((n, p))
+    _resample(knots, np.concatenate([smoothed, second @ smoothed], axis=2), float(turning),
+              pick, coef, w, np.empty((m, 10)), np.empty(m, np.int64))
+    # each new point a blend of dense points j and j + 1, each a blend of the values and
+    # second derivatives at the two knots round it: the values' weights ``lin`` and the
+    # second derivatives' ``cub`` (N, P, P), summed per knot
+    wj = np.concatenate([1.0 - w, w], axis=1)[..., None] * coef                # (N, 2 P, 4)
+    at = ((np.arange(n)[:, None] * p + np.arange(2 * p) % p) * p + pick).ravel()
+    at = np.concatenate([at, at + 1])
+    lin, cub = (np.bincount(at, np.concatenate([wj[..., u].ravel(), wj[..., u + 1].ravel()]),
+                            minlength=n * p * p).reshape(n, p, p) for u in (0, 2))
+    out = (lin + cub @ second) @ taubin
     out[:, 0] = 0.0
     out[:, -1] = 0.0
     out[:, 0, 0] = 1.0
@@ -217,14 +268,12 @@ def fairing_operator(points, *, iterations, turning=TURNING, dense=DENSE):
 
 
 def _along(a, weights):
-    """``a`` (N, P, K) plus its neighbours' values along each fibre times ``weights``."""
-    out = a.copy()
-    for k, w in enumerate(weights, start=1):
-        if k >= a.shape[1]:
-            break
-        out[:, k:] += w * a[:, :-k]
-        out[:, :-k] += w * a[:, k:]
-    return out
+    """``a`` (N, P, K) plus its neighbours' values along each fibre times ``weights``: one
+    product with the (P, P) band matrix of 1 and the weights."""
+    p = a.shape[1]
+    band = np.concatenate([[1.0], np.asarray(weights, dtype=np.float64), np.zeros(p)])
+    gap = np.abs(np.arange(p)[:, None] - np.arange(p)[None])
+    return np.matmul(band[gap], a)
 
 
 def spread_pull(before, after):

@@ -35,14 +35,14 @@ the blend has been measured. ``limit`` is ``reach`` for a point outside and ``mi
 reach)`` for one inside: a point with no triangle within its limit gets ``s = -inf`` (no
 triangle in reach, or inside deeper than ``watch``).
 
-Compiled: the grids' binning passes (`_bin_cells`), the parity test (`_parity`) and the search
-with the blend's per-point sums (`_blend_sums`) are loops over triangles and points in numba
-(module level, ``cache=True``: compiled once per environment); what is one vectorised step
-per point or per grid (the grid's size, each point's frame coordinates and start cell, the
-outputs and work arrays) is numpy around them, so that the kernels allocate nothing and stay
-short (numba's compile time grows with every statement); the blend is finished in numpy
-(`_blend`). `tests/fibres/distance_oracle.py` is the brute-force numpy oracle they are tested
-against.
+Compiled: the grids' binning passes (`_bin_cells`, with each triangle's bounding ball), the
+parity test (`_parity`) and the search with the blend (`_blend`: each point's start cell, the
+search, the sums and their finish into ``s`` and the direction) are loops over triangles and
+points in numba (module level, ``cache=True``: compiled once per environment), one call per
+query, so that a query of a few hundred points costs no string of small numpy steps; what is
+one vectorised step per grid (its size, the outputs and work arrays) is numpy around them, and
+the kernels allocate nothing. `tests/fibres/distance_oracle.py` is the brute-force numpy oracle
+they are tested against.
 """
 from __future__ import annotations
 
@@ -104,29 +104,40 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     if not cell > 0.0:
         cell = 1.0                   # every vertex at one point
     dims = np.array([int(s / cell) + 1 for s in side], np.int64)
-    span = np.zeros((faces.shape[0], 6), np.int64)
+    span = np.empty((faces.shape[0], 6), np.int32)
     start = np.zeros(int(dims.prod()) + 1, np.int64)
-    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, start[:0], False)
+    ball = np.empty((faces.shape[0] if n_axes == 3 else 0, 4))
+    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, start[:0], ball, False)
     items = np.empty(start[-1], np.int64)
-    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, True)
-    return pv, origin, cell, dims, start, items
+    _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, ball, True)
+    return pv, origin, cell, dims, start, items, ball
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, fill):
+def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, ball, fill):
     """`_bin_triangles`' two passes over the triangles (faces of the vertices pv (V, 3) in
     the grid's frame): without ``fill``, each triangle's cell box into ``span`` (T, 6) (first
-    and last cell per axis; zeros: a further axis has one cell) and ``start`` (zeros) the
-    offsets of each cell's triangles;
+    and last cell per axis; zeros: a further axis has one cell), ``start`` (zeros) the
+    offsets of each cell's triangles and, if ``ball`` is (T, 4) (not (0, 4)), each
+    triangle's bounding ball (centroid, largest distance of a corner from it);
     with ``fill``, the triangles into ``items`` (start[-1],) at those offsets."""
     if not fill:
         for t in range(faces.shape[0]):
             a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-            for k in range(n_axes):   # int() truncates towards 0: the same after clamping
+            if ball.shape[0]:
+                r = 0.0
+                for k in range(3):
+                    ball[t, k] = (pv[a, k] + pv[b, k] + pv[c, k]) / 3.0
+                for j in (a, b, c):
+                    r = max(r, (pv[j, 0] - ball[t, 0]) ** 2 + (pv[j, 1] - ball[t, 1]) ** 2
+                            + (pv[j, 2] - ball[t, 2]) ** 2)
+                ball[t, 3] = math.sqrt(r)
+            for k in range(3):        # int() truncates towards 0: the same after clamping
                 ya, yb, yc = pv[a, k], pv[b, k], pv[c, k]
-                span[t, k] = min(max(int((min(ya, yb, yc) - origin[k]) / cell), 0), dims[k] - 1)
+                span[t, k] = min(max(int((min(ya, yb, yc) - origin[k]) / cell), 0),
+                                 dims[k] - 1) if k < n_axes else 0
                 span[t, k + 3] = min(max(int((max(ya, yb, yc) - origin[k]) / cell), 0),
-                                     dims[k] - 1)
+                                     dims[k] - 1) if k < n_axes else 0
     for t in range(faces.shape[0]):  # count the triangles of each cell, or place them
         for i in range(span[t, 0], span[t, 3] + 1):
             for j in range(span[t, 1], span[t, 4] + 1):
@@ -147,14 +158,20 @@ def _bin_cells(pv, faces, origin, cell, dims, n_axes, span, start, items, fill):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _parity(yzx, column, pv, faces, start, items, inside):
-    """Whether each point is inside by ray parity (module docstring), into ``inside`` (n,)
-    bool: ``yzx`` (3, n) the points in the frame of rows (y, z, ray), ``column`` (n,) their
-    cells of the 2-d grid (start, items) of `_bin_triangles` (the triangles binned by their
-    (y, z) bounding boxes), pv (V, 3) the vertices in the frame."""
-    for i in range(column.shape[0]):
-        py, pz, px = yzx[0, i], yzx[1, i], yzx[2, i]
-        q = column[i]
+def _parity(x, frame, pv, origin, cell, dims, faces, start, items, inside):
+    """Whether each point x (n, 3) is inside by ray parity (module docstring), into
+    ``inside`` (n,) bool: (py, pz, px) the point in ``frame`` (rows y, z, ray), its column
+    the cell of (py, pz) in the 2-d grid (origin, cell, dims, start, items) of
+    `_bin_triangles` (the triangles binned by their (y, z) bounding boxes), pv (V, 3) the
+    vertices in the frame."""
+    for i in range(x.shape[0]):
+        x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
+        py = frame[0, 0] * x0 + frame[0, 1] * x1 + frame[0, 2] * x2
+        pz = frame[1, 0] * x0 + frame[1, 1] * x1 + frame[1, 2] * x2
+        px = frame[2, 0] * x0 + frame[2, 1] * x1 + frame[2, 2] * x2
+        # int() truncates towards 0: the same after clamping
+        q = min(max(int((py - origin[0]) / cell), 0), dims[0] - 1) * dims[1] \
+            + min(max(int((pz - origin[1]) / cell), 0), dims[1] - 1)
         hits = np.int64(0)            # not a literal 0: one pass of type inference
         for m in range(start[q], start[q + 1]):
             t = items[m]
@@ -172,26 +189,39 @@ def _parity(yzx, column, pv, faces, start, items, inside):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, items, tau,
-                reach, sums, seen, found, box):
-    """The sums of the soft-min blend (module docstring) of points x (n, 3) over the triangles
-    (vertices, faces) of the 3-d grid (origin, cell, dims, start, items) of
-    `_bin_triangles`, added into ``sums`` (n, 9) (zeros): rows ``[sum w, sum w d,
-    sum w (x - c) . n, sum w (x - c) (3), sum w n (3)]``, left zero where no triangle lies
-    within ``limits[i]``. ``cells`` (n, 4) int64: each point's cell and how many rings to
-    search (`_start_cells`). Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 7) (per
-    triangle measured: d, x - c, unit normal), ``box`` (6,) int64. The closest point c of a
+def _blend(x, inside, watch, vertices, faces, origin, cell, dims, start, items, ball, tau,
+           reach, offset, s, g, seen, found, box, home, vec):
+    """The soft-min blend (module docstring) of points x (n, 3) over the triangles (vertices,
+    faces) of the 3-d grid (origin, cell, dims, start, items, ball) of `_bin_triangles`:
+    ``s`` (n,) and ``g`` (n, 3) of `SurfaceGrid.signed_distance` (``inside`` (n,) by
+    parity), ``-inf`` and 0 where no triangle lies within the point's limit (``reach``, or
+    ``min(watch, reach)`` inside). Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 7)
+    (per triangle measured: d, x - c, unit normal), ``box`` (6,) and ``home`` (4,) int64
+    (the ring's cell range; the point's cell (clamped into the grid) and how many rings to
+    search: every ring if the grid's box lies within the limit, else none), ``vec`` (3, 3)
+    (sum w (x - c), sum w n, the direction). The closest point c of a
     triangle to x: the projection of x on its plane when inside it, else the nearest of the
     three edges' closest points (the closest point of a convex set is unique: Ericson 2005
-    §5.1.5 finds the same)."""
+    §5.1.5 finds the same). A triangle whose bounding ball or plane is farther than ``cut``
+    is passed over unmeasured: ``cut`` is ``min(limit + KAPPA tau, reach)`` until a
+    triangle within the limit is found, then the bound (it only decreases), so such a
+    triangle would get no weight and is never the nearest that counts."""
     keep = KAPPA * tau
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
     for i in range(x.shape[0]):
         p = x[i]
-        home = cells[i]               # the point's cell
+        limit = min(watch, reach) if inside[i] else reach
+        gap = 0.0
+        for k in range(3):            # int() truncates towards 0: the same after clamping
+            y = p[k] - origin[k]
+            home[k] = min(max(int(y / cell), 0), dims[k] - 1)
+            y = max(-y, y - dims[k] * cell, 0.0)
+            gap += y * y
+        home[3] = max(dims[0], dims[1], dims[2]) if gap <= limit * limit else 0
         m = np.int64(0)               # not a literal 0: one pass of type inference
         dmin = np.inf
-        bound = limits[i]             # the triangles farther than bound are not needed
+        bound = limit                 # the triangles farther than bound are not needed
+        cut = min(bound + keep, reach) + slack
         for ring in range(home[3]):   # the cells at Chebyshev distance ring from home
             for k in range(3):        # box[:3], box[3:]: the ring's cell range
                 box[k] = max(home[k] - ring, 0)
@@ -216,6 +246,9 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                             if seen[t] == i:
                                 continue
                             seen[t] = i
+                            if (p[0] - ball[t, 0]) ** 2 + (p[1] - ball[t, 1]) ** 2 \
+                                    + (p[2] - ball[t, 2]) ** 2 > (ball[t, 3] + cut) ** 2:
+                                continue
                             ia, ib, ic = faces[t, 0], faces[t, 1], faces[t, 2]
                             a0, a1, a2 = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
                             ab0, ab1, ab2 = (vertices[ib, 0] - a0, vertices[ib, 1] - a1,
@@ -223,6 +256,12 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                             ac0, ac1, ac2 = (vertices[ic, 0] - a0, vertices[ic, 1] - a1,
                                              vertices[ic, 2] - a2)
                             ap0, ap1, ap2 = p[0] - a0, p[1] - a1, p[2] - a2
+                            n0 = ab1 * ac2 - ab2 * ac1        # the normal, 2 x area long
+                            n1 = ab2 * ac0 - ab0 * ac2
+                            n2 = ab0 * ac1 - ab1 * ac0
+                            size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
+                            if abs(ap0 * n0 + ap1 * n1 + ap2 * n2) > cut * size:
+                                continue                      # its plane is farther
                             d00 = ab0 * ab0 + ab1 * ab1 + ab2 * ab2
                             d01 = ab0 * ac0 + ab1 * ac1 + ab2 * ac2
                             d11 = ac0 * ac0 + ac1 * ac1 + ac2 * ac2
@@ -260,10 +299,6 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                                         for k in range(1, 4):
                                             found[m, k] = found[m, 3 + k]
                             # the unit normal (0 without area: +-0 / inf)
-                            n0 = ab1 * ac2 - ab2 * ac1
-                            n1 = ab2 * ac0 - ab0 * ac2
-                            n2 = ab0 * ac1 - ab1 * ac0
-                            size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
                             if not size > 0.0:
                                 size = np.inf
                             found[m, 4] = n0 / size
@@ -273,8 +308,9 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                             m += 1
                             if d < dmin:
                                 dmin = d
-                                if dmin <= limits[i]:
+                                if dmin <= limit:
                                     bound = min(dmin + keep, reach)
+                                    cut = bound + slack
             # every triangle not met is beyond the faces of the ring's box (none beyond the
             # grid's border): stop once they are all farther than bound
             beyond = np.inf
@@ -285,57 +321,53 @@ def _blend_sums(x, limits, cells, vertices, faces, origin, cell, dims, start, it
                     beyond = min(beyond, origin[k] + (home[k] + ring + 1) * cell - p[k])
             if beyond > bound + slack:
                 break
-        if not dmin <= limits[i]:
+        if not dmin <= limit:
             m = 0
+        sw = sd = vote = 0.0
+        for k in range(6):
+            vec[k // 3, k % 3] = 0.0
         for j in range(m):
             delta = found[j, 0] - dmin
             if found[j, 0] <= reach and delta <= keep:
                 f = (keep - delta) / tau
                 w = math.exp(-delta / tau) * (f * f * (3.0 - 2.0 * f) if f < 1.0 else 1.0)
-                sums[i, 0] += w
-                sums[i, 1] += w * found[j, 0]
+                sw += w
+                sd += w * found[j, 0]
                 for k in range(3):
-                    sums[i, 2] += w * found[j, 1 + k] * found[j, 4 + k]
-                    sums[i, 3 + k] += w * found[j, 1 + k]
-                    sums[i, 6 + k] += w * found[j, 4 + k]
-    return sums
-
-
-def _start_cells(x, limits, origin, cell, dims):
-    """(n, 4) int64 for `_blend_sums`: the cell of each point x (n, 3) (clamped into the grid
-    (origin, cell, dims); int() truncates towards 0: the same after clamping) and the rings
-    of cells to search about it: every ring (max(dims)) if the grid's box lies within
-    ``limits`` of the point, else none."""
-    out = np.empty((len(x), 4), np.int64)
-    d = x - origin
-    np.minimum(np.maximum((d / cell).astype(np.int64), 0), dims - 1, out=out[:, :3])
-    y = np.maximum(np.maximum(-d, d - dims * cell), 0.0)
-    gap = y[:, 0] * y[:, 0] + y[:, 1] * y[:, 1] + y[:, 2] * y[:, 2]
-    out[:, 3] = np.where(gap <= limits * limits, dims.max(), 0)
-    return out
-
-
-def _unit_rows(x):
-    norm = np.sqrt(np.einsum("ij,ij->i", x, x))[:, None]
-    return np.where(norm > 0, x / np.where(norm > 0, norm, 1.0), x)
-
-
-def _blend(sums, tau, offset):
-    """(s (n,), direction (n, 3)) from the blend's sums (`_blend_sums`; module docstring)."""
-    sw = sums[:, 0]
-    ok = sw > 0.0
-    safe = np.where(ok, sw, 1.0)
-    dist, vote = sums[:, 1] / safe, sums[:, 2]
-    v, nn = sums[:, 3:6] / safe[:, None], sums[:, 6:9] / safe[:, None]
-    sign = np.sign(vote)
-    g = _unit_rows(sign[:, None] * v + tau * nn)
-    s = sign * dist
-    if offset:   # near the surface the normal offset and normal, far out the distance
-        lam = np.clip((dist - OFFSET_NEAR * tau) / ((OFFSET_FAR - OFFSET_NEAR) * tau), 0, 1)
+                    vote += w * found[j, 1 + k] * found[j, 4 + k]
+                    vec[0, k] += w * found[j, 1 + k]
+                    vec[1, k] += w * found[j, 4 + k]
+        if not sw > 0.0:
+            s[i] = -np.inf
+            for k in range(3):
+                g[i, k] = 0.0
+            continue
+        dist = sd / sw
+        sign = 1.0 if vote > 0.0 else (-1.0 if vote < 0.0 else 0.0)
+        for k in range(3):
+            vec[1, k] /= sw
+            vec[2, k] = sign * (vec[0, k] / sw) + tau * vec[1, k]
+        s[i] = sign * dist
+        # near the surface the normal offset and normal, far out the distance
+        lam = min(max((dist - OFFSET_NEAR * tau) / ((OFFSET_FAR - OFFSET_NEAR) * tau), 0.0),
+                  1.0)
         lam = lam * lam * (3.0 - 2.0 * lam)
-        s = (1.0 - lam) * vote / safe + lam * s
-        g = _unit_rows((1.0 - lam)[:, None] * _unit_rows(nn) + lam[:, None] * g)
-    return np.where(ok, s, -np.inf), np.where(ok[:, None], g, 0.0)
+        for step in range(3 if offset else 1):   # unit rows: the direction (2), then the
+            r = 1 if step == 1 else 2            # normal (1) and the blend of both (2)
+            if step == 2:
+                s[i] = (1.0 - lam) * vote / sw + lam * s[i]
+                for k in range(3):
+                    vec[2, k] = (1.0 - lam) * vec[1, k] + lam * vec[2, k]
+            size = math.sqrt(vec[r, 0] * vec[r, 0] + vec[r, 1] * vec[r, 1]
+                             + vec[r, 2] * vec[r, 2])
+            if size > 0.0:
+                for k in range(3):
+                    vec[r, k] /= size
+        for k in range(3):
+            g[i, k] = vec[2, k]
+        if inside[i] and not offset:          # inside by parity: negative, whatever the vote
+            s[i] = -abs(s[i])
+    return s, g
 
 
 #: cells per triangle of the search grid (at least; `SEARCH_DENSITY_MAX` at most) and of the
@@ -399,15 +431,9 @@ class SurfaceGrid:
         if self._ray is None:
             self._ray = _bin_triangles(self.vertices, self.faces, _RAY_FRAME, 2,
                                        PARITY_DENSITY)
-        pv, origin, cell, dims, start, items = self._ray
-        f = _RAY_FRAME
-        yzx = np.empty((3, len(x)))
-        for k in range(3):
-            yzx[k] = f[k, 0] * x[:, 0] + f[k, 1] * x[:, 1] + f[k, 2] * x[:, 2]
-        # the (y, z) cell: int() truncates towards 0, the same after clamping
-        cy, cz = np.maximum(((yzx[:2] - origin[:2, None]) / cell).astype(np.int64), 0)
-        column = np.minimum(cy, dims[0] - 1) * dims[1] + np.minimum(cz, dims[1] - 1)
-        return _parity(yzx, column, pv, self.faces, start, items, np.empty(len(x), bool))
+        pv, origin, cell, dims, start, items, _ = self._ray
+        return _parity(x, _RAY_FRAME, pv, origin, cell, dims, self.faces, start, items,
+                       np.empty(len(x), bool))
 
     def signed_distance(self, points, *, tau: float, watch: float | None = None,
                         offset: bool = False):
@@ -426,17 +452,11 @@ class SurfaceGrid:
         watch = self.reach if watch is None else float(watch)
         if len(x) == 0 or len(self.faces) == 0:
             return np.full(len(x), -np.inf), np.zeros((len(x), 3))
-        inside = self.inside(x)
-        limits = np.where(inside, min(watch, self.reach), self.reach)
         t = len(self.faces)
-        sums = _blend_sums(x, limits, _start_cells(x, limits, *self._grid[:3]), self.vertices,
-                           self.faces, *self._grid, float(tau), self.reach,
-                           np.zeros((len(x), 9)), np.full(t, -1, np.int64), np.empty((t, 7)),
-                           np.empty(6, np.int64))
-        s, g = _blend(sums, float(tau), bool(offset))
-        if not offset:   # inside by parity: negative whatever the blend's vote
-            s = np.where(inside & np.isfinite(s), -np.abs(s), s)
-        return s, g
+        return _blend(x, self.inside(x), watch, self.vertices, self.faces, *self._grid,
+                      float(tau), self.reach, bool(offset), np.empty(len(x)),
+                      np.empty((len(x), 3)), np.full(t, -1, np.int64), np.empty((t, 7)),
+                      np.empty(6, np.int64), np.empty(4, np.int64), np.empty((3, 3)))
 
 
 def surface_distance(points, vertices, faces, *, reach: float, softness: float):
