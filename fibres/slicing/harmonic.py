@@ -421,20 +421,20 @@ def maps_key(tmpl, n_fibres, resolution, seed, smoothing) -> tuple:
 
 
 def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed, smoothing):
-    """(slices, loops, verts, post, rs, rest points) for these fibres, made once per plan
-    and cached: the points of vertices V are ``post @ (loops @ samples V + verts @ V)``
-    (`_fibre_matrix`'s maps before bending, then bending, even steps and fairing in one
-    (N P, N P) matrix); the rest points (N, P, 3) are the rest pose's."""
+    """(slices, loops, verts, post, fair, rs, rest points) for these fibres, made once per
+    plan and cached: the points of vertices V are ``fair @ (post @ (loops @ samples V +
+    verts @ V))`` (`_fibre_matrix`'s maps before bending, then bending and even steps, then
+    the fairing, both (N P, N P)); the rest points (N, P, 3) are the rest pose's."""
     from ..template.sampling import sobol_rs
 
     def make():
         slices = plan.cached(("slices", int(resolution)), lambda: _slices(plan, int(resolution)))
         rs = sobol_rs(int(n_fibres), seed=seed)
         loops, verts, post, y = _fibre_matrix(plan, slices, tmpl, rs, int(resolution))
-        fair = fairing_operator((post @ y).reshape(len(rs), -1, 3),
+        bent = post @ y
+        fair = fairing_operator(bent.reshape(len(rs), -1, 3),
                                 iterations=taubin_pairs(smoothing))
-        post = (fair @ post).tocsr()
-        return slices, loops, verts, post, rs, (post @ y).reshape(len(rs), -1, 3)
+        return slices, loops, verts, post, fair, rs, (fair @ bent).reshape(len(rs), -1, 3)
     return plan.cached(maps_key(tmpl, n_fibres, resolution, seed, smoothing), make)
 
 
@@ -445,10 +445,10 @@ def harmonic_points(plan: HarmonicPlan, vertices, tmpl, n_fibres, resolution, se
     of ``smoothing``, then
     the turn-aware resampling of `fibres.finishing.fairing`, frozen at rest) but not yet
     contained; also returns rs (N, 2) and notes."""
-    slices, loops, verts, post, rs, rest = _maps(plan, tmpl, n_fibres, resolution, seed,
-                                                 smoothing)
+    slices, loops, verts, post, fair, rs, rest = _maps(plan, tmpl, n_fibres, resolution, seed,
+                                                       smoothing)
     v = np.asarray(vertices, dtype=np.float64)
     if v is plan.rest_vertices or np.array_equal(v, plan.rest_vertices):
         return rest.copy(), rs, slices.notes
-    pts = post @ (loops @ (slices.samples @ v) + verts @ v)
+    pts = fair @ (post @ (loops @ (slices.samples @ v) + verts @ v))
     return pts.reshape(len(rs), int(resolution) + 1, 3), rs, slices.notes
