@@ -83,7 +83,7 @@ def mean_value_coordinates(points, polygon, groups=None) -> np.ndarray:
         raise ValueError(f"polygon must have shape (K, 2) (or (G, K, 2) with groups) with "
                          f"K >= 3, got {shape}")
     k = polys.shape[1]
-    lam = _mvc_kernel(pts, grp, polys, np.empty((len(pts), k)), np.empty((4, k + 1)))
+    lam = _mvc_kernel(pts, grp, polys, np.empty((len(pts), k)), np.empty((4, k)))
     if strict:
         _check(lam, pts, polys[grp])
     return lam
@@ -92,63 +92,56 @@ def mean_value_coordinates(points, polygon, groups=None) -> np.ndarray:
 @njit(cache=True, nogil=True, error_model="numpy")
 def _mvc_kernel(pts, group, polys, lam, work):
     """(N, K) coordinates into ``lam`` (N, K) (every entry written; work space ``work``
-    (4, K + 1)), one point at a time, point ``p`` with respect to ``polys[group[p]]``:
-    ``s_i``, ``r_i``, the half-angle tangents ``2 A_i / (r_i r_{i+1} + D_i)``, then ``w_i``
-    (loops without branches over the vertices); a point on a vertex (``r_i == 0``) gets
-    the unit vector of the first such vertex, else a point on an edge (``|2 A_i| <=
-    _ON_EDGE r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and ``r_i r_{i+1} > 0``)
-    the linear interpolation weights of the first such edge."""
+    (4, K)), one point at a time, point ``p`` with respect to ``polys[group[p]]``: ``s_i``,
+    ``r_i``, the half-angle tangents ``2 A_i / (r_i r_{i+1} + D_i)``, then ``w_i`` (times
+    the reciprocal of their sum); a point on a vertex (``r_i == 0``) gets
+    the unit vector of the first such vertex, a point on an edge (``|2 A_i| <= _ON_EDGE
+    r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and ``r_i r_{i+1} > 0``) the linear
+    interpolation weights of the first such edge."""
     n, k = pts.shape[0], polys.shape[1]
-    sx, sy, r, tan_half = work[0], work[1], work[2], work[3]    # tan_half[i + 1]: edge i
+    sx, sy, r, tan_half = work[0], work[1], work[2], work[3]
     for p in range(n):
         poly = polys[group[p]]
+        vertex = -1
         px, py = pts[p, 0], pts[p, 1]
         for i in range(k):
             xi, yi = poly[i, 0] - px, poly[i, 1] - py
             sx[i], sy[i] = xi, yi
             r[i] = math.sqrt(xi * xi + yi * yi)
-        sx[k], sy[k], r[k] = sx[0], sy[0], r[0]
-        odd = 0
-        for i in range(k):
-            rr = r[i] * r[i + 1]
-            cross = sx[i] * sy[i + 1] - sy[i] * sx[i + 1]
-            dot = sx[i] * sx[i + 1] + sy[i] * sy[i + 1]
-            denom = rr + dot
-            tan_half[i + 1] = cross / denom
-            odd += ((r[i] == 0.0) | ((dot < 0.0) & (rr > 0.0)
-                                     & ((abs(cross) <= _ON_EDGE * rr) | (denom <= 0.0))))
-        if odd == 0:
-            tan_half[0] = tan_half[k]
-            for i in range(k):
-                lam[p, i] = (tan_half[i] + tan_half[i + 1]) / r[i]
-            total = 0.0
-            for i in range(k):
-                total += lam[p, i]
-            inv = 1.0 / total
-            for i in range(k):
-                lam[p, i] *= inv
-            continue
-        vertex, edge = -1, -1
-        for i in range(k):
-            if r[i] == 0.0:
+            if r[i] == 0.0 and vertex < 0:
                 vertex = i
-                break
-        for i in range(k if vertex < 0 else 0):
-            rr = r[i] * r[i + 1]
-            cross = sx[i] * sy[i + 1] - sy[i] * sx[i + 1]
-            dot = sx[i] * sx[i + 1] + sy[i] * sy[i + 1]
-            if dot < 0.0 and rr > 0.0 and (abs(cross) <= _ON_EDGE * rr or rr + dot <= 0.0):
-                edge = i
-                break
-        for i in range(k):
-            lam[p, i] = 0.0
+        edge = -1
+        if vertex < 0:
+            for i in range(k):
+                j = i + 1 if i + 1 < k else 0
+                xi, yi, xj, yj = sx[i], sy[i], sx[j], sy[j]
+                rr = r[i] * r[j]
+                cross = xi * yj - yi * xj
+                dot = xi * xj + yi * yj
+                denom = rr + dot
+                if dot < 0.0 and rr > 0.0 and (abs(cross) <= _ON_EDGE * rr or denom <= 0.0):
+                    edge = i
+                    break
+                tan_half[i] = cross / denom
+        if vertex >= 0 or edge >= 0:
+            for i in range(k):
+                lam[p, i] = 0.0
         if vertex >= 0:
             lam[p, vertex] = 1.0
-        else:
+        elif edge >= 0:
             j = edge + 1 if edge + 1 < k else 0
             ra, rb = r[edge], r[j]
             lam[p, edge] = rb / (ra + rb)
             lam[p, j] += ra / (ra + rb)
+        else:
+            total = 0.0
+            for i in range(k):
+                w = (tan_half[i - 1 if i > 0 else k - 1] + tan_half[i]) / r[i]
+                lam[p, i] = w
+                total += w
+            inv = 1.0 / total
+            for i in range(k):
+                lam[p, i] *= inv
     return lam
 
 
