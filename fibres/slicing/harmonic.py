@@ -217,8 +217,67 @@ def _normalised(tmpl, unit, t):
     return xy[..., 0], xy[..., 1], np.clip(unit[..., 2], 0.0, 1.0)
 
 
+def _membrane_grid():
+    """The grid of the square that triangulates a membrane: nodes ((G + 1)^2, 2), node
+    ``(a, b)`` at ``(a, b) / G`` the ``a (G + 1) + b``-th, and cell triangles (2 G^2, 3):
+    cell ``(a, b)``'s halves ``(a, b), (a + 1, b), (a + 1, b + 1)`` (the first G^2, cells
+    in order) and ``(a, b), (a + 1, b + 1), (a, b + 1)``."""
+    g = np.linspace(0.0, 1.0, _MEMBRANE + 1)
+    nodes = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    a_, b_ = np.meshgrid(np.arange(_MEMBRANE), np.arange(_MEMBRANE), indexing="ij")
+    n00 = (a_ * (_MEMBRANE + 1) + b_).reshape(-1)
+    cells = np.concatenate([np.stack([n00, n00 + _MEMBRANE + 1, n00 + _MEMBRANE + 2], 1),
+                            np.stack([n00, n00 + _MEMBRANE + 2, n00 + 1], 1)])
+    return nodes, cells
+
+
+_NODES, _CELLS = _membrane_grid()
+
+
+def _membranes(polygons, rest):
+    """The loops' membranes at rest (step 5's area measure): the grid's nodes mapped by
+    each loop's mean value coordinates (w.r.t. ``polygons`` (L, K, 2), applied to the loop
+    samples ``rest`` (L, K, 3)), (L, (G + 1)^2, 3), and the areas of the images of the
+    cell triangles (`_membrane_grid`), (L, 2 G^2)."""
+    n_loops, m, g = len(polygons), len(_NODES), _MEMBRANE
+    lam = mean_value_coordinates(np.tile(_NODES, (n_loops, 1)), polygons,
+                                 np.repeat(np.arange(n_loops), m))
+    nodes = lam.reshape(n_loops, m, -1) @ rest
+    grid = nodes.reshape(n_loops, g + 1, g + 1, 3)
+    p00, p10, p11, p01 = grid[:, :-1, :-1], grid[:, 1:, :-1], grid[:, 1:, 1:], grid[:, :-1, 1:]
+    area = np.empty((n_loops, 2, g, g))
+    for half, (d1, d2) in enumerate(((p10 - p00, p11 - p00), (p11 - p00, p01 - p00))):
+        (ax, ay, az), (bx, by, bz) = np.moveaxis(d1, -1, 0), np.moveaxis(d2, -1, 0)
+        area[:, half] = 0.5 * np.sqrt((ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2
+                                      + (ax * by - ay * bx) ** 2)
+    return nodes, area.reshape(n_loops, -1)
+
+
+def _spread(polygons, area, loop, pts):
+    """MVC weights (M, K) of the points of the square that spread ``pts`` (M, 2) evenly by
+    area over the membranes of their loops ``loop`` (M,): Knothe-Rosenblatt in the square's
+    own coordinates with the area of each grid cell's image as its mass
+    (`fibres.attachments.patch_map.grid_area_map`, once per loop for all its points; the map
+    in a projection of the membrane jumped between the sheets of a folded projection:
+    docs/decisions.md)."""
+    half = _MEMBRANE * _MEMBRANE
+    mass = (area[:, :half] + area[:, half:]).reshape(-1, _MEMBRANE, _MEMBRANE)
+    order = np.argsort(loop, kind="stable")
+    bounds = np.searchsorted(loop[order], np.arange(len(polygons) + 1)).tolist()
+    square = np.empty_like(pts)
+    for j in range(len(polygons)):
+        if bounds[j + 1] > bounds[j]:
+            sel = order[bounds[j]:bounds[j + 1]]
+            square[sel, 0], square[sel, 1] = grid_area_map(mass[j], pts[sel, 0], pts[sel, 1])
+    return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons, loop)
+
+
 def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
-    """Sparse (N * P, L * SAMPLES + V) matrix: fibre points from [loop samples; vertices]."""
+    """The fibre points' linear map at rest, before bending and even steps: sparse
+    ``loops`` (N * P, L * SAMPLES) of the loop samples and ``verts`` (N * P, V) of the
+    vertices; sparse ``post`` (N * P, N * P) of the bending and even steps (`_bend_to_ends`,
+    `_even`); and ``y`` (N * P, 3) = ``loops @ samples + verts @ vertices`` at rest: the
+    rest points are ``post @ y``."""
     n = len(rs)
     p = resolution + 1
     t = np.linspace(0.0, 1.0, p)
@@ -227,119 +286,83 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     z[:, 0], z[:, -1] = 0.0, 1.0
     k = SAMPLES
     n_loops = slices.centres.shape[0]
-    base = n_loops * k
     xy = np.stack([X, Y], axis=-1)                                   # (N, P, 2)
-    polygons = [_rectangle_samples(k, share) for share in slices.shares]
+    polygons = np.stack([_rectangle_samples(k, share) for share in slices.shares])
+    samples = slices.samples @ plan.rest_vertices
+    rest = samples.reshape(n_loops, k, 3)
+    memb, area = _membranes(polygons, rest)
 
-    rest = (slices.samples @ plan.rest_vertices).reshape(n_loops, k, 3)
-    # the membranes at rest, triangulated on a grid of the square (step 5's area measure)
-    g = np.linspace(0.0, 1.0, _MEMBRANE + 1)
-    nodes = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
-    a_, b_ = np.meshgrid(np.arange(_MEMBRANE), np.arange(_MEMBRANE), indexing="ij")
-    n00 = (a_ * (_MEMBRANE + 1) + b_).reshape(-1)
-    cells = np.concatenate([np.stack([n00, n00 + _MEMBRANE + 1, n00 + _MEMBRANE + 2], 1),
-                            np.stack([n00, n00 + _MEMBRANE + 2, n00 + 1], 1)])
-
-    membranes = {}
-
-    def membrane(j):
-        """Loop j's membrane at rest: its grid nodes (3D) and cell triangles' areas."""
-        if j not in membranes:
-            memb = mean_value_coordinates(nodes, polygons[j]) @ rest[j]    # (G+1)^2 x 3
-            tri = memb[cells]
-            (ax, ay, az), (bx, by, bz) = (tri[:, 1] - tri[:, 0]).T, (tri[:, 2] - tri[:, 0]).T
-            area = 0.5 * np.sqrt((ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2
-                                 + (ax * by - ay * bx) ** 2)
-            membranes[j] = (tri, area)
-        return membranes[j]
-
-    def lam(j, pts):
-        """MVC weights of the points of the square that spread ``pts`` evenly by area over
-        loop j's membrane: Knothe-Rosenblatt in the square's own coordinates with the area
-        of each grid cell's image as its mass (`fibres.attachments.patch_map.grid_area_map`; the map in
-        a projection of the membrane jumped between the sheets of a folded projection:
-        docs/decisions.md)."""
-        pts = pts.reshape(-1, 2)
-        area = membrane(j)[1]
-        half = _MEMBRANE * _MEMBRANE
-        xs, ys = grid_area_map((area[:half] + area[half:]).reshape(_MEMBRANE, _MEMBRANE),
-                               pts[:, 0], pts[:, 1])
-        square = np.stack([xs, ys], axis=1)
-        return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons[j])
-
-    rows, cols, vals = [], [], []
-    rid = np.arange(n * p).reshape(n, p)
-    kk = np.arange(k)
-    n_cols = base + len(plan.rest_vertices)
-    inner = sp.csr_matrix((n * p, n_cols))
     # inner points: the membranes of the two loops around their height, blended (heights
-    # before the first or after the last inner slice are clamped onto it)
-    if p > 2:
-        pos = np.clip(z[:, 1:-1] * resolution - 1.0, 0.0, n_loops - 1.0).reshape(-1)
-        j0 = np.clip(np.floor(pos).astype(np.int64), 0, max(n_loops - 2, 0))
-        a = pos - j0
-        j1 = np.minimum(j0 + 1, n_loops - 1)
-        xy_in = xy[:, 1:-1].reshape(-1, 2)
-        # each point on its two loops (weights 1 - a and a; zero weights left out), the
-        # membrane map of each loop evaluated once for all its points; row by row in
-        # sparse-row order (loop j0's samples, then loop j1's: j0 < j1 when there are two
-        # loops; with one, the weight on j1 is 0), so the matrix needs no sorting
-        jj = np.concatenate([j0, j1])
-        wj = np.concatenate([1.0 - a, a])
-        pt = np.concatenate([np.arange(a.size), np.arange(a.size)])
-        use = np.flatnonzero(wj > 0)
-        jj, wj, pt, side = jj[use], wj[use], pt[use], use // a.size
-        blocks = np.zeros((a.size, 2, k))
-        for j in np.unique(jj):
-            sel = np.flatnonzero(jj == j)
-            blocks[pt[sel], side[sel]] = lam(j, xy_in[pt[sel]]) * wj[sel, None]
-        at = np.stack([j0, j1], axis=1)[:, :, None] * k + kk                  # (n_in, 2, k)
-        counts = np.zeros((n, p), dtype=np.int64)
-        counts[:, 1:-1] = 2 * k
-        inner = sp.csr_matrix((blocks.reshape(-1), at.reshape(-1),
-                               np.concatenate([[0], np.cumsum(counts.reshape(-1))])),
-                              shape=(n * p, n_cols))
-        inner.eliminate_zeros()
+    # before the first or after the last inner slice are clamped onto it); each point on
+    # its two loops (weights 1 - a and a; zero weights left out), in row order
+    pos = np.clip(z[:, 1:-1] * resolution - 1.0, 0.0, n_loops - 1.0).reshape(-1)
+    j0 = np.clip(np.floor(pos).astype(np.int64), 0, max(n_loops - 2, 0))
+    a = pos - j0
+    wpair = np.stack([1.0 - a, a], axis=1)                          # (n_in, 2)
+    use = np.flatnonzero(wpair.reshape(-1) > 0)
+    pt = use // 2
+    jj = np.stack([j0, np.minimum(j0 + 1, n_loops - 1)], axis=1).reshape(-1)[use]
+    # the spread of all of them and of the fibre ends on the first / last inner membrane
+    lam = _spread(polygons, area,
+                  np.concatenate([jj, np.zeros(n, np.int64), np.full(n, n_loops - 1)]),
+                  np.concatenate([xy[:, 1:-1].reshape(-1, 2)[pt], xy[:, 0], xy[:, -1]]))
+    m = len(jj)
+    per_row = np.zeros((n, p), dtype=np.int64)
+    per_row[:, 1:-1] = np.bincount(pt, minlength=a.size).reshape(n, p - 2) * k
+    loops = sp.csr_matrix(((lam[:m] * wpair.reshape(-1)[use, None]).reshape(-1),
+                           (jj[:, None] * k + np.arange(k)).reshape(-1),
+                           np.concatenate([[0], np.cumsum(per_row.reshape(-1))])),
+                          shape=(n * p, n_loops * k))
     # ends: the fibres' places on the first / last inner membrane, projected on its frame,
     # carried onto the whole patch by area and in order (the membrane's projected area
-    # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the fibres
-    # then bend towards them (_bend_to_ends)
+    # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the
+    # fibres then bend towards them (_bend_to_ends)
     ends = []
-    for col, mask, patch, j in ((0, plan.origin_faces, plan.origin, 0),
-                                (p - 1, plan.insertion_faces, plan.insertion, n_loops - 1)):
+    for e, (mask, patch, j) in enumerate(((plan.origin_faces, plan.origin, 0),
+                                          (plan.insertion_faces, plan.insertion, n_loops - 1))):
         if not mask.any():
             mask = patch[plan.faces].any(axis=1)
         e1 = slices.axes[j]
         e2 = np.cross(slices.normals[j], e1)
-        tri, area = membrane(j)
-        on = lam(j, xy[:, col]) @ rest[j] - slices.centres[j]
-        X, Y = kr_coordinates((tri - slices.centres[j]) @ e1, (tri - slices.centres[j]) @ e2,
-                              area, on @ e1, on @ e2, samples=len(area))
-        ends.append((mask, *area_points(plan.rest_vertices, plan.faces, mask, slices.centres[j],
-                                        e1, e2, X, Y)))
+        c = slices.centres[j]
+        on = lam[m + e * n:m + (e + 1) * n] @ rest[j] - c
+        tri = memb[j][_CELLS] - c
+        px, py = tri @ e1, tri @ e2
+        ex, ey = kr_coordinates(px, py, area[j], on @ e1, on @ e2, samples=area.shape[1])
+        ends.append((mask, *area_points(plan.rest_vertices, plan.faces, mask, c, e1, e2,
+                                        ex, ey)))
     relaxed = relax_on_patches(plan.rest_vertices, plan.faces, ends)   # both at once
-    for col, (_, face, bary), (moved, mbary) in zip((0, p - 1), ends, relaxed):
-        rows.append(np.repeat(rid[:, col], 3))
-        cols.append(base + plan.faces[moved].reshape(-1))
-        vals.append(mbary.reshape(-1))
-        # the ends' relaxation shift, carried along the whole fibre and fading linearly to
-        # the other end: where both ends move alike (a straight cylinder) fibres stay straight
-        if p > 2:
-            fade = np.linspace(1.0, 0.0, p)[1:-1] if col == 0 else np.linspace(0.0, 1.0, p)[1:-1]
-            for fc, bc, sign in ((moved, mbary, 1.0), (face, bary, -1.0)):
-                rows.append(np.repeat(rid[:, 1:-1].reshape(-1), 3))
-                cols.append(np.repeat(base + plan.faces[fc], p - 2, axis=0).reshape(-1))
-                vals.append((sign * np.repeat(bc, p - 2, axis=0)
-                             * np.tile(fade, n)[:, None]).reshape(-1))
-    mat = inner + sp.csr_matrix((np.concatenate(vals),
-                                 (np.concatenate(rows), np.concatenate(cols))),
-                                shape=(n * p, n_cols))
-    # bending and even steps are (N P, N P) maps of the points: composed first (small), then
-    # applied to the map of the vertices in one sparse product
+    verts = _end_rows(plan.faces, len(plan.rest_vertices), n, p, ends, relaxed)
+    # bending and even steps: (N P, N P) maps of the points, composed (small)
     bend = _bend_to_ends(n, p)
-    rest_pts = (bend @ (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
-                                              plan.rest_vertices]))).reshape(n, p, 3)
-    return (_even(rest_pts) @ bend) @ mat
+    y = loops @ samples + verts @ plan.rest_vertices
+    return loops, verts, (_even((bend @ y).reshape(n, p, 3)) @ bend).tocsr(), y
+
+
+def _end_rows(faces, n_vertices, n, p, ends, relaxed):
+    """Sparse (N P, V) vertex weights of the fibre points: each end the corners of its
+    relaxed patch triangle (``relaxed``), each inner point the ends' relaxation shifts
+    (relaxed minus first place, ``ends``), carried along the whole fibre and fading linearly
+    to the other end: where both ends move alike (a straight cylinder) fibres stay straight.
+    Rows in order: an end's 3 entries, an inner point's 12 (four triangles' corners)."""
+    per = 6 + 12 * (p - 2)
+    data, index = np.empty((n, per)), np.empty((n, per), dtype=np.int64)
+    # views of the inner points' entries (splitting the last axis: no copies)
+    inner_v = data[:, 3:per - 3].reshape(n, p - 2, 12)
+    inner_i = index[:, 3:per - 3].reshape(n, p - 2, 12)
+    fades = np.linspace(1.0, 0.0, p)[1:-1], np.linspace(0.0, 1.0, p)[1:-1]
+    for e, ((_, face, bary), (moved, mbary)) in enumerate(zip(ends, relaxed)):
+        at = slice(0, 3) if e == 0 else slice(per - 3, per)
+        data[:, at], index[:, at] = mbary, faces[moved]
+        for s, (fc, bc, sign) in enumerate(((moved, mbary, 1.0), (face, bary, -1.0))):
+            at = slice(6 * e + 3 * s, 6 * e + 3 * s + 3)
+            inner_v[:, :, at] = (sign * bc)[:, None, :] * fades[e][None, :, None]
+            inner_i[:, :, at] = faces[fc][:, None, :]
+    lengths = np.full((n, p), 12)
+    lengths[:, 0] = lengths[:, -1] = 3
+    return sp.csr_matrix((data.reshape(-1), index.reshape(-1),
+                          np.concatenate([[0], np.cumsum(lengths.reshape(-1))])),
+                         shape=(n * p, n_vertices))
 
 
 def _bend_to_ends(n, p):
@@ -350,8 +373,7 @@ def _bend_to_ends(n, p):
     lies to the side of the fibres' course (a strip along the muscle's edge), the fibres
     turn towards it over several segments instead of hooking in the last one."""
     bend = max(3.0, END_BEND * (p - 1))
-    rows, cols, vals = [np.arange(n * p)], [np.arange(n * p)], [np.ones(n * p)]
-    base = np.arange(n) * p
+    block = np.eye(p)                                              # one fibre's (P, P)
     for end, one, two, sign in ((0, 1, 2, 1), (p - 1, p - 2, p - 3, -1)):
         if p < 3:
             break
@@ -359,12 +381,13 @@ def _bend_to_ends(n, p):
             g = (1.0 - q / bend) ** 2 if q < bend else 0.0
             if g <= 0.0:
                 break
-            r = base + (q if sign > 0 else p - 1 - q)
+            r = q if sign > 0 else p - 1 - q
             for c, w in ((end, g), (one, -2.0 * g), (two, g)):
-                rows.append(r)
-                cols.append(base + c)
-                vals.append(np.full(n, w))
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                block[r, c] += w
+    rr, cc = np.nonzero(block)
+    indptr = np.concatenate([[0], np.cumsum(np.tile(np.bincount(rr, minlength=p), n))])
+    return sp.csr_matrix((np.tile(block[rr, cc], n),
+                          (np.arange(n)[:, None] * p + cc).reshape(-1), indptr),
                          shape=(n * p, n * p))
 
 
@@ -383,11 +406,9 @@ def _even(points):
     lo = np.take_along_axis(c, k, axis=1)
     hi = np.take_along_axis(c, k + 1, axis=1)
     w = np.clip((target - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
-    r = np.arange(n * p)
-    first = (np.arange(n)[:, None] * p + k).reshape(-1)
-    return sp.csr_matrix((np.concatenate([(1.0 - w).reshape(-1), w.reshape(-1)]),
-                          (np.concatenate([r, r]), np.concatenate([first, first + 1]))),
-                         shape=(n * p, n * p))
+    first = np.arange(n)[:, None, None] * p + k[:, :, None] + np.arange(2)   # (N, P, 2)
+    return sp.csr_matrix((np.stack([1.0 - w, w], axis=-1).reshape(-1), first.reshape(-1),
+                          np.arange(n * p + 1) * 2), shape=(n * p, n * p))
 
 
 def maps_key(tmpl, n_fibres, resolution, seed, smoothing) -> tuple:
@@ -400,18 +421,20 @@ def maps_key(tmpl, n_fibres, resolution, seed, smoothing) -> tuple:
 
 
 def _maps(plan: HarmonicPlan, tmpl, n_fibres, resolution, seed, smoothing):
-    """(slices, fibre matrix, fairing matrix, rs) for these fibres, made once per plan and
-    cached."""
+    """(slices, loops, verts, post, fair, rs, rest points) for these fibres, made once per
+    plan and cached: the points of vertices V are ``fair @ (post @ (loops @ samples V +
+    verts @ V))`` (`_fibre_matrix`'s maps before bending, then bending and even steps, then
+    the fairing, both (N P, N P)); the rest points (N, P, 3) are the rest pose's."""
     from ..template.sampling import sobol_rs
 
     def make():
         slices = plan.cached(("slices", int(resolution)), lambda: _slices(plan, int(resolution)))
         rs = sobol_rs(int(n_fibres), seed=seed)
-        mat = _fibre_matrix(plan, slices, tmpl, rs, int(resolution))
-        rest = (mat @ np.concatenate([slices.samples @ plan.rest_vertices,
-                                      plan.rest_vertices])).reshape(len(rs), -1, 3)
-        fair = fairing_operator(rest, iterations=taubin_pairs(smoothing))
-        return slices, mat, fair, rs
+        loops, verts, post, y = _fibre_matrix(plan, slices, tmpl, rs, int(resolution))
+        bent = post @ y
+        fair = fairing_operator(bent.reshape(len(rs), -1, 3),
+                                iterations=taubin_pairs(smoothing))
+        return slices, loops, verts, post, fair, rs, (fair @ bent).reshape(len(rs), -1, 3)
     return plan.cached(maps_key(tmpl, n_fibres, resolution, seed, smoothing), make)
 
 
@@ -422,8 +445,10 @@ def harmonic_points(plan: HarmonicPlan, vertices, tmpl, n_fibres, resolution, se
     of ``smoothing``, then
     the turn-aware resampling of `fibres.finishing.fairing`, frozen at rest) but not yet
     contained; also returns rs (N, 2) and notes."""
-    slices, mat, fair, rs = _maps(plan, tmpl, n_fibres, resolution, seed, smoothing)
+    slices, loops, verts, post, fair, rs, rest = _maps(plan, tmpl, n_fibres, resolution, seed,
+                                                       smoothing)
     v = np.asarray(vertices, dtype=np.float64)
-    basis = np.concatenate([slices.samples @ v, v])
-    pts = (fair @ (mat @ basis)).reshape(len(rs), int(resolution) + 1, 3)
-    return pts, rs, slices.notes
+    if v is plan.rest_vertices or np.array_equal(v, plan.rest_vertices):
+        return rest.copy(), rs, slices.notes
+    pts = fair @ (post @ (loops @ (slices.samples @ v) + verts @ v))
+    return pts.reshape(len(rs), int(resolution) + 1, 3), rs, slices.notes

@@ -40,50 +40,68 @@ strict = False
 _ON_EDGE = 1e-14
 
 
-def mean_value_coordinates(points, polygon) -> np.ndarray:
-    """Mean value coordinates of many points with respect to one closed polygon.
+def mean_value_coordinates(points, polygon, groups=None) -> np.ndarray:
+    """Mean value coordinates of many points with respect to one closed polygon, or each
+    point with respect to its own polygon of a stack.
 
     Parameters
     ----------
     points : (N, 2) float
         Query points.
-    polygon : (K, 2) float
+    polygon : (K, 2) float, or (G, K, 2) with ``groups``
         Polygon vertices in order (either orientation; convex or not), K >= 3, not
         repeated at the end. Consecutive coincident vertices are allowed.
+    groups : (N,) int in [0, G), optional
+        With a stack of G polygons: the polygon of each point.
 
     Returns
     -------
     lam : (N, K) float
-        ``lam[n] @ polygon == points[n]`` and ``lam[n].sum() == 1``. Rows for points on a
-        vertex are unit vectors; rows for points on an edge are the linear interpolation
-        weights of that edge's two vertices.
+        ``lam[n] @ polygon == points[n]`` (``polygon[groups[n]]``) and ``lam[n].sum() ==
+        1``. Rows for points on a vertex are unit vectors; rows for points on an edge are
+        the linear interpolation weights of that edge's two vertices.
 
     Notes
     -----
     One compiled loop over the points (`_mvc_kernel`; Hormann & Floater 2006, eq. for
-    ``w_i`` with the half-angle tangent written as ``2A / (r r' + D)``).
+    ``w_i`` with the half-angle tangent written as ``2A / (r r' + D)``), all polygons in
+    one call.
     """
     pts = np.ascontiguousarray(points, dtype=np.float64)
-    poly = np.ascontiguousarray(polygon, dtype=np.float64)
+    polys = np.ascontiguousarray(polygon, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
-    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3:
-        raise ValueError(f"polygon must have shape (K, 2) with K >= 3, got {poly.shape}")
-    return _finish(_mvc_kernel(pts, poly, np.zeros((len(pts), len(poly))),
-                               np.empty((4, len(poly)))), pts, poly)
+    if groups is None:
+        polys, grp = polys[None], np.zeros(len(pts), dtype=np.int64)
+    else:
+        grp = np.ascontiguousarray(groups, dtype=np.int64)
+        if grp.shape != (len(pts),) or (len(grp) and (grp.min() < 0
+                                                      or grp.max() >= len(polys))):
+            raise ValueError("groups must be (N,) indices of the polygons")
+    if polys.ndim != 3 or polys.shape[2] != 2 or polys.shape[1] < 3:
+        shape = polys.shape[1:] if groups is None else polys.shape
+        raise ValueError(f"polygon must have shape (K, 2) (or (G, K, 2) with groups) with "
+                         f"K >= 3, got {shape}")
+    k = polys.shape[1]
+    lam = _mvc_kernel(pts, grp, polys, np.empty((len(pts), k)), np.empty((4, k)))
+    if strict:
+        _check(lam, pts, polys[grp])
+    return lam
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _mvc_kernel(pts, poly, lam, work):
-    """(N, K) coordinates into ``lam`` (N, K) (zeros; work space ``work`` (4, K)), one
-    point at a time: ``s_i``, ``r_i``, the half-angle tangents ``2 A_i / (r_i r_{i+1} +
-    D_i)``, then ``w_i``; a point on a vertex (``r_i == 0``) gets
+def _mvc_kernel(pts, group, polys, lam, work):
+    """(N, K) coordinates into ``lam`` (N, K) (every entry written; work space ``work``
+    (4, K)), one point at a time, point ``p`` with respect to ``polys[group[p]]``: ``s_i``,
+    ``r_i``, the half-angle tangents ``2 A_i / (r_i r_{i+1} + D_i)``, then ``w_i`` (times
+    the reciprocal of their sum); a point on a vertex (``r_i == 0``) gets
     the unit vector of the first such vertex, a point on an edge (``|2 A_i| <= _ON_EDGE
     r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and ``r_i r_{i+1} > 0``) the linear
     interpolation weights of the first such edge."""
-    n, k = pts.shape[0], poly.shape[0]
+    n, k = pts.shape[0], polys.shape[1]
     sx, sy, r, tan_half = work[0], work[1], work[2], work[3]
     for p in range(n):
+        poly = polys[group[p]]
         vertex = -1
         px, py = pts[p, 0], pts[p, 1]
         for i in range(k):
@@ -105,6 +123,9 @@ def _mvc_kernel(pts, poly, lam, work):
                     edge = i
                     break
                 tan_half[i] = cross / denom
+        if vertex >= 0 or edge >= 0:
+            for i in range(k):
+                lam[p, i] = 0.0
         if vertex >= 0:
             lam[p, vertex] = 1.0
         elif edge >= 0:
@@ -118,16 +139,18 @@ def _mvc_kernel(pts, poly, lam, work):
                 w = (tan_half[i - 1 if i > 0 else k - 1] + tan_half[i]) / r[i]
                 lam[p, i] = w
                 total += w
+            inv = 1.0 / total
             for i in range(k):
-                lam[p, i] /= total
+                lam[p, i] *= inv
     return lam
 
 
-def _finish(lam, pts, poly):
-    if strict:
-        assert np.allclose(lam.sum(axis=1), 1.0, atol=1e-9)
-        assert np.allclose(lam @ poly, pts, atol=1e-9 * (1.0 + np.abs(poly).max()))
-    return lam
+def _check(lam, pts, polys):
+    """The invariants (``strict``): partition of unity and linear precision; ``polys``
+    (N, K, 2), each point's polygon."""
+    assert np.allclose(lam.sum(axis=1), 1.0, atol=1e-9)
+    assert np.allclose(np.einsum("nk,nkd->nd", lam, polys), pts,
+                       atol=1e-9 * (1.0 + np.abs(polys).max(initial=0.0)))
 
 
 class Planes(tuple):
