@@ -12,9 +12,16 @@ Layout (paths relative to the study file)::
     model = "S01/fibres.toml"       # the subject's fibre model
     trials = ["S01/walk*.mot", "S01/stairs.mot"]   # motion files or glob patterns
     options = { fibres = 80 }       # optional: this subject's own options over [options]
+    [subjects.S02]
+    model = "S02/fibres.toml"
+    trials = ["S02/*.mot",          # a trial's own options: a table, over the subject's
+              { motion = "S02/run.mot", options = { frames = "12:140" } }]
 
 A trial is one motion file; its name is the file name without its extension (``walk1`` for
-``walk1.mot``) and its outputs go to ``DIR/<subject>/<trial>/``. Subject and trial names become
+``walk1.mot``) and its outputs go to ``DIR/<subject>/<trial>/``. Options apply in the order
+``[options]``, the subject's ``options``, the trial entry's ``options`` (each over the one
+before); a file named by two entries (a glob, then a table for one of its files) keeps its first
+place and takes the later entry's options. Subject and trial names become
 folder names only through `analysis.file_names.file_stems` (the name itself when it is safe).
 
 Method: the option names and types are those of the ``fibres run`` parser itself
@@ -161,28 +168,50 @@ def _options(table, *, file, where, option_table) -> dict:
     return out
 
 
-def _trial_paths(patterns, base: Path, *, file, where) -> list:
-    items = [patterns] if isinstance(patterns, str) else patterns
-    if not isinstance(items, list) or not items or not all(isinstance(p, str) and p for p in items):
+def _trial_paths(pattern, base: Path, *, file, where) -> list:
+    """The motion files of one trial entry's path or glob ``pattern`` (module docstring)."""
+    if not isinstance(pattern, str) or not pattern:
+        raise InputError("expected a motion file or glob pattern", file=file, where=where,
+                         fix='Write trials = ["walk*.mot", "stairs.mot"] (relative to the study file).')
+    if "\x00" in pattern:
+        raise InputError("a path holds a NUL character", file=file, where=where, fix="Remove it.")
+    full = Path(pattern) if Path(pattern).is_absolute() else base / pattern
+    if glob.has_magic(pattern):
+        found = sorted(Path(p) for p in glob.glob(str(full)) if Path(p).is_file())
+        if not found:
+            raise InputError(f"the pattern {pattern!r} matches no file", file=file, where=where,
+                             fix="Fix the pattern (it is relative to the study file).")
+        return [p.resolve() for p in found]
+    if not full.is_file():
+        raise InputError(f"no motion file {pattern!r} ({full})", file=file, where=where,
+                         fix="Fix the path (it is relative to the study file).")
+    return [full.resolve()]
+
+
+def _trial_entries(entries, base: Path, *, file, where, option_table) -> dict:
+    """Motion file -> that trial's own options, from a subject's ``trials`` list: each entry a
+    path or glob, or a table ``{ motion = PATH_OR_GLOB, options = {...} }``. A file named again
+    by a later entry keeps its place and takes that entry's options over the earlier ones."""
+    items = [entries] if isinstance(entries, (str, dict)) else entries
+    if not isinstance(items, list) or not items:
         raise InputError("expected a list of motion files or glob patterns", file=file, where=where,
                          fix='Write trials = ["walk*.mot", "stairs.mot"] (relative to the study file).')
-    paths = []
-    for pattern in items:
-        if "\x00" in pattern:
-            raise InputError("a path holds a NUL character", file=file, where=where, fix="Remove it.")
-        full = Path(pattern) if Path(pattern).is_absolute() else base / pattern
-        if glob.has_magic(pattern):
-            found = sorted(Path(p) for p in glob.glob(str(full)) if Path(p).is_file())
-            if not found:
-                raise InputError(f"the pattern {pattern!r} matches no file", file=file, where=where,
-                                 fix="Fix the pattern (it is relative to the study file).")
-            paths.extend(found)
-        elif not full.is_file():
-            raise InputError(f"no motion file {pattern!r} ({full})", file=file, where=where,
-                             fix="Fix the path (it is relative to the study file).")
-        else:
-            paths.append(full)
-    return [p.resolve() for p in dict.fromkeys(paths)]
+    found = {}
+    for k, entry in enumerate(items):
+        at = f"{where}[{k}]"
+        own = {}
+        if isinstance(entry, dict):
+            extra = sorted(set(entry) - {"motion", "options"})
+            if extra or "motion" not in entry:
+                raise InputError(f"unknown key {extra[0]!r}" if extra else "missing motion", file=file,
+                                 where=f"{at}.{extra[0]}" if extra else f"{at}.motion",
+                                 fix='Write { motion = "run.mot", options = { frames = "10:120" } }.')
+            own = _options(entry.get("options", {}), file=file, where=f"{at}.options",
+                           option_table=option_table)
+            entry = entry["motion"]
+        for path in _trial_paths(entry, base, file=file, where=at):
+            found[path] = {**found.get(path, {}), **own}
+    return found
 
 
 def load_study(path) -> Study:
@@ -243,7 +272,8 @@ def load_study(path) -> Study:
         if "trials" not in table:
             raise InputError("missing", file=file, where=f"{where}.trials",
                              fix='Write trials = ["walk*.mot"] (motion files or globs).')
-        motions = _trial_paths(table["trials"], base, file=file, where=f"{where}.trials")
+        motions = _trial_entries(table["trials"], base, file=file, where=f"{where}.trials",
+                                 option_table=option_table)
         options = {**common, **_options(table.get("options", {}), file=file, where=f"{where}.options",
                                         option_table=option_table)}
         seen = {}
@@ -254,7 +284,8 @@ def load_study(path) -> Study:
             seen[mot.stem] = mot
         trial_stems = file_stems(seen)
         for trial, mot in seen.items():
-            trials.append(StudyTrial(subject=name, trial=trial, spec=spec, motion=mot, options=dict(options),
+            trials.append(StudyTrial(subject=name, trial=trial, spec=spec, motion=mot,
+                                     options={**options, **motions[mot]},
                                      folder=f"{stems[name]}/{trial_stems[trial]}"))
     return Study(file=file.resolve(), subjects=tuple(subjects), trials=tuple(trials))
 

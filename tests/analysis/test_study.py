@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from analysis.errors import InputError
-from analysis.study_file import load_study
+from analysis.study_file import load_study, run_arguments
 
 ROOT = Path(__file__).resolve().parents[2]
 ARM = ROOT / "models" / "arm_example.toml"
@@ -53,7 +53,7 @@ no-sto = true
 
 [subjects.A]
 model = "{ARM}"
-trials = ["A/*.mot"]
+trials = ["A/*.mot", {{ motion = "A/late.mot", options = {{ frames = "1:3", fibres = 7 }} }}]
 
 [subjects.B]
 model = "{ARM}"
@@ -112,6 +112,10 @@ def test_study_file_trials_names_and_options(tmp_path):
     assert a.options["muscle"] == ["biceps", "brachialis"]
     assert b.options["fibres"] == 5 and b.options["resolution"] == 4   # subject over study options
     assert b.folder == "B/walk2" and b.motion == (tmp_path / "B" / "walk2.mot").resolve()
+    late = s.trials[1]                      # named by the glob, then by a table of its own
+    assert late.label == "A/late" and late.options["frames"] == "1:3" and late.options["fibres"] == 7
+    assert late.options["resolution"] == 4 and "frames" not in s.trials[0].options
+    assert run_arguments(late, tmp_path).frames.start == 1 and run_arguments(late, tmp_path).frames.stop == 3
 
 
 @pytest.mark.parametrize("text, where", [
@@ -129,6 +133,13 @@ def test_study_file_trials_names_and_options(tmp_path):
     ('[subjects.A]\nmodel = "{arm}"\ntrial = ["A/*.mot"]', "subjects.A.trial"),
     ('[subjects."study.json"]\nmodel = "{arm}"\ntrials = ["A/*.mot"]', "subjects.study.json"),
     ('[options]\nfibres = 5\n', "subjects"),
+    ('[subjects.A]\nmodel = "{arm}"\ntrials = [{{ options = {{ fibres = 5 }} }}]', "subjects.A.trials[0].motion"),
+    ('[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot", {{ motion = "A/early.mot", option = {{}} }}]',
+     "subjects.A.trials[1].option"),
+    ('[subjects.A]\nmodel = "{arm}"\ntrials = ["A/*.mot", {{ motion = "A/early.mot", options = {{ frames = "9:2" }} }}]',
+     "subjects.A.trials[1].options.frames"),
+    ('[subjects.A]\nmodel = "{arm}"\ntrials = [{{ motion = "A/nope*.mot" }}]', "subjects.A.trials[0]"),
+    ('[subjects.A]\nmodel = "{arm}"\ntrials = [3]', "subjects.A.trials[0]"),
 ])
 def test_study_file_errors_are_one_line_naming_the_key(tmp_path, text, where):
     _write_study(tmp_path)
@@ -169,6 +180,15 @@ def test_trials_equal_single_runs_and_fill_the_dataset(pool_study, tmp_path):
     data = pd.read_parquet(out / "study.parquet" / "fibre_lengths")
     assert set(zip(data.subject.astype(str), data.trial.astype(str))) == {
         ("A", "early"), ("A", "mid"), ("A", "late"), ("B", "walk1"), ("B", "walk2")}
+    # the trial with its own frames (rows 1 and 2 of its motion: frames 0 and 1 of the rows
+    # used) and fibres
+    late = data[(data.subject == "A") & (data.trial == "late")]
+    rows = (study_file.parent / "A" / "late.mot").read_text().split("endheader")[1].splitlines()[2:]
+    times = [float(r.split()[0]) for r in rows if r.strip()]
+    assert sorted(late.frame.unique()) == [0, 1] and late.fibre.nunique() == 7
+    assert sorted(late.time.unique()) == pytest.approx(times[1:3])
+    early = data[(data.subject == "A") & (data.trial == "early")]
+    assert sorted(early.frame.unique()) == [0, 1, 2] and early.fibre.nunique() == 6
     one = data[(data.subject == "B") & (data.trial == "walk2")].drop(columns=["subject", "trial"])
     own = pd.read_parquet(out / "B" / "walk2" / "fibre_lengths.parquet")
     pd.testing.assert_frame_equal(one.reset_index(drop=True), own)
