@@ -18,6 +18,8 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from ..mesh.closest_point import closest_point
+
 __all__ = ["area_points", "relax_on_patch", "relax_on_patches", "LLOYD", "grid_area_map",
            "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
 
@@ -355,7 +357,7 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick, 
     sample, bounds the patch's distance, so only triangles whose centroid lies within d0 +
     their radius (centroid to corner) of c can hold a nearer point (those within d0 + the
     largest radius along the axis are found by bisection, then filtered); their closest
-    points are Ericson's (2005, §5.1.5; as `fibres.mesh.closest_point`), the nearest wins
+    points are `fibres.mesh.closest_point.closest_point`'s, the nearest wins
     (ties to the first). The points (a hundred) are searched one by one. Work space:
     ``owner`` (S,) int64, ``work`` (N, 5) (per point: centroid, mass, d0), ``radius`` (T,)
     zeros."""
@@ -413,39 +415,7 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick, 
                     if ((cen[e, 0] - y0) ** 2 + (cen[e, 1] - y1) ** 2
                             + (cen[e, 2] - y2) ** 2 > bound * bound):
                         continue
-                    v = tri[e]
-                    ab0, ab1, ab2 = v[1, 0] - v[0, 0], v[1, 1] - v[0, 1], v[1, 2] - v[0, 2]
-                    ac0, ac1, ac2 = v[2, 0] - v[0, 0], v[2, 1] - v[0, 1], v[2, 2] - v[0, 2]
-                    d1 = ab0 * (y0 - v[0, 0]) + ab1 * (y1 - v[0, 1]) + ab2 * (y2 - v[0, 2])
-                    d2 = ac0 * (y0 - v[0, 0]) + ac1 * (y1 - v[0, 1]) + ac2 * (y2 - v[0, 2])
-                    d3 = ab0 * (y0 - v[1, 0]) + ab1 * (y1 - v[1, 1]) + ab2 * (y2 - v[1, 2])
-                    d4 = ac0 * (y0 - v[1, 0]) + ac1 * (y1 - v[1, 1]) + ac2 * (y2 - v[1, 2])
-                    d5 = ab0 * (y0 - v[2, 0]) + ab1 * (y1 - v[2, 1]) + ab2 * (y2 - v[2, 2])
-                    d6 = ac0 * (y0 - v[2, 0]) + ac1 * (y1 - v[2, 1]) + ac2 * (y2 - v[2, 2])
-                    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-                    # q = v[i0] + (v[i1] - v[i0]) f + (v[2] - v[0]) h: Ericson's regions
-                    # in his order (corner A, B, edge AB, C, edge AC, edge BC, face)
-                    i0, i1, f, h, num, den = 0, 1, 0.0, 0.0, 0.0, 0.0
-                    if d1 <= 0.0 and d2 <= 0.0:
-                        pass
-                    elif d3 >= 0.0 and d4 <= d3:
-                        i0, i1 = 1, 2
-                    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-                        num, den = d1, d1 - d3
-                    elif d6 >= 0.0 and d5 <= d6:
-                        i0 = 2
-                    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-                        i1, num, den = 2, d2, d2 - d6
-                    elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
-                        i0, i1, num, den = 1, 2, d4 - d3, (d4 - d3) + (d5 - d6)
-                    elif va + vb + vc > 0.0:
-                        inv = 1.0 / (va + vb + vc)
-                        f, h = vb * inv, vc * inv
-                    if den != 0.0:
-                        f = num / den
-                    q0 = v[i0, 0] + (v[i1, 0] - v[i0, 0]) * f + ac0 * h
-                    q1 = v[i0, 1] + (v[i1, 1] - v[i0, 1]) * f + ac1 * h
-                    q2 = v[i0, 2] + (v[i1, 2] - v[i0, 2]) * f + ac2 * h
+                    q0, q1, q2 = closest_point(y0, y1, y2, tri[e, 0], tri[e, 1], tri[e, 2])
                     d = (q0 - y0) ** 2 + (q1 - y1) ** 2 + (q2 - y2) ** 2
                     if d < best:
                         best, pick[j] = d, e

@@ -5,31 +5,73 @@ against each other; q is the point of the closed triangle (a, b, c) nearest to p
 
 Method: Ericson, Real-Time Collision Detection (2005), §5.1.5 — the Voronoi regions of the
 triangle's vertices, edges and face told apart by six dot products (``d1 .. d6``) and three
-signed sub-areas (``va, vb, vc``), evaluated for all pairs at once; the regions are tested in
-Ericson's order (A, B, edge AB, C, edge AC, edge BC, face), so that on a region's border the
-first one wins, as in his scalar code. A degenerate triangle (zero area) falls into one of its
-vertex or edge regions: no division by zero reaches the result.
+signed sub-areas (``va, vb, vc``), tested in Ericson's order (A, B, edge AB, C, edge AC, edge
+BC, face), so that on a region's border the first one wins, as in his scalar code. A degenerate
+triangle (zero area) falls into one of its vertex or edge regions: no division by zero reaches
+the result.
 
-Used by `motion.surface.collision` (bone meshes): `motion` imports this geometry from `fibres`
-(docs/DESIGN.md, "Layering"). The compiled search of `fibres.mesh.surface_distance` measures
-its pairs in its own loop (one point against the triangles it meets); the tests compare both
-with the brute-force oracle of tests/fibres/distance_oracle.py.
+One routine, compiled (numba, module level, ``cache=True``): `closest_point` for one point and
+one triangle, called inside compiled loops (the Lloyd steps of
+`fibres.attachments.patch_map`), and `closest_points_on_triangles` for arrays, a loop over it.
+Used by `motion.surface.bone_obstacles` (bone meshes): `motion` imports this geometry from
+`fibres` (docs/DESIGN.md, "Layering"). The compiled search of `fibres.mesh.surface_distance`
+measures its pairs in its own loop (one point against the triangles it meets, by the edges'
+closest points); the tests compare both with the brute-force oracle of
+tests/fibres/distance_oracle.py.
 """
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-__all__ = ["closest_points_on_triangles"]
-
-
-def _dot(x, y):
-    return x[..., 0] * y[..., 0] + x[..., 1] * y[..., 1] + x[..., 2] * y[..., 2]
+__all__ = ["closest_point", "closest_points_on_triangles"]
 
 
-def _ratio(num, den, where):
-    """num / den where ``where`` and den != 0, else 0 (a degenerate edge: its first end)."""
-    ok = where & (den != 0.0)
-    return np.where(ok, num / np.where(ok, den, 1.0), 0.0)
+@njit(cache=True, nogil=True, error_model="numpy")
+def closest_point(y0, y1, y2, a, b, c):
+    """The point (q0, q1, q2) of the closed triangle with corners ``a``, ``b``, ``c`` ((3,)
+    float arrays) nearest to the point (y0, y1, y2) (module docstring)."""
+    ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    d1 = ab0 * (y0 - a[0]) + ab1 * (y1 - a[1]) + ab2 * (y2 - a[2])
+    d2 = ac0 * (y0 - a[0]) + ac1 * (y1 - a[1]) + ac2 * (y2 - a[2])
+    if d1 <= 0.0 and d2 <= 0.0:                                   # vertex A
+        return a[0], a[1], a[2]
+    d3 = ab0 * (y0 - b[0]) + ab1 * (y1 - b[1]) + ab2 * (y2 - b[2])
+    d4 = ac0 * (y0 - b[0]) + ac1 * (y1 - b[1]) + ac2 * (y2 - b[2])
+    if d3 >= 0.0 and d4 <= d3:                                    # vertex B
+        return b[0], b[1], b[2]
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:                     # edge AB
+        t = d1 / (d1 - d3) if d1 - d3 != 0.0 else 0.0
+        return a[0] + ab0 * t, a[1] + ab1 * t, a[2] + ab2 * t
+    d5 = ab0 * (y0 - c[0]) + ab1 * (y1 - c[1]) + ab2 * (y2 - c[2])
+    d6 = ac0 * (y0 - c[0]) + ac1 * (y1 - c[1]) + ac2 * (y2 - c[2])
+    if d6 >= 0.0 and d5 <= d6:                                    # vertex C
+        return c[0], c[1], c[2]
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:                     # edge AC
+        t = d2 / (d2 - d6) if d2 - d6 != 0.0 else 0.0
+        return a[0] + ac0 * t, a[1] + ac1 * t, a[2] + ac2 * t
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:           # edge BC
+        den = (d4 - d3) + (d5 - d6)
+        t = (d4 - d3) / den if den != 0.0 else 0.0
+        return (b[0] + (c[0] - b[0]) * t, b[1] + (c[1] - b[1]) * t,
+                b[2] + (c[2] - b[2]) * t)
+    den = va + vb + vc
+    if not den > 0.0:                                             # degenerate: vertex A
+        return a[0], a[1], a[2]
+    inv = 1.0 / den                                               # the face
+    f, h = vb * inv, vc * inv
+    return a[0] + ab0 * f + ac0 * h, a[1] + ab1 * f + ac1 * h, a[2] + ab2 * f + ac2 * h
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _closest_loop(p, a, b, c, out):
+    for k in range(p.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = closest_point(p[k, 0], p[k, 1], p[k, 2], a[k], b[k],
+                                                        c[k])
 
 
 def closest_points_on_triangles(p, a, b, c):
@@ -45,28 +87,11 @@ def closest_points_on_triangles(p, a, b, c):
     q : (..., 3) float64
         The closest point of each triangle to its point.
     """
-    p, a, b, c = (np.asarray(x, dtype=np.float64) for x in (p, a, b, c))
-    ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
-    d1, d2 = _dot(ab, ap), _dot(ac, ap)
-    d3, d4 = _dot(ab, bp), _dot(ac, bp)
-    d5, d6 = _dot(ab, cp), _dot(ac, cp)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-    # the regions, last assignment wins: written from the face back to vertex A
-    with np.errstate(divide="ignore", invalid="ignore"):
-        den = va + vb + vc
-        face = den > 0.0
-        inv = np.where(face, 1.0 / np.where(face, den, 1.0), 0.0)
-        q = a + ab * (vb * inv)[..., None] + ac * (vc * inv)[..., None]
-        e_bc = (va <= 0.0) & (d4 - d3 >= 0.0) & (d5 - d6 >= 0.0)
-        t = _ratio(d4 - d3, (d4 - d3) + (d5 - d6), e_bc)
-        q = np.where(e_bc[..., None], b + (c - b) * t[..., None], q)
-        e_ac = (vb <= 0.0) & (d2 >= 0.0) & (d6 <= 0.0)
-        t = _ratio(d2, d2 - d6, e_ac)
-        q = np.where(e_ac[..., None], a + ac * t[..., None], q)
-        q = np.where(((d6 >= 0.0) & (d5 <= d6))[..., None], c, q)
-        e_ab = (vc <= 0.0) & (d1 >= 0.0) & (d3 <= 0.0)
-        t = _ratio(d1, d1 - d3, e_ab)
-        q = np.where(e_ab[..., None], a + ab * t[..., None], q)
-    q = np.where(((d3 >= 0.0) & (d4 <= d3))[..., None], b, q)
-    q = np.where(((d1 <= 0.0) & (d2 <= 0.0))[..., None], a, q)
-    return q
+    arrays = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (p, a, b, c)))
+    shape = arrays[0].shape
+    if shape[-1:] != (3,):
+        raise ValueError(f"points and corners must be (..., 3), got {shape}")
+    flat = [np.ascontiguousarray(x.reshape(-1, 3)) for x in arrays]
+    out = np.empty_like(flat[0])
+    _closest_loop(*flat, out)
+    return out.reshape(shape)
