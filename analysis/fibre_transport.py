@@ -212,9 +212,11 @@ def _carry_loop(x, ends0, ends1, u, frames, use_frames, every, lengths, points):
 
 def bind_transport(model, sspec, rest, bundle0):
     """The ``"bind"`` transport of one muscle (module docstring): ``carry(stacked, keep=None,
-    poses=None)`` wraps the rest surface with the rest fibres' material points as riders at every
-    pose of ``stacked`` (a `motion.Motion`; ``poses``: its `motion.BodyPoses` when already known)
-    and returns a `Carried` (the polylines of the first ``keep`` poses). The muscle is bound
+    poses=None, frames=None)`` wraps the rest surface with the rest fibres' material points as
+    riders at every pose of ``stacked`` (a `motion.Motion`; ``poses``: its `motion.BodyPoses`
+    when already known; ``frames``: how many leading poses are frames, the others their
+    moment-arm copies, `motion.surface.wrap.SurfaceWrapper.wrap`) and returns a `Carried` (the
+    polylines of the first ``keep`` poses). The muscle is bound
     once (`motion.surface.wrap.SurfaceWrapper`), whatever the number of calls.
 
     ``sspec`` is the muscle's `motion.MuscleSurfaceSpec`, ``rest`` its surface wrapped at one
@@ -242,8 +244,8 @@ def bind_transport(model, sspec, rest, bundle0):
 
     wrapper = SurfaceWrapper(model, bound)
 
-    def carry(stacked, keep=None, poses=None) -> Carried:
-        wrapped = wrapper(stacked, keep=keep, poses=poses)
+    def carry(stacked, keep=None, poses=None, frames=None) -> Carried:
+        wrapped = wrapper(stacked, keep=keep, poses=poses, frames=frames)
         n_all = wrapped.radial_scale.shape[0]
         frames = wrapped.rider_frames
         lengths, points = _ends_ride_their_bodies(
@@ -259,14 +261,17 @@ def bind_transport(model, sspec, rest, bundle0):
 
 def decompose_transport(model, sspec, bundle0, options, bar):
     """The ``"decompose"`` transport of one muscle (module docstring): ``carry(stacked, keep=None,
-    poses=None)`` wraps the surface at every pose of ``stacked`` (``poses`` as in `bind_transport`)
+    poses=None, frames=None)`` wraps the surface at every pose of ``stacked`` (``poses`` and
+    ``frames`` as in `bind_transport`)
     and decomposes each with the rest plan of ``bundle0`` (``options``: the `fibres.decompose`
     keywords of the rest decomposition); ``bar`` counts the decompositions (`analysis.progress`)."""
     from fibres import decompose
-    from motion import wrap_surfaces
+    from motion.surface.wrap import SurfaceWrapper
 
-    def carry(stacked, keep=None, poses=None) -> Carried:
-        (wrapped,) = wrap_surfaces(model, stacked, [sspec], poses=poses)
+    wrapper = SurfaceWrapper(model, sspec)
+
+    def carry(stacked, keep=None, poses=None, frames=None) -> Carried:
+        wrapped = wrapper(stacked, poses=poses, frames=frames)
         points = np.empty((wrapped.vertices.shape[0],) + bundle0.points.shape)
         for f in range(len(points)):  # one decomposition per (perturbed) frame, the plan frozen
             interrupts.check()

@@ -203,7 +203,7 @@ def run_muscle(ctx, mspec):
             with timed(timings, stage):
                 poses = ctx.poses.get((tuple(coord_idx.tolist()), rows.start, rows.stop),
                                       lambda: motion_pkg.body_poses(ctx.model, stacked))
-                got = carry(stacked, keep=n_c if points is not None else 0, poses=poses)
+                got = carry(stacked, keep=n_c if points is not None else 0, poses=poses, frames=n_c)
             with timed(timings, "lengths"):
                 lengths[:, rows] = got.lengths.reshape(n_poses, n_c, n_fib)
             if points is not None:

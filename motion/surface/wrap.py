@@ -321,20 +321,23 @@ class SurfaceWrapper:
         self.rest, self.rest_curves, self.vertices = rest, rest_curves, vertices
         self.origin_rest, self.insertion_rest = origin_rest, insertion_rest
 
-    def __call__(self, motion, *, lines=None, poses=None, keep=None) -> WrappedSurface:
+    def __call__(self, motion, *, lines=None, poses=None, keep=None, frames=None) -> WrappedSurface:
         """The surface over ``motion`` (see `wrap_surfaces` for ``lines`` and ``poses``; ``keep``
-        as in `wrap`)."""
+        and ``frames`` as in `wrap`)."""
         from ..osim.kinematics import body_poses
 
         poses = body_poses(self.model, motion) if poses is None else poses
         tf = np.asarray(getattr(poses, "tf_ground_body", poses), dtype=float)
         return self.wrap(tf, current_polylines(self.model, motion, list(self.spec.action_lines), lines, tf,
-                                               getattr(poses, "q", None)), keep=keep)
+                                               getattr(poses, "q", None)), keep=keep, frames=frames)
 
-    def wrap(self, tf, current, *, keep=None) -> WrappedSurface:
+    def wrap(self, tf, current, *, keep=None, frames=None) -> WrappedSurface:
         """The surface at the body poses ``tf`` (F, B, 4, 4), its lines ``current``
         (`motion.surface.current_lines.current_polylines`); ``keep``: ``vertices`` at the first
-        this many poses only (riders, landmarks and the rest at all poses)."""
+        this many poses only (riders, landmarks and the rest at all poses); ``frames``: the
+        first this many poses are the motion's frames and the others copies of them (the poses
+        of finite-difference moment arms), so that the note on a path too short for its tendon
+        counts frames (None: every pose is a frame)."""
         model, spec, rest, tendons = self.model, self.spec, self.rest, self.tendons
         curves = [current[name][0] for name in spec.action_lines]
         anchors = [current[name][1] for name in spec.action_lines]
@@ -342,6 +345,7 @@ class SurfaceWrapper:
         if tendons:
             for k, (name, slack) in enumerate(zip(spec.action_lines, self.slacks)):  # loop over lines (few)
                 curves[k], short = belly_polylines(curves[k], slack, corner_radius=self.corners[k])
+                short = short if frames is None else short[:frames]
                 if self.short_rest[k] or short.any():
                     notes.append(f"action line {name}: the path is shorter than its tendon slack length "
                                  f"{slack:.4g} m + {BELLY_MIN_FRACTION:.0%} of the path "

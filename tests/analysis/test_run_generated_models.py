@@ -101,5 +101,12 @@ def test_path_shorter_than_its_tendon_slack_length_warns_and_keeps_a_belly(tmp_p
     m = res.muscle("m")
     assert any("shorter than its tendon slack length" in n and n.startswith("warning:") for n in m.notes)
     assert (m.fibre_lengths > 0).all() and np.isfinite(m.fibre_moment_arms).all()
+    # it counts the motion's frames (not the moment arms' perturbed poses): those where the path
+    # is shorter than l_ts + 2 f L (f = BELLY_MIN_FRACTION = 2 %)
+    length = m.action_line_lengths[:, 0]
+    short = int((length - 0.24 < 2 * 0.02 * length).sum())
+    assert 0 < short < len(q)
+    (note,) = [n for n in m.notes if "shorter than its tendon slack length" in n]
+    assert f"in {short} of {len(q)} frames)" in note, note
     # the belly never drops below 2 % of the path (motion.osim.muscle_parameters.BELLY_MIN_FRACTION)
     assert (np.median(m.fibre_lengths, axis=1) > 0.015 * m.action_line_lengths[:, 0]).all()
