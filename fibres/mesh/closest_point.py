@@ -28,37 +28,41 @@ __all__ = ["closest_point", "closest_points_on_triangles"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _edge_dots(p0, p1, p2, ab0, ab1, ab2, ac0, ac1, ac2):
+    """(AB . p, AC . p) of a vector p from a corner."""
+    return ab0 * p0 + ab1 * p1 + ab2 * p2, ac0 * p0 + ac1 * p1 + ac2 * p2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _along(p0, p1, p2, u0, u1, u2, start, end):
+    """The point p + u t of an edge from p along u, ``t = start / (start - end)`` (0 on a
+    degenerate edge, ``start == end``)."""
+    t = start / (start - end) if start - end != 0.0 else 0.0
+    return p0 + u0 * t, p1 + u1 * t, p2 + u2 * t
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def closest_point(y0, y1, y2, a, b, c):
     """The point (q0, q1, q2) of the closed triangle with corners ``a``, ``b``, ``c`` ((3,)
     float arrays) nearest to the point (y0, y1, y2) (module docstring)."""
     ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    d1 = ab0 * (y0 - a[0]) + ab1 * (y1 - a[1]) + ab2 * (y2 - a[2])
-    d2 = ac0 * (y0 - a[0]) + ac1 * (y1 - a[1]) + ac2 * (y2 - a[2])
+    d1, d2 = _edge_dots(y0 - a[0], y1 - a[1], y2 - a[2], ab0, ab1, ab2, ac0, ac1, ac2)
+    d3, d4 = _edge_dots(y0 - b[0], y1 - b[1], y2 - b[2], ab0, ab1, ab2, ac0, ac1, ac2)
+    d5, d6 = _edge_dots(y0 - c[0], y1 - c[1], y2 - c[2], ab0, ab1, ab2, ac0, ac1, ac2)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
     if d1 <= 0.0 and d2 <= 0.0:                                   # vertex A
         return a[0], a[1], a[2]
-    d3 = ab0 * (y0 - b[0]) + ab1 * (y1 - b[1]) + ab2 * (y2 - b[2])
-    d4 = ac0 * (y0 - b[0]) + ac1 * (y1 - b[1]) + ac2 * (y2 - b[2])
     if d3 >= 0.0 and d4 <= d3:                                    # vertex B
         return b[0], b[1], b[2]
-    vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:                     # edge AB
-        t = d1 / (d1 - d3) if d1 - d3 != 0.0 else 0.0
-        return a[0] + ab0 * t, a[1] + ab1 * t, a[2] + ab2 * t
-    d5 = ab0 * (y0 - c[0]) + ab1 * (y1 - c[1]) + ab2 * (y2 - c[2])
-    d6 = ac0 * (y0 - c[0]) + ac1 * (y1 - c[1]) + ac2 * (y2 - c[2])
+        return _along(a[0], a[1], a[2], ab0, ab1, ab2, d1, d3)
     if d6 >= 0.0 and d5 <= d6:                                    # vertex C
         return c[0], c[1], c[2]
-    vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:                     # edge AC
-        t = d2 / (d2 - d6) if d2 - d6 != 0.0 else 0.0
-        return a[0] + ac0 * t, a[1] + ac1 * t, a[2] + ac2 * t
-    va = d3 * d6 - d5 * d4
+        return _along(a[0], a[1], a[2], ac0, ac1, ac2, d2, d6)
     if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:           # edge BC
-        den = (d4 - d3) + (d5 - d6)
-        t = (d4 - d3) / den if den != 0.0 else 0.0
-        return (b[0] + (c[0] - b[0]) * t, b[1] + (c[1] - b[1]) * t,
-                b[2] + (c[2] - b[2]) * t)
+        return _along(b[0], b[1], b[2], c[0] - b[0], c[1] - b[1], c[2] - b[2], d4 - d3, d6 - d5)
     den = va + vb + vc
     if not den > 0.0:                                             # degenerate: vertex A
         return a[0], a[1], a[2]
