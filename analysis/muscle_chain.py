@@ -126,7 +126,7 @@ def surface_spec(mspec):
     return MuscleSurfaceSpec(name=mspec.name, action_lines=tuple(mspec.action_lines), vertices=vertices,
                              faces=faces, frame=mspec.frame, rest_pose=dict(mspec.rest_pose),
                              bones=tuple(bones), volume=mspec.volume, origin=mspec.origin,
-                             insertion=mspec.insertion)
+                             insertion=mspec.insertion, origin_tendon_share=mspec.origin_tendon_share)
 
 
 def _chunks(n_frames: int, n_poses_per_frame: int):

@@ -23,7 +23,9 @@ Muscle keys: ``action_lines``, ``mesh``, ``frame``, ``rest_pose``, ``origin``, `
 ``template``, ``fibres``, ``resolution``, ``seed``, ``template_params`` (a table handed to the
 template), ``units`` (overrides the top-level units for this muscle), ``bones`` (a list of
 ``{ body = "femur_r", mesh = "femur.vtk" }`` in the muscle's frame and units: obstacles the
-wrapped surface keeps out of), ``volume`` (m^3, for a generated surface).
+wrapped surface keeps out of), ``volume`` (m^3, for a generated surface),
+``origin_tendon_share`` (generated surface: the share of the tendon at the origin end, 0..1,
+default 0.5).
 
 ``frame = "bodies"`` is for NMSBuilder/LHDL exports: mesh and landmark coordinates are in one
 scanner frame in which every body frame is the identity, so a landmark's coordinates are already
@@ -72,6 +74,7 @@ TEMPLATE_NAMES = ("parallel", "pennate", "bipennate", "curved", "fanned", "rectu
 _TOP_KEYS = ("model", "motion", "units", "defaults", "muscles")
 _MUSCLE_KEYS = ("action_lines", "mesh", "frame", "rest_pose", "origin", "insertion", "template",
                 "fibres", "resolution", "seed", "template_params", "units", "bones", "volume",
+                "origin_tendon_share",
                 "slicing")
 _BONE_KEYS = ("body", "mesh")
 _DEFAULTS = {"frame": "ground", "template": "parallel", "fibres": 100, "resolution": 19, "seed": 0}
@@ -148,6 +151,9 @@ class MuscleSpec:
     slicing : str
         "harmonic" (isolines of a harmonic field; the default with a mesh) or "planes" (Kohout
         2012; the default of a generated surface).
+    origin_tendon_share : float
+        Generated surface: the share of the tendon at the origin end
+        (`motion.MuscleSurfaceSpec.origin_tendon_share`).
     """
 
     name: str
@@ -166,6 +172,7 @@ class MuscleSpec:
     bones: tuple = ()
     volume: float | None = None
     slicing: str = "harmonic"
+    origin_tendon_share: float = 0.5
 
     @property
     def scale(self) -> float:
@@ -427,6 +434,13 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
                                or not 0 < volume < float("inf")):
         ctx.fail(src["volume"], f"expected a positive number (m^3), got {volume!r}",
                  "Give the generated surface's volume in cubic metres, or remove the key.")
+    share = d.get("origin_tendon_share", 0.5)
+    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 <= share <= 1:
+        ctx.fail(src["origin_tendon_share"], f"expected a number from 0 to 1, got {share!r}",
+                 "Give the share of the tendon at the origin end (0.5: half at each end).")
+    if mesh is not None and src.get("origin_tendon_share", "").startswith(where):   # not [defaults]
+        ctx.fail(src["origin_tendon_share"], "only a generated surface (no mesh) has tendons",
+                 "Remove origin_tendon_share, or the mesh.")
     params = d.get("template_params", {})
     if not isinstance(params, dict):
         ctx.fail(src["template_params"], "expected a table", "Write template_params = { name = value }.")
@@ -440,4 +454,5 @@ def _muscle(ctx, name, d, src, model) -> MuscleSpec:
                       origin=ends["origin"], insertion=ends["insertion"], template=template,
                       n_fibres=ints["fibres"], resolution=ints["resolution"], seed=ints["seed"],
                       template_params=MappingProxyType(dict(params)), bones=tuple(bones),
-                      volume=None if volume is None else float(volume), slicing=slicing)
+                      volume=None if volume is None else float(volume), slicing=slicing,
+                      origin_tendon_share=float(share))

@@ -12,15 +12,17 @@ length ``l_ts`` and the rest of the path is the fibre part, the belly,
 
     b(L) = L - l_ts,
 
-measured along the path. The tendon length is split equally between the two ends (``l_ts / 2``
-at the origin, ``l_ts / 2`` at the insertion): OpenSim has one tendon length per muscle and
-does not say where it sits, so the belly is centred on the path. Where the path is shorter
+measured along the path. The tendon length is split between the two ends, a share ``s`` at the
+origin and ``1 - s`` at the insertion: OpenSim has one tendon length per muscle and does not say
+where it sits, so by default ``s = 1/2`` and the belly is centred on the path; a fibre model may
+say otherwise per muscle (a gastrocnemius' tendon is mostly distal). Where the path is shorter
 than ``l_ts + 2 f L`` (``f = BELLY_MIN_FRACTION``) the belly is kept at least ``f L`` long by
 the C1 floor
 
     b = f L + x^2 / (4 f L)   for 0 <= x = L - l_ts < 2 f L,      b = f L for x < 0,
 
-and the tendons share the rest equally (the caller warns: such a path cannot hold its tendon).
+and the tendons share the rest in the same proportion (the caller warns: such a path cannot
+hold its tendon).
 Pennation does not enter the belly length: the belly is the fibre part of the path along the
 line; a pennate template then lays its fibres at its own angle inside that belly (their lengths
 are shorter than the belly by about cos of that angle).
@@ -104,7 +106,7 @@ def muscle_parameters(model, name: str) -> MuscleParameters:
     return _CACHE[key].get(name, MuscleParameters())
 
 
-def belly_span(path_length, tendon_slack_length):
+def belly_span(path_length, tendon_slack_length, origin_share: float = 0.5):
     """Arc-length start and end of the belly on paths of length ``L`` (module docstring).
 
     Parameters
@@ -113,6 +115,8 @@ def belly_span(path_length, tendon_slack_length):
         Current path lengths ``L`` (m).
     tendon_slack_length : float
         ``l_ts`` (m), >= 0.
+    origin_share : float
+        The share ``s`` (0..1) of the tendon at the origin end.
 
     Returns
     -------
@@ -126,5 +130,5 @@ def belly_span(path_length, tendon_slack_length):
     floor = BELLY_MIN_FRACTION * length
     x = length - slack
     belly = np.where(x >= 2.0 * floor, x, floor + np.maximum(x, 0.0) ** 2 / np.maximum(4.0 * floor, 1e-300))
-    tendon = 0.5 * (length - belly)
-    return tendon, length - tendon, x < 2.0 * floor
+    share = float(origin_share)
+    return share * (length - belly), length - (1.0 - share) * (length - belly), x < 2.0 * floor

@@ -60,14 +60,16 @@ def _body_chain(model, first: str, last: str) -> tuple:
     return tuple(bodies), tuple(joints)
 
 
-def cap_bodies(model, path_name: str, rest_curve, tf_rest_ground_body, slack: float) -> tuple:
+def cap_bodies(model, path_name: str, rest_curve, tf_rest_ground_body, slack: float,
+               origin_share: float = 0.5) -> tuple:
     """The bodies (indices) the origin and insertion caps of a tendon-aware belly turn with: the
     bone each cap lies over at the rest pose.
 
     Rule: walk the kinematic tree from the path's origin body to its insertion body; project the
     centre of every joint on that chain (its child-side joint frame's origin at rest) onto the
     rest path ``rest_curve`` (P, 3) (arc length of the nearest point); a cap at arc length ``s``
-    (`motion.osim.muscle_parameters.belly_span` with ``slack``) lies over the chain body after the
+    (`motion.osim.muscle_parameters.belly_span` with ``slack`` and ``origin_share``) lies over
+    the chain body after the
     joints projected before ``s``. A gastrocnemius' caps both lie over the tibia (its tendons
     cross the knee above and the ankle below), a rectus femoris' over the femur; a belly that
     spans a joint has one cap on each side. ``tf_rest_ground_body`` (B, 4, 4): body poses at rest.
@@ -84,7 +86,7 @@ def cap_bodies(model, path_name: str, rest_curve, tf_rest_ground_body, slack: fl
         centres = np.stack([(tf[model.body_index(j.child)] @ j.tf_child_jointframe)[:3, 3] for j in joints])
         j, t, _ = closest_on_polyline(centres, c)
         at = cum[j] + t * seg[j]
-    start, stop, _ = belly_span(cum[-1:], slack)
+    start, stop, _ = belly_span(cum[-1:], slack, origin_share)
     return tuple(model.body_index(bodies[int(np.sum(at < s))]) for s in (float(start[0]), float(stop[0])))
 
 

@@ -109,6 +109,10 @@ class MuscleSurfaceSpec:
         `motion.osim.muscle_parameters`), a mesh none (0). With a positive value the surface is the
         belly between the two tendons: it slides along the line and its attachment landmarks
         ride the belly, not the bones.
+    origin_tendon_share : float
+        The share (0..1) of the tendon length that lies at the origin end, the rest at the
+        insertion (`motion.osim.muscle_parameters.belly_span`); 0.5 by default (OpenSim does not
+        say where a muscle's tendon sits). A gastrocnemius, whose long tendon is distal: ~0.1.
     """
 
     name: str
@@ -123,6 +127,7 @@ class MuscleSurfaceSpec:
     volume: float | None = None
     riders: int = 0
     tendon_slack: tuple | None = None
+    origin_tendon_share: float = 0.5
 
     def __post_init__(self):
         lines = (self.action_lines,) if isinstance(self.action_lines, str) else tuple(self.action_lines)
@@ -146,6 +151,10 @@ class MuscleSurfaceSpec:
             if not all(np.isfinite(x) and x >= 0 for x in slack):
                 raise ValueError(f"muscle {self.name!r}: tendon_slack must be >= 0 per action line")
             object.__setattr__(self, "tendon_slack", slack)
+        share = float(self.origin_tendon_share)
+        if not 0.0 <= share <= 1.0:
+            raise ValueError(f"muscle {self.name!r}: origin_tendon_share must lie in [0, 1], got {share}")
+        object.__setattr__(self, "origin_tendon_share", share)
         object.__setattr__(self, "rest_pose",
                            MappingProxyType({str(k): float(v) for k, v in dict(self.rest_pose).items()}))
         object.__setattr__(self, "bones", tuple(self.bones))

@@ -55,27 +55,28 @@ def polyline_lengths(points) -> np.ndarray:
     return np.nansum(seg, axis=1)
 
 
-def belly_polylines(points, slack: float, *, corner_radius: float = 0.0):
-    """The belly pieces (F, P', 3) of polylines (F, P, 3) with tendon slack ``slack`` (m),
-    and the (F,) frames in which the path is too short to hold its tendon.
+def belly_polylines(points, slack: float, *, corner_radius: float = 0.0, origin_share: float = 0.5):
+    """The belly pieces (F, P', 3) of polylines (F, P, 3) with tendon slack ``slack`` (m), the
+    share ``origin_share`` of the tendon at the origin end, and the (F,) frames in which the
+    path is too short to hold its tendon.
 
     ``corner_radius > 0``: the pieces are cut from the path with its corners rounded
     (`motion.surface.curves.round_corners`), and they keep the belly length ``b(L)`` of the
     *unrounded* path (`motion.osim.muscle_parameters.belly_span`): the rounding shortens the
     line by ``d (2 tan(a/2) - a) / tan(a/2)`` per corner, a function of the corner angle ``a``,
     which would otherwise add ``-d(shortening)/dq`` to every fibre's moment arm; here the
-    tendons give up that length instead (each end the same), so the belly's centre line is
+    tendons give up that length instead (in their shares), so the belly's centre line is
     exactly ``L - l_ts`` long and changes length with the path, ``db/dq = dL/dq``.
     """
     pts = np.asarray(points, dtype=float)
     length = polyline_lengths(pts)
-    start, stop, short = belly_span(length, slack)
+    start, stop, short = belly_span(length, slack, origin_share)
     if corner_radius <= 0:
         return trim_polylines(pts, start, stop), short
     rounded = round_corners(pts, corner_radius)
     length_r = polyline_lengths(rounded)
     belly = stop - start
-    start = np.clip(0.5 * (length_r - belly), 0.0, None)
+    start = np.clip(origin_share * (length_r - belly), 0.0, None)
     stop = np.minimum(start + belly, length_r)
     return trim_polylines(rounded, start, stop), short
 

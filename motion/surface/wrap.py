@@ -267,13 +267,15 @@ class SurfaceWrapper:
                 volume = fmax / SPECIFIC_TENSION * lopt
         self.short_rest, self.corners = [], []
         at_rest = []   # with tendons: the belly pieces of the current lines at the rest pose
+        share = spec.origin_tendon_share
         if tendons:
             for k, slack in enumerate(self.slacks):  # loop over lines (few)
-                belly, short_rest = belly_polylines(rest_curves[k][None], slack)
+                belly, short_rest = belly_polylines(rest_curves[k][None], slack, origin_share=share)
                 rest_curves[k] = straight_belly(belly[0][np.isfinite(belly[0]).all(axis=1)])
                 self.short_rest.append(bool(short_rest.any()))
                 self.corners.append(corner_radius(rest_curves[k], n_samples, volume if spec.generated else None))
-                at_rest.append(belly_polylines(self.full_rest[k][None], slack, corner_radius=self.corners[k])[0])
+                at_rest.append(belly_polylines(self.full_rest[k][None], slack, corner_radius=self.corners[k],
+                                               origin_share=share)[0])
             rest_anchors = [None] * len(rest_curves)
         first_path = model.path(spec.action_lines[0])
         if spec.generated:
@@ -311,7 +313,7 @@ class SurfaceWrapper:
             rest_curves, rest_anchors = round_sliding_corners(rest_curves, rest_anchors, rest_sliding, half)
         # with tendons the frames' ends turn with the caps' bones (`motion.surface.caps`)
         self.f_o, self.f_i = (cap_bodies(model, spec.action_lines[0], self.full_rest[0], self.tf_rest_actual[0],
-                                         self.slacks[0]) if tendons else (self.b_o, self.b_i))
+                                         self.slacks[0], share) if tendons else (self.b_o, self.b_i))
         self.binding = bind_surface(vertices, faces, rest_curves, rest.tf_ground_body[self.f_o],
                                     rest.tf_ground_body[self.f_i], *ends, n_samples=n_samples,
                                     rigid_radius=rigid_radius, blend_radius=blend_radius,
@@ -344,7 +346,8 @@ class SurfaceWrapper:
         notes = []
         if tendons:
             for k, (name, slack) in enumerate(zip(spec.action_lines, self.slacks)):  # loop over lines (few)
-                curves[k], short = belly_polylines(curves[k], slack, corner_radius=self.corners[k])
+                curves[k], short = belly_polylines(curves[k], slack, corner_radius=self.corners[k],
+                                                   origin_share=spec.origin_tendon_share)
                 short = short if frames is None else short[:frames]
                 if self.short_rest[k] or short.any():
                     notes.append(f"action line {name}: the path is shorter than its tendon slack length "

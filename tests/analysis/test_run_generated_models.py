@@ -110,3 +110,55 @@ def test_path_shorter_than_its_tendon_slack_length_warns_and_keeps_a_belly(tmp_p
     assert f"in {short} of {len(q)} frames)" in note, note
     # the belly never drops below 2 % of the path (motion.osim.muscle_parameters.BELLY_MIN_FRACTION)
     assert (np.median(m.fibre_lengths, axis=1) > 0.015 * m.action_line_lengths[:, 0]).all()
+
+
+def _straight_model(tmp_path, share=None, mesh=False):
+    """A 0.30 m straight path (l_ts 0.20 m: a 0.10 m belly) over a pin at its origin, and the
+    fibre model of it; ``share``: its ``origin_tendon_share``."""
+    from motion import write_sto
+    from motion.osim.builder import ModelBuilder
+
+    mb = (ModelBuilder("straight").add_body("a").add_weld_joint("fix", "ground", "a")
+          .add_body("b").add_pin_joint("pin", "a", "b", "q", range=(-1.0, 1.0)))
+    mb.add_muscle("m", [("a", (0.02, 0.0, 0.0)), ("b", (0.02, -0.30, 0.0))], tendon_slack_length=0.20,
+                  optimal_fiber_length=0.08)
+    mb.write(tmp_path / "straight.osim")
+    write_sto(tmp_path / "sweep.mot", np.arange(3) * 0.01, {"q": np.deg2rad([0.0, 5.0, 10.0])})
+    extra = "" if share is None else f"origin_tendon_share = {share}\n"
+    (tmp_path / "m.toml").write_text('model = "straight.osim"\nmotion = "sweep.mot"\n[muscles.m]\n'
+                                     'action_lines = ["m"]\nfibres = 12\nresolution = 8\n' + extra)
+    return tmp_path / "m.toml"
+
+
+@pytest.mark.parametrize("share", [0.1, 0.5, 0.9])
+def test_origin_tendon_share_places_the_belly_and_keeps_its_length(tmp_path, share):
+    """The belly starts share x l_ts along the path from the origin (here at q = 0 the path is
+    the straight segment from (0.02, 0, 0) down to (0.02, -0.30, 0)) and is L - l_ts long
+    whatever the share (rigid tendon)."""
+    res = run(_straight_model(tmp_path, share), keep_points=True)
+    m = res.muscle("m")
+    ends = m.fibre_points[0]                                  # frame 0: (N, P, 3)
+    depth = -ends[..., 1]                                     # arc length from the origin
+    assert np.median(depth[:, 0]) == pytest.approx(share * 0.20, abs=2e-3)
+    assert np.median(depth[:, -1]) == pytest.approx(share * 0.20 + 0.10, abs=2e-3)
+    np.testing.assert_allclose(np.median(m.fibre_lengths, axis=1),
+                               m.action_line_lengths[:, 0] - 0.20, rtol=0.01)
+
+
+@pytest.mark.parametrize("value, mesh, message", [
+    ("1.5", False, "expected a number from 0 to 1"), ("true", False, "expected a number from 0 to 1"),
+    ("0.2", True, "only a generated surface"),
+])
+def test_origin_tendon_share_errors_name_the_key(tmp_path, value, mesh, message):
+    from analysis.errors import InputError
+    from analysis.spec import load_spec
+
+    toml = _straight_model(tmp_path, value)
+    if mesh:
+        import trimesh
+
+        trimesh.creation.icosphere(radius=0.01).export(tmp_path / "ball.stl")
+        toml.write_text(toml.read_text().replace("[muscles.m]\n", '[muscles.m]\nmesh = "ball.stl"\n'))
+    with pytest.raises(InputError) as err:
+        load_spec(toml)
+    assert "muscles.m.origin_tendon_share" in str(err.value) and message in str(err.value)

@@ -97,3 +97,21 @@ def test_half_thickness_between_the_rings_of_a_coarse_surface():
     h = local_half_thickness(np.vstack([verts, probe]), len(verts), [np.array([[0, 0, 0], [0, 0, 0.2]])],
                              n_samples=201)
     np.testing.assert_allclose(h[len(verts):], 0.01, rtol=1e-6)
+
+
+@pytest.mark.parametrize("share", [0.0, 0.25, 0.5, 1.0])
+def test_belly_span_puts_its_share_of_the_tendon_at_the_origin(share):
+    """`belly_span`: the belly is L - l_ts long (or the floor's length) and starts share x
+    (L - belly) along the path; at 1/2 it is the centred rule, in the same arithmetic."""
+    from motion.osim.muscle_parameters import BELLY_MIN_FRACTION, belly_span
+
+    length = np.array([0.30, 0.25, 0.205, 0.18])           # l_ts 0.2: long, long, on the floor, short
+    start, stop, short = belly_span(length, 0.2, share)
+    belly = stop - start
+    np.testing.assert_allclose(belly[:2], length[:2] - 0.2, rtol=1e-12)
+    assert (belly[2:] >= BELLY_MIN_FRACTION * length[2:] - 1e-15).all()
+    np.testing.assert_allclose(start, share * (length - belly), rtol=1e-12, atol=1e-15)
+    assert list(short) == [False, False, True, True]
+    if share == 0.5:
+        t = 0.5 * (length - belly)
+        assert (start == t).all() and (stop == length - t).all()
