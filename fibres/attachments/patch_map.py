@@ -332,8 +332,7 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
     starts = [np.cumsum([0] + [len(part[j]) for part in parts]) for j in (0, 3, 5)]
     pick = np.full(len(p), -1, dtype=np.int64)
     _lloyd(tri, cen, np.array([part[6] for part in parts]), pts, w, p, *starts,
-           int(iterations), pick, np.empty(len(pts), dtype=np.int64), np.empty((len(p), 5)),
-           np.zeros(len(tri)))
+           int(iterations), pick)
     moved = np.flatnonzero(pick >= 0)
     face = np.concatenate([out[k][0] for k in todo])
     bary = np.concatenate([out[k][1] for k in todo])
@@ -346,8 +345,7 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick, owner, work,
-           radius):
+def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
     """The Lloyd steps of `relax_on_patch` on patches g (segments ``tstart``, ``sstart``,
     ``pstart`` of the triangles ``tri`` (T, 3, 3) with centroids ``cen``, in order along
     the axis ``axes[g]``; of the samples ``pts`` with weights ``w``; of the points ``p``,
@@ -359,8 +357,10 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick, 
     largest radius along the axis are found by bisection, then filtered); their closest
     points are `fibres.mesh.closest_point.closest_point`'s, the nearest wins
     (ties to the first). The points (a hundred) are searched one by one. Work space:
-    ``owner`` (S,) int64, ``work`` (N, 5) (per point: centroid, mass, d0), ``radius`` (T,)
-    zeros."""
+    ``owner`` (S,) (each sample's point), ``work`` (N, 5) (per point: centroid, mass, d0),
+    ``radius`` (T,)."""
+    owner, work = np.empty(pts.shape[0], np.int64), np.empty((p.shape[0], 5))
+    radius = np.zeros(tri.shape[0])
     slack = 1.0 + 1e-9
     for e in range(tri.shape[0]):
         for c in range(3):

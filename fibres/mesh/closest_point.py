@@ -11,13 +11,11 @@ triangle (zero area) falls into one of its vertex or edge regions: no division b
 the result.
 
 One routine, compiled (numba, module level, ``cache=True``): `closest_point` for one point and
-one triangle, called inside compiled loops (the Lloyd steps of
-`fibres.attachments.patch_map`), and `closest_points_on_triangles` for arrays, a loop over it.
-Used by `motion.surface.bone_obstacles` (bone meshes): `motion` imports this geometry from
-`fibres` (docs/DESIGN.md, "Layering"). The compiled search of `fibres.mesh.surface_distance`
-measures its pairs in its own loop (one point against the triangles it meets, by the edges'
-closest points); the tests compare both with the brute-force oracle of
-tests/fibres/distance_oracle.py.
+one triangle, called inside compiled loops (the search of `fibres.mesh.surface_distance`, the
+Lloyd steps of `fibres.attachments.patch_map`), and `closest_points_on_triangles` for arrays, a
+loop over it, used by `motion.surface.bone_obstacles` (bone meshes): `motion` imports this
+geometry from `fibres` (docs/DESIGN.md, "Layering"). The tests compare it and the distance
+search with the brute-force oracle of tests/fibres/distance_oracle.py.
 """
 from __future__ import annotations
 

@@ -51,6 +51,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .closest_point import closest_point
+
 __all__ = ["SurfaceGrid", "surface_distance", "KAPPA"]
 
 #: triangles farther than d_min + KAPPA tau get no weight in the blend
@@ -189,23 +191,25 @@ def _parity(x, frame, pv, origin, cell, dims, faces, start, items, inside):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _blend(x, inside, watch, vertices, faces, origin, cell, dims, start, items, ball, tau,
-           reach, offset, s, g, seen, found, box, home, vec):
+def _blend(x, inside, watch, vertices, faces, grid, tau, reach, offset):
     """The soft-min blend (module docstring) of points x (n, 3) over the triangles (vertices,
-    faces) of the 3-d grid (origin, cell, dims, start, items, ball) of `_bin_triangles`:
-    ``s`` (n,) and ``g`` (n, 3) of `SurfaceGrid.signed_distance` (``inside`` (n,) by
-    parity), ``-inf`` and 0 where no triangle lies within the point's limit (``reach``, or
-    ``min(watch, reach)`` inside). Work space: ``seen`` (T,) int64 all -1, ``found`` (T, 7)
-    (per triangle measured: d, x - c, unit normal), ``box`` (6,) and ``home`` (4,) int64
-    (the ring's cell range; the point's cell (clamped into the grid) and how many rings to
-    search: every ring if the grid's box lies within the limit, else none), ``vec`` (3, 3)
-    (sum w (x - c), sum w n, the direction). The closest point c of a
-    triangle to x: the projection of x on its plane when inside it, else the nearest of the
-    three edges' closest points (the closest point of a convex set is unique: Ericson 2005
-    §5.1.5 finds the same). A triangle whose bounding ball or plane is farther than ``cut``
+    faces) of the 3-d grid ``grid`` = (origin, cell, dims, start, items, ball) of
+    `_bin_triangles`: ``s`` (n,) and ``g`` (n, 3) of `SurfaceGrid.signed_distance`
+    (``inside`` (n,) by parity), ``-inf`` and 0 where no triangle lies within the point's
+    limit (``reach``, or ``min(watch, reach)`` inside). Work space: ``seen`` (T,) (the last
+    point that met each triangle), ``found`` (T, 7) (per triangle measured: d, x - c, unit
+    normal), ``box`` (6,) and ``home`` (4,) (the ring's cell range; the point's cell (clamped
+    into the grid) and how many rings to search: every ring if the grid's box lies within the
+    limit, else none), ``vec`` (3, 3) (sum w (x - c), sum w n, the direction). The closest
+    point c of a triangle to x: `fibres.mesh.closest_point.closest_point`. A triangle whose bounding ball or plane is farther than ``cut``
     is passed over unmeasured: ``cut`` is ``min(limit + KAPPA tau, reach)`` until a
     triangle within the limit is found, then the bound (it only decreases), so such a
     triangle would get no weight and is never the nearest that counts."""
+    origin, cell, dims, start, items, ball = grid
+    n, t_all = x.shape[0], faces.shape[0]
+    s, g = np.empty(n), np.empty((n, 3))
+    seen, found = np.full(t_all, -1, np.int64), np.empty((t_all, 7))
+    box, home, vec = np.empty(6, np.int64), np.empty(4, np.int64), np.empty((3, 3))
     keep = KAPPA * tau
     slack = 1e-9 * cell               # for rounding in the cell indices of a triangle's box
     for i in range(x.shape[0]):
@@ -262,42 +266,10 @@ def _blend(x, inside, watch, vertices, faces, origin, cell, dims, start, items, 
                             size = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
                             if abs(ap0 * n0 + ap1 * n1 + ap2 * n2) > cut * size:
                                 continue                      # its plane is farther
-                            d00 = ab0 * ab0 + ab1 * ab1 + ab2 * ab2
-                            d01 = ab0 * ac0 + ab1 * ac1 + ab2 * ac2
-                            d11 = ac0 * ac0 + ac1 * ac1 + ac2 * ac2
-                            d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
-                            d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
-                            den = d00 * d11 - d01 * d01
-                            u = w = -1.0
-                            if den > 0.0:
-                                u = (d11 * d1 - d01 * d2) / den
-                                w = (d00 * d2 - d01 * d1) / den
-                            if u >= 0.0 and w >= 0.0 and u + w <= 1.0:
-                                found[m, 1] = ap0 - u * ab0 - w * ac0
-                                found[m, 2] = ap1 - u * ab1 - w * ac1
-                                found[m, 3] = ap2 - u * ab2 - w * ac2
-                                d = math.sqrt(found[m, 1] ** 2 + found[m, 2] ** 2
-                                              + found[m, 3] ** 2)
-                            else:
-                                d = np.inf
-                                for j in range(3):            # edge (corner j, corner j + 1)
-                                    e0 = vertices[faces[t, j]]
-                                    e1 = vertices[faces[t, (j + 1) % 3]]
-                                    num = 0.0
-                                    length = 0.0
-                                    for k in range(3):
-                                        num += (p[k] - e0[k]) * (e1[k] - e0[k])
-                                        length += (e1[k] - e0[k]) ** 2
-                                    f = min(max(num / length, 0.0), 1.0) if length > 0.0 else 0.0
-                                    r = 0.0                   # x - c into found[m, 4:7]
-                                    for k in range(3):
-                                        found[m, 4 + k] = p[k] - e0[k] - f * (e1[k] - e0[k])
-                                        r += found[m, 4 + k] ** 2
-                                    r = math.sqrt(r)
-                                    if r < d:
-                                        d = r
-                                        for k in range(1, 4):
-                                            found[m, k] = found[m, 3 + k]
+                            c0, c1, c2 = closest_point(p[0], p[1], p[2], vertices[ia],
+                                                       vertices[ib], vertices[ic])
+                            found[m, 1], found[m, 2], found[m, 3] = p[0] - c0, p[1] - c1, p[2] - c2
+                            d = math.sqrt(found[m, 1] ** 2 + found[m, 2] ** 2 + found[m, 3] ** 2)
                             # the unit normal (0 without area: +-0 / inf)
                             if not size > 0.0:
                                 size = np.inf
@@ -452,11 +424,8 @@ class SurfaceGrid:
         watch = self.reach if watch is None else float(watch)
         if len(x) == 0 or len(self.faces) == 0:
             return np.full(len(x), -np.inf), np.zeros((len(x), 3))
-        t = len(self.faces)
-        return _blend(x, self.inside(x), watch, self.vertices, self.faces, *self._grid,
-                      float(tau), self.reach, bool(offset), np.empty(len(x)),
-                      np.empty((len(x), 3)), np.full(t, -1, np.int64), np.empty((t, 7)),
-                      np.empty(6, np.int64), np.empty(4, np.int64), np.empty((3, 3)))
+        return _blend(x, self.inside(x), watch, self.vertices, self.faces, self._grid,
+                      float(tau), self.reach, bool(offset))
 
 
 def surface_distance(points, vertices, faces, *, reach: float, softness: float):
