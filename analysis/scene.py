@@ -26,9 +26,12 @@ are written; bones are most of the bytes).
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
+
+from motion.osim.reader import ModelFileWarning
 
 from .output_files import atomic_path, write_text
 from .vtk_files import _write_polydata
@@ -58,8 +61,6 @@ def _warn_missing(missing: dict, model_file) -> None:
     """One warning naming the bodies drawn without a bone (body -> a missing file name)."""
     if not missing:
         return
-    import warnings
-
     from .errors import FibreWarning
 
     names = sorted(missing)
@@ -194,7 +195,9 @@ def write_scene(folder, result, spec, *, step=None, progress=None) -> Path:
     line_names = list(dict.fromkeys(n for m in muscles for n in m.action_lines))
     line_muscle = {n: k for k, m in enumerate(muscles) for n in m.action_lines}
     q = np.asarray(result.q)[frames]
-    lines = motion_pkg.action_lines(model, q, muscles=line_names)
+    with warnings.catch_warnings():   # the run has said it over all its frames
+        warnings.filterwarnings("ignore", message=".*wrap objects in series", category=ModelFileWarning)
+        lines = motion_pkg.action_lines(model, q, muscles=line_names)
     bodies = set()
     for m in muscles:
         mspec = spec.muscle(m.name)
