@@ -46,8 +46,7 @@ from numba import njit
 
 from .smoothing import smooth_taubin
 
-__all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "natural_spline_matrix",
-           "taubin_pairs", "DENSE", "TURNING", "SPREAD", "PULL_ROUNDS", "PULLED",
+__all__ = ["fairing_matrices", "fairing_operator", "spread_pull", "taubin_pairs", "DENSE", "TURNING", "SPREAD", "PULL_ROUNDS", "PULLED",
            "PAIRS_PER_ITERATION"]
 
 #: spline points per fibre segment on which the resampling measure is taken
@@ -74,7 +73,10 @@ def taubin_pairs(smoothing_iterations) -> int:
 
 def _spline_second(s, h):
     """(B, P, P) matrices ``S`` of the natural splines' second derivatives at the knots
-    ``s`` (B, P), ``h = diff(s)``: ``m = S @ y`` (`natural_spline_matrix`). The tridiagonal
+    ``s`` (B, P), ``h = diff(s)``: ``m = S @ y`` (de Boor 1978: ``h_{i-1} m_{i-1} + 2 (h_{i-1}
+    + h_i) m_i + h_i m_{i+1} = 6 (dy_i / h_i - dy_{i-1} / h_{i-1})``, ``m_0 = m_{P-1} = 0``;
+    the spline on knot interval i is ``a y_i + b y_{i+1} + (a^3 - a) h_i^2 / 6 m_i + (b^3 - b)
+    h_i^2 / 6 m_{i+1}`` with ``b = (t - s_i) / h_i``, ``a = 1 - b``). The tridiagonal
     systems by elimination without pivoting (Thomas), all splines and columns at once: the
     matrix is strictly diagonally dominant (``2 (h_{i-1} + h_i) > h_{i-1} + h_i``)."""
     n, p = s.shape
@@ -96,57 +98,6 @@ def _spline_second(s, h):
     return second
 
 
-def _gather(x, k):
-    """``x[rows, k]`` of ``x`` (B, P, ...) at ``k`` (B, M), by one flat index."""
-    n, p = x.shape[:2]
-    return np.take(x.reshape((n * p,) + x.shape[2:]), k + p * np.arange(n)[:, None], axis=0)
-
-
-def _spline_weights(s, h, t):
-    """Knot interval ``k`` (B, M) of each ``t`` (B, M) in the knots ``s`` (B, P) (row by
-    row ``searchsorted(s, t, side="right") - 1``, clipped to the intervals), the linear
-    weights ``a``, ``b`` and the cubic factors ``(a^3 - a) h^2 / 6``, ``(b^3 - b) h^2 / 6``."""
-    p = s.shape[1]
-    k = np.empty(t.shape, dtype=np.int64)
-    for row, (sr, tr) in enumerate(zip(s, t)):
-        k[row] = np.searchsorted(sr, tr, side="right")
-    np.clip(k - 1, 0, p - 2, out=k)
-    hk = _gather(h, k)
-    b = (t - _gather(s, k)) / hk
-    a = 1.0 - b
-    return k, a, b, (a ** 3 - a) * hk ** 2 / 6.0, (b ** 3 - b) * hk ** 2 / 6.0
-
-
-def _spline_rows(second, k, a, b, ca, cb):
-    """(B, M, P) rows of the spline matrix from `_spline_second` and `_spline_weights`."""
-    n, p, _ = second.shape
-    up = ca[..., None] * _gather(second, k) + cb[..., None] * _gather(second, k + 1)
-    m = k.shape[1]
-    flat = up.reshape(-1)
-    at = (np.arange(n * m) * p).reshape(n, m) + k
-    flat[at] += a
-    flat[at + 1] += b
-    return up
-
-
-def natural_spline_matrix(knots, t):
-    """(M, P) matrix ``U`` of the natural cubic spline through P values at ``knots``
-    (increasing), evaluated at ``t``: ``U @ y`` are the spline's values (de Boor 1978; the
-    second derivatives ``m`` solve the tridiagonal system
-    ``h_{i-1} m_{i-1} + 2 (h_{i-1} + h_i) m_i + h_i m_{i+1} = 6 (dy_i / h_i - dy_{i-1} / h_{i-1})``
-    with ``m_0 = m_{P-1} = 0``). Batched: ``knots`` (..., P) and ``t`` (..., M) give
-    (..., M, P), one spline per leading index (the systems solved together)."""
-    s = np.asarray(knots, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64)
-    lead = s.shape[:-1]
-    p, m = s.shape[-1], t.shape[-1]
-    s = s.reshape(-1, p)
-    t = t.reshape(-1, m)
-    h = np.diff(s, axis=1)                                    # (B, P - 1)
-    up = _spline_rows(_spline_second(s, h), *_spline_weights(s, h, t))
-    return up.reshape(lead + (m, p))
-
-
 def _taubin_matrix(p, iterations):
     """(P, P) matrix of `smooth_taubin` with ``iterations`` lambda|mu pairs."""
     eye = np.eye(p)[None]                     # P "coordinates": the columns of the identity
@@ -162,7 +113,7 @@ def _resample(knots, values, turning, pick, coef, weight, work, dk):
     new point i a blend ``(1 - w) D_j + w D_{j+1}`` of dense points j, j + 1. Out:
     ``pick`` (N, 2 P) the knot interval of dense point j (first P) and j + 1 (last P),
     ``coef`` (N, 2 P, 4) their spline weights ``a, b, (a^3 - a) h^2 / 6, (b^3 - b) h^2 / 6``
-    (`_spline_weights`), ``weight`` (N, P) w. Work space: ``work`` (M, 10) (the dense
+    (`_spline_second`), ``weight`` (N, P) w. Work space: ``work`` (M, 10) (the dense
     points, their weights, segment lengths, turning shares, cumulated measure) and ``dk``
     (M,) int64 (their knot intervals)."""
     p, m = knots.shape[1], dk.shape[0]

@@ -107,18 +107,36 @@ def test_spread_pull_of_an_isolated_point_is_a_tent():
     np.testing.assert_allclose(moved, expected, atol=1e-15)
 
 
-def test_natural_spline_matrix_matches_scipy():
-    """The spline matrix against scipy's natural cubic spline (the oracle) on uneven knots."""
+def _spline_matrix(knots, t):
+    """(M, P) matrix of the natural cubic spline through P values at ``knots``, evaluated at
+    ``t``: scipy's natural CubicSpline of the identity's columns (the oracle)."""
     from scipy.interpolate import CubicSpline
 
-    from fibres.finishing.fairing import natural_spline_matrix
+    return CubicSpline(knots, np.eye(len(knots)), bc_type="natural")(t)
+
+
+def test_spline_second_derivatives_and_values_match_scipy():
+    """`_spline_second` (the natural spline's second derivatives at the knots, which
+    `_resample` evaluates the spline with) against scipy's natural cubic spline on uneven
+    knots: the derivatives, and the values by the spline formula of its docstring."""
+    from scipy.interpolate import CubicSpline
+
+    from fibres.finishing.fairing import _spline_second
 
     rng = np.random.default_rng(3)
     knots = np.cumsum(rng.uniform(0.2, 2.0, 9))
     y = rng.normal(size=(9, 3))
     t = np.linspace(knots[0], knots[-1], 57)
-    np.testing.assert_allclose(natural_spline_matrix(knots, t) @ y,
-                               CubicSpline(knots, y, bc_type="natural")(t), atol=1e-12)
+    h = np.diff(knots)
+    m = _spline_second(knots[None], h[None])[0] @ y
+    spline = CubicSpline(knots, y, bc_type="natural")
+    np.testing.assert_allclose(m, spline(knots, 2), atol=1e-12)
+    k = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(knots) - 2)
+    b = (t - knots[k]) / h[k]
+    a = 1.0 - b
+    value = (a[:, None] * y[k] + b[:, None] * y[k + 1] + ((a ** 3 - a) * h[k] ** 2 / 6)[:, None] * m[k]
+             + ((b ** 3 - b) * h[k] ** 2 / 6)[:, None] * m[k + 1])
+    np.testing.assert_allclose(value, spline(t), atol=1e-12)
 
 
 def test_spread_pull_has_no_step_where_a_pull_reaches_pulled():
@@ -145,8 +163,8 @@ def test_spread_pull_has_no_step_where_a_pull_reaches_pulled():
 
 def _fairing_oracle(points, iterations, turning=TURNING, dense=8):
     """`fairing_matrices` written plainly, fibre by fibre, from the whole spline matrix
-    (`natural_spline_matrix`) and the module docstring's steps."""
-    from fibres.finishing.fairing import _taubin_matrix, natural_spline_matrix
+    (`_spline_matrix`, scipy's) and the module docstring's steps."""
+    from fibres.finishing.fairing import _taubin_matrix
 
     n, p, _ = points.shape
     taubin = _taubin_matrix(p, iterations) if iterations else np.eye(p)
@@ -154,7 +172,7 @@ def _fairing_oracle(points, iterations, turning=TURNING, dense=8):
     for f in range(n):
         y = taubin @ points[f]
         knots = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(y, axis=0), axis=1))])
-        u = natural_spline_matrix(knots, np.linspace(0.0, knots[-1], (p - 1) * dense + 1))
+        u = _spline_matrix(knots, np.linspace(0.0, knots[-1], (p - 1) * dense + 1))
         seg = np.diff(u @ y, axis=0)
         ds = np.linalg.norm(seg, axis=1)
         e = seg / ds[:, None]
