@@ -9,12 +9,14 @@ patches, `fibres.attachments.patch`):
   at the centres of a regular grid of about `VOLUME_SAMPLES` cells inside the surface
   (`fibres.mesh.inside.inside_grid`); fibres are
   resampled every `FIBRE_STEP` so point-to-polyline distances are exact to within half of
-  it.
+  it (each sample's nearest fibre point from a k-d tree, searched only up to the larger of
+  the two distances asked about).
 - ``turn_max``, ``turn_p95``: the largest angle between consecutive segments of a fibre
   (degrees), its maximum and 95th percentile over the fibres.
 - ``origin_covered``, ``insertion_covered``: share of each attachment patch's area within
   5 mm of a fibre end.
-- ``outside``: inner fibre points outside the surface (by ray parity, `fibres.mesh.inside`).
+- ``outside``: inner fibre points outside the surface (by ray parity,
+  `fibres.mesh.surface_distance.SurfaceGrid.inside`).
 
 `LIMITS` are the sensible bounds a warning checks (`FibreQuality.problems`; the volume's limit
 applies to both shares, so few fibres in a big muscle are not flagged for their spacing).
@@ -26,7 +28,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..mesh.inside import inside as _inside, inside_grid
+from ..mesh.inside import inside_grid
+from ..mesh.surface_distance import SurfaceGrid
 from ..attachments.patch_map import _sub_centroids
 
 __all__ = ["FibreQuality", "FibreQualityWarning", "fibre_quality", "LIMITS", "VOLUME_SAMPLES",
@@ -129,7 +132,8 @@ def fibre_quality(points, vertices, faces, origin_faces, insertion_faces) -> Fib
     h = (abs(volume) / VOLUME_SAMPLES) ** (1.0 / 3.0)
     inside = inside_grid(v, f, h)
     dense = _resampled(pts, FIBRE_STEP)
-    tree = cKDTree(dense)
+    # built without median splits: a quarter of the build time, the same nearest points
+    tree = cKDTree(dense, balanced_tree=False, compact_nodes=False)
     n, length = len(pts), float(np.linalg.norm(np.diff(pts, axis=1), axis=2).sum(axis=1).mean())
     spacing = float(np.sqrt(abs(volume) / max(n * length, 1e-300)))
     # only "farther than NEAR / spacing" is asked: a search bounded just above both is exact for
@@ -148,7 +152,7 @@ def fibre_quality(points, vertices, faces, origin_faces, insertion_faces) -> Fib
         sp, sw = _patch_samples(v, f, mask)
         d = cKDTree(pts[:, col]).query(sp)[0]
         covered.append(float(sw[d <= NEAR].sum() / sw.sum()))
-    outside = int((~_inside(pts[:, 1:-1].reshape(-1, 3), v, f)).sum())
+    outside = int((~SurfaceGrid(v, f, reach=0.0).inside(pts[:, 1:-1].reshape(-1, 3))).sum())
     return FibreQuality(empty5, empty_sp, spacing * 1e3, float(turns.max(initial=0.0)),
                         float(np.percentile(turns, 95)) if turns.size else 0.0,
                         covered[0], covered[1], outside)
