@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import dijkstra
 
 from ..errors import InputError
 from ..fit.box import shape_sign
@@ -39,6 +40,9 @@ _RIM = 1e-6
 BENDING = 0.25
 #: samples of the centre line for its turning
 _PATH = 48
+#: a patch's dead end: surface farther from the other patch than the patch's farthest point by
+#: more than this share of the surface's extent from the other patch (`dead_end_levels`)
+DEAD_END = 0.1
 
 
 def bending_measure(s, points, weight):
@@ -65,6 +69,54 @@ def bending_measure(s, points, weight):
     return np.interp(s, t, cum)
 
 
+def dead_end_levels(plan):
+    """(lo, hi, notes): the field levels between which the slices stay clear of dead ends.
+
+    A patch on the side of a long muscle leaves surface beyond it: farther from the other
+    patch than any point of the patch (psoas with the iliacus-area origin of Modenese &
+    Kohout 2020: a third of the muscle above it). The field there is flat and below every
+    cross-section's level, and the isolines of those levels are rings about the patch that
+    sweep up through the dead end; fibres through them climb into it and hook back.
+
+    The origin's dead end is the set of vertices on the field's lower half farther from the
+    insertion patch than the origin patch's farthest vertex plus `DEAD_END` times the largest
+    such distance. Distances run along the surface (shortest paths over the mesh's edges,
+    Dijkstra, from the insertion patch's vertices), so that a muscle bent into a U, whose belly
+    is farther from the insertion in a straight line than its origin, has none; they are
+    computed only where straight-line distances from the patch's centroid find candidates.
+    ``lo`` is the largest field value in the dead end (0 without one): the isolines above it
+    no longer enter it, they cross the muscle at or below the patch. The same for the
+    insertion (``hi`` the smallest value in its dead end, 1 without one). A dead end gets no
+    fibres (none can run beyond its origin); a note gives its share of the surface's area."""
+    v, u, f = plan.rest_vertices, plan.field, plan.faces
+    bounds, notes = [0.0, 1.0], []
+    for k, (own, other, name) in enumerate(((plan.origin, plan.insertion, "origin"),
+                                             (plan.insertion, plan.origin, "insertion"))):
+        half = u < 0.5 if k == 0 else u > 0.5
+        d = np.linalg.norm(v - v[other].mean(axis=0), axis=1)
+        if not (half & (d > d[own].max() + DEAD_END * d.max())).any():
+            continue
+        d = _surface_distance_from(v, plan.edges, other)
+        dead = half & (d > d[own].max() + DEAD_END * d[np.isfinite(d)].max())
+        if not dead.any():
+            continue
+        bounds[k] = float(u[dead].max() if k == 0 else u[dead].min())
+        area = 0.5 * np.linalg.norm(plan.face_normals(), axis=1)
+        share = area[dead[f].all(axis=1)].sum() / area.sum()
+        notes.append(f"{share:.0%} of the surface lies beyond the {name} patch (farther from "
+                     f"the other attachment): no slices or fibres there; check the {name} "
+                     "landmarks if the muscle's fibres reach it")
+    return bounds[0], bounds[1], notes
+
+
+def _surface_distance_from(vertices, edges, source):
+    """(V,) shortest distance over the mesh's edges from the vertices ``source`` (V,) bool."""
+    i, j = edges[:, 0], edges[:, 1]
+    graph = sp.csr_matrix((np.linalg.norm(vertices[i] - vertices[j], axis=1), (i, j)),
+                          shape=(len(vertices), len(vertices)))
+    return dijkstra(graph, directed=False, indices=np.flatnonzero(source), min_only=True)
+
+
 def _levels(plan, resolution: int) -> np.ndarray:
     """(R + 1,) field levels whose isolines' centroids are evenly spaced along the muscle.
 
@@ -77,7 +129,8 @@ def _levels(plan, resolution: int) -> np.ndarray:
     (`bending_measure` with weight `BENDING`: a bend gets more slices, so the fibres' turns
     are spread over more joints -- psoas turn p95 42 -> 38 degrees -- and the slices that
     ring a narrow insertion come closer -- gluteus maximus 5.8 -> 4.4 % empty). The R - 1
-    inner levels divide the sum evenly."""
+    inner levels divide the sum evenly. Levels stay above and below the patches' dead ends
+    (`dead_end_levels`): the path starts at the first isoline clear of them."""
     v, u, f = plan.rest_vertices, plan.field, plan.faces
     area = 0.5 * np.linalg.norm(plan.face_normals(), axis=1)
     uc = u[f].mean(axis=1)
@@ -85,8 +138,10 @@ def _levels(plan, resolution: int) -> np.ndarray:
     cum = np.cumsum(area[order])
     q = np.interp(np.linspace(0, 1, _CANDIDATES), cum / cum[-1], uc[order])
     cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
-    cand = cand[(cand > 2 * _RIM) & (cand < 1 - 2 * _RIM)]
-    cand = np.concatenate([[_RIM], cand, [1 - _RIM]])
+    lo, hi, _ = plan.cached(("dead ends",), lambda: dead_end_levels(plan))
+    first, last = max(lo + _RIM, _RIM), min(hi - _RIM, 1 - _RIM)
+    cand = cand[(cand > first + _RIM) & (cand < last - _RIM)]
+    cand = np.concatenate([[first], cand, [last]])
     length, centre, _ = isoline_moments(u, v, f, cand, area=False)
     ok = length > 0
     cand, centre = cand[ok], centre[ok]
@@ -98,7 +153,7 @@ def _levels(plan, resolution: int) -> np.ndarray:
     s = s + bending_measure(s, centre, BENDING)
     levels = np.interp(np.linspace(0.0, s[-1], resolution + 1), s, cand)
     levels[0], levels[-1] = _RIM, 1.0 - _RIM
-    levels[1:-1] = np.clip(levels[1:-1], 2 * _RIM, 1 - 2 * _RIM)
+    levels[1:-1] = np.clip(levels[1:-1], first + _RIM, last - _RIM)
     return levels
 
 
@@ -263,7 +318,7 @@ def _slices(plan, resolution: int) -> _Slices:
     if resolution < 2:  # one segment: the ends still come from a middle membrane
         levels = levels[:1]
     v = plan.rest_vertices
-    loops, notes = [], []
+    loops, notes = [], list(plan.cached(("dead ends",), lambda: dead_end_levels(plan))[2])
     every = isoline_loops_at(plan.field, plan.faces, levels, plan.edges, plan.face_edges, v)
     for j, found in enumerate(every):
         if not found:
