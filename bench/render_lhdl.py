@@ -4,6 +4,7 @@ Usage::
 
     python bench/render_lhdl.py OUT_DIR [--fibres N] [--template NAME] [--clean]
                                         [--slicing harmonic|planes] [--resolution R]
+                                        [--muscles a,b] [--psoas-origin own|iliacus]
 
 Reads the original (defective) LHDL meshes from ``../shared/muscles/LHDL_hip_r/muscles/`` (or
 ``muscles_clean/`` with ``--clean``) and the attachment landmarks of
@@ -11,7 +12,9 @@ Reads the original (defective) LHDL meshes from ``../shared/muscles/LHDL_hip_r/m
 `fibres.decompose` and draws the surface (translucent), the fibres (tubes) and the landmarks
 (origin blue, insertion red) and, with harmonic slicing, the attachment patches off screen with
 pyvista, two views per muscle. Prints the timing of each decomposition. docs/gallery/ holds the
-pictures of ``--clean`` (both slicings).
+pictures of ``--clean`` (both slicings) and of ``--clean --muscles psoas_r --psoas-origin
+iliacus`` (the psoas with the iliacus-area origin of ``tests/data/lhdl_hip.toml``, Modenese &
+Kohout 2020's choice: the part above that patch is a dead end and gets no fibres).
 """
 from __future__ import annotations
 
@@ -31,9 +34,10 @@ TEMPLATES = {"glut_max_r": "parallel", "glut_med_r": "fanned", "iliacus_r": "fan
              "psoas_r": "parallel"}
 
 
-def landmarks(muscle):
+def landmarks(muscle, origin_of=None):
     """Origin and insertion landmarks (K, 3) in mm of one LHDL muscle (gluteus maximus:
-    insertion cloud 1; cloud 2 lies on the tibia, ~310 mm from the mesh)."""
+    insertion cloud 1; cloud 2 lies on the tibia, ~310 mm from the mesh); ``origin_of``: take
+    the origin of that muscle instead."""
     import pandas as pd
 
     tab = pd.read_csv(LHDL / "attachments" / "attachment_landmarks.csv")
@@ -41,6 +45,9 @@ def landmarks(muscle):
     if muscle == "glut_max_r":
         sel = sel[(sel.type == "origin") | (sel.cloud == 1)]
     get = lambda kind: sel[sel.type == kind][["x_mm", "y_mm", "z_mm"]].to_numpy(float)  # noqa
+    if origin_of is not None:
+        mine = tab[(tab.muscle == origin_of) & (tab.type == "origin")]
+        return mine[["x_mm", "y_mm", "z_mm"]].to_numpy(float), get("insertion")
     return get("origin"), get("insertion")
 
 
@@ -100,6 +107,9 @@ def main(argv=None):
     parser.add_argument("--clean", action="store_true", help="use muscles_clean/")
     parser.add_argument("--slicing", default="harmonic", choices=("harmonic", "planes"))
     parser.add_argument("--resolution", type=int, default=15)
+    parser.add_argument("--muscles", default=",".join(TEMPLATES), help="comma-separated")
+    parser.add_argument("--psoas-origin", default="own", choices=("own", "iliacus"),
+                        help="iliacus: the psoas with the iliacus-area origin of the TOML")
     args = parser.parse_args(argv)
 
     import fibres
@@ -108,14 +118,15 @@ def main(argv=None):
 
     args.out_dir.mkdir(parents=True, exist_ok=True)
     folder = LHDL / ("muscles_clean" if args.clean else "muscles")
-    for muscle, default_template in TEMPLATES.items():
-        template = args.template or default_template
+    for muscle in args.muscles.split(","):
+        template = args.template or TEMPLATES[muscle]
+        other = "iliacus_r" if muscle == "psoas_r" and args.psoas_origin == "iliacus" else None
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             surface = fibres.as_surface(folder / f"{muscle}.vtk", units="mm")
         for w in caught:
             print(f"  warning: {w.message}")
-        o_mm, i_mm = landmarks(muscle)
+        o_mm, i_mm = landmarks(muscle, other)
         o, i = o_mm / 1000, i_mm / 1000
         t0 = time.perf_counter()
         bundle = fibres.decompose(surface, o, i, template=template, n_fibres=args.fibres,
@@ -129,8 +140,10 @@ def main(argv=None):
               f"{max(np.nanmax(s), 0.0) * 1e3:.2f} mm")
         for note in bundle.notes[:5]:
             print(f"  note: {note}")
-        path = args.out_dir / f"{muscle}_{args.slicing}.png"
-        render(muscle, bundle, surface, o, i, path)
+        name = muscle if other is None else f"{muscle}_{other.split('_')[0]}_origin"
+        path = args.out_dir / f"{name}_{args.slicing}.png"
+        render(muscle if other is None else f"{muscle} ({other} origin)", bundle, surface, o, i,
+               path)
         print(f"  wrote {path}")
 
 
