@@ -232,9 +232,13 @@ def run_muscle(ctx, mspec):
         from fibres.finishing.quality import FibreQualityWarning
 
         notes += (f"fibre quality below the usual limits: {'; '.join(problems)}",)
+        # a dead end beyond a patch (fibres.slicing.harmonic_sections.dead_end_levels) is the
+        # likely cause: say so instead of the general advice
+        why = [n for n in notes if "lies beyond the" in n]
         warnings.warn(f"{mspec.name}: fibre quality below the usual limits: {'; '.join(problems)}"
-                      " (see fibre_quality.csv; try --slicing or another template, and check that the origin"
-                      " and insertion lie at the ends of the muscle's mesh)",
+                      + (f"; {why[0]}" if why else
+                         " (see fibre_quality.csv; try --slicing or another template, and check that"
+                         " the origin and insertion lie at the ends of the muscle's mesh)"),
                       FibreQualityWarning, stacklevel=2)
     if getattr(rest, "rest_residual", 0.0):
         notes += (f"rest pose residual {rest.rest_residual:.3g}",)

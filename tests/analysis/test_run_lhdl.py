@@ -71,3 +71,18 @@ def test_moment_arms_do_not_depend_on_the_step(sweep):
     fine = run(spec, mot, muscles=["iliacus_r"], fibres=60, step={"rotational": 1e-5})
     np.testing.assert_allclose(fine.muscle("iliacus_r").fibre_moment_arms,
                                sweep.muscle("iliacus_r").fibre_moment_arms, atol=1e-6)
+
+
+def test_psoas_with_the_iliacus_area_origin_notes_its_dead_end(sweep):
+    """The TOML gives the psoas the iliacus-area origin (Modenese & Kohout 2020): a patch on its
+    side, with its lumbar part beyond (fibres.slicing.harmonic_sections.dead_end_levels). The run
+    notes the dead end and the empty volume it leaves; its fibres do not turn back into it
+    (141 degrees before the dead end was bounded)."""
+    m = sweep.muscle("psoas_r")
+    assert any("lies beyond the origin patch" in n for n in m.notes)
+    assert any("fibre quality below the usual limits" in n and "volume" in n for n in m.notes)
+    p = m.fibre_points[0]
+    seg = np.diff(p, axis=1)
+    cos = np.einsum("npk,npk->np", seg[:, 1:], seg[:, :-1]) / (
+        np.linalg.norm(seg[:, 1:], axis=2) * np.linalg.norm(seg[:, :-1], axis=2))
+    assert np.degrees(np.arccos(np.clip(cos, -1, 1))).max() < 45.0
