@@ -1,19 +1,17 @@
-"""Which points lie inside a closed triangle surface: vertical ray parity.
+"""The cell centres of a regular 3D grid that lie inside a closed triangle surface.
 
-A point is inside when a ray from it (+z, tilted by about 0.1 degree so that it meets no
-vertex or edge of an axis-aligned mesh exactly) crosses the surface an odd number of times
-(Jordan). The triangles are binned by their xy bounding boxes in a uniform 2D grid; a point
-meets only the triangles of its cell whose xy projection contains it (barycentric test, ties
-on shared edges and vertices broken half-open so a crossing through an edge counts once)
-and counts those above it. `inside_grid` does the same for the cell centres of a regular 3D
-grid one xy column at a time: the sorted crossing heights of a column split it into inside
-and outside runs (scan-line voxelisation).
+Scan-line voxelisation by vertical ray parity (Jordan): the triangles are binned by their xy
+bounding boxes in a uniform 2D grid; each xy column of the grid meets only the triangles of
+its cell whose xy projection contains it (barycentric test, ties on shared edges and vertices
+broken half-open so a crossing through an edge counts once), and the sorted crossing heights
+of a column split it into inside and outside runs. For single points the compiled parity test
+of `fibres.mesh.surface_distance.SurfaceGrid.inside` is used.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["inside", "inside_grid"]
+__all__ = ["inside_grid"]
 
 
 def _bins(tri_xy, cell, lo):
@@ -62,29 +60,6 @@ def _crossings(points_xy, tri):
     hit = good & (l0 > 0) & (l1 >= 0) & (l2 >= 0)
     z = l0 * a[:, 2] + l1 * b[:, 2] + l2 * c[:, 2]
     return pid[hit], z[hit]
-
-
-_TILT = np.array([1.0 / (7.0 * np.pi), 1.0 / (11.0 * np.e)]) * 1e-2
-
-
-def _shear(x):
-    out = np.array(x, dtype=np.float64, copy=True)
-    out[..., :2] -= x[..., 2:3] * _TILT
-    return out
-
-
-def inside(points, vertices, faces) -> np.ndarray:
-    """(N,) bool: points strictly inside the closed surface (module docstring)."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
-    if len(pts) == 0:
-        return np.zeros(0, dtype=bool)
-    # the ray is tilted a little off +z (a shear of the xy plane along z), so that points on
-    # an axis of a synthetic mesh do not meet its vertices and edges exactly
-    pts, tri = _shear(pts), _shear(tri)
-    pid, z = _crossings(pts[:, :2], tri)
-    above = z > pts[pid, 2]
-    return (np.bincount(pid[above], minlength=len(pts)) % 2) == 1
 
 
 def inside_grid(vertices, faces, step: float):
