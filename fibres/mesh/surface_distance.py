@@ -394,6 +394,13 @@ class SurfaceGrid:
             if len(self.faces) else None
         self._ray = None
 
+    @property
+    def cells(self):
+        """The search grid (origin, cell, dims, start, items, ball) of `_bin_triangles`
+        (None without triangles): ``ball[:, :3]`` are the triangles' centroids
+        ``(a + b + c) / 3``."""
+        return self._grid
+
     def inside(self, points):
         """Whether each point (n, 3) is inside the closed surface, by ray parity along `RAY`
         (module docstring; ties on edges have measure zero)."""
