@@ -39,7 +39,7 @@ import scipy.sparse as sp
 from numba import njit
 
 from ..errors import InputError
-from ..mesh.surface_distance import SurfaceGrid
+from ..mesh.surface_distance import SurfaceGrid, _bin_triangles
 from .containment import CONTAIN_MARGIN, CONTAIN_REACH, contain
 from .fairing import PULL_ROUNDS, spread_pull
 
@@ -165,39 +165,15 @@ class CarriedPull:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _nearest_centroids(x, centroids, k, side):
+def _nearest_centroids(x, centroids, grid, k):
     """(n, k) int64: the ``k`` of ``centroids`` (T, 3) nearest to each point x (n, 3), nearest
-    first (equal distances: the lower index first), ``k <= T``. The centroids are sorted into
-    a uniform grid of cubes of ``side`` (doubled until there are at most 8 cells per centroid)
-    over their bounding box (counting sort: cell start, items), then each point visits the cells ring by ring about its own (clamped) cell,
-    passes over a cell farther than the k-th distance so far and stops once the ring's box
-    is farther than that on every side within the grid (no centroid not met lies nearer)."""
-    t_all = centroids.shape[0]
-    lo, hi, dims = np.empty(3), np.empty(3), np.empty(3, np.int64)
-    for a in range(3):
-        lo[a], hi[a] = centroids[:, a].min(), centroids[:, a].max()
-    while True:                       # at most 8 cells per centroid: larger cubes
-        for a in range(3):
-            dims[a] = int((hi[a] - lo[a]) / side) + 1
-        if dims[0] * dims[1] * dims[2] <= 8 * t_all + 64:
-            break
-        side *= 2.0
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
-    cell_of, items = np.empty(t_all, np.int64), np.empty(t_all, np.int64)
-    for t in range(t_all):
-        q = np.int64(0)
-        for a in range(3):
-            q = q * dims[a] + min(int((centroids[t, a] - lo[a]) / side), dims[a] - 1)
-        cell_of[t] = q
-        start[q + 1] += 1
-    for q in range(1, start.shape[0]):
-        start[q] += start[q - 1]
-    for t in range(t_all):           # placed in increasing order; start[q] advances
-        items[start[cell_of[t]]] = t
-        start[cell_of[t]] += 1
-    for q in range(start.shape[0] - 1, 0, -1):
-        start[q] = start[q - 1]
-    start[0] = 0
+    first (equal distances: the one met first), ``k <= T``. ``grid`` = (origin, cell, dims,
+    start, items) bins each centroid in one cell (`fibres.mesh.surface_distance`'s grid of
+    the centroids as points: `_centroid_grid`); each point visits the cells ring by ring
+    about its own (clamped) cell, passes over a cell farther than the k-th distance so far
+    and stops once the ring's box is farther than that on every side within the grid (no
+    centroid not met lies nearer)."""
+    lo, side, dims, start, items = grid
     near, best = np.empty((x.shape[0], k), np.int64), np.empty(k)
     home, box = np.empty(3, np.int64), np.empty(6, np.int64)
     slack = 1e-9 * side               # for rounding in the cell indices
@@ -235,8 +211,7 @@ def _nearest_centroids(x, centroids, k, side):
                             if m == k and not d2 < best[k - 1]:
                                 continue
                             j = m if m < k else k - 1          # insert, nearest first
-                            while j > 0 and (best[j - 1] > d2 or best[j - 1] == d2
-                                             and near[i, j - 1] > t):
+                            while j > 0 and best[j - 1] > d2:
                                 best[j], near[i, j] = best[j - 1], near[i, j - 1]
                                 j -= 1
                             best[j], near[i, j] = d2, t
@@ -252,6 +227,19 @@ def _nearest_centroids(x, centroids, k, side):
             if beyond > reach:
                 break
     return near
+
+
+def _centroid_grid(centroids, k, area):
+    """(origin, cell, dims, start, items) of `_nearest_centroids`: the centroids (T, 3) as
+    points (degenerate triangles) binned by `fibres.mesh.surface_distance._bin_triangles`
+    in cubes of about twice the radius that holds ``k`` triangles of mean ``area`` on a flat
+    piece of surface (measured: smaller cubes are slower), at most 8 cubes per centroid."""
+    ext = np.ptp(centroids, axis=0)
+    volume = float(np.prod(np.maximum(ext, 1e-3 * ext.max())))
+    side = max(2.0 * math.sqrt(k * area / math.pi), 1e-300)
+    points = np.ascontiguousarray(centroids)
+    return _bin_triangles(points, np.repeat(np.arange(len(points)), 3).reshape(-1, 3), None,
+                          3, min(volume / (len(points) * side ** 3), 8.0))[1:6]
 
 
 def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
@@ -285,8 +273,8 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     # smaller cubes are slower)
     k = min(CARRY_CANDIDATES, len(f))
     area = 0.5 * np.sqrt(np.einsum("ij,ij->i", normals, normals)).mean()
-    near = _nearest_centroids(out.reshape(-1, 3)[rows], grid.cells[5][:, :3], k,
-                              max(2.0 * math.sqrt(k * area / math.pi), 1e-300))
+    near = _nearest_centroids(out.reshape(-1, 3)[rows], grid.cells[5][:, :3],
+                              _centroid_grid(grid.cells[5][:, :3], k, area), k)
     # each patch's triangles in increasing order (canonical CSR: the rows' sums in _frames
     # run in that order), the nearest one's place among them
     first = near[:, 0]

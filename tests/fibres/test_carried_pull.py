@@ -72,11 +72,11 @@ def test_a_patch_takes_no_triangle_of_the_opposite_wall():
 
 def test_nearest_centroids_are_the_k_d_trees(torus):
     """`_nearest_centroids` (a grid search) against scipy's k-d tree: the same k nearest
-    centroids, nearest first, for points near and far from the surface, outside the
-    centroids' box, with cubes small (capped at 8 cells per centroid) and large."""
+    centroids, nearest first, for points near and far from the surface and outside the
+    centroids' box, with cubes small (capped at 8 per centroid) and large."""
     from scipy.spatial import cKDTree
 
-    from fibres.finishing.carried_pull import _nearest_centroids
+    from fibres.finishing.carried_pull import _centroid_grid, _nearest_centroids
     v, f = torus
     cen = v[f].sum(axis=1) / 3.0
     rng = np.random.default_rng(3)
@@ -87,8 +87,8 @@ def test_nearest_centroids_are_the_k_d_trees(torus):
     for k in (1, 16, len(f)):
         _, want = tree.query(pts, k=k)
         want = np.asarray(want).reshape(len(pts), k)
-        for side in (1e-6, 3e-3, 10 * span):
-            got = _nearest_centroids(pts, cen, k, side)
+        for area in (1e-12, 1e-6, span ** 2):
+            got = _nearest_centroids(pts, cen, _centroid_grid(cen, k, area), k)
             np.testing.assert_array_equal(got[:, 0], want[:, 0])
             np.testing.assert_array_equal(np.sort(got, axis=1), np.sort(want, axis=1))
 
