@@ -71,6 +71,33 @@ def taubin_pairs(smoothing_iterations) -> int:
     return int(round(PAIRS_PER_ITERATION * int(smoothing_iterations)))
 
 
+def _spline_second(s, h):
+    """(B, P, P) matrices ``S`` of the natural splines' second derivatives at the knots
+    ``s`` (B, P), ``h = diff(s)``: ``m = S @ y`` (de Boor 1978: ``h_{i-1} m_{i-1} + 2 (h_{i-1}
+    + h_i) m_i + h_i m_{i+1} = 6 (dy_i / h_i - dy_{i-1} / h_{i-1})``, ``m_0 = m_{P-1} = 0``;
+    the spline on knot interval i is ``a y_i + b y_{i+1} + (a^3 - a) h_i^2 / 6 m_i + (b^3 - b)
+    h_i^2 / 6 m_{i+1}`` with ``b = (t - s_i) / h_i``, ``a = 1 - b``). The tridiagonal
+    systems by elimination without pivoting (Thomas), all splines and columns at once: the
+    matrix is strictly diagonally dominant (``2 (h_{i-1} + h_i) > h_{i-1} + h_i``)."""
+    n, p = s.shape
+    second = np.zeros((n, p, p))
+    if p > 2:
+        eye = np.eye(p)
+        slope = (eye[1:] - eye[:-1]) / h[:, :, None]           # (B, P - 1, P): dy_i / h_i
+        r = 6.0 * (slope[:, 1:] - slope[:, :-1])               # (B, P - 2, P)
+        d = 2.0 * (h[:, :-1] + h[:, 1:])                        # (B, P - 2) diagonal
+        e = h[:, 1:-1]                                          # (B, P - 3) off-diagonals
+        for i in range(1, p - 2):
+            w = e[:, i - 1] / d[:, i - 1]
+            d[:, i] -= w * e[:, i - 1]
+            r[:, i] -= w[:, None] * r[:, i - 1]
+        x = second[:, 1:-1]
+        x[:, -1] = r[:, -1] / d[:, -1, None]
+        for i in range(p - 4, -1, -1):
+            x[:, i] = (r[:, i] - e[:, i, None] * x[:, i + 1]) / d[:, i, None]
+    return second
+
+
 def _taubin_matrix(p, iterations):
     """(P, P) matrix of `smooth_taubin` with ``iterations`` lambda|mu pairs."""
     eye = np.eye(p)[None]                     # P "coordinates": the columns of the identity
@@ -78,58 +105,19 @@ def _taubin_matrix(p, iterations):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _resample(knots, points, turning, m, second, pick, coef, weight):
-    """The turn-aware resampling (module docstring, step 3) of N natural splines through
-    ``points`` (N, P, 3) with ``knots`` (N, P) (increasing, from 0): the dense curve at ``m``
-    points evenly spaced in the chord parameter (as ``linspace``), its measure, and P new
-    points at equal steps of it, new point i a blend ``(1 - w) D_j + w D_{j+1}`` of dense
-    points j, j + 1. Out: ``second`` (N, P, P) the splines' second derivatives at the knots
-    as matrices ``S``, ``m = S @ y`` (de Boor 1978: ``h_{i-1} m_{i-1} + 2 (h_{i-1} + h_i) m_i
-    + h_i m_{i+1} = 6 (dy_i / h_i - dy_{i-1} / h_{i-1})``, ``m_0 = m_{P-1} = 0``, ``h =
-    diff(knots)``; the tridiagonal systems by elimination without pivoting (Thomas), all
-    columns at once: the matrix is strictly diagonally dominant, ``2 (h_{i-1} + h_i) >
-    h_{i-1} + h_i``); the spline on knot interval i is ``a y_i + b y_{i+1} + (a^3 - a) h_i^2
-    / 6 m_i + (b^3 - b) h_i^2 / 6 m_{i+1}`` with ``b = (t - s_i) / h_i``, ``a = 1 - b``;
+def _resample(knots, values, turning, pick, coef, weight, work, dk):
+    """The turn-aware resampling (module docstring, step 3) of N natural splines with
+    ``knots`` (N, P) (increasing, from 0) and ``values`` (N, P, 6) (the points and the second
+    derivatives at the knots): the dense curve at M = ``len(dk)`` points evenly spaced in the
+    chord parameter (as ``linspace``), its measure, and P new points at equal steps of it,
+    new point i a blend ``(1 - w) D_j + w D_{j+1}`` of dense points j, j + 1. Out:
     ``pick`` (N, 2 P) the knot interval of dense point j (first P) and j + 1 (last P),
-    ``coef`` (N, 2 P, 4) their spline weights ``a, b, (a^3 - a) h^2 / 6, (b^3 - b) h^2 / 6``,
-    ``weight`` (N, P) w."""
-    p = knots.shape[1]
-    work, dk = np.empty((m, 10)), np.empty(m, np.int64)   # the dense points, their weights,
-    # segment lengths, turning shares, cumulated measure; their knot intervals
-    tri = np.zeros((max(p - 2, 0), p + 1))   # the systems' right-hand sides (columns of the
-    values = np.empty((p, 6))                # identity) and diagonal; points and their m
+    ``coef`` (N, 2 P, 4) their spline weights ``a, b, (a^3 - a) h^2 / 6, (b^3 - b) h^2 / 6``
+    (`_spline_second`), ``weight`` (N, P) w. Work space: ``work`` (M, 10) (the dense
+    points, their weights, segment lengths, turning shares, cumulated measure) and ``dk``
+    (M,) int64 (their knot intervals)."""
+    p, m = knots.shape[1], dk.shape[0]
     for n in range(knots.shape[0]):
-        for i in range(p):
-            for c in range(p):
-                second[n, i, c] = 0.0
-        for i in range(p - 2):        # rows of 6 (slope_{i+1} - slope_i), slope_i = dy_i / h_i
-            hi, hj = knots[n, i + 1] - knots[n, i], knots[n, i + 2] - knots[n, i + 1]
-            for c in range(p):
-                tri[i, c] = 0.0
-            tri[i, i] = 6.0 * (0.0 - -1.0 / hi)
-            tri[i, i + 1] = 6.0 * (-1.0 / hj - 1.0 / hi)
-            tri[i, i + 2] = 6.0 * (1.0 / hj - 0.0)
-            tri[i, p] = 2.0 * (hi + hj)
-        for i in range(1, p - 2):     # off-diagonal i - 1: h_i
-            e = knots[n, i + 1] - knots[n, i]
-            w = e / tri[i - 1, p]
-            tri[i, p] -= w * e
-            for c in range(p):
-                tri[i, c] -= w * tri[i - 1, c]
-        if p > 2:
-            for c in range(p):
-                second[n, p - 2, c] = tri[p - 3, c] / tri[p - 3, p]
-        for i in range(p - 4, -1, -1):
-            e = knots[n, i + 2] - knots[n, i + 1]
-            for c in range(p):
-                second[n, i + 1, c] = (tri[i, c] - e * second[n, i + 2, c]) / tri[i, p]
-        for i in range(p):
-            for c in range(3):
-                values[i, c] = points[n, i, c]
-                acc = 0.0
-                for j in range(p):
-                    acc += second[n, i, j] * points[n, j, c]
-                values[i, 3 + c] = acc
         length = knots[n, p - 1]
         step = length / (m - 1)
         k = 0
@@ -145,8 +133,8 @@ def _resample(knots, points, turning, m, second, pick, coef, weight):
             work[j, 6] = (b ** 3 - b) * hk ** 2 / 6.0
             dk[j] = k
             for c in range(3):
-                work[j, c] = a * values[k, c] + b * values[k + 1, c] \
-                    + work[j, 5] * values[k, 3 + c] + work[j, 6] * values[k + 1, 3 + c]
+                work[j, c] = a * values[n, k, c] + b * values[n, k + 1, c] \
+                    + work[j, 5] * values[n, k, 3 + c] + work[j, 6] * values[n, k + 1, 3 + c]
         total = x0 = y0 = z0 = 0.0
         for j in range(m - 1):          # segment lengths; turns shared by their segments
             x1, y1, z1 = (work[j + 1, 0] - work[j, 0], work[j + 1, 1] - work[j, 1],
@@ -196,11 +184,13 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     floor = 1e-12 * np.maximum(seg.sum(axis=1, keepdims=True), 1e-300)
     knots = np.concatenate([np.zeros((n, 1)), np.cumsum(np.maximum(seg, floor), axis=1)],
                            axis=1)
-    # the second derivatives' matrices; per new point, its two dense points' knot intervals
-    # and spline weights, and its share of the second one
-    second, pick = np.empty((n, p, p)), np.empty((n, 2 * p), np.int64)
-    coef, w = np.empty((n, 2 * p, 4)), np.empty((n, p))
-    _resample(knots, np.ascontiguousarray(smoothed), float(turning), m, second, pick, coef, w)
+    h = np.diff(knots, axis=1)
+    second = _spline_second(knots, h)
+    # the values and second derivatives at the knots; per new point, its two dense points'
+    # knot intervals and spline weights, and its share of the second one
+    pick, coef, w = np.empty((n, 2 * p), np.int64), np.empty((n, 2 * p, 4)), np.empty((n, p))
+    _resample(knots, np.concatenate([smoothed, second @ smoothed], axis=2), float(turning),
+              pick, coef, w, np.empty((m, 10)), np.empty(m, np.int64))
     # each new point a blend of dense points j and j + 1, each a blend of the values and
     # second derivatives at the two knots round it: the values' weights ``lin`` and the
     # second derivatives' ``cub`` (N, P, P), summed per knot

@@ -116,34 +116,27 @@ def _spline_matrix(knots, t):
 
 
 def test_spline_second_derivatives_and_values_match_scipy():
-    """`_resample`'s second derivatives of the natural splines at the knots (the matrices it
-    evaluates the spline with, and `fairing_matrices` builds its rows from) against scipy's
-    natural cubic spline on uneven knots: the derivatives, and the values by the spline
-    formula of its docstring."""
+    """`_spline_second` (the natural spline's second derivatives at the knots, which
+    `_resample` evaluates the spline with) against scipy's natural cubic spline on uneven
+    knots: the derivatives, and the values by the spline formula of its docstring."""
     from scipy.interpolate import CubicSpline
 
-    from fibres.finishing.fairing import _resample
+    from fibres.finishing.fairing import _spline_second
 
     rng = np.random.default_rng(3)
-    for p in (3, 4, 9):
-        knots = np.cumsum(rng.uniform(0.2, 2.0, p))
-        knots -= knots[0]
-        y = rng.normal(size=(p, 3))
-        t = np.linspace(knots[0], knots[-1], 57)
-        h = np.diff(knots)
-        second = np.empty((1, p, p))
-        _resample(knots[None], y[None], 0.0, 33, second, np.empty((1, 2 * p), np.int64),
-                  np.empty((1, 2 * p, 4)), np.empty((1, p)))
-        m = second[0] @ y
-        spline = CubicSpline(knots, y, bc_type="natural")
-        np.testing.assert_allclose(m, spline(knots, 2), atol=1e-12)
-        k = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(knots) - 2)
-        b = (t - knots[k]) / h[k]
-        a = 1.0 - b
-        value = (a[:, None] * y[k] + b[:, None] * y[k + 1]
-                 + ((a ** 3 - a) * h[k] ** 2 / 6)[:, None] * m[k]
-                 + ((b ** 3 - b) * h[k] ** 2 / 6)[:, None] * m[k + 1])
-        np.testing.assert_allclose(value, spline(t), atol=1e-12)
+    knots = np.cumsum(rng.uniform(0.2, 2.0, 9))
+    y = rng.normal(size=(9, 3))
+    t = np.linspace(knots[0], knots[-1], 57)
+    h = np.diff(knots)
+    m = _spline_second(knots[None], h[None])[0] @ y
+    spline = CubicSpline(knots, y, bc_type="natural")
+    np.testing.assert_allclose(m, spline(knots, 2), atol=1e-12)
+    k = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(knots) - 2)
+    b = (t - knots[k]) / h[k]
+    a = 1.0 - b
+    value = (a[:, None] * y[k] + b[:, None] * y[k + 1] + ((a ** 3 - a) * h[k] ** 2 / 6)[:, None] * m[k]
+             + ((b ** 3 - b) * h[k] ** 2 / 6)[:, None] * m[k + 1])
+    np.testing.assert_allclose(value, spline(t), atol=1e-12)
 
 
 def test_spread_pull_has_no_step_where_a_pull_reaches_pulled():
