@@ -39,7 +39,7 @@ import scipy.sparse as sp
 from numba import njit
 
 from ..errors import InputError
-from ..mesh.surface_distance import SurfaceGrid, _bin_triangles
+from ..mesh.surface_distance import SurfaceGrid
 from .containment import CONTAIN_MARGIN, CONTAIN_REACH, contain
 from .fairing import PULL_ROUNDS, spread_pull
 
@@ -167,13 +167,30 @@ class CarriedPull:
 @njit(cache=True, nogil=True, error_model="numpy")
 def _nearest_centroids(x, centroids, grid, k):
     """(n, k) int64: the ``k`` of ``centroids`` (T, 3) nearest to each point x (n, 3), nearest
-    first (equal distances: the one met first), ``k <= T``. ``grid`` = (origin, cell, dims,
-    start, items) bins each centroid in one cell (`fibres.mesh.surface_distance`'s grid of
-    the centroids as points: `_centroid_grid`); each point visits the cells ring by ring
-    about its own (clamped) cell, passes over a cell farther than the k-th distance so far
-    and stops once the ring's box is farther than that on every side within the grid (no
-    centroid not met lies nearer)."""
-    lo, side, dims, start, items = grid
+    first (equal distances: the one met first), ``k <= T``. ``grid`` = (origin, side, dims)
+    of a uniform grid of cubes over the centroids' box (`_centroid_grid`): the centroids are
+    sorted into its cells (counting sort: cell start, items), then each point visits the
+    cells ring by ring about its own (clamped) cell, passes over a cell farther than the
+    k-th distance so far and stops once the ring's box is farther than that on every side
+    within the grid (no centroid not met lies nearer)."""
+    lo, side, dims = grid
+    t_all = centroids.shape[0]
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
+    cell_of, items = np.empty(t_all, np.int64), np.empty(t_all, np.int64)
+    for t in range(t_all):
+        q = np.int64(0)               # not a literal 0: one pass of type inference
+        for a in range(3):
+            q = q * dims[a] + min(max(int((centroids[t, a] - lo[a]) / side), 0), dims[a] - 1)
+        cell_of[t] = q
+        start[q + 1] += 1
+    for q in range(1, start.shape[0]):
+        start[q] += start[q - 1]
+    for t in range(t_all):           # placed in increasing order; start[q] advances
+        items[start[cell_of[t]]] = t
+        start[cell_of[t]] += 1
+    for q in range(start.shape[0] - 1, 0, -1):
+        start[q] = start[q - 1]
+    start[0] = 0
     near, best = np.empty((x.shape[0], k), np.int64), np.empty(k)
     home, box = np.empty(3, np.int64), np.empty(6, np.int64)
     slack = 1e-9 * side               # for rounding in the cell indices
@@ -230,16 +247,19 @@ def _nearest_centroids(x, centroids, grid, k):
 
 
 def _centroid_grid(centroids, k, area):
-    """(origin, cell, dims, start, items) of `_nearest_centroids`: the centroids (T, 3) as
-    points (degenerate triangles) binned by `fibres.mesh.surface_distance._bin_triangles`
-    in cubes of about twice the radius that holds ``k`` triangles of mean ``area`` on a flat
-    piece of surface (measured: smaller cubes are slower), at most 8 cubes per centroid."""
-    ext = np.ptp(centroids, axis=0)
-    volume = float(np.prod(np.maximum(ext, 1e-3 * ext.max())))
-    side = max(2.0 * math.sqrt(k * area / math.pi), 1e-300)
-    points = np.ascontiguousarray(centroids)
-    return _bin_triangles(points, np.repeat(np.arange(len(points)), 3).reshape(-1, 3), None,
-                          3, min(volume / (len(points) * side ** 3), 8.0))[1:6]
+    """(origin (3,), side, dims (3,) int64) of `_nearest_centroids`' grid over the box of
+    ``centroids`` (T, 3): cubes of about twice the radius that holds ``k`` triangles of mean
+    ``area`` on a flat piece of surface (measured: smaller cubes are no faster), at most two
+    per centroid (the cell starts are memory to clear)."""
+    rows = np.ascontiguousarray(centroids.T)     # reductions over contiguous rows
+    lo = rows.min(axis=1)
+    ext = rows.max(axis=1) - lo
+    side = max(2.0 * math.sqrt(k * area / math.pi), 1e-3 * float(ext.max()), 1e-300)
+    while True:
+        dims = (ext / side).astype(np.int64) + 1
+        if int(np.prod(dims)) <= 2 * len(centroids) + 64:
+            return lo, side, dims
+        side *= 1.25
 
 
 def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,

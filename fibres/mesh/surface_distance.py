@@ -82,8 +82,8 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     """The triangles (vertices, faces) binned by their bounding boxes in a uniform grid along
     the first ``n_axes`` (2 or 3) rows of ``frame`` (3, 3) (None: the world axes; a further
     axis: one cell), of about ``density`` cells per triangle over the vertices' bounding box
-    (a side thinner than 1e-3 of the widest counts as 1e-3 of it). Returns (the vertices in the frame (V, 3),
-    origin (3,), cell, dims (3,), start, items):
+    (a side thinner than 1e-3 of the widest counts as 1e-3 of it). Returns (the vertices in
+    the frame (V, 3), origin (3,), cell, dims (3,), start, items):
     cell (i, j, k) spans ``origin + cell * [i, i + 1)`` etc. along the frame's axes; the
     triangles meeting it are ``items[start[q]:start[q + 1]]``, ``q = (i * dims[1] + j) *
     dims[2] + k``, in increasing order (CSR; counted, then placed by `_bin_cells`)."""
