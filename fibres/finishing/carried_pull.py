@@ -205,21 +205,18 @@ def _nearest_centroids(x, centroids, grid, k):
                 box[a] = max(home[a] - ring, 0)
                 box[3 + a] = min(home[a] + ring, dims[a] - 1)
             for ci in range(box[0], box[3] + 1):
-                y = lo[0] + ci * side - p[0]          # squared distance from the point to
-                gi = max(y, -y - side, 0.0)           # the cell: per axis, past either side
                 for cj in range(box[1], box[4] + 1):
-                    y = lo[1] + cj * side - p[1]
-                    gj = max(y, -y - side, 0.0)
-                    face = abs(ci - home[0]) == ring or abs(cj - home[1]) == ring
                     for ck in range(box[2], box[5] + 1):
-                        if not face and abs(ck - home[2]) != ring:
-                            continue
                         q = (ci * dims[1] + cj) * dims[2] + ck
-                        if start[q] == start[q + 1]:
-                            continue
-                        y = lo[2] + ck * side - p[2]
-                        gk = max(y, -y - side, 0.0)
-                        if gi * gi + gj * gj + gk * gk > reach * reach:
+                        if start[q] == start[q + 1] or max(abs(ci - home[0]), abs(cj - home[1]),
+                                                           abs(ck - home[2])) != ring:
+                            continue  # empty, or a cell of an earlier ring
+                        cell, g2 = (ci, cj, ck), 0.0
+                        for a in range(3):  # the squared distance from the point to the cell
+                            y = lo[a] + cell[a] * side - p[a]
+                            y = max(y, -y - side, 0.0)
+                            g2 += y * y
+                        if g2 > reach * reach:
                             continue
                         for e in range(start[q], start[q + 1]):
                             t = items[e]
