@@ -38,6 +38,7 @@ no point stays outside.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -98,10 +99,14 @@ def _spline_second(s, h):
     return second
 
 
+@functools.lru_cache(maxsize=64)
 def _taubin_matrix(p, iterations):
-    """(P, P) matrix of `smooth_taubin` with ``iterations`` lambda|mu pairs."""
+    """(P, P) matrix of `smooth_taubin` with ``iterations`` lambda|mu pairs (read-only, made
+    once per P and count)."""
     eye = np.eye(p)[None]                     # P "coordinates": the columns of the identity
-    return smooth_taubin(eye, iterations=int(iterations))[0]
+    out = smooth_taubin(eye, iterations=int(iterations))[0]
+    out.flags.writeable = False
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -176,7 +181,7 @@ def fairing_matrices(points, *, iterations, turning=TURNING, dense=DENSE):
     n, p, _ = pts.shape
     if p < 3:
         return np.broadcast_to(np.eye(p), (n, p, p)).copy()
-    taubin = _taubin_matrix(p, iterations) if iterations else np.eye(p)
+    taubin = _taubin_matrix(p, int(iterations)) if iterations else np.eye(p)
     smoothed = np.matmul(taubin, pts)
     m = (p - 1) * int(dense) + 1
     # one spline per fibre, all at once: its knots are the fibre's own chords
@@ -218,13 +223,20 @@ def fairing_operator(points, *, iterations, turning=TURNING, dense=DENSE):
     return out
 
 
+@functools.lru_cache(maxsize=64)
+def _band(p, weights):
+    """(P, P) band matrix: 1 on the diagonal, ``weights`` (a tuple) on the k-th off-diagonals
+    (read-only, made once per P and weights)."""
+    band = np.concatenate([[1.0], np.asarray(weights, dtype=np.float64), np.zeros(p)])
+    out = band[np.abs(np.arange(p)[:, None] - np.arange(p)[None])]
+    out.flags.writeable = False
+    return out
+
+
 def _along(a, weights):
     """``a`` (N, P, K) plus its neighbours' values along each fibre times ``weights``: one
     product with the (P, P) band matrix of 1 and the weights."""
-    p = a.shape[1]
-    band = np.concatenate([[1.0], np.asarray(weights, dtype=np.float64), np.zeros(p)])
-    gap = np.abs(np.arange(p)[:, None] - np.arange(p)[None])
-    return np.matmul(band[gap], a)
+    return np.matmul(_band(a.shape[1], tuple(weights)), a)
 
 
 def spread_pull(before, after):

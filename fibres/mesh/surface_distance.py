@@ -80,18 +80,22 @@ _RAY_FRAME = np.ascontiguousarray(_ray_basis()[[1, 2, 0]])
 
 def _bin_triangles(vertices, faces, frame, n_axes, density):
     """The triangles (vertices, faces) binned by their bounding boxes in a uniform grid along
-    the first ``n_axes`` (2 or 3) rows of ``frame`` (3, 3) (a further axis: one cell), of about
-    ``density`` cells per triangle over the vertices' bounding box (a side thinner than 1e-3
-    of the widest counts as 1e-3 of it). Returns (the vertices in the frame (V, 3),
-    origin (3,), cell, dims (3,), start, items):
+    the first ``n_axes`` (2 or 3) rows of ``frame`` (3, 3) (None: the world axes; a further
+    axis: one cell), of about ``density`` cells per triangle over the vertices' bounding box
+    (a side thinner than 1e-3 of the widest counts as 1e-3 of it). Returns (the vertices in
+    the frame (V, 3), origin (3,), cell, dims (3,), start, items):
     cell (i, j, k) spans ``origin + cell * [i, i + 1)`` etc. along the frame's axes; the
     triangles meeting it are ``items[start[q]:start[q + 1]]``, ``q = (i * dims[1] + j) *
     dims[2] + k``, in increasing order (CSR; counted, then placed by `_bin_cells`)."""
-    rows = np.empty((3, vertices.shape[0]))     # the vertices in the frame, by axis
-    for k in range(3):
-        rows[k] = frame[k, 0] * vertices[:, 0] + frame[k, 1] * vertices[:, 1] \
-            + frame[k, 2] * vertices[:, 2]
-    pv = np.ascontiguousarray(rows.T)
+    if frame is None:                           # the world frame: the vertices as they are
+        pv = vertices
+        rows = np.ascontiguousarray(vertices.T)
+    else:
+        rows = np.empty((3, vertices.shape[0]))     # the vertices in the frame, by axis
+        for k in range(3):
+            rows[k] = frame[k, 0] * vertices[:, 0] + frame[k, 1] * vertices[:, 1] \
+                + frame[k, 2] * vertices[:, 2]
+        pv = np.ascontiguousarray(rows.T)
     origin = np.zeros(3)
     top = np.zeros(3)
     if rows.shape[1]:
@@ -389,10 +393,17 @@ class SurfaceGrid:
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self.reach = float(reach)
-        self._grid = _bin_triangles(self.vertices, self.faces, np.eye(3), 3,
+        self._grid = _bin_triangles(self.vertices, self.faces, None, 3,
                                     _search_density(self.vertices, self.faces))[1:] \
             if len(self.faces) else None
         self._ray = None
+
+    @property
+    def cells(self):
+        """The search grid (origin, cell, dims, start, items, ball) of `_bin_triangles`
+        (None without triangles): ``ball[:, :3]`` are the triangles' centroids
+        ``(a + b + c) / 3``."""
+        return self._grid
 
     def inside(self, points):
         """Whether each point (n, 3) is inside the closed surface, by ray parity along `RAY`

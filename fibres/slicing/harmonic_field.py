@@ -60,11 +60,15 @@ def cotangent_weights(vertices, faces, edges, face_edges) -> np.ndarray:
     cx = ab[:, 1] * ca[:, 2] - ab[:, 2] * ca[:, 1]
     cy = ab[:, 2] * ca[:, 0] - ab[:, 0] * ca[:, 2]
     cz = ab[:, 0] * ca[:, 1] - ab[:, 1] * ca[:, 0]
-    half = 0.5 / np.maximum(np.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
-    # the angle at corner k is opposite side k + 1 (v_{k+1} v_{k+2}): cot = a . b / |a x b|
-    cot = np.concatenate([-np.einsum("ij,ij->i", ab, ca), -np.einsum("ij,ij->i", bc, ab),
-                          -np.einsum("ij,ij->i", ca, bc)]) * np.tile(half, 3)
-    w = np.bincount(face_edges[:, [1, 2, 0]].T.reshape(-1), cot, len(edges))
+    half = -0.5 / np.maximum(np.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+    # the angle at corner k is opposite side k + 1 (v_{k+1} v_{k+2}), face_edges' column
+    # k + 1: cot = a . b / |a x b|, written into that column; each edge of the closed surface
+    # sums its two faces' halves (in either order: the same bits)
+    cot = np.empty((len(half), 3))
+    for column, (u, w) in ((1, (ab, ca)), (2, (bc, ab)), (0, (ca, bc))):
+        np.einsum("ij,ij->i", u, w, out=cot[:, column])
+    cot *= half[:, None]
+    w = np.bincount(face_edges.reshape(-1), cot.reshape(-1), len(edges))
     return np.maximum(w, 0.0)
 
 
@@ -125,8 +129,10 @@ def harmonic_field(vertices, faces, zero, one, *, edges=None, face_edges=None) -
         both = (where[i] >= 0) & (where[j] >= 0)
         a, b, wb = where[i[both]], where[j[both]], w[both]
         k = np.arange(free.size)
-        mat = sp.csc_matrix((np.concatenate([-wb, -wb, diag]),
-                             (np.concatenate([a, b, k]), np.concatenate([b, a, k]))),
+        # entries in (column, row) order once converted (the edges are sorted): above the
+        # diagonal, the diagonal, below it; no sort in the conversion
+        mat = sp.csc_matrix((np.concatenate([-wb, diag, -wb]),
+                             (np.concatenate([a, k, b]), np.concatenate([b, k, a]))),
                             shape=(free.size, free.size))
         rhs = _rhs(where, i, j, w, one, free.size)
         u[free] = splu(mat, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, panel_size=1,
