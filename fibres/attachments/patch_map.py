@@ -120,7 +120,7 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     return xs, ys
 
 
-def grid_area_map(mass, X, Y):
+def grid_area_map(mass, X, Y, groups=None):
     """Unit-square coordinates ``(X, Y)`` onto the square itself, spread by a cell density.
 
     ``mass`` (G, G) is the mass of the grid cells of [0, 1]^2 (cell ``(a, b)`` spans
@@ -134,31 +134,62 @@ def grid_area_map(mass, X, Y):
     Y and the masses: unlike a map in a projection of the membrane, it cannot jump between
     two sheets of a folded projection.
 
+    With ``groups`` (N,) ints in [0, L), ``mass`` is a stack (L, G, G) and each point goes
+    through the map of its own grid: all grids in one vectorised pass (the same numbers as
+    one call per grid; ``F1^-1`` written out as `np.interp` evaluates it).
+
     Returns
     -------
     xs, ys : (N,) float in [0, 1]
     """
     m = np.maximum(np.asarray(mass, dtype=np.float64), 0.0)
-    g = m.shape[0]
-    m = m + 1e-12 * max(float(m.sum()), 1e-300) / m.size        # no empty cell
-    knots = np.linspace(0.0, 1.0, g + 1)
-    col = m.sum(axis=1)
-    f1 = np.concatenate([[0.0], np.cumsum(col)]) / col.sum()
-    xs = np.interp(np.clip(X, 0.0, 1.0), f1, knots)
-    c = np.clip(xs * g - 0.5, 0.0, g - 1.0)
-    a0 = np.minimum(np.floor(c).astype(np.int64), g - 1)
-    a1 = np.minimum(a0 + 1, g - 1)
-    t = (c - a0)[:, None]
-    prof = m / col[:, None]                                     # (G, G) rows sum to 1
-    p = (1.0 - t) * prof[a0] + t * prof[a1]                     # (N, G)
-    cum = np.concatenate([np.zeros((len(xs), 1)), np.cumsum(p, axis=1)], axis=1)
-    cum /= cum[:, -1:]
-    q = np.clip(Y, 0.0, 1.0)[:, None]
-    k = np.clip(np.count_nonzero(cum[:, 1:] < q, axis=1), 0, g - 1)
-    at = k + (g + 1) * np.arange(len(xs))
-    lo, hi = cum.reshape(-1)[at], cum.reshape(-1)[at + 1]
-    f = np.clip((q[:, 0] - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
-    return xs, (k + f) / g
+    if groups is None:
+        m, groups = m[None], np.zeros(len(X), dtype=np.int64)
+    g = m.shape[1]
+    m = m + 1e-12 * np.maximum(m.sum(axis=(1, 2)), 1e-300)[:, None, None] / (g * g)
+    col = m.sum(axis=2)                                         # (L, G)
+    f1 = np.zeros((len(m), g + 1))
+    np.cumsum(col, axis=1, out=f1[:, 1:])
+    f1 /= col.sum(axis=1)[:, None]
+    xs, ys = np.empty(len(X)), np.empty(len(X))
+    _grid_map(f1, m / col[:, :, None], np.linspace(0.0, 1.0, g + 1),
+              np.ascontiguousarray(groups, dtype=np.int64), np.asarray(X, dtype=np.float64),
+              np.asarray(Y, dtype=np.float64), xs, ys, np.empty(g + 1))
+    return xs, ys
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _grid_map(f1, prof, knots, groups, X, Y, xs, ys, cum):
+    """`grid_area_map` point by point, into ``xs``, ``ys``: point i in grid ``groups[i]``
+    with cumulative column shares ``f1`` (L, G + 1) and row profiles ``prof`` (L, G, G)
+    (each column's masses over its sum); ``x*`` as `np.interp` of ``knots`` (G + 1,)
+    evaluates it, the conditional's cumulative sums in ``cum`` (G + 1,), the same
+    operations in the same order as the vectorised form."""
+    g = prof.shape[1]
+    for i in range(X.shape[0]):
+        f, x, q = f1[groups[i]], min(max(X[i], 0.0), 1.0), min(max(Y[i], 0.0), 1.0)
+        if x >= f[g]:
+            xs[i] = knots[g]
+        else:
+            j = 0
+            for b in range(1, g):
+                j += f[b] <= x
+            xs[i] = (knots[j + 1] - knots[j]) / (f[j + 1] - f[j]) * (x - f[j]) + knots[j]
+        c = min(max(xs[i] * g - 0.5, 0.0), g - 1.0)
+        a0 = min(int(math.floor(c)), g - 1)
+        a1 = min(a0 + 1, g - 1)
+        t = c - a0
+        p0, p1 = prof[groups[i], a0], prof[groups[i], a1]
+        cum[0] = 0.0
+        for b in range(g):
+            cum[b + 1] = cum[b] + ((1.0 - t) * p0[b] + t * p1[b])
+        k = 0
+        for b in range(1, g + 1):
+            cum[b] = cum[b] / cum[g] if b < g else 1.0
+            k += cum[b] < q
+        k = min(k, g - 1)
+        lo, hi = cum[k], cum[k + 1]
+        ys[i] = (k + min(max((q - lo) / max(hi - lo, 1e-300), 0.0), 1.0)) / g
 
 
 def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
@@ -199,7 +230,9 @@ def locate(px, py, xs, ys):
 
     cx, cy = px.mean(axis=1), py.mean(axis=1)
     k = min(CANDIDATES, len(px))
-    near = cKDTree(np.stack([cx, cy], axis=1)).query(np.stack([xs, ys], axis=1), k=k)[1]
+    tree = cKDTree(np.stack([cx, cy], axis=1), leafsize=32, balanced_tree=False,
+                   compact_nodes=False)                          # a faster build
+    near = tree.query(np.stack([xs, ys], axis=1), k=k)[1]
     pick, bary, ok = _barycentric(px, py, xs, ys, near.reshape(len(xs), k))
     if not ok.all():
         miss = np.flatnonzero(~ok)
@@ -233,6 +266,16 @@ def _barycentric(px, py, xs, ys, cand):
     return (col if cand is None else cand[rows, col].copy()), bary, ok
 
 
+def _areas(tri):
+    """(T,) areas of the triangles ``tri`` (T, 3, 3): half the norm of the cross product of
+    the edges from the first corner, written out per coordinate (numpy's cross and norm
+    with their per-call costs give the same numbers)."""
+    (ax, ay, az), (bx, by, bz) = np.moveaxis(tri[:, 1] - tri[:, 0], -1, 0), np.moveaxis(
+        tri[:, 2] - tri[:, 0], -1, 0)
+    c0, c1, c2 = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    return 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
 def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
     """Template end coordinates ``(X, Y)`` in [0, 1]^2 onto a patch, by area and order-preserving.
 
@@ -261,7 +304,7 @@ def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
     """
     idx = np.flatnonzero(face_mask)
     tri = np.take(vertices, faces[idx], axis=0) - centre             # (Tp, 3, 3)
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = _areas(tri)
     px, py = tri @ e1, tri @ e2
     xs, ys = knothe_rosenblatt(px, py, area, X, Y)
     pick, bary = locate(px, py, xs, ys)
@@ -319,10 +362,10 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
         face, bary = out[k]
         i = np.flatnonzero(ends[k][0])
         t = np.take(vertices, faces[i], axis=0)                        # (Tp, 3, 3)
-        area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        area = _areas(t)
         n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
         sub = _sub_centroids(n)                                        # (S, 3)
-        cen = t.mean(axis=1)
+        cen = (t[:, 0] + t[:, 1] + t[:, 2]) / 3.0
         axis = int(np.argmax(np.ptp(cen, axis=0)))       # the triangles in order along it
         order = np.argsort(cen[:, axis], kind="stable")
         parts.append((i[order], t[order], cen[order], np.einsum("sk,tkd->tsd", sub, t).reshape(
@@ -360,6 +403,7 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
     ``owner`` (S,) (each sample's point), ``work`` (N, 5) (per point: centroid, mass, d0),
     ``radius`` (T,)."""
     owner, work = np.empty(pts.shape[0], np.int64), np.empty((p.shape[0], 5))
+    order = np.arange(p.shape[0])                     # the points by their axis coordinate
     radius = np.zeros(tri.shape[0])
     slack = 1.0 + 1e-9
     for e in range(tri.shape[0]):
@@ -375,12 +419,33 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
             for j in range(p0, p1):
                 for k in range(5):
                     work[j, k] = 0.0 if k < 4 else np.inf
+            for i in range(p0 + 1, p1):               # insertion sort by the axis
+                j, at = order[i], i
+                while at > p0 and p[order[at - 1], ax] > p[j, ax]:
+                    order[at] = order[at - 1]
+                    at -= 1
+                order[at] = j
+            at = p0
             for s in range(sstart[g], sstart[g + 1]):
-                x0, x1, x2 = pts[s, 0], pts[s, 1], pts[s, 2]
+                x0, x1, x2, xa = pts[s, 0], pts[s, 1], pts[s, 2], pts[s, ax]
+                while at > p0 and p[order[at - 1], ax] > xa:
+                    at -= 1
+                while at < p1 - 1 and p[order[at], ax] < xa:
+                    at += 1
                 best, o = np.inf, p0
-                for j in range(p0, p1):
+                for i in range(at, p1):               # upwards, then downwards from at
+                    j = order[i]
+                    if (p[j, ax] - xa) ** 2 > best:
+                        break
                     d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
-                    if d < best:
+                    if d < best or (d == best and j < o):
+                        best, o = d, j
+                for i in range(at - 1, p0 - 1, -1):
+                    j = order[i]
+                    if (p[j, ax] - xa) ** 2 > best:
+                        break
+                    d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
+                    if d < best or (d == best and j < o):
                         best, o = d, j
                 owner[s] = o
                 work[o, 3] += w[s]

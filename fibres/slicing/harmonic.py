@@ -234,6 +234,25 @@ def _membrane_grid():
 _NODES, _CELLS = _membrane_grid()
 
 
+def _rectangles(k: int, shares) -> np.ndarray:
+    """(L, k, 2) square samples of the loops (module docstring, step 5): for each loop's
+    share, the k points of the unit square's boundary, counter-clockwise from (0, 0), evenly
+    spaced on the perimeter of a rectangle whose sides along x take that share of its
+    perimeter (clipped to [0.02, 0.98]); `harmonic_sections._rectangle_samples` of every loop
+    at once, the same numbers."""
+    w = np.clip(np.asarray(shares, dtype=np.float64), 0.02, 0.98)[:, None]
+    phi = np.arange(k) / k
+    # the four sides' starts along the perimeter, and each sample's side
+    bounds = np.stack(np.broadcast_arrays(0.0, w / 2, 0.5, 0.5 + w / 2, 1.0), axis=-1)
+    side = np.sum(bounds[:, :, :4] <= phi[:, None], axis=-1) - 1            # (L, k)
+    start = np.take_along_axis(bounds[:, 0], side, axis=1)
+    f = (phi - start) / (np.take_along_axis(bounds[:, 0, 1:], side, axis=1) - start)
+    out = np.empty(side.shape + (2,))
+    out[..., 0] = np.choose(side, [f, 1.0, 1.0 - f, 0.0])
+    out[..., 1] = np.choose(side, [0.0, f, 1.0, 1.0 - f])
+    return out
+
+
 def _membranes(polygons, rest):
     """The loops' membranes at rest (step 5's area measure): the grid's nodes mapped by
     each loop's mean value coordinates (w.r.t. ``polygons`` (L, K, 2), applied to the loop
@@ -257,18 +276,12 @@ def _spread(polygons, area, loop, pts):
     """MVC weights (M, K) of the points of the square that spread ``pts`` (M, 2) evenly by
     area over the membranes of their loops ``loop`` (M,): Knothe-Rosenblatt in the square's
     own coordinates with the area of each grid cell's image as its mass
-    (`fibres.attachments.patch_map.grid_area_map`, once per loop for all its points; the map
-    in a projection of the membrane jumped between the sheets of a folded projection:
+    (`fibres.attachments.patch_map.grid_area_map`, all loops in one call; the map in a
+    projection of the membrane jumped between the sheets of a folded projection:
     docs/decisions.md)."""
     half = _MEMBRANE * _MEMBRANE
     mass = (area[:, :half] + area[:, half:]).reshape(-1, _MEMBRANE, _MEMBRANE)
-    order = np.argsort(loop, kind="stable")
-    bounds = np.searchsorted(loop[order], np.arange(len(polygons) + 1)).tolist()
-    square = np.empty_like(pts)
-    for j in range(len(polygons)):
-        if bounds[j + 1] > bounds[j]:
-            sel = order[bounds[j]:bounds[j + 1]]
-            square[sel, 0], square[sel, 1] = grid_area_map(mass[j], pts[sel, 0], pts[sel, 1])
+    square = np.stack(grid_area_map(mass, pts[:, 0], pts[:, 1], loop), axis=1)
     return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons, loop)
 
 
@@ -287,7 +300,7 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     k = SAMPLES
     n_loops = slices.centres.shape[0]
     xy = np.stack([X, Y], axis=-1)                                   # (N, P, 2)
-    polygons = np.stack([_rectangle_samples(k, share) for share in slices.shares])
+    polygons = _rectangles(k, slices.shares)
     samples = slices.samples @ plan.rest_vertices
     rest = samples.reshape(n_loops, k, 3)
     memb, area = _membranes(polygons, rest)
