@@ -179,6 +179,26 @@ def test_grid_map_kernel_of_a_stack_matches_one_numpy_map_per_grid():
         one = PM.grid_area_map(mass[0], X, Y)
         assert np.array_equal(one[0], _grid_oracle(mass[0], X, Y)[0])
 
+
+def test_window_weights_are_the_gaussian_to_rounding_and_sw_far_from_every_sample():
+    """`_window`'s own exponential (Cody-Waite reduction, Taylor polynomial) against numpy's
+    exp: the mid-point cumulative sums and totals agree to a few units of rounding; a point
+    beyond 34 window widths from every sample gets the samples' own weights."""
+    rng = np.random.default_rng(8)
+    sx, sw = rng.uniform(0.0, 1.0, 700), rng.uniform(0.1, 1.0, 700) * 1e-6
+    x, h = np.r_[rng.uniform(-0.2, 1.2, 50), 4.0], 0.08
+    k = np.arange(len(x)) % 690 + 1
+    out = np.empty((len(x), 5))
+    PM._window(sx, sw, x, h, np.zeros(len(x)), k.copy(), out, np.empty(len(sx)))
+    w = np.exp(-0.5 * ((sx[None] - x[:, None]) / h) ** 2) * sw
+    w[-1] = sw                                                      # 4.0: 37 widths away
+    cum = np.cumsum(w, axis=1)
+    half = cum - 0.5 * w
+    rows = np.arange(len(x))
+    want = np.stack([half[rows, k - 1], half[rows, k], cum[:, -1], half[:, 0], half[:, -1]], 1)
+    scale = np.array([1.0] * 50 + [np.exp(-600.0)])[:, None]       # the far point's weights
+    np.testing.assert_allclose(out / scale, want, rtol=1e-13)
+
 def _pieces_oracle(patch, edges, vertex_area):
     """Holes filled, then small pieces dropped, each from the components of the masked
     vertices alone (module docstring of `fibres.attachments.patch`, steps 3 and 4)."""
