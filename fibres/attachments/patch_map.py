@@ -415,11 +415,14 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
     moved in place). Per step: each sample to its nearest point of its patch (ties to the
     lower point), each point with samples to the point of the patch nearest their weighted
     centroid c (its triangle into ``pick``). ``d0``, the distance from c to its nearest own
-    sample, bounds the patch's distance, so only triangles whose centroid lies within d0 +
-    their radius (centroid to corner) of c can hold a nearer point (those within d0 + the
+    sample, bounds the patch's distance, and so does each closest point found (the smaller
+    bound from then on), so only triangles whose centroid lies within the bound + their
+    radius (centroid to corner) of c can hold a nearer point (those within the bound + the
     largest radius along the axis are found by bisection, then filtered); their closest
-    points are `fibres.mesh.closest_point.closest_point`'s, the nearest wins
-    (ties to the first). The points (a hundred) are searched one by one. Work space:
+    points are `fibres.mesh.closest_point.closest_point`'s, the nearest wins (ties to the
+    first). Each sample's nearest point: the points kept sorted along the axis, searched
+    outwards from the sample's place until the axis alone is farther than the best. The
+    points (a hundred) are searched one by one. Work space:
     ``owner`` (S,) (each sample's point), ``work`` (N, 5) (per point: centroid, mass, d0),
     ``radius`` (T,)."""
     owner, work = np.empty(pts.shape[0], np.int64), np.empty((p.shape[0], 5))
@@ -505,6 +508,8 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
                     if d < best:
                         best, pick[j] = d, e
                         p[j, 0], p[j, 1], p[j, 2] = q0, q1, q2
+                        d0 = min(d0, math.sqrt(d))      # the bound from here on
+                        span = (d0 + reach) * slack
 
 
 def _barycentric_3d(tri, q):
