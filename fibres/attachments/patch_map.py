@@ -248,7 +248,7 @@ def locate(px, py, xs, ys):
     point none of them holds)."""
     from scipy.spatial import cKDTree
 
-    cx, cy = px.mean(axis=1), py.mean(axis=1)
+    cx, cy = (px[:, 0] + px[:, 1] + px[:, 2]) / 3.0, (py[:, 0] + py[:, 1] + py[:, 2]) / 3.0
     k = min(CANDIDATES, len(px))
     tree = cKDTree(np.stack([cx, cy], axis=1), leafsize=32, balanced_tree=False,
                    compact_nodes=False)                          # a faster build
