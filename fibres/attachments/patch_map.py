@@ -7,8 +7,9 @@ Knothe-Rosenblatt rearrangement of the uniform square onto the patch's area meas
 a deformed copy of the surface.
 
 Compiled (numba, module level, ``cache=True``): the conditional measure's per-point sums
-(`_window`) and the Lloyd steps (`_lloyd`); what is one vectorised step per patch (triangles,
-samples, weights, the finishing barycentric weights) is numpy around them.
+(`_window`), the grid map (`_grid_map`) and the Lloyd steps (`_lloyd`); what is one
+vectorised step per patch (triangles, samples, weights, the finishing barycentric weights)
+is numpy around them.
 """
 from __future__ import annotations
 
@@ -59,11 +60,10 @@ def _quantile(values, weights, q):
     return np.interp(q, mid, v)
 
 
-#: e^a for `_window`'s Gaussian weights: a = j ln 2 + r (|r| <= ln 2 / 2; ln 2 in two parts,
-#: the first exact in j ln 2: Cody & Waite's reduction, fdlibm's constants), e^r by its Taylor
-#: polynomial to r^13, 2^j written into the exponent bits. Within 2 units in the last place of
-#: math.exp; unlike the library call, the compiler vectorises it.
-_LN2_HI, _LN2_LO, _LOG2E = 6.93147180369123816490e-01, 1.90821492927058770002e-10, 1.4426950408889634
+#: e^a in `_window`: a = j ln 2 + r, |r| <= ln 2 / 2 (Cody & Waite, ln 2 in two parts:
+#: fdlibm's), e^r by Taylor to r^13, 2^j into the exponent bits. Within 2 ulp of math.exp,
+#: and vectorised by the compiler (math.exp is a library call per element).
+_LN2_HI, _LN2_LO, _LOG2E = 6.93147180369123816490e-01, 1.90821492927058770002e-10, 1 / math.log(2)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -155,8 +155,7 @@ def grid_area_map(mass, X, Y, groups=None):
     two sheets of a folded projection.
 
     With ``groups`` (N,) ints in [0, L), ``mass`` is a stack (L, G, G) and each point goes
-    through the map of its own grid: all grids in one vectorised pass (the same numbers as
-    one call per grid; ``F1^-1`` written out as `np.interp` evaluates it).
+    through the map of its own grid (one compiled pass, `_grid_map`).
 
     Returns
     -------
@@ -180,11 +179,10 @@ def grid_area_map(mass, X, Y, groups=None):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _grid_map(f1, prof, knots, groups, X, Y, xs, ys, cum):
-    """`grid_area_map` point by point, into ``xs``, ``ys``: point i in grid ``groups[i]``
-    with cumulative column shares ``f1`` (L, G + 1) and row profiles ``prof`` (L, G, G)
-    (each column's masses over its sum); ``x*`` as `np.interp` of ``knots`` (G + 1,)
-    evaluates it, the conditional's cumulative sums in ``cum`` (G + 1,), the same
-    operations in the same order as the vectorised form."""
+    """`grid_area_map` point by point into ``xs``, ``ys``: point i in grid ``groups[i]``,
+    cumulative column shares ``f1`` (L, G + 1), row profiles ``prof`` (L, G, G) (each
+    column's masses over its sum); ``x*`` as `np.interp` of ``knots`` (G + 1,) evaluates
+    it; the conditional's cumulative sums in ``cum`` (G + 1,)."""
     g = prof.shape[1]
     for i in range(X.shape[0]):
         f, x, q = f1[groups[i]], min(max(X[i], 0.0), 1.0), min(max(Y[i], 0.0), 1.0)
@@ -297,30 +295,16 @@ def _areas(tri):
 
 
 def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
-    """Template end coordinates ``(X, Y)`` in [0, 1]^2 onto a patch, by area and order-preserving.
+    """Template end coordinates ``(X, Y)`` (N,) in [0, 1]^2 onto a patch, by area and
+    order-preserving: per point a face (N,) int64 (index into ``faces`` (T, 3)) and the
+    barycentric weights (N, 3) of its corners (non-negative, summing to 1).
 
     The Knothe-Rosenblatt rearrangement (Rosenblatt, Ann. Math. Stat. 23(3):470-472, 1952;
-    Villani, "Optimal transport", 2009, ch. 1) of the uniform square onto the patch's area,
-    in the frame ``(e1, e2)`` (`knothe_rosenblatt`), then the patch point whose projection is
-    the target (`locate`). Equal areas of the square go to about equal areas of the patch,
-    and fibres keep their order across it.
-
-    Parameters
-    ----------
-    vertices : (V, 3) float
-    faces : (T, 3) int
-    face_mask : (T,) bool
-        The patch's faces (at least one).
-    centre, e1, e2 : (3,) float
-        The frame: origin and two orthonormal axes.
-    X, Y : (N,) float in [0, 1]
-
-    Returns
-    -------
-    face : (N,) int64
-        Index into ``faces``.
-    bary : (N, 3) float
-        Barycentric weights of the face's corners (non-negative, summing to 1).
+    Villani, "Optimal transport", 2009, ch. 1) of the uniform square onto the patch's area
+    (faces ``face_mask`` (T,) bool, at least one; ``vertices`` (V, 3)), in the frame of
+    origin ``centre`` and orthonormal axes ``e1``, ``e2`` (`knothe_rosenblatt`), then the
+    patch point whose projection is the target (`locate`). Equal areas of the square go to
+    about equal areas of the patch, and fibres keep their order across it.
     """
     idx = np.flatnonzero(face_mask)
     tri = np.take(vertices, faces[idx], axis=0) - centre             # (Tp, 3, 3)
@@ -354,11 +338,7 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     uniform scale or a renumbering of the mesh moves the relaxed points alike, up to
     rounding. (Snapping each point to its nearest *sample* instead is not: where the
     centroid lies midway between two samples, as on a symmetric patch, rounding picks one.)
-
-    Returns
-    -------
-    face : (N,) int64
-    bary : (N, 3) float
+    Returns the points' ``face`` (N,) int64 and ``bary`` (N, 3).
     """
     return relax_on_patches(vertices, faces, [(face_mask, face, bary)], iterations=iterations,
                             samples=samples)[0]
@@ -415,20 +395,17 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
     moved in place). Per step: each sample to its nearest point of its patch (ties to the
     lower point), each point with samples to the point of the patch nearest their weighted
     centroid c (its triangle into ``pick``). ``d0``, the distance from c to its nearest own
-    sample, bounds the patch's distance, and so does each closest point found (the smaller
-    bound from then on), so only triangles whose centroid lies within the bound + their
-    radius (centroid to corner) of c can hold a nearer point (those within the bound + the
-    largest radius along the axis are found by bisection, then filtered); their closest
-    points are `fibres.mesh.closest_point.closest_point`'s, the nearest wins (ties to the
-    first). Each sample's nearest point: the points kept sorted along the axis, searched
-    outwards from the sample's place until the axis alone is farther than the best. The
-    points (a hundred) are searched one by one. Work space:
-    ``owner`` (S,) (each sample's point), ``work`` (N, 5) (per point: centroid, mass, d0),
-    ``radius`` (T,)."""
+    sample, and then each closest point found bound the patch's distance: only triangles
+    whose centroid lies within the bound + their radius (centroid to corner) of c can hold
+    a nearer point (those within the bound + the largest radius along the axis are found by
+    bisection, then filtered); their closest points are
+    `fibres.mesh.closest_point.closest_point`'s, the nearest wins (ties to the first). A
+    sample's nearest point: the points sorted along the axis, searched outwards from the
+    sample's place until the axis alone is farther than the best. Work space: ``owner``
+    (S,) (each sample's point), ``work`` (N, 5) (per point: centroid, mass, d0), ``radius``
+    (T,)."""
     owner, work = np.empty(pts.shape[0], np.int64), np.empty((p.shape[0], 5))
-    order = np.arange(p.shape[0])                     # the points by their axis coordinate
-    radius = np.zeros(tri.shape[0])
-    slack = 1.0 + 1e-9
+    order, radius, slack = np.arange(p.shape[0]), np.zeros(tri.shape[0]), 1.0 + 1e-9
     for e in range(tri.shape[0]):
         for c in range(3):
             radius[e] = max(radius[e], math.sqrt((tri[e, c, 0] - cen[e, 0]) ** 2 + (
@@ -456,20 +433,14 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
                 while at < p1 - 1 and p[order[at], ax] < xa:
                     at += 1
                 best, o = np.inf, p0
-                for i in range(at, p1):               # upwards, then downwards from at
-                    j = order[i]
-                    if (p[j, ax] - xa) ** 2 > best:
-                        break
-                    d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
-                    if d < best or (d == best and j < o):
-                        best, o = d, j
-                for i in range(at - 1, p0 - 1, -1):
-                    j = order[i]
-                    if (p[j, ax] - xa) ** 2 > best:
-                        break
-                    d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
-                    if d < best or (d == best and j < o):
-                        best, o = d, j
+                for first, stop, step in ((at, p1, 1), (at - 1, p0 - 1, -1)):  # up, down
+                    for i in range(first, stop, step):
+                        j = order[i]
+                        if (p[j, ax] - xa) ** 2 > best:
+                            break
+                        d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
+                        if d < best or (d == best and j < o):
+                            best, o = d, j
                 owner[s] = o
                 work[o, 3] += w[s]
                 work[o, 0] += w[s] * x0

@@ -1,7 +1,8 @@
 """The compiled steps of the attachment ends (`fibres.attachments.patch_map`: `_lloyd`,
-`_window`, `_grid_map`) and the patch's holes and pieces (`fibres.attachments.patch._pieces`) against
-plain numpy oracles written here from their definitions: brute force over every point,
-sample and triangle, and one graph search per mask.
+`_window`, and the membranes' `_grid_map`) and the patch's holes and pieces
+(`fibres.attachments.patch._pieces`) against plain numpy oracles written here from their
+definitions: brute force over every point, sample and triangle, and one graph search per
+mask.
 """
 import numpy as np
 from scipy.sparse import coo_matrix
