@@ -61,9 +61,10 @@ def _quantile(values, weights, q):
 
 
 #: e^a in `_window`: a = j ln 2 + r, |r| <= ln 2 / 2 (Cody & Waite, ln 2 in two parts:
-#: fdlibm's), e^r by Taylor to r^13, 2^j into the exponent bits. Within 2 ulp of math.exp,
-#: and vectorised by the compiler (math.exp is a library call per element).
+#: fdlibm's), e^r by Taylor to r^13, times 2^j from a table (a >= -600). Within 2 ulp of
+#: math.exp, and vectorised by the compiler (math.exp is a library call per element).
 _LN2_HI, _LN2_LO, _LOG2E = 6.93147180369123816490e-01, 1.90821492927058770002e-10, 1 / math.log(2)
+_POW2 = np.ldexp(1.0, np.arange(-900, 1))                  # 2^j, j = -900 .. 0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -77,23 +78,20 @@ def _window(sx, sw, x, h, q, k, out, work):
     ``half_s < q[i] * total`` clipped to [1, S - 1]; ``out[i]`` gets ``half[k - 1], half[k],
     total, half[0], half[S - 1]``. Work space ``work`` (S,)."""
     n = sx.shape[0]
-    bits = np.empty(n, np.int64)                     # 2^j of each weight's e^a
-    scale = bits.view(np.float64)
     for i in range(x.shape[0]):
         for s in range(n):
             d = (sx[s] - x[i]) / h
             a = max(-0.5 * (d * d), -600.0)
-            j = np.floor(a * _LOG2E + 0.5)
+            j = math.floor(a * _LOG2E + 0.5)
             r = (a - j * _LN2_HI) - j * _LN2_LO
             e = r * (1.0 / 6227020800.0) + 1.0 / 479001600.0
             for c in (39916800.0, 3628800.0, 362880.0, 40320.0, 5040.0, 720.0, 120.0,
                       24.0, 6.0, 2.0, 1.0, 1.0):
                 e = e * r + 1.0 / c
-            work[s] = e
-            bits[s] = (np.int64(j) + 1023) << 52
+            work[s] = e * _POW2[j + 900]
         cum = 0.0
         for s in range(n):
-            w = work[s] * scale[s] * sw[s]
+            w = work[s] * sw[s]
             cum += w
             work[s] = cum - 0.5 * w
         if not cum > 0.0:                         # all of sw zero (or not finite)
