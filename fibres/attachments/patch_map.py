@@ -397,13 +397,11 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
     whose centroid lies within the bound + their radius (centroid to corner) of c can hold
     a nearer point (those within the bound + the largest radius along the axis are found by
     bisection, then filtered); their closest points are
-    `fibres.mesh.closest_point.closest_point`'s, the nearest wins (ties to the first). A
-    sample's nearest point: the points sorted along the axis, searched outwards from the
-    sample's place until the axis alone is farther than the best. Work space: ``owner``
-    (S,) (each sample's point), ``work`` (N, 5) (per point: centroid, mass, d0), ``radius``
-    (T,)."""
+    `fibres.mesh.closest_point.closest_point`'s, the nearest wins (ties to the first). The
+    points (a hundred) are searched one by one. Work space: ``owner`` (S,) (each sample's
+    point), ``work`` (N, 5) (per point: centroid, mass, d0), ``radius`` (T,)."""
     owner, work = np.empty(pts.shape[0], np.int64), np.empty((p.shape[0], 5))
-    order, radius, slack = np.arange(p.shape[0]), np.zeros(tri.shape[0]), 1.0 + 1e-9
+    radius, slack = np.zeros(tri.shape[0]), 1.0 + 1e-9
     for e in range(tri.shape[0]):
         for c in range(3):
             radius[e] = max(radius[e], math.sqrt((tri[e, c, 0] - cen[e, 0]) ** 2 + (
@@ -417,28 +415,13 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
             for j in range(p0, p1):
                 for k in range(5):
                     work[j, k] = 0.0 if k < 4 else np.inf
-            for i in range(p0 + 1, p1):               # insertion sort by the axis
-                j, at = order[i], i
-                while at > p0 and p[order[at - 1], ax] > p[j, ax]:
-                    order[at] = order[at - 1]
-                    at -= 1
-                order[at] = j
-            at = p0
             for s in range(sstart[g], sstart[g + 1]):
-                x0, x1, x2, xa = pts[s, 0], pts[s, 1], pts[s, 2], pts[s, ax]
-                while at > p0 and p[order[at - 1], ax] > xa:
-                    at -= 1
-                while at < p1 - 1 and p[order[at], ax] < xa:
-                    at += 1
+                x0, x1, x2 = pts[s, 0], pts[s, 1], pts[s, 2]
                 best, o = np.inf, p0
-                for first, stop, step in ((at, p1, 1), (at - 1, p0 - 1, -1)):  # up, down
-                    for i in range(first, stop, step):
-                        j = order[i]
-                        if (p[j, ax] - xa) ** 2 > best:
-                            break
-                        d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
-                        if d < best or (d == best and j < o):
-                            best, o = d, j
+                for j in range(p0, p1):
+                    d = (x0 - p[j, 0]) ** 2 + (x1 - p[j, 1]) ** 2 + (x2 - p[j, 2]) ** 2
+                    if d < best:
+                        best, o = d, j
                 owner[s] = o
                 work[o, 3] += w[s]
                 work[o, 0] += w[s] * x0

@@ -71,10 +71,10 @@ def test_lloyd_kernel_matches_a_brute_force_step_on_two_curved_patches():
 
 
 def test_lloyd_steps_keep_the_brute_force_owners_over_several_steps_and_ties():
-    """Three steps at once (the kernel keeps its points sorted along the patch's axis from
-    step to step and searches outwards from each sample) against three brute-force steps,
-    with two points on the same spot (their tie goes to the lower point, whose cell takes
-    all the samples: in the first step the other one stays)."""
+    """Three steps at once against three brute-force steps (the triangle search's bound
+    tightens as closest points are found), with two points on the same spot (their tie
+    goes to the lower point, whose cell takes all the samples: in the first step the other
+    one stays)."""
     v, f = _sphere()
     cz = v[f].mean(axis=1)[:, 2]
     rng = np.random.default_rng(5)
