@@ -7,8 +7,9 @@ Knothe-Rosenblatt rearrangement of the uniform square onto the patch's area meas
 a deformed copy of the surface.
 
 Compiled (numba, module level, ``cache=True``): the conditional measure's per-point sums
-(`_window`) and the Lloyd steps (`_lloyd`); what is one vectorised step per patch (triangles,
-samples, weights, the finishing barycentric weights) is numpy around them.
+(`_window`), the grid map (`_grid_map`) and the Lloyd steps (`_lloyd`); what is one
+vectorised step per patch (triangles, samples, weights, the finishing barycentric weights)
+is numpy around them.
 """
 from __future__ import annotations
 
@@ -59,34 +60,51 @@ def _quantile(values, weights, q):
     return np.interp(q, mid, v)
 
 
+#: e^a in `_window`: a = j ln 2 + r, |r| <= ln 2 / 2 (Cody & Waite, ln 2 in two parts:
+#: fdlibm's), e^r by Taylor to r^13, times 2^j from a table (a >= -600). Within 2 ulp of
+#: math.exp, and vectorised by the compiler (math.exp is a library call per element).
+_LN2_HI, _LN2_LO, _LOG2E = 6.93147180369123816490e-01, 1.90821492927058770002e-10, 1 / math.log(2)
+_POW2 = np.ldexp(1.0, np.arange(-900, 1))                  # 2^j, j = -900 .. 0
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _window(sx, sw, x, h, q, k, out, work):
     """The conditional measure of `knothe_rosenblatt` and `kr_coordinates` at each ``x[i]``:
     the samples' weights ``sw`` times the Gaussian window of width ``h`` about ``x[i]``
-    (``sw`` itself where no sample's window reaches), in the samples' order, and their
-    mid-point cumulative sums ``half_s = cum_s - w_s / 2``. Where ``k[i] < 0`` on entry it
-    becomes the count of ``half_s < q[i] * total`` clipped to [1, S - 1]; ``out[i]`` gets
-    ``half[k - 1], half[k], total, half[0], half[S - 1]``. Work space ``work`` (S,)."""
+    (its exponent at least -600: beyond 34 widths from every sample, as where no sample's
+    window reaches, the weights are ``sw``'s own), in the samples' order, and their
+    mid-point cumulative sums ``half_s = cum_s - w_s / 2``,
+    ``total`` the last ``cum_s``. Where ``k[i] < 0`` on entry it becomes the count of
+    ``half_s < q[i] * total`` clipped to [1, S - 1]; ``out[i]`` gets ``half[k - 1], half[k],
+    total, half[0], half[S - 1]``. Work space ``work`` (S,)."""
     n = sx.shape[0]
     for i in range(x.shape[0]):
-        total = 0.0
         for s in range(n):
             d = (sx[s] - x[i]) / h
-            work[s] = math.exp(-0.5 * (d * d)) * sw[s]
-            total += work[s]
-        if not total > 0.0:                       # the weights are >= 0: nothing reached
-            total = 0.0
-            for s in range(n):
-                work[s] = sw[s]
-                total += work[s]
-        cum, below, limit = 0.0, 0, q[i] * total
+            a = max(-0.5 * (d * d), -600.0)
+            j = math.floor(a * _LOG2E + 0.5)
+            r = (a - j * _LN2_HI) - j * _LN2_LO
+            e = r * (1.0 / 6227020800.0) + 1.0 / 479001600.0
+            for c in (39916800.0, 3628800.0, 362880.0, 40320.0, 5040.0, 720.0, 120.0,
+                      24.0, 6.0, 2.0, 1.0, 1.0):
+                e = e * r + 1.0 / c
+            work[s] = e * _POW2[j + 900]
+        cum = 0.0
         for s in range(n):
-            cum += work[s]
-            work[s] = cum - 0.5 * work[s]
-            below += work[s] < limit
+            w = work[s] * sw[s]
+            cum += w
+            work[s] = cum - 0.5 * w
+        if not cum > 0.0:                         # all of sw zero (or not finite)
+            cum = 0.0
+            for s in range(n):
+                cum += sw[s]
+                work[s] = cum - 0.5 * sw[s]
         if k[i] < 0:
+            below, limit = 0, q[i] * cum
+            for s in range(n):
+                below += work[s] < limit
             k[i] = min(max(below, 1), n - 1)
-        out[i, 0], out[i, 1], out[i, 2] = work[k[i] - 1], work[k[i]], total
+        out[i, 0], out[i, 1], out[i, 2] = work[k[i] - 1], work[k[i]], cum
         out[i, 3], out[i, 4] = work[0], work[n - 1]
 
 
@@ -120,7 +138,7 @@ def knothe_rosenblatt(px, py, area, X, Y, *, samples: int = SAMPLES):
     return xs, ys
 
 
-def grid_area_map(mass, X, Y):
+def grid_area_map(mass, X, Y, groups=None):
     """Unit-square coordinates ``(X, Y)`` onto the square itself, spread by a cell density.
 
     ``mass`` (G, G) is the mass of the grid cells of [0, 1]^2 (cell ``(a, b)`` spans
@@ -134,31 +152,60 @@ def grid_area_map(mass, X, Y):
     Y and the masses: unlike a map in a projection of the membrane, it cannot jump between
     two sheets of a folded projection.
 
+    With ``groups`` (N,) ints in [0, L), ``mass`` is a stack (L, G, G) and each point goes
+    through the map of its own grid (one compiled pass, `_grid_map`).
+
     Returns
     -------
     xs, ys : (N,) float in [0, 1]
     """
     m = np.maximum(np.asarray(mass, dtype=np.float64), 0.0)
-    g = m.shape[0]
-    m = m + 1e-12 * max(float(m.sum()), 1e-300) / m.size        # no empty cell
-    knots = np.linspace(0.0, 1.0, g + 1)
-    col = m.sum(axis=1)
-    f1 = np.concatenate([[0.0], np.cumsum(col)]) / col.sum()
-    xs = np.interp(np.clip(X, 0.0, 1.0), f1, knots)
-    c = np.clip(xs * g - 0.5, 0.0, g - 1.0)
-    a0 = np.minimum(np.floor(c).astype(np.int64), g - 1)
-    a1 = np.minimum(a0 + 1, g - 1)
-    t = (c - a0)[:, None]
-    prof = m / col[:, None]                                     # (G, G) rows sum to 1
-    p = (1.0 - t) * prof[a0] + t * prof[a1]                     # (N, G)
-    cum = np.concatenate([np.zeros((len(xs), 1)), np.cumsum(p, axis=1)], axis=1)
-    cum /= cum[:, -1:]
-    q = np.clip(Y, 0.0, 1.0)[:, None]
-    k = np.clip(np.count_nonzero(cum[:, 1:] < q, axis=1), 0, g - 1)
-    at = k + (g + 1) * np.arange(len(xs))
-    lo, hi = cum.reshape(-1)[at], cum.reshape(-1)[at + 1]
-    f = np.clip((q[:, 0] - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
-    return xs, (k + f) / g
+    if groups is None:
+        m, groups = m[None], np.zeros(len(X), dtype=np.int64)
+    g = m.shape[1]
+    m = m + 1e-12 * np.maximum(m.sum(axis=(1, 2)), 1e-300)[:, None, None] / (g * g)
+    col = m.sum(axis=2)                                         # (L, G)
+    f1 = np.zeros((len(m), g + 1))
+    np.cumsum(col, axis=1, out=f1[:, 1:])
+    f1 /= col.sum(axis=1)[:, None]
+    xs, ys = np.empty(len(X)), np.empty(len(X))
+    _grid_map(f1, m / col[:, :, None], np.linspace(0.0, 1.0, g + 1),
+              np.ascontiguousarray(groups, dtype=np.int64), np.asarray(X, dtype=np.float64),
+              np.asarray(Y, dtype=np.float64), xs, ys, np.empty(g + 1))
+    return xs, ys
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _grid_map(f1, prof, knots, groups, X, Y, xs, ys, cum):
+    """`grid_area_map` point by point into ``xs``, ``ys``: point i in grid ``groups[i]``,
+    cumulative column shares ``f1`` (L, G + 1), row profiles ``prof`` (L, G, G) (each
+    column's masses over its sum); ``x*`` as `np.interp` of ``knots`` (G + 1,) evaluates
+    it; the conditional's cumulative sums in ``cum`` (G + 1,)."""
+    g = prof.shape[1]
+    for i in range(X.shape[0]):
+        f, x, q = f1[groups[i]], min(max(X[i], 0.0), 1.0), min(max(Y[i], 0.0), 1.0)
+        if x >= f[g]:
+            xs[i] = knots[g]
+        else:
+            j = 0
+            for b in range(1, g):
+                j += f[b] <= x
+            xs[i] = (knots[j + 1] - knots[j]) / (f[j + 1] - f[j]) * (x - f[j]) + knots[j]
+        c = min(max(xs[i] * g - 0.5, 0.0), g - 1.0)
+        a0 = min(int(math.floor(c)), g - 1)
+        a1 = min(a0 + 1, g - 1)
+        t = c - a0
+        p0, p1 = prof[groups[i], a0], prof[groups[i], a1]
+        cum[0] = 0.0
+        for b in range(g):
+            cum[b + 1] = cum[b] + ((1.0 - t) * p0[b] + t * p1[b])
+        k = 0
+        for b in range(1, g + 1):
+            cum[b] = cum[b] / cum[g] if b < g else 1.0
+            k += cum[b] < q
+        k = min(k, g - 1)
+        lo, hi = cum[k], cum[k + 1]
+        ys[i] = (k + min(max((q - lo) / max(hi - lo, 1e-300), 0.0), 1.0)) / g
 
 
 def kr_coordinates(px, py, area, qx, qy, *, samples: int = SAMPLES):
@@ -197,9 +244,11 @@ def locate(px, py, xs, ys):
     point none of them holds)."""
     from scipy.spatial import cKDTree
 
-    cx, cy = px.mean(axis=1), py.mean(axis=1)
+    cx, cy = (px[:, 0] + px[:, 1] + px[:, 2]) / 3.0, (py[:, 0] + py[:, 1] + py[:, 2]) / 3.0
     k = min(CANDIDATES, len(px))
-    near = cKDTree(np.stack([cx, cy], axis=1)).query(np.stack([xs, ys], axis=1), k=k)[1]
+    tree = cKDTree(np.stack([cx, cy], axis=1), leafsize=32, balanced_tree=False,
+                   compact_nodes=False)                          # a faster build
+    near = tree.query(np.stack([xs, ys], axis=1), k=k)[1]
     pick, bary, ok = _barycentric(px, py, xs, ys, near.reshape(len(xs), k))
     if not ok.all():
         miss = np.flatnonzero(~ok)
@@ -233,35 +282,31 @@ def _barycentric(px, py, xs, ys, cand):
     return (col if cand is None else cand[rows, col].copy()), bary, ok
 
 
+def _areas(tri):
+    """(T,) areas of the triangles ``tri`` (T, 3, 3): half the norm of the cross product of
+    the edges from the first corner, written out per coordinate (numpy's cross and norm
+    with their per-call costs give the same numbers)."""
+    (ax, ay, az), (bx, by, bz) = np.moveaxis(tri[:, 1] - tri[:, 0], -1, 0), np.moveaxis(
+        tri[:, 2] - tri[:, 0], -1, 0)
+    c0, c1, c2 = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    return 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+
+
 def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):
-    """Template end coordinates ``(X, Y)`` in [0, 1]^2 onto a patch, by area and order-preserving.
+    """Template end coordinates ``(X, Y)`` (N,) in [0, 1]^2 onto a patch, by area and
+    order-preserving: per point a face (N,) int64 (index into ``faces`` (T, 3)) and the
+    barycentric weights (N, 3) of its corners (non-negative, summing to 1).
 
     The Knothe-Rosenblatt rearrangement (Rosenblatt, Ann. Math. Stat. 23(3):470-472, 1952;
-    Villani, "Optimal transport", 2009, ch. 1) of the uniform square onto the patch's area,
-    in the frame ``(e1, e2)`` (`knothe_rosenblatt`), then the patch point whose projection is
-    the target (`locate`). Equal areas of the square go to about equal areas of the patch,
-    and fibres keep their order across it.
-
-    Parameters
-    ----------
-    vertices : (V, 3) float
-    faces : (T, 3) int
-    face_mask : (T,) bool
-        The patch's faces (at least one).
-    centre, e1, e2 : (3,) float
-        The frame: origin and two orthonormal axes.
-    X, Y : (N,) float in [0, 1]
-
-    Returns
-    -------
-    face : (N,) int64
-        Index into ``faces``.
-    bary : (N, 3) float
-        Barycentric weights of the face's corners (non-negative, summing to 1).
+    Villani, "Optimal transport", 2009, ch. 1) of the uniform square onto the patch's area
+    (faces ``face_mask`` (T,) bool, at least one; ``vertices`` (V, 3)), in the frame of
+    origin ``centre`` and orthonormal axes ``e1``, ``e2`` (`knothe_rosenblatt`), then the
+    patch point whose projection is the target (`locate`). Equal areas of the square go to
+    about equal areas of the patch, and fibres keep their order across it.
     """
     idx = np.flatnonzero(face_mask)
     tri = np.take(vertices, faces[idx], axis=0) - centre             # (Tp, 3, 3)
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = _areas(tri)
     px, py = tri @ e1, tri @ e2
     xs, ys = knothe_rosenblatt(px, py, area, X, Y)
     pick, bary = locate(px, py, xs, ys)
@@ -291,11 +336,7 @@ def relax_on_patch(vertices, faces, face_mask, face, bary, *, iterations: int = 
     uniform scale or a renumbering of the mesh moves the relaxed points alike, up to
     rounding. (Snapping each point to its nearest *sample* instead is not: where the
     centroid lies midway between two samples, as on a symmetric patch, rounding picks one.)
-
-    Returns
-    -------
-    face : (N,) int64
-    bary : (N, 3) float
+    Returns the points' ``face`` (N,) int64 and ``bary`` (N, 3).
     """
     return relax_on_patches(vertices, faces, [(face_mask, face, bary)], iterations=iterations,
                             samples=samples)[0]
@@ -319,10 +360,10 @@ def relax_on_patches(vertices, faces, ends, *, iterations: int = LLOYD,
         face, bary = out[k]
         i = np.flatnonzero(ends[k][0])
         t = np.take(vertices, faces[i], axis=0)                        # (Tp, 3, 3)
-        area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        area = _areas(t)
         n = int(np.clip(np.sqrt(samples / max(len(i), 1)), 1, 8))
         sub = _sub_centroids(n)                                        # (S, 3)
-        cen = t.mean(axis=1)
+        cen = (t[:, 0] + t[:, 1] + t[:, 2]) / 3.0
         axis = int(np.argmax(np.ptp(cen, axis=0)))       # the triangles in order along it
         order = np.argsort(cen[:, axis], kind="stable")
         parts.append((i[order], t[order], cen[order], np.einsum("sk,tkd->tsd", sub, t).reshape(
@@ -352,16 +393,15 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
     moved in place). Per step: each sample to its nearest point of its patch (ties to the
     lower point), each point with samples to the point of the patch nearest their weighted
     centroid c (its triangle into ``pick``). ``d0``, the distance from c to its nearest own
-    sample, bounds the patch's distance, so only triangles whose centroid lies within d0 +
-    their radius (centroid to corner) of c can hold a nearer point (those within d0 + the
-    largest radius along the axis are found by bisection, then filtered); their closest
-    points are `fibres.mesh.closest_point.closest_point`'s, the nearest wins
-    (ties to the first). The points (a hundred) are searched one by one. Work space:
-    ``owner`` (S,) (each sample's point), ``work`` (N, 5) (per point: centroid, mass, d0),
-    ``radius`` (T,)."""
+    sample, and then each closest point found bound the patch's distance: only triangles
+    whose centroid lies within the bound + their radius (centroid to corner) of c can hold
+    a nearer point (those within the bound + the largest radius along the axis are found by
+    bisection, then filtered); their closest points are
+    `fibres.mesh.closest_point.closest_point`'s, the nearest wins (ties to the first). The
+    points (a hundred) are searched one by one. Work space: ``owner`` (S,) (each sample's
+    point), ``work`` (N, 5) (per point: centroid, mass, d0), ``radius`` (T,)."""
     owner, work = np.empty(pts.shape[0], np.int64), np.empty((p.shape[0], 5))
-    radius = np.zeros(tri.shape[0])
-    slack = 1.0 + 1e-9
+    radius, slack = np.zeros(tri.shape[0]), 1.0 + 1e-9
     for e in range(tri.shape[0]):
         for c in range(3):
             radius[e] = max(radius[e], math.sqrt((tri[e, c, 0] - cen[e, 0]) ** 2 + (
@@ -420,6 +460,8 @@ def _lloyd(tri, cen, axes, pts, w, p, tstart, sstart, pstart, iterations, pick):
                     if d < best:
                         best, pick[j] = d, e
                         p[j, 0], p[j, 1], p[j, 2] = q0, q1, q2
+                        d0 = min(d0, math.sqrt(d))      # the bound from here on
+                        span = (d0 + reach) * slack
 
 
 def _barycentric_3d(tri, q):

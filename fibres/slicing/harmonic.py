@@ -76,6 +76,7 @@ blends), frozen in the plan: ``points = F W V`` on any deformed copy. The contai
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 import threading
 
 import numpy as np
@@ -234,6 +235,25 @@ def _membrane_grid():
 _NODES, _CELLS = _membrane_grid()
 
 
+def _rectangles(k: int, shares) -> np.ndarray:
+    """(L, k, 2) square samples of the loops (module docstring, step 5): for each loop's
+    share, the k points of the unit square's boundary, counter-clockwise from (0, 0), evenly
+    spaced on the perimeter of a rectangle whose sides along x take that share of its
+    perimeter (clipped to [0.02, 0.98]); `harmonic_sections._rectangle_samples` of every loop
+    at once, the same numbers."""
+    w = np.clip(np.asarray(shares, dtype=np.float64), 0.02, 0.98)[:, None]
+    phi = np.arange(k) / k
+    # the four sides' starts along the perimeter, and each sample's side
+    bounds = np.stack(np.broadcast_arrays(0.0, w / 2, 0.5, 0.5 + w / 2, 1.0), axis=-1)
+    side = np.sum(bounds[:, :, :4] <= phi[:, None], axis=-1) - 1            # (L, k)
+    start = np.take_along_axis(bounds[:, 0], side, axis=1)
+    f = (phi - start) / (np.take_along_axis(bounds[:, 0, 1:], side, axis=1) - start)
+    out = np.empty(side.shape + (2,))
+    out[..., 0] = np.choose(side, [f, 1.0, 1.0 - f, 0.0])
+    out[..., 1] = np.choose(side, [0.0, f, 1.0, 1.0 - f])
+    return out
+
+
 def _membranes(polygons, rest):
     """The loops' membranes at rest (step 5's area measure): the grid's nodes mapped by
     each loop's mean value coordinates (w.r.t. ``polygons`` (L, K, 2), applied to the loop
@@ -257,18 +277,12 @@ def _spread(polygons, area, loop, pts):
     """MVC weights (M, K) of the points of the square that spread ``pts`` (M, 2) evenly by
     area over the membranes of their loops ``loop`` (M,): Knothe-Rosenblatt in the square's
     own coordinates with the area of each grid cell's image as its mass
-    (`fibres.attachments.patch_map.grid_area_map`, once per loop for all its points; the map
-    in a projection of the membrane jumped between the sheets of a folded projection:
+    (`fibres.attachments.patch_map.grid_area_map`, all loops in one call; the map in a
+    projection of the membrane jumped between the sheets of a folded projection:
     docs/decisions.md)."""
     half = _MEMBRANE * _MEMBRANE
     mass = (area[:, :half] + area[:, half:]).reshape(-1, _MEMBRANE, _MEMBRANE)
-    order = np.argsort(loop, kind="stable")
-    bounds = np.searchsorted(loop[order], np.arange(len(polygons) + 1)).tolist()
-    square = np.empty_like(pts)
-    for j in range(len(polygons)):
-        if bounds[j + 1] > bounds[j]:
-            sel = order[bounds[j]:bounds[j + 1]]
-            square[sel, 0], square[sel, 1] = grid_area_map(mass[j], pts[sel, 0], pts[sel, 1])
+    square = np.stack(grid_area_map(mass, pts[:, 0], pts[:, 1], loop), axis=1)
     return mean_value_coordinates(np.clip(square, 1e-6, 1.0 - 1e-6), polygons, loop)
 
 
@@ -287,7 +301,7 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     k = SAMPLES
     n_loops = slices.centres.shape[0]
     xy = np.stack([X, Y], axis=-1)                                   # (N, P, 2)
-    polygons = np.stack([_rectangle_samples(k, share) for share in slices.shares])
+    polygons = _rectangles(k, slices.shares)
     samples = slices.samples @ plan.rest_vertices
     rest = samples.reshape(n_loops, k, 3)
     memb, area = _membranes(polygons, rest)
@@ -309,10 +323,9 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     m = len(jj)
     per_row = np.zeros((n, p), dtype=np.int64)
     per_row[:, 1:-1] = np.bincount(pt, minlength=a.size).reshape(n, p - 2) * k
-    loops = sp.csr_matrix(((lam[:m] * wpair.reshape(-1)[use, None]).reshape(-1),
-                           (jj[:, None] * k + np.arange(k)).reshape(-1),
-                           np.concatenate([[0], np.cumsum(per_row.reshape(-1))])),
-                          shape=(n * p, n_loops * k))
+    loops = _csr((lam[:m] * wpair.reshape(-1)[use, None]).reshape(-1),
+                 (jj.astype(_INDEX)[:, None] * k + np.arange(k, dtype=_INDEX)).reshape(-1),
+                 per_row, (n * p, n_loops * k))
     # ends: the fibres' places on the first / last inner membrane, projected on its frame,
     # carried onto the whole patch by area and in order (the membrane's projected area
     # measure onto the patch's, Knothe-Rosenblatt both ways: fibres.attachments.patch_map); the
@@ -339,6 +352,20 @@ def _fibre_matrix(plan: HarmonicPlan, slices: _Slices, tmpl, rs, resolution):
     return loops, verts, (_even((bend @ y).reshape(n, p, 3)) @ bend).tocsr(), y
 
 
+#: index type of the sparse maps (their sizes are far below 2^31): scipy's own choice, made
+#: here so that it need not scan the indices to find it
+_INDEX = np.int32
+
+
+def _csr(data, indices, lengths, shape):
+    """CSR matrix of ``shape`` from its rows' entries back to back (``data``, column
+    ``indices`` of type `_INDEX`, in order within each row) and the rows' entry counts
+    ``lengths`` (any shape, rows in C order)."""
+    indptr = np.zeros(lengths.size + 1, dtype=_INDEX)
+    np.cumsum(lengths.reshape(-1), out=indptr[1:])
+    return sp.csr_matrix((data, indices, indptr), shape=shape)
+
+
 def _end_rows(faces, n_vertices, n, p, ends, relaxed):
     """Sparse (N P, V) vertex weights of the fibre points: each end the corners of its
     relaxed patch triangle (``relaxed``), each inner point the ends' relaxation shifts
@@ -346,7 +373,7 @@ def _end_rows(faces, n_vertices, n, p, ends, relaxed):
     to the other end: where both ends move alike (a straight cylinder) fibres stay straight.
     Rows in order: an end's 3 entries, an inner point's 12 (four triangles' corners)."""
     per = 6 + 12 * (p - 2)
-    data, index = np.empty((n, per)), np.empty((n, per), dtype=np.int64)
+    data, index = np.empty((n, per)), np.empty((n, per), dtype=_INDEX)
     # views of the inner points' entries (splitting the last axis: no copies)
     inner_v = data[:, 3:per - 3].reshape(n, p - 2, 12)
     inner_i = index[:, 3:per - 3].reshape(n, p - 2, 12)
@@ -360,18 +387,18 @@ def _end_rows(faces, n_vertices, n, p, ends, relaxed):
             inner_i[:, :, at] = faces[fc][:, None, :]
     lengths = np.full((n, p), 12)
     lengths[:, 0] = lengths[:, -1] = 3
-    return sp.csr_matrix((data.reshape(-1), index.reshape(-1),
-                          np.concatenate([[0], np.cumsum(lengths.reshape(-1))])),
-                         shape=(n * p, n_vertices))
+    return _csr(data.reshape(-1), index.reshape(-1), lengths, (n * p, n_vertices))
 
 
+@lru_cache(maxsize=8)
 def _bend_to_ends(n, p):
     """Sparse (N P, N P) matrix bending each fibre gradually towards its ends: the offset
     ``delta = E - (2 P_1 - P_2)`` of the end E from the fibre's own course continued one
     segment is added to the inner points at ``q`` segments from that end with weight
     ``(1 - q / B)^2`` (B = `END_BEND` of the points, at least 3): where an attachment patch
     lies to the side of the fibres' course (a strip along the muscle's edge), the fibres
-    turn towards it over several segments instead of hooking in the last one."""
+    turn towards it over several segments instead of hooking in the last one. One matrix
+    per (N, P), shared: not to be changed in place."""
     bend = max(3.0, END_BEND * (p - 1))
     block = np.eye(p)                                              # one fibre's (P, P)
     for end, one, two, sign in ((0, 1, 2, 1), (p - 1, p - 2, p - 3, -1)):
@@ -385,10 +412,8 @@ def _bend_to_ends(n, p):
             for c, w in ((end, g), (one, -2.0 * g), (two, g)):
                 block[r, c] += w
     rr, cc = np.nonzero(block)
-    indptr = np.concatenate([[0], np.cumsum(np.tile(np.bincount(rr, minlength=p), n))])
-    return sp.csr_matrix((np.tile(block[rr, cc], n),
-                          (np.arange(n)[:, None] * p + cc).reshape(-1), indptr),
-                         shape=(n * p, n * p))
+    return _csr(np.tile(block[rr, cc], n), (np.arange(n)[:, None] * p + cc).reshape(-1).astype(
+        _INDEX), np.tile(np.bincount(rr, minlength=p), n), (n * p, n * p))
 
 
 def _even(points):
@@ -407,8 +432,8 @@ def _even(points):
     hi = np.take_along_axis(c, k + 1, axis=1)
     w = np.clip((target - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
     first = np.arange(n)[:, None, None] * p + k[:, :, None] + np.arange(2)   # (N, P, 2)
-    return sp.csr_matrix((np.stack([1.0 - w, w], axis=-1).reshape(-1), first.reshape(-1),
-                          np.arange(n * p + 1) * 2), shape=(n * p, n * p))
+    return _csr(np.stack([1.0 - w, w], axis=-1).reshape(-1), first.reshape(-1).astype(_INDEX),
+                np.full(n * p, 2), (n * p, n * p))
 
 
 def maps_key(tmpl, n_fibres, resolution, seed, smoothing) -> tuple:

@@ -73,6 +73,16 @@ def test_stacked_polygons_give_each_polygon_s_own_coordinates():
     np.testing.assert_allclose(got[5, [10, 11]], [0.3, 0.7], atol=1e-15)
 
 
+
+def test_the_loops_rectangles_at_once_equal_one_call_per_loop():
+    """`_rectangles` (all loops' square samples in one pass) gives `_rectangle_samples` of
+    each share bit for bit, clipped shares and sample counts that do not split evenly
+    included."""
+    shares = np.r_[np.random.default_rng(7).uniform(0.0, 1.0, 20), 0.0, 1.0, 0.02, 0.5, 1 / 3]
+    for k in (64, 7, 5):
+        assert np.array_equal(harmonic._rectangles(k, shares),
+                              np.stack([_rectangle_samples(k, s) for s in shares]))
+
 def test_rest_points_are_the_map_of_the_rest_vertices():
     """The plan keeps the rest pose's points: a copy of the rest vertices (another array)
     and the map itself give them bit for bit; a moved copy moves them."""
