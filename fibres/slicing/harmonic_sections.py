@@ -124,17 +124,25 @@ def _cross(p, q):
     return out
 
 
-def _loop_frame(points):
-    """(centroid, unit normal, segment lengths) of a closed loop."""
-    nxt = np.roll(points, -1, axis=0)
-    seg = np.linalg.norm(nxt - points, axis=1)
-    total = seg.sum()
-    c = (0.5 * (points + nxt) * seg[:, None]).sum(axis=0) / total if total > 0 \
-        else points.mean(axis=0)
-    area = 0.5 * _cross(points - c, nxt - c).sum(axis=0)
-    norm = np.linalg.norm(area)
-    n = area / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
-    return c, n, seg
+def _loop_frames(p, first, size):
+    """(L, 3) centroids, (L, 3) unit normals (vector areas) and (N,) segment lengths of the
+    closed loops ``p[first[j]:first[j] + size[j]]`` (p (N, 3)): the centroid weighs each
+    segment's midpoint by its length (the vertex mean for a loop of length 0)."""
+    nxt = np.arange(1, len(p) + 1)
+    nxt[first + size - 1] = first
+    q = p[nxt]
+    d = q - p
+    seg = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+    centres = np.add.reduceat(0.5 * (p + q) * seg[:, None], first, axis=0)
+    for j, (a, m) in enumerate(zip(first.tolist(), size.tolist())):
+        total = seg[a:a + m].sum()
+        centres[j] = centres[j] / total if total > 0 else p[a:a + m].mean(axis=0)
+    c = np.repeat(centres, size, axis=0)
+    normals = 0.5 * np.add.reduceat(_cross(p - c, q - c), first, axis=0)
+    for j, area in enumerate(normals):
+        norm = np.linalg.norm(area)
+        normals[j] = area / norm if norm > 0 else (0.0, 0.0, 1.0)
+    return centres, normals, seg
 
 
 def _major_axis(points, c, n, loop, vertices):
@@ -180,17 +188,19 @@ def _rectangle_samples(k: int, share: float) -> np.ndarray:
 _FINE = 8
 
 
-def _registered_seam(pts, segs, mid, mid_seam):
+def _registered_seam(p, seg, first, size, mid, mid_seam):
     """(L, `SAMPLES`) positions (node + fraction) of the loops' samples at equal arc lengths
-    from their seams: loop ``mid``'s seam is ``mid_seam``; each next loop outwards gets the
-    seam whose samples lie nearest the previous loop's in the least-squares sense, both sample
-    sets centred (the loops move along the muscle; only the cyclic shift is sought). The
-    shifts searched are `_FINE` per sample spacing, all round the loop, from the loop's point
-    nearest the previous seam's point (`_seam_chain`). ``pts``, ``segs``: each loop's points
-    and segment lengths (`_loop_frame`)."""
-    size = np.array([len(p) for p in pts], dtype=np.int64)
-    return _seam_chain(np.concatenate(pts), np.concatenate(segs), np.cumsum(size) - size,
-                       size, mid, float(mid_seam), SAMPLES, _FINE)[1]
+    from their seams. The loops are ``p[first[j]:first[j] + size[j]]`` (p (N, 3)), their
+    segment lengths ``seg`` (N,) (`_loop_frames`). Loop ``mid``'s seam is ``mid_seam`` (in
+    ``[0, size[mid])``); each next loop outwards gets the seam whose samples lie nearest the
+    previous loop's in the least-squares sense, both sample sets centred (the loops move along
+    the muscle; only the cyclic shift is sought). The shifts searched are `_FINE` per sample
+    spacing, all round the loop, from the loop's point nearest the previous seam's point
+    (`_seam_chain`)."""
+    return _seam_chain(np.ascontiguousarray(p, dtype=np.float64),
+                       np.ascontiguousarray(seg, dtype=np.float64),
+                       np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64),
+                       int(mid), float(mid_seam), SAMPLES, _FINE)[1]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -206,7 +216,7 @@ def _arc_into(p, seg, lo, m, start, k, pos, out):
     cum[0], cum[1] = 0.0, head
     run = 0.0
     for t in range(1, m):
-        run += seg[lo + (i0 + t) % m]
+        run += seg[lo + i0 + t if i0 + t < m else lo + i0 + t - m]
         cum[t + 1] = run + head
     cum[m + 1] = cum[m] + seg[lo + i0] * f0
     eps = 1e-15 * cum[m + 1]
@@ -224,12 +234,13 @@ def _arc_into(p, seg, lo, m, start, k, pos, out):
             y = xj
         else:
             y = (xn - xj) / (cum[j + 1] - cum[j]) * (x - cum[j]) + xj
-        y = y % m
+        while y >= m:                    # y % m: exact for y in [0, 2 m)
+            y -= m
         pos[i] = y
         fy = np.floor(y)
-        a = int(fy) % m
+        a = int(fy)
         f = y - fy
-        b = (a + 1) % m
+        b = a + 1 if a + 1 < m else 0
         for d in range(3):
             out[i, d] = (1.0 - f) * p[lo + a, d] + f * p[lo + b, d]
 
@@ -238,52 +249,56 @@ def _arc_into(p, seg, lo, m, start, k, pos, out):
 def _seam_chain(p, seg, first, size, mid, mid_seam, k, fine):
     """Seams (L,) and (L, k) sample positions of the loops ``p[first[j]:first[j] + size[j]]``
     (segment lengths ``seg``), carried from loop ``mid`` (seam ``mid_seam``) to each next loop
-    outwards (`_slices`): the guess is the loop's point nearest the previous seam's point,
-    then `_registered_seam`'s least-squares shift over ``fine`` shifts per sample spacing,
-    every circular cross-correlation summed directly."""
+    outwards (`_registered_seam`): the guess is the loop's point nearest the previous seam's
+    point; the cost of each shift by `_registered_seam`'s least squares, its circular
+    cross-correlation summed directly."""
     n_loops = size.size
     seams = np.empty(n_loops)
     pos = np.empty((n_loops, k))
+    mid_ref = np.empty((k, 3))
     ref = np.empty((k, 3))
     fpos = np.empty(k * fine)
     fpts = np.empty((k * fine, 3))
-    sub = np.empty((fine, 3, 2 * k))
+    sub = np.empty((3, 2 * k))
     corr = np.empty(k)
+    q = np.empty(3)
     seams[mid] = mid_seam
-    _arc_into(p, seg, first[mid], size[mid], mid_seam, k, pos[mid], ref)
-    mid_ref = ref.copy()
-    for step in (1, -1):
+    _arc_into(p, seg, first[mid], size[mid], mid_seam, k, pos[mid], mid_ref)
+    for side in range(2):
+        step = 1 - 2 * side
         prev = mid
-        ref[:] = mid_ref
+        for i in range(k):
+            for d in range(3):
+                ref[i, d] = mid_ref[i, d]
         j = mid + step
-        while 0 <= j < n_loops:
+        while j >= 0 and j < n_loops:
             # the previous seam's point and the nearest point of this loop (the guess)
             lo, m = first[prev], size[prev]
             fl = np.floor(seams[prev])
-            a = int(fl) % m
+            a = int(fl)
             f = seams[prev] - fl
-            b = (a + 1) % m
-            q = np.empty(3)
+            b = a + 1 if a + 1 < m else 0
             for d in range(3):
                 q[d] = (1.0 - f) * p[lo + a, d] + f * p[lo + b, d]
             lo, m = first[j], size[j]
             best, guess = np.inf, 0.0
             for i in range(m):
-                i1 = (i + 1) % m
+                i1 = lo + i + 1 if i + 1 < m else lo
                 num, den = 0.0, 0.0
                 for d in range(3):
-                    ab = p[lo + i1, d] - p[lo + i, d]
+                    ab = p[i1, d] - p[lo + i, d]
                     num += (q[d] - p[lo + i, d]) * ab
                     den += ab * ab
-                t = min(max(num / max(den, 1e-300), 0.0), 1.0)
+                t = num / (den if den > 1e-300 else 1e-300)
+                t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
                 dist = 0.0
                 for d in range(3):
-                    e = p[lo + i, d] + t * (p[lo + i1, d] - p[lo + i, d]) - q[d]
+                    e = p[lo + i, d] + t * (p[i1, d] - p[lo + i, d]) - q[d]
                     dist += e * e
                 dist = np.sqrt(dist)
                 if dist < best:
                     best, guess = dist, i + t
-            # fine samples from the guess, centred per shift r; the reference centred
+            # fine samples from the guess; both sample sets centred
             _arc_into(p, seg, lo, m, guess, k * fine, fpos, fpts)
             for d in range(3):
                 c = 0.0
@@ -302,20 +317,21 @@ def _seam_chain(p, seg, first, size, mid, mid_seam, k, fine):
                     c /= k
                     for i in range(k):
                         x = fpts[i * fine + r, d] - c
-                        sub[r, d, i] = x
-                        sub[r, d, i + k] = x
+                        sub[d, i] = x
+                        sub[d, i + k] = x
                         power += x * x
-                corr[:] = 0.0
+                for s in range(k):
+                    corr[s] = 0.0
                 for d in range(3):
                     for i in range(k):
                         w = ref[i, d]
                         for s in range(k):
-                            corr[s] += sub[r, d, i + s] * w
+                            corr[s] += sub[d, i + s] * w
                 for s in range(k):
                     cost = power - 2.0 * corr[s]
                     if cost < cost_best:
                         cost_best, at = cost, s * fine + r
-            seams[j] = fpos[at % (k * fine)]
+            seams[j] = fpos[at]
             _arc_into(p, seg, lo, m, seams[j], k, pos[j], ref)
             prev = j
             j += step
@@ -349,14 +365,15 @@ def _slices(plan, resolution: int) -> _Slices:
         if len(found) > 1:
             notes.append(f"slice {j}: {len(found)} isoline loops, the longest kept")
         loops.append(found[0])
-    pts = [lp.points(v) for lp in loops]
-    frames = [_loop_frame(p) for p in pts]
-    centres = np.array([f[0] for f in frames])
-    segs = [f[2] for f in frames]
-    normals = np.array([f[1] for f in frames])
+    size = np.array([len(lp) for lp in loops])
+    first = np.cumsum(size) - size
+    ea, eb, es = (np.concatenate([getattr(lp, x) for lp in loops]) for x in "abs")
+    pts = (1.0 - es[:, None]) * v[ea] + es[:, None] * v[eb]     # all loops' `Loop.points`
+    centres, normals, seg = _loop_frames(pts, first, size)
     mid = len(loops) // 2
+    pts_mid = pts[first[mid]:first[mid] + size[mid]]
     axes = np.zeros_like(centres)
-    axes[mid] = _major_axis(pts[mid], centres[mid], normals[mid], loops[mid], v)
+    axes[mid] = _major_axis(pts_mid, centres[mid], normals[mid], loops[mid], v)
     for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
         prev = mid
         for j in rng:
@@ -368,20 +385,19 @@ def _slices(plan, resolution: int) -> _Slices:
     # point (the field's flow lines cross its isolines at right angles)
     e2 = _cross(normals, axes)
     e2m = e2[mid]
-    d = pts[mid] - centres[mid]
+    d = pts_mid - centres[mid]
     x, y = d @ axes[mid], d @ e2m
     score = -x / max(np.ptp(x), 1e-12) - y / max(np.ptp(y), 1e-12)
-    pos = _registered_seam(pts, segs, mid, np.argmax(score))                    # (L, SAMPLES)
-    shares = np.empty(len(loops))
-    for j, p in enumerate(pts):
-        d = p - centres[j]
-        a, b = np.ptp(d @ axes[j]), np.ptp(d @ e2[j])
-        shares[j] = a / max(a + b, 1e-300)
+    pos = _registered_seam(pts, seg, first, size, mid, np.argmax(score))       # (L, SAMPLES)
+    # each loop's extents along e1 and e2
+    d = pts - np.repeat(centres, size, axis=0)
+    x = np.einsum("ij,ij->i", d, np.repeat(axes, size, axis=0))
+    y = np.einsum("ij,ij->i", d, np.repeat(e2, size, axis=0))
+    a = np.maximum.reduceat(x, first) - np.minimum.reduceat(x, first)
+    b = np.maximum.reduceat(y, first) - np.minimum.reduceat(y, first)
+    shares = a / np.maximum(a + b, 1e-300)
     # sample k of loop j blends loop points i0 and i1 = i0 + 1, each an edge point: four
     # (row, vertex, weight) entries per sample, in the order (i0: a, b; i1: a, b) per loop
-    size = np.array([len(lp) for lp in loops])
-    first = np.cumsum(size) - size
-    ea, eb, es = (np.concatenate([getattr(lp, x) for lp in loops]) for x in "abs")
     i0 = np.floor(pos).astype(np.int64) % size[:, None]
     f = pos - np.floor(pos)
     g0, g1 = i0 + first[:, None], (i0 + 1) % size[:, None] + first[:, None]

@@ -293,7 +293,8 @@ def test_registered_seam_finds_the_same_material_start_on_a_renumbered_loop():
     nxt = np.roll(prev + [0.0, 0.0, 1.0], -50, axis=0)
     segs = [np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1) for p in (prev, nxt)]
     for first, mid, seam_mid, want in ((prev, 0, 37.0, 187.0), (nxt, 1, 187.0, 37.0)):
-        pos = _registered_seam([prev, nxt], segs, mid, seam_mid)
+        pos = _registered_seam(np.concatenate([prev, nxt]), np.concatenate(segs), [0, 200],
+                               [200, 200], mid, seam_mid)
         assert pos[mid, 0] == seam_mid
         seam = pos[1 - mid, 0]
         assert abs((seam - want + 100.0) % 200.0 - 100.0) <= 0.5 * 200 / 64 / 8 + 1e-9

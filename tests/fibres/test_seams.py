@@ -25,7 +25,9 @@ def test_compiled_seam_chain_matches_the_numpy_oracle():
         pts = _wobbly_loops(rng, n_loops)
         segs = [np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1) for p in pts]
         seam = float(rng.integers(len(pts[mid])))
-        got = _registered_seam(pts, segs, mid, seam)
+        size = np.array([len(p) for p in pts])
+        got = _registered_seam(np.concatenate(pts), np.concatenate(segs), np.cumsum(size) - size,
+                               size, mid, seam)
         want = seam_chain(pts, mid, seam)
         assert got.shape == (n_loops, SAMPLES)
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
@@ -37,5 +39,5 @@ def test_samples_are_at_equal_arc_lengths_from_the_seam():
     th = np.arange(m) / m * 2 * np.pi
     p = np.c_[np.cos(th), np.sin(th), np.zeros(m)]
     seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
-    pos = _registered_seam([p], [seg], 0, 12.25)[0]
+    pos = _registered_seam(p, seg, [0], [m], 0, 12.25)[0]
     np.testing.assert_allclose((pos - 12.25) % m, np.arange(SAMPLES) * m / SAMPLES, atol=1e-9)
