@@ -73,26 +73,23 @@ class AttachmentPatches:
     notes: tuple = ()
 
 
-def _upper(a, b, values, n):
-    """Sparse (n, n) matrix with ``values`` at the pairs ``(a, b)`` (``a < b``, each pair
-    once): straight in sparse-row form when the pairs come sorted (`mesh_edges` order), else
-    by sorting. The graph routines here are undirected: the upper triangle is the graph."""
-    key = a * np.int64(n) + b
-    if key.size and not (np.diff(key) > 0).all():
-        return sp.csr_matrix((values, (a, b)), shape=(n, n))
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(a, minlength=n), out=indptr[1:])
-    return sp.csr_matrix((values, b, indptr), shape=(n, n))
-
-
 def _graph(vertices, edges):
-    """The mesh's edge graph (upper triangle, `_upper`) weighted by the edges' lengths, the
-    row of each stored entry, and the lengths."""
+    """The mesh's edge graph weighted by the edges' lengths: a sparse (V, V) matrix with the
+    length of each edge ``(a, b)``, ``a < b``, at ``(a, b)`` (the graph routines here are
+    undirected: the upper triangle is the graph), the row of each stored entry, and the
+    lengths. Straight in sparse-row form when the edges come sorted (`mesh_edges` order; the
+    rows are then the edges' first vertices), else by sorting."""
     d = np.take(vertices, edges[:, 0], axis=0) - np.take(vertices, edges[:, 1], axis=0)
     length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
     lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
-    graph = _upper(lo, hi, length, len(vertices))
-    return graph, np.repeat(np.arange(len(vertices)), np.diff(graph.indptr)), length
+    n = len(vertices)
+    key = lo * np.int64(n) + hi
+    if key.size and not (np.diff(key) > 0).all():
+        graph = sp.csr_matrix((length, (lo, hi)), shape=(n, n))
+        return graph, np.repeat(np.arange(n), np.diff(graph.indptr)), length
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(lo, minlength=n), out=indptr[1:])
+    return sp.csr_matrix((length, hi, indptr), shape=(n, n)), lo, length
 
 
 def face_normals(vertices, faces):

@@ -85,7 +85,9 @@ def mesh_topology(faces, n_vertices: int) -> MeshTopology:
     if f.ndim != 2 or f.shape[1] != 3:
         raise ValueError(f"faces must have shape (T, 3), got {f.shape}")
     a = f.reshape(-1)
-    b = np.roll(f, -1, axis=1).reshape(-1)
+    b = np.empty_like(f)                                   # each half-edge's end: the next corner
+    b[:, :2], b[:, 2] = f[:, 1:], f[:, 0]
+    b = b.reshape(-1)
     lo = np.minimum(a, b)
     hi = np.maximum(a, b)
     key = lo * np.int64(n_vertices) + hi
