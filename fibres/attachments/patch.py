@@ -114,13 +114,14 @@ def _grow(graph, seeds, radius):
 def _components(mask, graph, rows):
     """Connected components of the graph (`_graph`, its entries' ``rows``) without the edges
     that join a vertex of ``mask`` to one outside it: the pieces of ``mask`` and those of the
-    rest at once, (count, (V,) labels)."""
+    rest at once, (count, (V,) labels, (E,) whether each stored edge is kept). Labels are
+    numbered by each component's first vertex (scipy's order)."""
     keep = mask[rows] == mask[graph.indices]
     at = np.zeros(len(keep) + 1, dtype=np.int64)
     np.cumsum(keep, out=at[1:])
     cut = sp.csr_matrix((np.ones(int(at[-1])), graph.indices[keep], at[graph.indptr]),
                         shape=graph.shape)
-    return connected_components(cut, directed=False)
+    return connected_components(cut, directed=False) + (keep,)
 
 
 def _pieces(patch, graph, rows, vertex_area, name, notes):
@@ -128,8 +129,10 @@ def _pieces(patch, graph, rows, vertex_area, name, notes):
     3 and 4): holes are the components of the rest of the surface smaller than half the
     patch (not the muscle's free surface, the largest, nor a face that a ring of landmarks
     round a thin muscle's rim happens to enclose); pieces under `MIN_PIECE` of the filled
-    patch's area are dropped, with a note."""
-    n, label = _components(patch, graph, rows)
+    patch's area are dropped, with a note. The filled patch's pieces join the components that
+    the cut edges between the patch and a hole connect (a search over the components, not the
+    surface: the same components, numbered alike)."""
+    n, label, kept = _components(patch, graph, rows)
     rest = np.zeros(n, dtype=bool)
     rest[label[~patch]] = True
     area = np.bincount(label, vertex_area, n)
@@ -138,7 +141,12 @@ def _pieces(patch, graph, rows, vertex_area, name, notes):
         small[np.flatnonzero(rest)[area[rest].argmax()]] = False
         if small.any():
             patch = patch | small[label]
-            n, label = _components(patch, graph, rows)
+            a, b = label[rows[~kept]], label[graph.indices[~kept]]
+            join = small[a] | small[b]
+            n, merged = connected_components(
+                sp.csr_matrix((np.ones(int(join.sum())), (a[join], b[join])), shape=(n, n)),
+                directed=False)
+            label = merged[label]
             area = np.bincount(label, vertex_area, n)
     piece = np.zeros(n, dtype=bool)
     piece[label[patch]] = True
