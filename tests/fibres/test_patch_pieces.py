@@ -8,24 +8,23 @@ from fibres.slicing.harmonic_field import mesh_edges
 
 
 def _oracle(patch, graph, rows, vertex_area):
-    """The rule of `_pieces` with a second search of the whole surface after filling."""
-    n, label, _ = _components(patch, graph, rows)
-    rest = np.zeros(n, dtype=bool)
-    rest[label[~patch]] = True
-    area = np.bincount(label, vertex_area, n)
-    if rest.sum() > 1:
-        small = rest & (area < 0.5 * vertex_area[patch].sum())
-        small[np.flatnonzero(rest)[area[rest].argmax()]] = False
-        if small.any():
-            patch = patch | small[label]
-            n, label, _ = _components(patch, graph, rows)
-            area = np.bincount(label, vertex_area, n)
-    piece = np.zeros(n, dtype=bool)
-    piece[label[patch]] = True
-    if piece.sum() <= 1:
-        return patch
-    keep = ~piece | (area >= MIN_PIECE * area[piece].sum())
-    return patch & keep[label]
+    """The rule of `_pieces` (holes under half the patch's area filled, never the largest
+    region of the rest; then pieces under `MIN_PIECE` of the patch's area dropped) with a
+    fresh search of the whole surface after filling."""
+    def search(mask):
+        n, label, _ = _components(mask, graph, rows)
+        return label, np.bincount(label, vertex_area, n)
+
+    label, area = search(patch)
+    rest = np.unique(label[~patch])
+    largest = rest[np.argmax(area[rest])]
+    holes = [c for c in rest if c != largest and area[c] < 0.5 * vertex_area[patch].sum()]
+    if holes:
+        patch = patch | np.isin(label, holes)
+        label, area = search(patch)
+    pieces = np.unique(label[patch])
+    small = [c for c in pieces if area[c] < MIN_PIECE * area[pieces].sum()]
+    return patch & ~np.isin(label, small) if len(pieces) > 1 else patch
 
 
 def test_filled_holes_and_pieces_match_a_fresh_search():
