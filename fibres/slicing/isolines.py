@@ -197,41 +197,26 @@ def _moments(u, vertices, faces, levels, area):
     l crosses face f where ``min u < levels[l] <= max u`` over its corners (levels
     increasing); the segment runs from the falling side's crossing to the rising side's
     (module docstring)."""
-    n_l = levels.size
-    out = np.zeros((n_l, 7))
-    if n_l == 0:
-        return out
+    out = np.zeros((levels.size, 7))
     p = np.empty((2, 3))
     uc = np.empty(3)
     x = np.empty((3, 3))                             # the face's corners
-    # a guess of each face's first level above its lowest u: the count of levels below each
-    # of 4 L equal steps between the first and last level, corrected by a short scan
-    n_b = 4 * n_l
-    first, step = levels[0], (levels[n_l - 1] - levels[0]) / n_b
-    below = np.zeros(n_b + 1, np.int64)
-    for b in range(n_b + 1):
-        c = below[b - 1] if b else 0
-        while c < n_l and levels[c] <= first + b * step:
-            c += 1
-        below[b] = c
     for f in range(faces.shape[0]):
         for k in range(3):
             uc[k] = u[faces[f, k]]
         low, high = min(min(uc[0], uc[1]), uc[2]), max(max(uc[0], uc[1]), uc[2])
-        if high < first or low >= levels[n_l - 1]:
-            continue
-        lv = 0
-        if low >= first and step > 0:
-            lv = below[min(int((low - first) / step), n_b)]
-        while lv > 0 and levels[lv - 1] > low:
-            lv -= 1
-        while lv < n_l and levels[lv] <= low:       # lv: the first level above the lowest u
-            lv += 1
-        if lv < n_l and levels[lv] <= high:
+        lv, hi = 0, levels.size                      # lv: the first level above the lowest u
+        while lv < hi:
+            mid = (lv + hi) // 2
+            if levels[mid] <= low:
+                lv = mid + 1
+            else:
+                hi = mid
+        if lv < levels.size and levels[lv] <= high:
             for k in range(3):
                 for d in range(3):
                     x[k, d] = vertices[faces[f, k], d]
-        while lv < n_l and levels[lv] <= high:
+        while lv < levels.size and levels[lv] <= high:
             t = levels[lv]
             ab0, ab1, ab2 = uc[0] >= t, uc[1] >= t, uc[2] >= t
             for r in range(2):
