@@ -205,9 +205,11 @@ def _registered_seam(p, seg, first, size, mid, mid_seam):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _arc_into(p, seg, lo, m, start, k, pos, out):
-    """`_arc_positions` of the loop ``p[lo:lo + m]`` (segment lengths ``seg[lo:lo + m]``) from
-    ``start`` into ``pos`` (k,), and its points into ``out`` (k, 3) (`_loop_samples`); np.interp's
-    formula."""
+    """The k positions (node + fraction, in ``[0, m)``) that divide the closed loop
+    ``p[lo:lo + m]`` (segment lengths ``seg[lo:lo + m]``) into k equal arcs from the position
+    ``start``, into ``pos`` (k,), and their points into ``out`` (k, 3): the lengths summed
+    from the start (made strictly increasing by 1e-15 of the total a node), inverted by
+    `np.interp`'s formula."""
     fl = np.floor(start)
     i0 = int(fl) % m
     f0 = start - fl
