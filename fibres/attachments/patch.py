@@ -73,32 +73,36 @@ class AttachmentPatches:
     notes: tuple = ()
 
 
-def _upper(a, b, values, n):
-    """Sparse (n, n) matrix with ``values`` at the pairs ``(a, b)`` (``a < b``, each pair
-    once): straight in sparse-row form when the pairs come sorted (`mesh_edges` order), else
-    by sorting. The graph routines here are undirected: the upper triangle is the graph."""
-    key = a * np.int64(n) + b
-    if key.size and not (np.diff(key) > 0).all():
-        return sp.csr_matrix((values, (a, b)), shape=(n, n))
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(a, minlength=n), out=indptr[1:])
-    return sp.csr_matrix((values, b, indptr), shape=(n, n))
-
-
 def _graph(vertices, edges):
-    """The mesh's edge graph (upper triangle, `_upper`) weighted by the edges' lengths, the
-    row of each stored entry, and the lengths."""
+    """The mesh's edge graph weighted by the edges' lengths: a sparse (V, V) matrix with the
+    length of each edge ``(a, b)``, ``a < b``, at ``(a, b)`` (the graph routines here are
+    undirected: the upper triangle is the graph), the row of each stored entry, and the
+    lengths. Straight in sparse-row form when the edges come sorted (`mesh_edges` order; the
+    rows are then the edges' first vertices), else by sorting."""
     d = np.take(vertices, edges[:, 0], axis=0) - np.take(vertices, edges[:, 1], axis=0)
     length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
     lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
-    graph = _upper(lo, hi, length, len(vertices))
-    return graph, np.repeat(np.arange(len(vertices)), np.diff(graph.indptr)), length
+    n = len(vertices)
+    key = lo * np.int64(n) + hi
+    if key.size and not (np.diff(key) > 0).all():
+        graph = sp.csr_matrix((length, (lo, hi)), shape=(n, n))
+        return graph, np.repeat(np.arange(n), np.diff(graph.indptr)), length
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(lo, minlength=n), out=indptr[1:])
+    return sp.csr_matrix((length, hi, indptr), shape=(n, n)), lo, length
 
 
 def face_normals(vertices, faces):
-    """(T, 3) face normals scaled by twice the face area."""
-    tri = np.take(vertices, faces, axis=0)
-    return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    """(T, 3) face normals scaled by twice the face area: ``(b - a) x (c - a)`` for the corners
+    a, b, c (np.cross's formula, written out: a third of its time)."""
+    a = np.take(vertices, faces[:, 0], axis=0)
+    ab = np.take(vertices, faces[:, 1], axis=0) - a
+    ac = np.take(vertices, faces[:, 2], axis=0) - a
+    out = np.empty_like(ab)
+    out[:, 0] = ab[:, 1] * ac[:, 2] - ab[:, 2] * ac[:, 1]
+    out[:, 1] = ab[:, 2] * ac[:, 0] - ab[:, 0] * ac[:, 2]
+    out[:, 2] = ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0]
+    return out
 
 
 def _grow(graph, seeds, radius):
@@ -110,13 +114,14 @@ def _grow(graph, seeds, radius):
 def _components(mask, graph, rows):
     """Connected components of the graph (`_graph`, its entries' ``rows``) without the edges
     that join a vertex of ``mask`` to one outside it: the pieces of ``mask`` and those of the
-    rest at once, (count, (V,) labels)."""
+    rest at once, (count, (V,) labels, (E,) whether each stored edge is kept). Labels are
+    numbered by each component's first vertex (scipy's order)."""
     keep = mask[rows] == mask[graph.indices]
     at = np.zeros(len(keep) + 1, dtype=np.int64)
     np.cumsum(keep, out=at[1:])
     cut = sp.csr_matrix((np.ones(int(at[-1])), graph.indices[keep], at[graph.indptr]),
                         shape=graph.shape)
-    return connected_components(cut, directed=False)
+    return connected_components(cut, directed=False) + (keep,)
 
 
 def _pieces(patch, graph, rows, vertex_area, name, notes):
@@ -124,8 +129,10 @@ def _pieces(patch, graph, rows, vertex_area, name, notes):
     3 and 4): holes are the components of the rest of the surface smaller than half the
     patch (not the muscle's free surface, the largest, nor a face that a ring of landmarks
     round a thin muscle's rim happens to enclose); pieces under `MIN_PIECE` of the filled
-    patch's area are dropped, with a note."""
-    n, label = _components(patch, graph, rows)
+    patch's area are dropped, with a note. The filled patch's pieces join the components that
+    the cut edges between the patch and a hole connect (a search over the components, not the
+    surface: the same components, numbered alike)."""
+    n, label, kept = _components(patch, graph, rows)
     rest = np.zeros(n, dtype=bool)
     rest[label[~patch]] = True
     area = np.bincount(label, vertex_area, n)
@@ -134,7 +141,12 @@ def _pieces(patch, graph, rows, vertex_area, name, notes):
         small[np.flatnonzero(rest)[area[rest].argmax()]] = False
         if small.any():
             patch = patch | small[label]
-            n, label = _components(patch, graph, rows)
+            a, b = label[rows[~kept]], label[graph.indices[~kept]]
+            join = small[a] | small[b]
+            n, merged = connected_components(
+                sp.csr_matrix((np.ones(int(join.sum())), (a[join], b[join])), shape=(n, n)),
+                directed=False)
+            label = merged[label]
             area = np.bincount(label, vertex_area, n)
     piece = np.zeros(n, dtype=bool)
     piece[label[patch]] = True

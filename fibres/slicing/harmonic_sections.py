@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 from scipy.sparse.csgraph import dijkstra
 
 from ..errors import InputError
@@ -132,9 +133,10 @@ def _levels(plan, resolution: int) -> np.ndarray:
     inner levels divide the sum evenly. Levels stay above and below the patches' dead ends
     (`dead_end_levels`): the path starts at the first isoline clear of them."""
     v, u, f = plan.rest_vertices, plan.field, plan.faces
-    area = 0.5 * np.linalg.norm(plan.face_normals(), axis=1)
-    uc = u[f].mean(axis=1)
-    order = np.argsort(uc, kind="stable")
+    fn = plan.face_normals()
+    area = 0.5 * np.sqrt(fn[:, 0] * fn[:, 0] + fn[:, 1] * fn[:, 1] + fn[:, 2] * fn[:, 2])
+    uc = (u[f[:, 0]] + u[f[:, 1]] + u[f[:, 2]]) / 3.0
+    order = _stable_argsort(uc)
     cum = np.cumsum(area[order])
     q = np.interp(np.linspace(0, 1, _CANDIDATES), cum / cum[-1], uc[order])
     cand = np.unique(np.concatenate([q, np.linspace(0.0, 1.0, _CANDIDATES)]))
@@ -157,6 +159,17 @@ def _levels(plan, resolution: int) -> np.ndarray:
     return levels
 
 
+def _stable_argsort(x):
+    """``np.argsort(x, kind="stable")`` of a float array without NaN: the vectorised default
+    sort, then each run of equal values put in index order (one sort of run << bits | index)."""
+    order = np.argsort(x)
+    xs = x[order]
+    run = np.zeros(x.size, dtype=np.int64)
+    np.cumsum(xs[1:] != xs[:-1], out=run[1:])
+    bits = max(int(x.size).bit_length(), 1)
+    return np.sort((run << bits) | order) & ((1 << bits) - 1)
+
+
 def _cross(p, q):
     """Row-wise cross products of (..., 3) arrays (numpy's formula, without its overhead)."""
     out = np.empty(np.broadcast_shapes(p.shape, q.shape))
@@ -166,17 +179,25 @@ def _cross(p, q):
     return out
 
 
-def _loop_frame(points):
-    """(centroid, unit normal, segment lengths) of a closed loop."""
-    nxt = np.roll(points, -1, axis=0)
-    seg = np.linalg.norm(nxt - points, axis=1)
-    total = seg.sum()
-    c = (0.5 * (points + nxt) * seg[:, None]).sum(axis=0) / total if total > 0 \
-        else points.mean(axis=0)
-    area = 0.5 * _cross(points - c, nxt - c).sum(axis=0)
-    norm = np.linalg.norm(area)
-    n = area / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
-    return c, n, seg
+def _loop_frames(p, first, size):
+    """(L, 3) centroids, (L, 3) unit normals (vector areas) and (N,) segment lengths of the
+    closed loops ``p[first[j]:first[j] + size[j]]`` (p (N, 3)): the centroid weighs each
+    segment's midpoint by its length (the vertex mean for a loop of length 0)."""
+    nxt = np.arange(1, len(p) + 1)
+    nxt[first + size - 1] = first
+    q = p[nxt]
+    d = q - p
+    seg = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+    centres = np.add.reduceat(0.5 * (p + q) * seg[:, None], first, axis=0)
+    for j, (a, m) in enumerate(zip(first.tolist(), size.tolist())):
+        total = seg[a:a + m].sum()
+        centres[j] = centres[j] / total if total > 0 else p[a:a + m].mean(axis=0)
+    c = np.repeat(centres, size, axis=0)
+    normals = 0.5 * np.add.reduceat(_cross(p - c, q - c), first, axis=0)
+    for j, area in enumerate(normals):
+        norm = np.linalg.norm(area)
+        normals[j] = area / norm if norm > 0 else (0.0, 0.0, 1.0)
+    return centres, normals, seg
 
 
 def _major_axis(points, c, n, loop, vertices):
@@ -218,86 +239,160 @@ def _rectangle_samples(k: int, share: float) -> np.ndarray:
     return out
 
 
-def _position_point(points, pos):
-    m = len(points)
-    i = int(np.floor(pos)) % m
-    f = pos - np.floor(pos)
-    return (1.0 - f) * points[i] + f * points[(i + 1) % m]
-
-
-def _closest_position(points, q) -> float:
-    """Fractional loop position (node + fraction) of the closed polyline's point nearest q."""
-    a = points
-    b = np.roll(points, -1, axis=0)
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(
-        np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
-    d = np.linalg.norm(a + t[:, None] * ab - q, axis=1)
-    k = int(np.argmin(d))
-    return k + float(t[k])
-
-
-def _arc_positions(seg, start, k):
-    """(k,) fractional loop positions (node + fraction) that divide the closed loop with
-    segment lengths ``seg`` into k equal arcs from the position ``start``."""
-    m = len(seg)
-    i0 = int(np.floor(start)) % m
-    f0 = start - np.floor(start)
-    # segment lengths in loop order from the start, the first one split there
-    seg = np.concatenate([seg[i0:], seg[:i0]])
-    head = seg[0] * (1.0 - f0)
-    cum = np.empty(m + 2)
-    cum[0], cum[1] = 0.0, head
-    np.cumsum(seg[1:], out=cum[2:m + 1])
-    cum[2:m + 1] += head
-    cum[m + 1] = cum[m] + seg[0] * f0                            # back at the start
-    pos = np.arange(-1.0, m + 1.0) + (i0 + 1.0)
-    pos[0], pos[-1] = start, start + m
-    cum += 1e-15 * cum[-1] * np.arange(cum.size)                 # strictly increasing
-    target = np.arange(k) / k * cum[-1]
-    return np.interp(target, cum, pos) % m
-
-
 #: finer arc-length samples per loop sample searched for a loop's seam (`_registered_seam`)
 _FINE = 8
 
 
-def _loop_samples(p, seam, k, seg=None):
-    """(k,) positions and (k, 3) points of the closed polyline ``p`` at k equal arcs from
-    ``seam``; ``seg``: its segment lengths (`_loop_frame`), when at hand."""
-    if seg is None:
-        seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
-    pos = _arc_positions(seg, seam, k)
-    i0 = np.floor(pos).astype(np.int64) % len(p)
-    f = (pos - np.floor(pos))[:, None]
-    return pos, (1.0 - f) * p[i0] + f * p[(i0 + 1) % len(p)]
+def _registered_seam(p, seg, first, size, mid, mid_seam):
+    """(L, `SAMPLES`) positions (node + fraction) of the loops' samples at equal arc lengths
+    from their seams. The loops are ``p[first[j]:first[j] + size[j]]`` (p (N, 3)), their
+    segment lengths ``seg`` (N,) (`_loop_frames`). Loop ``mid``'s seam is ``mid_seam`` (in
+    ``[0, size[mid])``); each next loop outwards gets the seam whose samples lie nearest the
+    previous loop's in the least-squares sense, both sample sets centred (the loops move along
+    the muscle; only the cyclic shift is sought). The shifts searched are `_FINE` per sample
+    spacing, all round the loop, from the loop's point nearest the previous seam's point
+    (`_seam_chain`)."""
+    return _seam_chain(np.ascontiguousarray(p, dtype=np.float64),
+                       np.ascontiguousarray(seg, dtype=np.float64),
+                       np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64),
+                       int(mid), float(mid_seam), SAMPLES, _FINE)[1]
 
 
-def _registered_seam(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None, ref=None):
-    """The seam (fractional position) of loop ``pts`` whose `SAMPLES` arc-length samples lie
-    nearest the previous loop's, in the least-squares sense with both sample sets centred
-    (the loops move along the muscle; only the cyclic shift is sought): the shifts searched
-    are `_FINE` per sample spacing, all round the loop, starting from ``guess``.
+@njit(cache=True, nogil=True, error_model="numpy")
+def _arc_into(p, seg, lo, m, start, k, pos, out):
+    """The k positions (node + fraction, in ``[0, m)``) that divide the closed loop
+    ``p[lo:lo + m]`` (segment lengths ``seg[lo:lo + m]``) into k equal arcs from the position
+    ``start``, into ``pos`` (k,), and their points into ``out`` (k, 3): the lengths summed
+    from the start (made strictly increasing by 1e-15 of the total a node), inverted by
+    `np.interp`'s formula."""
+    fl = np.floor(start)
+    i0 = int(fl) % m
+    f0 = start - fl
+    cum = np.empty(m + 2)
+    head = seg[lo + i0] * (1.0 - f0)
+    cum[0], cum[1] = 0.0, head
+    run = 0.0
+    for t in range(1, m):
+        run += seg[lo + i0 + t if i0 + t < m else lo + i0 + t - m]
+        cum[t + 1] = run + head
+    cum[m + 1] = cum[m] + seg[lo + i0] * f0
+    eps = 1e-15 * cum[m + 1]
+    for t in range(m + 2):
+        cum[t] += eps * t
+    total = cum[m + 1]
+    j = 0
+    for i in range(k):
+        x = i / k * total
+        while cum[j + 1] <= x:
+            j += 1
+        xj = start if j == 0 else j + i0 + 0.0
+        xn = start + m if j + 1 == m + 1 else j + 1 + i0 + 0.0
+        if cum[j] == x:
+            y = xj
+        else:
+            y = (xn - xj) / (cum[j + 1] - cum[j]) * (x - cum[j]) + xj
+        while y >= m:                    # y % m: exact for y in [0, 2 m)
+            y -= m
+        pos[i] = y
+        fy = np.floor(y)
+        a = int(fy)
+        f = y - fy
+        b = a + 1 if a + 1 < m else 0
+        for d in range(3):
+            out[i, d] = (1.0 - f) * p[lo + a, d] + f * p[lo + b, d]
 
-    Shift ``t = q F + r`` (F = `_FINE`) takes every F-th fine sample from r, rolled by q:
-    its centred sum of squares depends on r only, and the cross term with the reference is
-    a circular cross-correlation over q, computed for all q at once by FFT. ``prev_seg``,
-    ``seg``: the loops' segment lengths, and ``ref``: the previous loop's samples
-    (`_loop_samples` at ``prev_seam``), when at hand."""
-    k = SAMPLES
-    if ref is None:
-        _, ref = _loop_samples(prev_pts, prev_seam, k, prev_seg)
-    pos, fine = _loop_samples(pts, guess, k * _FINE, seg)
-    ref = ref - ref.mean(axis=0)
-    sub = fine.reshape(k, _FINE, 3).transpose(1, 0, 2)                # (F, K, 3): [r, k]
-    sub = sub - sub.mean(axis=1, keepdims=True)
-    power = np.einsum("rkd,rkd->r", sub, sub)
-    # corr[r, q] = sum_k sub[r, (k + q) mod K] . ref[k]
-    corr = np.fft.irfft(np.fft.rfft(sub, axis=1) * np.conj(np.fft.rfft(ref, axis=0))[None],
-                        n=k, axis=1).sum(axis=2)
-    cost = power[:, None] - 2.0 * corr                                # (F, K)
-    r, q = np.unravel_index(int(np.argmin(cost)), cost.shape)
-    return float(pos[(q * _FINE + r) % len(pos)])
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _seam_chain(p, seg, first, size, mid, mid_seam, k, fine):
+    """Seams (L,) and (L, k) sample positions of the loops ``p[first[j]:first[j] + size[j]]``
+    (segment lengths ``seg``), carried from loop ``mid`` (seam ``mid_seam``) to each next loop
+    outwards (`_registered_seam`): the guess is the loop's point nearest the previous seam's
+    point; the cost of each shift by `_registered_seam`'s least squares, its circular
+    cross-correlation summed directly."""
+    n_loops = size.size
+    seams = np.empty(n_loops)
+    pos = np.empty((n_loops, k))
+    mid_ref = np.empty((k, 3))
+    ref = np.empty((k, 3))
+    fpos = np.empty(k * fine)
+    fpts = np.empty((k * fine, 3))
+    sub = np.empty((3, 2 * k))
+    corr = np.empty(k)
+    q = np.empty(3)
+    seams[mid] = mid_seam
+    _arc_into(p, seg, first[mid], size[mid], mid_seam, k, pos[mid], mid_ref)
+    for side in range(2):
+        step = 1 - 2 * side
+        prev = mid
+        for i in range(k):
+            for d in range(3):
+                ref[i, d] = mid_ref[i, d]
+        j = mid + step
+        while j >= 0 and j < n_loops:
+            # the previous seam's point and the nearest point of this loop (the guess)
+            lo, m = first[prev], size[prev]
+            fl = np.floor(seams[prev])
+            a = int(fl)
+            f = seams[prev] - fl
+            b = a + 1 if a + 1 < m else 0
+            for d in range(3):
+                q[d] = (1.0 - f) * p[lo + a, d] + f * p[lo + b, d]
+            lo, m = first[j], size[j]
+            best, guess = np.inf, 0.0
+            for i in range(m):
+                i1 = lo + i + 1 if i + 1 < m else lo
+                num, den = 0.0, 0.0
+                for d in range(3):
+                    ab = p[i1, d] - p[lo + i, d]
+                    num += (q[d] - p[lo + i, d]) * ab
+                    den += ab * ab
+                t = num / (den if den > 1e-300 else 1e-300)
+                t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+                dist = 0.0
+                for d in range(3):
+                    e = p[lo + i, d] + t * (p[i1, d] - p[lo + i, d]) - q[d]
+                    dist += e * e
+                dist = np.sqrt(dist)
+                if dist < best:
+                    best, guess = dist, i + t
+            # fine samples from the guess; both sample sets centred
+            _arc_into(p, seg, lo, m, guess, k * fine, fpos, fpts)
+            for d in range(3):
+                c = 0.0
+                for i in range(k):
+                    c += ref[i, d]
+                c /= k
+                for i in range(k):
+                    ref[i, d] -= c
+            cost_best, at = np.inf, 0
+            for r in range(fine):
+                power = 0.0
+                for d in range(3):
+                    c = 0.0
+                    for i in range(k):
+                        c += fpts[i * fine + r, d]
+                    c /= k
+                    for i in range(k):
+                        x = fpts[i * fine + r, d] - c
+                        sub[d, i] = x
+                        sub[d, i + k] = x
+                        power += x * x
+                for s in range(k):
+                    corr[s] = 0.0
+                for d in range(3):
+                    for i in range(k):
+                        w = ref[i, d]
+                        for s in range(k):
+                            corr[s] += sub[d, i + s] * w
+                for s in range(k):
+                    cost = power - 2.0 * corr[s]
+                    if cost < cost_best:
+                        cost_best, at = cost, s * fine + r
+            seams[j] = fpos[at]
+            _arc_into(p, seg, lo, m, seams[j], k, pos[j], ref)
+            prev = j
+            j += step
+    return seams, pos
 
 
 @dataclass(frozen=True)
@@ -327,14 +422,15 @@ def _slices(plan, resolution: int) -> _Slices:
         if len(found) > 1:
             notes.append(f"slice {j}: {len(found)} isoline loops, the longest kept")
         loops.append(found[0])
-    pts = [lp.points(v) for lp in loops]
-    frames = [_loop_frame(p) for p in pts]
-    centres = np.array([f[0] for f in frames])
-    segs = [f[2] for f in frames]
-    normals = np.array([f[1] for f in frames])
+    size = np.array([len(lp) for lp in loops])
+    first = np.cumsum(size) - size
+    ea, eb, es = (np.concatenate([getattr(lp, x) for lp in loops]) for x in "abs")
+    pts = (1.0 - es[:, None]) * v[ea] + es[:, None] * v[eb]     # all loops' `Loop.points`
+    centres, normals, seg = _loop_frames(pts, first, size)
     mid = len(loops) // 2
+    pts_mid = pts[first[mid]:first[mid] + size[mid]]
     axes = np.zeros_like(centres)
-    axes[mid] = _major_axis(pts[mid], centres[mid], normals[mid], loops[mid], v)
+    axes[mid] = _major_axis(pts_mid, centres[mid], normals[mid], loops[mid], v)
     for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
         prev = mid
         for j in rng:
@@ -346,33 +442,19 @@ def _slices(plan, resolution: int) -> _Slices:
     # point (the field's flow lines cross its isolines at right angles)
     e2 = _cross(normals, axes)
     e2m = e2[mid]
-    d = pts[mid] - centres[mid]
+    d = pts_mid - centres[mid]
     x, y = d @ axes[mid], d @ e2m
     score = -x / max(np.ptp(x), 1e-12) - y / max(np.ptp(y), 1e-12)
-    seams = [0.0] * len(loops)
-    seams[mid] = float(np.argmax(score))
-    samples = [None] * len(loops)           # (positions, points) of each loop from its seam
-    samples[mid] = _loop_samples(pts[mid], seams[mid], SAMPLES, segs[mid])
-    for rng in (range(mid + 1, len(loops)), range(mid - 1, -1, -1)):
-        prev = mid
-        for j in rng:
-            q = _position_point(pts[prev], seams[prev])
-            seams[j] = _closest_position(pts[j], q)
-            seams[j] = _registered_seam(pts[prev], seams[prev], pts[j], seams[j],
-                                        segs[prev], segs[j], ref=samples[prev][1])
-            samples[j] = _loop_samples(pts[j], seams[j], SAMPLES, segs[j])
-            prev = j
-    shares = np.empty(len(loops))
-    for j, p in enumerate(pts):
-        d = p - centres[j]
-        a, b = np.ptp(d @ axes[j]), np.ptp(d @ e2[j])
-        shares[j] = a / max(a + b, 1e-300)
+    pos = _registered_seam(pts, seg, first, size, mid, np.argmax(score))       # (L, SAMPLES)
+    # each loop's extents along e1 and e2
+    d = pts - np.repeat(centres, size, axis=0)
+    x = np.einsum("ij,ij->i", d, np.repeat(axes, size, axis=0))
+    y = np.einsum("ij,ij->i", d, np.repeat(e2, size, axis=0))
+    a = np.maximum.reduceat(x, first) - np.minimum.reduceat(x, first)
+    b = np.maximum.reduceat(y, first) - np.minimum.reduceat(y, first)
+    shares = a / np.maximum(a + b, 1e-300)
     # sample k of loop j blends loop points i0 and i1 = i0 + 1, each an edge point: four
     # (row, vertex, weight) entries per sample, in the order (i0: a, b; i1: a, b) per loop
-    size = np.array([len(lp) for lp in loops])
-    first = np.cumsum(size) - size
-    ea, eb, es = (np.concatenate([getattr(lp, x) for lp in loops]) for x in "abs")
-    pos = np.stack([smp[0] for smp in samples])                             # (L, SAMPLES)
     i0 = np.floor(pos).astype(np.int64) % size[:, None]
     f = pos - np.floor(pos)
     g0, g1 = i0 + first[:, None], (i0 + 1) % size[:, None] + first[:, None]

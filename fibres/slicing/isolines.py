@@ -183,7 +183,7 @@ def isoline_moments(u, vertices, faces, levels, *, area: bool = True):
     levels = np.ascontiguousarray(levels, dtype=np.float64)
     sums = _moments(np.ascontiguousarray(u, dtype=np.float64),
                     np.ascontiguousarray(vertices, dtype=np.float64),
-                    np.ascontiguousarray(faces, dtype=np.int64), levels)
+                    np.ascontiguousarray(faces, dtype=np.int64), levels, bool(area))
     length = sums[:, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
         centroid = sums[:, 1:4] / length[:, None]
@@ -191,14 +191,16 @@ def isoline_moments(u, vertices, faces, levels, *, area: bool = True):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _moments(u, vertices, faces, levels):
+def _moments(u, vertices, faces, levels, area):
     """(L, 7) sums over each level's isoline segments, face by face: length, midpoint times
-    length (3), half the cross product of the segment's ends (3). Level l crosses face f
-    where ``min u < levels[l] <= max u`` over its corners (levels increasing); the segment
-    runs from the falling side's crossing to the rising side's (module docstring)."""
+    length (3), half the cross product of the segment's ends (3; zero unless ``area``). Level
+    l crosses face f where ``min u < levels[l] <= max u`` over its corners (levels
+    increasing); the segment runs from the falling side's crossing to the rising side's
+    (module docstring)."""
     out = np.zeros((levels.size, 7))
     p = np.empty((2, 3))
     uc = np.empty(3)
+    x = np.empty((3, 3))                             # the face's corners
     for f in range(faces.shape[0]):
         for k in range(3):
             uc[k] = u[faces[f, k]]
@@ -210,6 +212,10 @@ def _moments(u, vertices, faces, levels):
                 lv = mid + 1
             else:
                 hi = mid
+        if lv < levels.size and levels[lv] <= high:
+            for k in range(3):
+                for d in range(3):
+                    x[k, d] = vertices[faces[f, k], d]
         while lv < levels.size and levels[lv] <= high:
             t = levels[lv]
             ab0, ab1, ab2 = uc[0] >= t, uc[1] >= t, uc[2] >= t
@@ -219,18 +225,18 @@ def _moments(u, vertices, faces, levels):
                     k0 = (ab1 and not ab2) + 2 * (ab2 and not ab0)
                 else:
                     k0 = (ab2 and not ab1) + 2 * (ab0 and not ab2)
-                k1 = (k0 + 1) % 3
+                k1 = k0 + 1 if k0 < 2 else 0
                 s = (t - uc[k0]) / (uc[k1] - uc[k0])
                 for d in range(3):
-                    p[r, d] = (1.0 - s) * vertices[faces[f, k0], d] \
-                        + s * vertices[faces[f, k1], d]
+                    p[r, d] = (1.0 - s) * x[k0, d] + s * x[k1, d]
             d0, d1, d2 = p[1, 0] - p[0, 0], p[1, 1] - p[0, 1], p[1, 2] - p[0, 2]
             seg = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             out[lv, 0] += seg
             for d in range(3):
                 out[lv, 1 + d] += 0.5 * (p[0, d] + p[1, d]) * seg
-            out[lv, 4] += 0.5 * (p[0, 1] * p[1, 2] - p[0, 2] * p[1, 1])
-            out[lv, 5] += 0.5 * (p[0, 2] * p[1, 0] - p[0, 0] * p[1, 2])
-            out[lv, 6] += 0.5 * (p[0, 0] * p[1, 1] - p[0, 1] * p[1, 0])
+            if area:
+                out[lv, 4] += 0.5 * (p[0, 1] * p[1, 2] - p[0, 2] * p[1, 1])
+                out[lv, 5] += 0.5 * (p[0, 2] * p[1, 0] - p[0, 0] * p[1, 2])
+                out[lv, 6] += 0.5 * (p[0, 0] * p[1, 1] - p[0, 1] * p[1, 0])
             lv += 1
     return out

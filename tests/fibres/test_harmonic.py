@@ -289,17 +289,20 @@ def test_lloyd_steps_spread_points_evenly_over_a_square_patch():
 
 def test_registered_seam_finds_the_same_material_start_on_a_renumbered_loop():
     """Two loops: an ellipse and the same ellipse 1 unit higher whose points are numbered from
-    another start (rolled by 50 of 200). The previous loop's seam at point 37 must be matched
-    by the point numbered (37 - 50) mod 200 = 187 of the next loop, whatever the starting
-    guess, to within half the search step (shifts are tried every 1/8 of a sample spacing
-    from the guess: 200 / 64 / 8 = 0.39 points)."""
+    another start (rolled by 50 of 200). The first loop's seam at point 37 must be matched
+    by the point numbered (37 - 50) mod 200 = 187 of the next loop, to within half the search
+    step (shifts are tried every 1/8 of a sample spacing: 200 / 64 / 8 = 0.39 points)."""
     from fibres.slicing.harmonic_sections import _registered_seam
     th = np.linspace(0.0, 2 * np.pi, 200, endpoint=False)
     prev = np.c_[3 * np.cos(th), np.sin(th), np.zeros_like(th)]
     nxt = np.roll(prev + [0.0, 0.0, 1.0], -50, axis=0)
-    for guess in (0.0, 63.5, 150.0):
-        seam = _registered_seam(prev, 37.0, nxt, guess)
-        assert abs((seam - 187.0 + 100.0) % 200.0 - 100.0) <= 0.5 * 200 / 64 / 8 + 1e-9
+    segs = [np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1) for p in (prev, nxt)]
+    for first, mid, seam_mid, want in ((prev, 0, 37.0, 187.0), (nxt, 1, 187.0, 37.0)):
+        pos = _registered_seam(np.concatenate([prev, nxt]), np.concatenate(segs), [0, 200],
+                               [200, 200], mid, seam_mid)
+        assert pos[mid, 0] == seam_mid
+        seam = pos[1 - mid, 0]
+        assert abs((seam - want + 100.0) % 200.0 - 100.0) <= 0.5 * 200 / 64 / 8 + 1e-9
 
 
 def test_bending_measure_is_zero_on_a_line_and_counts_a_half_turn():

@@ -78,3 +78,19 @@ def test_moments_equal_the_array_oracle():
     length, centre, area = isoline_moments(u, v, f, levels, area=False)
     assert area is None
     np.testing.assert_array_equal(length, got[0])
+
+
+def test_moments_of_levels_beyond_the_field_and_on_vertex_values():
+    """Levels below and above the field's range, repeated, and equal to vertex values (where
+    a face's first level is decided by ``level <= lowest u``), against the array oracle."""
+    v, f, u = _bent_tube()
+    u = np.round(u * 40) / 40                       # many vertices exactly on levels
+    rng = np.random.default_rng(5)
+    levels = np.sort(np.concatenate([[-0.5, -0.1, 0.0, 0.5, 0.5, 1.0, 1.2],
+                                     np.arange(41) / 40, rng.uniform(0.0, 1.0, 30)]))
+    for lv in (levels, levels[:1], levels[-3:], np.array([0.25])):
+        got = isoline_moments(u, v, f, lv)
+        with np.errstate(invalid="ignore"):                 # levels with no isoline: NaN
+            want = _moments_oracle(u, v, f, lv)
+        for g, w in zip(got, want):
+            np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-15)
