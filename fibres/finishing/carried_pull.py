@@ -31,12 +31,11 @@ are measured twice and few fibres spread again.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit
+from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..mesh.surface_distance import SurfaceGrid
@@ -164,101 +163,6 @@ class CarriedPull:
         return np.einsum("mk,mkd->md", self.coefficients, frames)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _nearest_centroids(x, centroids, grid, k):
-    """(n, k) int64: the ``k`` of ``centroids`` (T, 3) nearest to each point x (n, 3), nearest
-    first (equal distances: the one met first), ``k <= T``. ``grid`` = (origin, side, dims)
-    of a uniform grid of cubes over the centroids' box (`_centroid_grid`): the centroids are
-    sorted into its cells (counting sort: cell start, items), then each point visits the
-    cells ring by ring about its own (clamped) cell, passes over a cell farther than the
-    k-th distance so far and stops once the ring's box is farther than that on every side
-    within the grid (no centroid not met lies nearer)."""
-    lo, side, dims = grid
-    t_all = centroids.shape[0]
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
-    cell_of, items = np.empty(t_all, np.int64), np.empty(t_all, np.int64)
-    for t in range(t_all):
-        q = np.int64(0)               # not a literal 0: one pass of type inference
-        for a in range(3):
-            q = q * dims[a] + min(max(int((centroids[t, a] - lo[a]) / side), 0), dims[a] - 1)
-        cell_of[t] = q
-        start[q + 1] += 1
-    for q in range(1, start.shape[0]):
-        start[q] += start[q - 1]
-    for t in range(t_all):           # placed in increasing order; start[q] advances
-        items[start[cell_of[t]]] = t
-        start[cell_of[t]] += 1
-    for q in range(start.shape[0] - 1, 0, -1):
-        start[q] = start[q - 1]
-    start[0] = 0
-    near, best = np.empty((x.shape[0], k), np.int64), np.empty(k)
-    home, box = np.empty(3, np.int64), np.empty(6, np.int64)
-    slack = 1e-9 * side               # for rounding in the cell indices
-    for i in range(x.shape[0]):
-        p = x[i]
-        for a in range(3):            # int() truncates towards 0: the same after clamping
-            home[a] = min(max(int((p[a] - lo[a]) / side), 0), dims[a] - 1)
-        m = np.int64(0)               # not a literal 0: one pass of type inference
-        reach = np.inf                # the k-th distance so far, plus slack
-        for ring in range(max(dims[0], dims[1], dims[2])):
-            for a in range(3):
-                box[a] = max(home[a] - ring, 0)
-                box[3 + a] = min(home[a] + ring, dims[a] - 1)
-            for ci in range(box[0], box[3] + 1):
-                for cj in range(box[1], box[4] + 1):
-                    for ck in range(box[2], box[5] + 1):
-                        q = (ci * dims[1] + cj) * dims[2] + ck
-                        if start[q] == start[q + 1] or max(abs(ci - home[0]), abs(cj - home[1]),
-                                                           abs(ck - home[2])) != ring:
-                            continue  # empty, or a cell of an earlier ring
-                        cell, g2 = (ci, cj, ck), 0.0
-                        for a in range(3):  # the squared distance from the point to the cell
-                            y = lo[a] + cell[a] * side - p[a]
-                            y = max(y, -y - side, 0.0)
-                            g2 += y * y
-                        if g2 > reach * reach:
-                            continue
-                        for e in range(start[q], start[q + 1]):
-                            t = items[e]
-                            d2 = (p[0] - centroids[t, 0]) ** 2 + (p[1] - centroids[t, 1]) ** 2 \
-                                + (p[2] - centroids[t, 2]) ** 2
-                            if m == k and not d2 < best[k - 1]:
-                                continue
-                            j = m if m < k else k - 1          # insert, nearest first
-                            while j > 0 and best[j - 1] > d2:
-                                best[j], near[i, j] = best[j - 1], near[i, j - 1]
-                                j -= 1
-                            best[j], near[i, j] = d2, t
-                            m = min(m + 1, k)
-                            if m == k:
-                                reach = math.sqrt(best[k - 1]) + slack
-            beyond = np.inf           # how far the ring's box reaches on its inner sides
-            for a in range(3):
-                if home[a] - ring > 0:
-                    beyond = min(beyond, p[a] - (lo[a] + (home[a] - ring) * side))
-                if home[a] + ring < dims[a] - 1:
-                    beyond = min(beyond, lo[a] + (home[a] + ring + 1) * side - p[a])
-            if beyond > reach:
-                break
-    return near
-
-
-def _centroid_grid(centroids, k, area):
-    """(origin (3,), side, dims (3,) int64) of `_nearest_centroids`' grid over the box of
-    ``centroids`` (T, 3): cubes of about twice the radius that holds ``k`` triangles of mean
-    ``area`` on a flat piece of surface (measured: smaller cubes are no faster), at most two
-    per centroid (the cell starts are memory to clear)."""
-    rows = np.ascontiguousarray(centroids.T)     # reductions over contiguous rows
-    lo = rows.min(axis=1)
-    ext = rows.max(axis=1) - lo
-    side = max(2.0 * math.sqrt(k * area / math.pi), 1e-3 * float(ext.max()), 1e-300)
-    while True:
-        dims = (ext / side).astype(np.int64) + 1
-        if int(np.prod(dims)) <= 2 * len(centroids) + 64:
-            return lo, side, dims
-        side *= 1.25
-
-
 def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
                     rounds: int = REST_ROUNDS, reach: float = CONTAIN_REACH,
                     grid: SurfaceGrid | None = None, normals=None):
@@ -285,13 +189,12 @@ def carry_rest_pull(points, vertices, faces, *, margin: float = REST_MARGIN,
     if normals is None:
         a, b, c = np.take(v, np.ascontiguousarray(f.T), axis=0)
         normals = np.cross(b - a, c - a)
-    # the centroids (a + b + c) / 3 of the grid's binning, in cubes of twice the radius that
-    # holds CARRY_CANDIDATES triangles of the mean area on a flat piece of surface (measured:
-    # smaller cubes are slower)
+    # the centroids (a + b + c) / 3 of the grid's binning; an unbalanced tree (sliding
+    # midpoint) builds in half the time, compact nodes and larger leaves answer these queries
+    # faster; its queries are exact
     k = min(CARRY_CANDIDATES, len(f))
-    area = 0.5 * np.sqrt(np.einsum("ij,ij->i", normals, normals)).mean()
-    near = _nearest_centroids(out.reshape(-1, 3)[rows], grid.cells[5][:, :3],
-                              _centroid_grid(grid.cells[5][:, :3], k, area), k)
+    tree = cKDTree(grid.cells[5][:, :3], leafsize=32, balanced_tree=False, compact_nodes=True)
+    near = np.asarray(tree.query(out.reshape(-1, 3)[rows], k=k)[1]).reshape(len(rows), k)
     # each patch's triangles in increasing order (canonical CSR: the rows' sums in _frames
     # run in that order), the nearest one's place among them
     first = near[:, 0]

@@ -88,8 +88,8 @@ def _bin_triangles(vertices, faces, frame, n_axes, density):
     triangles meeting it are ``items[start[q]:start[q + 1]]``, ``q = (i * dims[1] + j) *
     dims[2] + k``, in increasing order (CSR; counted, then placed by `_bin_cells`)."""
     if frame is None:                           # the world frame: the vertices as they are
-        pv = vertices
-        rows = np.ascontiguousarray(vertices.T)
+        pv = np.array(vertices, dtype=np.float64)   # writable: the kernels' one array type
+        rows = np.ascontiguousarray(pv.T)
     else:
         rows = np.empty((3, vertices.shape[0]))     # the vertices in the frame, by axis
         for k in range(3):

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit
 from scipy.sparse.csgraph import dijkstra
 
 from ..errors import InputError
@@ -243,156 +242,106 @@ def _rectangle_samples(k: int, share: float) -> np.ndarray:
 _FINE = 8
 
 
+def _position_point(points, pos):
+    m = len(points)
+    i = int(np.floor(pos)) % m
+    f = pos - np.floor(pos)
+    return (1.0 - f) * points[i] + f * points[(i + 1) % m]
+
+
+def _closest_position(points, q) -> float:
+    """Fractional loop position (node + fraction) of the closed polyline's point nearest q."""
+    a = points
+    b = np.roll(points, -1, axis=0)
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(
+        np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+    d = np.linalg.norm(a + t[:, None] * ab - q, axis=1)
+    k = int(np.argmin(d))
+    return k + float(t[k])
+
+
+def _arc_positions(seg, start, k):
+    """(k,) fractional loop positions (node + fraction) that divide the closed loop with
+    segment lengths ``seg`` into k equal arcs from the position ``start``."""
+    m = len(seg)
+    i0 = int(np.floor(start)) % m
+    f0 = start - np.floor(start)
+    # segment lengths in loop order from the start, the first one split there
+    seg = np.concatenate([seg[i0:], seg[:i0]])
+    head = seg[0] * (1.0 - f0)
+    cum = np.empty(m + 2)
+    cum[0], cum[1] = 0.0, head
+    np.cumsum(seg[1:], out=cum[2:m + 1])
+    cum[2:m + 1] += head
+    cum[m + 1] = cum[m] + seg[0] * f0                            # back at the start
+    pos = np.arange(-1.0, m + 1.0) + (i0 + 1.0)
+    pos[0], pos[-1] = start, start + m
+    cum += 1e-15 * cum[-1] * np.arange(cum.size)                 # strictly increasing
+    target = np.arange(k) / k * cum[-1]
+    return np.interp(target, cum, pos) % m
+
+
+def _loop_samples(p, seam, k, seg=None):
+    """(k,) positions and (k, 3) points of the closed polyline ``p`` at k equal arcs from
+    ``seam``; ``seg``: its segment lengths (`_loop_frames`), when at hand."""
+    if seg is None:
+        seg = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    pos = _arc_positions(seg, seam, k)
+    i0 = np.floor(pos).astype(np.int64) % len(p)
+    f = (pos - np.floor(pos))[:, None]
+    return pos, (1.0 - f) * p[i0] + f * p[(i0 + 1) % len(p)]
+
+
+def _register(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None, ref=None):
+    """The seam (fractional position) of loop ``pts`` whose `SAMPLES` arc-length samples lie
+    nearest the previous loop's, in the least-squares sense with both sample sets centred
+    (the loops move along the muscle; only the cyclic shift is sought): the shifts searched
+    are `_FINE` per sample spacing, all round the loop, starting from ``guess``.
+
+    Shift ``t = q F + r`` (F = `_FINE`) takes every F-th fine sample from r, rolled by q:
+    its centred sum of squares depends on r only, and the cross term with the reference is
+    a circular cross-correlation over q, computed for all q at once by FFT. ``prev_seg``,
+    ``seg``: the loops' segment lengths, and ``ref``: the previous loop's samples
+    (`_loop_samples` at ``prev_seam``), when at hand."""
+    k = SAMPLES
+    if ref is None:
+        _, ref = _loop_samples(prev_pts, prev_seam, k, prev_seg)
+    pos, fine = _loop_samples(pts, guess, k * _FINE, seg)
+    ref = ref - ref.mean(axis=0)
+    sub = fine.reshape(k, _FINE, 3).transpose(1, 0, 2)                # (F, K, 3): [r, k]
+    sub = sub - sub.mean(axis=1, keepdims=True)
+    power = np.einsum("rkd,rkd->r", sub, sub)
+    # corr[r, q] = sum_k sub[r, (k + q) mod K] . ref[k]
+    corr = np.fft.irfft(np.fft.rfft(sub, axis=1) * np.conj(np.fft.rfft(ref, axis=0))[None],
+                        n=k, axis=1).sum(axis=2)
+    cost = power[:, None] - 2.0 * corr                                # (F, K)
+    r, q = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    return float(pos[(q * _FINE + r) % len(pos)])
+
+
 def _registered_seam(p, seg, first, size, mid, mid_seam):
     """(L, `SAMPLES`) positions (node + fraction) of the loops' samples at equal arc lengths
     from their seams. The loops are ``p[first[j]:first[j] + size[j]]`` (p (N, 3)), their
     segment lengths ``seg`` (N,) (`_loop_frames`). Loop ``mid``'s seam is ``mid_seam`` (in
     ``[0, size[mid])``); each next loop outwards gets the seam whose samples lie nearest the
-    previous loop's in the least-squares sense, both sample sets centred (the loops move along
-    the muscle; only the cyclic shift is sought). The shifts searched are `_FINE` per sample
-    spacing, all round the loop, from the loop's point nearest the previous seam's point
-    (`_seam_chain`)."""
-    return _seam_chain(np.ascontiguousarray(p, dtype=np.float64),
-                       np.ascontiguousarray(seg, dtype=np.float64),
-                       np.asarray(first, dtype=np.int64), np.asarray(size, dtype=np.int64),
-                       int(mid), float(mid_seam), SAMPLES, _FINE)[1]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _arc_into(p, seg, lo, m, start, k, pos, out):
-    """The k positions (node + fraction, in ``[0, m)``) that divide the closed loop
-    ``p[lo:lo + m]`` (segment lengths ``seg[lo:lo + m]``) into k equal arcs from the position
-    ``start``, into ``pos`` (k,), and their points into ``out`` (k, 3): the lengths summed
-    from the start (made strictly increasing by 1e-15 of the total a node), inverted by
-    `np.interp`'s formula."""
-    fl = np.floor(start)
-    i0 = int(fl) % m
-    f0 = start - fl
-    cum = np.empty(m + 2)
-    head = seg[lo + i0] * (1.0 - f0)
-    cum[0], cum[1] = 0.0, head
-    run = 0.0
-    for t in range(1, m):
-        run += seg[lo + i0 + t if i0 + t < m else lo + i0 + t - m]
-        cum[t + 1] = run + head
-    cum[m + 1] = cum[m] + seg[lo + i0] * f0
-    eps = 1e-15 * cum[m + 1]
-    for t in range(m + 2):
-        cum[t] += eps * t
-    total = cum[m + 1]
-    j = 0
-    for i in range(k):
-        x = i / k * total
-        while cum[j + 1] <= x:
-            j += 1
-        xj = start if j == 0 else j + i0 + 0.0
-        xn = start + m if j + 1 == m + 1 else j + 1 + i0 + 0.0
-        if cum[j] == x:
-            y = xj
-        else:
-            y = (xn - xj) / (cum[j + 1] - cum[j]) * (x - cum[j]) + xj
-        while y >= m:                    # y % m: exact for y in [0, 2 m)
-            y -= m
-        pos[i] = y
-        fy = np.floor(y)
-        a = int(fy)
-        f = y - fy
-        b = a + 1 if a + 1 < m else 0
-        for d in range(3):
-            out[i, d] = (1.0 - f) * p[lo + a, d] + f * p[lo + b, d]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _seam_chain(p, seg, first, size, mid, mid_seam, k, fine):
-    """Seams (L,) and (L, k) sample positions of the loops ``p[first[j]:first[j] + size[j]]``
-    (segment lengths ``seg``), carried from loop ``mid`` (seam ``mid_seam``) to each next loop
-    outwards (`_registered_seam`): the guess is the loop's point nearest the previous seam's
-    point; the cost of each shift by `_registered_seam`'s least squares, its circular
-    cross-correlation summed directly."""
-    n_loops = size.size
-    seams = np.empty(n_loops)
-    pos = np.empty((n_loops, k))
-    mid_ref = np.empty((k, 3))
-    ref = np.empty((k, 3))
-    fpos = np.empty(k * fine)
-    fpts = np.empty((k * fine, 3))
-    sub = np.empty((3, 2 * k))
-    corr = np.empty(k)
-    q = np.empty(3)
-    seams[mid] = mid_seam
-    _arc_into(p, seg, first[mid], size[mid], mid_seam, k, pos[mid], mid_ref)
-    for side in range(2):
-        step = 1 - 2 * side
+    previous loop's (`_register`), searched from the loop's point nearest the previous seam's
+    point."""
+    pts = [p[i:i + m] for i, m in zip(first, size)]
+    segs = [seg[i:i + m] for i, m in zip(first, size)]
+    seams = [0.0] * len(pts)
+    seams[mid] = float(mid_seam)
+    samples = [None] * len(pts)
+    samples[mid] = _loop_samples(pts[mid], seams[mid], SAMPLES, segs[mid])
+    for rng in (range(mid + 1, len(pts)), range(mid - 1, -1, -1)):
         prev = mid
-        for i in range(k):
-            for d in range(3):
-                ref[i, d] = mid_ref[i, d]
-        j = mid + step
-        while j >= 0 and j < n_loops:
-            # the previous seam's point and the nearest point of this loop (the guess)
-            lo, m = first[prev], size[prev]
-            fl = np.floor(seams[prev])
-            a = int(fl)
-            f = seams[prev] - fl
-            b = a + 1 if a + 1 < m else 0
-            for d in range(3):
-                q[d] = (1.0 - f) * p[lo + a, d] + f * p[lo + b, d]
-            lo, m = first[j], size[j]
-            best, guess = np.inf, 0.0
-            for i in range(m):
-                i1 = lo + i + 1 if i + 1 < m else lo
-                num, den = 0.0, 0.0
-                for d in range(3):
-                    ab = p[i1, d] - p[lo + i, d]
-                    num += (q[d] - p[lo + i, d]) * ab
-                    den += ab * ab
-                t = num / (den if den > 1e-300 else 1e-300)
-                t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-                dist = 0.0
-                for d in range(3):
-                    e = p[lo + i, d] + t * (p[i1, d] - p[lo + i, d]) - q[d]
-                    dist += e * e
-                dist = np.sqrt(dist)
-                if dist < best:
-                    best, guess = dist, i + t
-            # fine samples from the guess; both sample sets centred
-            _arc_into(p, seg, lo, m, guess, k * fine, fpos, fpts)
-            for d in range(3):
-                c = 0.0
-                for i in range(k):
-                    c += ref[i, d]
-                c /= k
-                for i in range(k):
-                    ref[i, d] -= c
-            cost_best, at = np.inf, 0
-            for r in range(fine):
-                power = 0.0
-                for d in range(3):
-                    c = 0.0
-                    for i in range(k):
-                        c += fpts[i * fine + r, d]
-                    c /= k
-                    for i in range(k):
-                        x = fpts[i * fine + r, d] - c
-                        sub[d, i] = x
-                        sub[d, i + k] = x
-                        power += x * x
-                for s in range(k):
-                    corr[s] = 0.0
-                for d in range(3):
-                    for i in range(k):
-                        w = ref[i, d]
-                        for s in range(k):
-                            corr[s] += sub[d, i + s] * w
-                for s in range(k):
-                    cost = power - 2.0 * corr[s]
-                    if cost < cost_best:
-                        cost_best, at = cost, s * fine + r
-            seams[j] = fpos[at]
-            _arc_into(p, seg, lo, m, seams[j], k, pos[j], ref)
+        for j in rng:
+            guess = _closest_position(pts[j], _position_point(pts[prev], seams[prev]))
+            seams[j] = _register(pts[prev], seams[prev], pts[j], guess, segs[prev], segs[j],
+                                 ref=samples[prev][1])
+            samples[j] = _loop_samples(pts[j], seams[j], SAMPLES, segs[j])
             prev = j
-            j += step
-    return seams, pos
+    return np.stack([smp[0] for smp in samples])
 
 
 @dataclass(frozen=True)

@@ -83,79 +83,65 @@ def mean_value_coordinates(points, polygon, groups=None) -> np.ndarray:
         raise ValueError(f"polygon must have shape (K, 2) (or (G, K, 2) with groups) with "
                          f"K >= 3, got {shape}")
     k = polys.shape[1]
-    lam = _mvc_kernel(pts, grp, np.ascontiguousarray(polys[..., 0]),
-                      np.ascontiguousarray(polys[..., 1]), np.empty((len(pts), k)),
-                      np.empty((6, k)))
+    lam = _mvc_kernel(pts, grp, polys, np.empty((len(pts), k)), np.empty((4, k)))
     if strict:
         _check(lam, pts, polys[grp])
     return lam
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _mvc_kernel(pts, group, polx, poly, lam, work):
+def _mvc_kernel(pts, group, polys, lam, work):
     """(N, K) coordinates into ``lam`` (N, K) (every entry written; work space ``work``
-    (6, K)), one point at a time, point ``p`` with respect to the polygon of x coordinates
-    ``polx[group[p]]`` and y coordinates ``poly[group[p]]``: ``s_i``, ``r_i``, the cross
-    and dot products and ``r_i r_{i+1}`` of the edges, the half-angle tangents ``2 A_i /
-    (r_i r_{i+1} + D_i)``, then ``w_i`` (times the reciprocal of their sum); a point on a
-    vertex (``r_i == 0``) gets the unit vector of the first such vertex, a point on an edge
-    (``|2 A_i| <= _ON_EDGE r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and
-    ``r_i r_{i+1} > 0``) the linear interpolation weights of the first such edge. The
-    passes over the vertices have no branches (the tests for vertices and edges are
-    passes of their own), so that the compiler vectorises them."""
-    n, k = pts.shape[0], polx.shape[1]
-    sx, sy, r, cross, rr, dot = work[0], work[1], work[2], work[3], work[4], work[5]
+    (4, K)), one point at a time, point ``p`` with respect to ``polys[group[p]]``: ``s_i``,
+    ``r_i``, the half-angle tangents ``2 A_i / (r_i r_{i+1} + D_i)``, then ``w_i`` (times
+    the reciprocal of their sum); a point on a vertex (``r_i == 0``) gets
+    the unit vector of the first such vertex, a point on an edge (``|2 A_i| <= _ON_EDGE
+    r_i r_{i+1}`` or ``r r' + D <= 0``, with ``D_i < 0`` and ``r_i r_{i+1} > 0``) the linear
+    interpolation weights of the first such edge."""
+    n, k = pts.shape[0], polys.shape[1]
+    sx, sy, r, tan_half = work[0], work[1], work[2], work[3]
     for p in range(n):
-        gx, gy = polx[group[p]], poly[group[p]]
+        poly = polys[group[p]]
+        vertex = -1
         px, py = pts[p, 0], pts[p, 1]
         for i in range(k):
-            xi, yi = gx[i] - px, gy[i] - py
-            sx[i] = xi
-            sy[i] = yi
+            xi, yi = poly[i, 0] - px, poly[i, 1] - py
+            sx[i], sy[i] = xi, yi
             r[i] = math.sqrt(xi * xi + yi * yi)
-        for i in range(k - 1):                    # edge i: vertices i, i + 1 (mod K)
-            c = sx[i] * sy[i + 1] - sy[i] * sx[i + 1]     # all loads before the stores
-            d = sx[i] * sx[i + 1] + sy[i] * sy[i + 1]
-            rr[i] = r[i] * r[i + 1]
-            cross[i], dot[i] = c, d
-        cross[k - 1] = sx[k - 1] * sy[0] - sy[k - 1] * sx[0]
-        rr[k - 1] = r[k - 1] * r[0]
-        dot[k - 1] = sx[k - 1] * sx[0] + sy[k - 1] * sy[0]
-        vertex = -1
-        for i in range(k):
-            if r[i] == 0.0:
+            if r[i] == 0.0 and vertex < 0:
                 vertex = i
-                break
         edge = -1
         if vertex < 0:
             for i in range(k):
-                if dot[i] < 0.0 and rr[i] > 0.0 and (abs(cross[i]) <= _ON_EDGE * rr[i]
-                                                      or rr[i] + dot[i] <= 0.0):
+                j = i + 1 if i + 1 < k else 0
+                xi, yi, xj, yj = sx[i], sy[i], sx[j], sy[j]
+                rr = r[i] * r[j]
+                cross = xi * yj - yi * xj
+                dot = xi * xj + yi * yj
+                denom = rr + dot
+                if dot < 0.0 and rr > 0.0 and (abs(cross) <= _ON_EDGE * rr or denom <= 0.0):
                     edge = i
                     break
-        row = lam[p]
+                tan_half[i] = cross / denom
         if vertex >= 0 or edge >= 0:
             for i in range(k):
-                row[i] = 0.0
-            if vertex >= 0:
-                row[vertex] = 1.0
-            else:
-                j = edge + 1 if edge + 1 < k else 0
-                ra, rb = r[edge], r[j]
-                row[edge] = rb / (ra + rb)
-                row[j] += ra / (ra + rb)
-            continue
-        for i in range(k):                        # the half-angle tangents
-            cross[i] = cross[i] / (rr[i] + dot[i])
-        row[0] = (cross[k - 1] + cross[0]) / r[0]
-        for i in range(1, k):
-            row[i] = (cross[i - 1] + cross[i]) / r[i]
-        total = 0.0
-        for i in range(k):
-            total += row[i]
-        inv = 1.0 / total
-        for i in range(k):
-            row[i] *= inv
+                lam[p, i] = 0.0
+        if vertex >= 0:
+            lam[p, vertex] = 1.0
+        elif edge >= 0:
+            j = edge + 1 if edge + 1 < k else 0
+            ra, rb = r[edge], r[j]
+            lam[p, edge] = rb / (ra + rb)
+            lam[p, j] += ra / (ra + rb)
+        else:
+            total = 0.0
+            for i in range(k):
+                w = (tan_half[i - 1 if i > 0 else k - 1] + tan_half[i]) / r[i]
+                lam[p, i] = w
+                total += w
+            inv = 1.0 / total
+            for i in range(k):
+                lam[p, i] *= inv
     return lam
 
 

@@ -70,29 +70,6 @@ def test_a_patch_takes_no_triangle_of_the_opposite_wall():
     assert out[0, 2, 2] > -0.001                           # not through the bottom one
 
 
-def test_nearest_centroids_are_the_k_d_trees(torus):
-    """`_nearest_centroids` (a grid search) against scipy's k-d tree: the same k nearest
-    centroids, nearest first, for points near and far from the surface and outside the
-    centroids' box, with cubes small (capped at 8 per centroid) and large."""
-    from scipy.spatial import cKDTree
-
-    from fibres.finishing.carried_pull import _centroid_grid, _nearest_centroids
-    v, f = torus
-    cen = v[f].sum(axis=1) / 3.0
-    rng = np.random.default_rng(3)
-    span = np.ptp(v, axis=0).max()
-    pts = np.concatenate([v[rng.integers(0, len(v), 300)] + 1e-3 * rng.standard_normal((300, 3)),
-                          rng.uniform(-1.5, 1.5, (200, 3)) * span])
-    tree = cKDTree(cen)
-    for k in (1, 16, len(f)):
-        _, want = tree.query(pts, k=k)
-        want = np.asarray(want).reshape(len(pts), k)
-        for area in (1e-12, 1e-6, span ** 2):
-            got = _nearest_centroids(pts, cen, _centroid_grid(cen, k, area), k)
-            np.testing.assert_array_equal(got[:, 0], want[:, 0])
-            np.testing.assert_array_equal(np.sort(got, axis=1), np.sort(want, axis=1))
-
-
 def test_at_rest_apply_adds_the_stored_displacements_bit_for_bit(torus):
     """On the rest surface `apply` adds the displacements stored at rest; they are what
     rebuilding the frames there gives (a copy of the vertices takes the same path)."""
