@@ -85,7 +85,7 @@ import scipy.sparse as sp
 from ..attachments.patch import attachment_patches, face_normals
 from ..errors import InputError
 from .harmonic_field import harmonic_field, mesh_edges
-from .harmonic_sections import SAMPLES, _Slices, _levels, _rectangle_samples, _slices  # noqa: F401
+from .harmonic_sections import SAMPLES, _Slices, _levels, _slices  # noqa: F401
 from .mvc import mean_value_coordinates
 from ..attachments.patch_map import area_points, grid_area_map, kr_coordinates, relax_on_patches
 from ..finishing.fairing import fairing_operator, taubin_pairs
@@ -239,8 +239,7 @@ def _rectangles(k: int, shares) -> np.ndarray:
     """(L, k, 2) square samples of the loops (module docstring, step 5): for each loop's
     share, the k points of the unit square's boundary, counter-clockwise from (0, 0), evenly
     spaced on the perimeter of a rectangle whose sides along x take that share of its
-    perimeter (clipped to [0.02, 0.98]); `harmonic_sections._rectangle_samples` of every loop
-    at once, the same numbers."""
+    perimeter (clipped to [0.02, 0.98])."""
     w = np.clip(np.asarray(shares, dtype=np.float64), 0.02, 0.98)[:, None]
     phi = np.arange(k) / k
     # the four sides' starts along the perimeter, and each sample's side

@@ -223,21 +223,6 @@ def _transport(e1, n):
     return p / norm
 
 
-def _rectangle_samples(k: int, share: float) -> np.ndarray:
-    """(k, 2) points of the unit square's boundary, counter-clockwise from (0, 0), evenly
-    spaced on the perimeter of a rectangle whose sides along x take ``share`` of its
-    perimeter (the loop's aspect: ``a / (a + b)`` for extents a along e1, b along e2)."""
-    w = min(max(float(share), 0.02), 0.98)
-    phi = np.arange(k) / k
-    out = np.empty((k, 2))
-    bounds = np.array([0.0, w / 2, 0.5, 0.5 + w / 2, 1.0])
-    side = np.searchsorted(bounds, phi, side="right") - 1
-    f = (phi - bounds[side]) / np.diff(bounds)[side]
-    out[:, 0] = np.choose(side, [f, np.ones_like(f), 1 - f, np.zeros_like(f)])
-    out[:, 1] = np.choose(side, [np.zeros_like(f), f, np.ones_like(f), 1 - f])
-    return out
-
-
 #: finer arc-length samples per loop sample searched for a loop's seam (`_registered_seam`)
 _FINE = 8
 

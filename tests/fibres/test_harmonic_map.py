@@ -7,10 +7,24 @@ from test_decompose_analytic import arc, cap_ring, tube
 
 from fibres import decompose
 from fibres.slicing import harmonic
-from fibres.slicing.harmonic_sections import _rectangle_samples
 from fibres.slicing.mvc import mean_value_coordinates
 
 RHO = 0.01
+
+
+def _rectangle_samples(k: int, share: float) -> np.ndarray:
+    """Oracle of `fibres.slicing.harmonic._rectangles`, one loop at a time: (k, 2) points of
+    the unit square's boundary, counter-clockwise from (0, 0), evenly spaced on the perimeter
+    of a rectangle whose sides along x take ``share`` of its perimeter."""
+    w = min(max(float(share), 0.02), 0.98)
+    phi = np.arange(k) / k
+    out = np.empty((k, 2))
+    bounds = np.array([0.0, w / 2, 0.5, 0.5 + w / 2, 1.0])
+    side = np.searchsorted(bounds, phi, side="right") - 1
+    f = (phi - bounds[side]) / np.diff(bounds)[side]
+    out[:, 0] = np.choose(side, [f, np.ones_like(f), 1 - f, np.zeros_like(f)])
+    out[:, 1] = np.choose(side, [np.zeros_like(f), f, np.ones_like(f), 1 - f])
+    return out
 
 
 def _circle(th):
