@@ -61,6 +61,19 @@ def test_fibres_from_a_side_patch_stay_below_it_and_do_not_turn_back():
     assert abs(share - expected) < 0.02
 
 
+def test_an_insertion_on_the_side_bounds_the_last_slices():
+    """The mirror case: origin on the bottom cap, insertion on the side halfway up; the
+    slices stop below the insertion's dead end (``hi`` < 1) and no fibre goes above it."""
+    v, f = tube(_circle, *straight(L), n_sect=40, n_path=65)
+    o = cap_ring(np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), 0.005)
+    b = _decompose(v, f, o, _side_patch(0.08, 0.11))
+    plan = b.plan
+    lo, hi, notes = dead_end_levels(plan)
+    assert lo == 0.0 and 0.5 < hi < 1.0 and "beyond the insertion patch" in notes[0]
+    assert b.points[..., 2].max() <= plan.rest_vertices[plan.insertion][:, 2].max() + 1e-9
+    assert _turns(b.points).max() < 30.0
+
+
 def test_patches_on_the_ends_have_no_dead_end():
     v, f = tube(_circle, *straight(L), n_sect=40, n_path=65)
     e1, e2 = np.array([1.0, 0, 0]), np.array([0, 1.0, 0])
