@@ -9,7 +9,9 @@ origin clouds, for both slicings. ``--moment-arms``: `analysis.run` of the TOML 
 dataset's flexion, adduction and rotation motions for both slicings; p5..p95, min..max,
 mean and sd of the fibre moment arms over all fibres and frames, and the overlap (intersection
 over union) of p5..p95 and of min..max with the ranges of Modenese & Kohout 2020, Table 2 (which
-are peak values: the minimum and maximum over all fibres and poses). ``--speed``: medians of
+are peak values: the minimum and maximum over all fibres and poses), and the overlap of min..max
+with the independent finite-element results of Blemker & Delp 2005 in the same table (their
+peaks, as Modenese & Kohout digitised them). ``--speed``: medians of
 the rest-pose decomposition (incl. patches and the harmonic solve) and of a frame with the
 plan (a copy of the rest pose with 0.1 mm of noise on every vertex), one thread, warm process:
 wall-clock time and process CPU time (the CPU time is the fairer figure on a shared, loaded
@@ -55,6 +57,16 @@ PAPER_CM = {
                   "glut_max_r": (-6.8, 5.4, -0.6, 0.3), "glut_med_r": (-7.5, -0.4, -5.1, 0.6)},
     "rotation": {"psoas_r": (-0.5, 0.4, -0.1, 0.1), "iliacus_r": (-0.2, 0.9, 0.3, 0.1),
                  "glut_max_r": (-3.9, 0.0, -2.3, 0.3), "glut_med_r": (-3.5, 3.1, -0.4, 0.5)}}
+#: the same table's row "Blemker and Delp (2005)": peaks and mean (sd) of the finite-element
+#: model of Blemker & Delp (Ann. Biomed. Eng. 33:661-673, 2005), digitised by Modenese & Kohout
+#: from its Figs. 6 and 7 -- an independent reference for both models' fibres (cm)
+BLEMKER_CM = {
+    "flexion": {"psoas_r": (1.7, 3.0, 2.3, 0.1), "iliacus_r": (1.9, 5.1, 3.0, 0.4),
+                "glut_max_r": (-7.2, -0.9, -4.2, 0.3), "glut_med_r": (-1.7, 2.1, 0.0, 0.3)},
+    "adduction": {"psoas_r": (-0.5, 2.0, 1.2, 0.5), "iliacus_r": (-1.5, 1.5, 0.0, 0.5),
+                  "glut_max_r": (-6.1, 7.1, 0.8, 1.9), "glut_med_r": (-5.4, 0.6, -3.1, 0.7)},
+    "rotation": {"psoas_r": (-1.8, 0.8, -0.2, 0.4), "iliacus_r": (-0.1, 0.9, 0.5, 0.1),
+                 "glut_max_r": (-4.2, -0.1, -2.2, 0.0), "glut_med_r": (-2.7, 2.2, -0.4, 0.2)}}
 PAPER_FLEXION_CM = {name: v[:2] for name, v in PAPER_CM["flexion"].items()}
 TASKS = {"flexion": ("hip_flexion.mot", "hip_flexion_r"),
          "adduction": ("hip_adduction.mot", "hip_adduction_r"),
@@ -123,14 +135,19 @@ def _iou(a, b):
 
 def _print_moment_arms(task, name, r, lines, paper):
     """One line: p5..p95, min..max, mean (sd) of ``r`` (cm), the lines' range, the paper's
-    peaks and mean (sd), and the overlaps of p5..p95 and of min..max with the paper's peaks."""
+    peaks and mean (sd), the overlaps of p5..p95 and of min..max with the paper's peaks, and
+    the overlaps of min..max with Blemker & Delp's peaks (`BLEMKER_CM`) for ours and for the
+    paper's."""
     lo, hi = np.percentile(r, [5, 95])
     shown = "" if lines is None else f"   lines {lines.min():6.2f} .. {lines.max():6.2f}"
+    fe = BLEMKER_CM[task][name]
     print(f"  {task:9s} {name:11s} {lo:6.2f} .. {hi:6.2f}   min..max {r.min():6.2f} .. "
           f"{r.max():6.2f}  mean {r.mean():5.2f} (sd {r.std():.2f}){shown}   paper "
           f"{paper[0]:.1f} .. {paper[1]:.1f} mean {paper[2]:.1f} (sd {paper[3]:.1f})  IoU "
           f"p5..p95 {_iou((lo, hi), paper[:2]):.2f}, min..max "
-          f"{_iou((r.min(), r.max()), paper[:2]):.2f}")
+          f"{_iou((r.min(), r.max()), paper[:2]):.2f}   Blemker & Delp {fe[0]:.1f} .. "
+          f"{fe[1]:.1f}: IoU min..max ours {_iou((r.min(), r.max()), fe[:2]):.2f}, paper's "
+          f"{_iou(paper[:2], fe[:2]):.2f}")
 
 
 def moment_arms():
