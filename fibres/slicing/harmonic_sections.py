@@ -227,13 +227,6 @@ def _transport(e1, n):
 _FINE = 8
 
 
-def _position_point(points, pos):
-    m = len(points)
-    i = int(np.floor(pos)) % m
-    f = pos - np.floor(pos)
-    return (1.0 - f) * points[i] + f * points[(i + 1) % m]
-
-
 def _closest_position(points, q) -> float:
     """Fractional loop position (node + fraction) of the closed polyline's point nearest q."""
     a = points
@@ -278,20 +271,18 @@ def _loop_samples(p, seam, k, seg=None):
     return pos, (1.0 - f) * p[i0] + f * p[(i0 + 1) % len(p)]
 
 
-def _register(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None, ref=None):
-    """The seam (fractional position) of loop ``pts`` whose `SAMPLES` arc-length samples lie
-    nearest the previous loop's, in the least-squares sense with both sample sets centred
-    (the loops move along the muscle; only the cyclic shift is sought): the shifts searched
-    are `_FINE` per sample spacing, all round the loop, starting from ``guess``.
+def _register(ref, pts, guess, seg):
+    """(positions (k,), points (k, 3)) of the `SAMPLES` arc-length samples of loop ``pts``
+    (segment lengths ``seg``) from the seam whose samples lie nearest ``ref`` (k, 3), the
+    previous loop's, in the least-squares sense with both sample sets centred (the loops move
+    along the muscle; only the cyclic shift is sought): the shifts searched are `_FINE` per
+    sample spacing, all round the loop, starting from ``guess``.
 
     Shift ``t = q F + r`` (F = `_FINE`) takes every F-th fine sample from r, rolled by q:
     its centred sum of squares depends on r only, and the cross term with the reference is
-    a circular cross-correlation over q, computed for all q at once by FFT. ``prev_seg``,
-    ``seg``: the loops' segment lengths, and ``ref``: the previous loop's samples
-    (`_loop_samples` at ``prev_seam``), when at hand."""
+    a circular cross-correlation over q, computed for all q at once by FFT. The samples from
+    the chosen seam are every F-th fine sample from it (equal arcs of the same loop)."""
     k = SAMPLES
-    if ref is None:
-        _, ref = _loop_samples(prev_pts, prev_seam, k, prev_seg)
     pos, fine = _loop_samples(pts, guess, k * _FINE, seg)
     ref = ref - ref.mean(axis=0)
     sub = fine.reshape(k, _FINE, 3).transpose(1, 0, 2)                # (F, K, 3): [r, k]
@@ -302,7 +293,8 @@ def _register(prev_pts, prev_seam, pts, guess, prev_seg=None, seg=None, ref=None
                         n=k, axis=1).sum(axis=2)
     cost = power[:, None] - 2.0 * corr                                # (F, K)
     r, q = np.unravel_index(int(np.argmin(cost)), cost.shape)
-    return float(pos[(q * _FINE + r) % len(pos)])
+    pick = (q * _FINE + r + _FINE * np.arange(k)) % len(pos)
+    return pos[pick], fine[pick]
 
 
 def _registered_seam(p, seg, first, size, mid, mid_seam):
@@ -314,17 +306,13 @@ def _registered_seam(p, seg, first, size, mid, mid_seam):
     point."""
     pts = [p[i:i + m] for i, m in zip(first, size)]
     segs = [seg[i:i + m] for i, m in zip(first, size)]
-    seams = [0.0] * len(pts)
-    seams[mid] = float(mid_seam)
     samples = [None] * len(pts)
-    samples[mid] = _loop_samples(pts[mid], seams[mid], SAMPLES, segs[mid])
+    samples[mid] = _loop_samples(pts[mid], float(mid_seam), SAMPLES, segs[mid])
     for rng in (range(mid + 1, len(pts)), range(mid - 1, -1, -1)):
         prev = mid
         for j in rng:
-            guess = _closest_position(pts[j], _position_point(pts[prev], seams[prev]))
-            seams[j] = _register(pts[prev], seams[prev], pts[j], guess, segs[prev], segs[j],
-                                 ref=samples[prev][1])
-            samples[j] = _loop_samples(pts[j], seams[j], SAMPLES, segs[j])
+            guess = _closest_position(pts[j], samples[prev][1][0])
+            samples[j] = _register(samples[prev][1], pts[j], guess, segs[j])
             prev = j
     return np.stack([smp[0] for smp in samples])
 
