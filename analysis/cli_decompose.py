@@ -195,6 +195,11 @@ def execute(args) -> int:
           f"area within 5 mm of a fibre end, {q.outside} points outside")
     for problem in q.problems():
         print(f"fibres decompose: warning: fibre quality: {problem}", file=sys.stderr)
+    # what the decomposition noted (far landmarks, patch pieces, several isoline loops, a dead
+    # end beyond a patch); the repairs were printed above
+    for note in bundle.notes:
+        if not note.startswith("surface repaired: "):
+            print(f"fibres decompose: note: {note}", file=sys.stderr)
     return 0
 
 

@@ -207,13 +207,37 @@ def test_lhdl_original_mesh_one_warning_line(tmp_path, capsys, lhdl_dir):
                              "--units", "mm", "--fibres", 20, "--out", out)
     assert code == 0, err
     lines = err.strip().splitlines()
-    # one line for the repair; the others (20 fibres only) say which fibre-quality limits fail
+    # one line for the repair; the others (20 fibres only) say which fibre-quality limits fail,
+    # or are the decomposition's notes (here: a stray piece of the origin patch dropped)
     repairs = [line for line in lines if "repaired" in line]
     assert len(repairs) == 1 and "warning" in repairs[0]
-    assert all("warning: fibre quality:" in line for line in lines if line not in repairs)
+    assert all("warning: fibre quality:" in line or "fibres decompose: note: " in line
+               for line in lines if line not in repairs)
     import pyvista as pv
 
     poly = pv.read(out)
     assert poly.n_cells == 20
     # metres: gluteus medius is ~0.2 m long, its landmarks lie within the surface's box
     assert 0.1 < np.linalg.norm(np.ptp(np.asarray(poly.points), axis=0)) < 0.4
+
+
+def test_notes_reach_the_user(tmp_path, capsys):
+    """A tube whose origin lies on its side halfway up (fibres.slicing.harmonic_sections.
+    dead_end_levels): the decomposition's note on the dead end beyond it is printed."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fibres"))
+    from test_dead_end import L, _circle, _side_patch
+    from test_decompose_analytic import straight, tube
+
+    v, f = tube(_circle, *straight(L), n_sect=40, n_path=65)
+    mesh = tmp_path / "tube.ply"
+    trimesh.Trimesh(v, f, process=False).export(mesh)
+    origin = ";".join(",".join(f"{c:.6f}" for c in p) for p in _side_patch(0.08, 0.11))
+    insertion = ";".join(f"{0.005 * np.cos(t):.6f},{0.005 * np.sin(t):.6f},0" for t in
+                         np.linspace(0, 2 * np.pi, 8, endpoint=False))
+    code, _, err = _run(capsys, mesh, "--origin", origin, "--insertion", insertion,
+                        "--fibres", 30, "--resolution", 10, "--out", tmp_path / "f.npz")
+    assert code == 0, err
+    assert "fibres decompose: note: " in err and "beyond the origin patch" in err
