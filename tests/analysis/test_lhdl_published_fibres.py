@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 TOML = Path(__file__).resolve().parents[1] / "data" / "lhdl_hip.toml"
