@@ -234,7 +234,9 @@ def run_muscle(ctx, mspec):
         notes += (f"fibre quality below the usual limits: {'; '.join(problems)}",)
         # a dead end beyond a patch (fibres.slicing.harmonic_sections.dead_end_levels) is the
         # likely cause: say so instead of the general advice
-        why = [n for n in notes if "lies beyond the" in n]
+        from fibres.slicing.harmonic_sections import DEAD_END_NOTE
+
+        why = [n for n in notes if DEAD_END_NOTE in n]
         warnings.warn(f"{mspec.name}: fibre quality below the usual limits: {'; '.join(problems)}"
                       + (f"; {why[0]}" if why else
                          " (see fibre_quality.csv; try --slicing or another template, and check that"

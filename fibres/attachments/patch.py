@@ -39,7 +39,8 @@ from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from ..errors import InputError
 
-__all__ = ["AttachmentPatches", "attachment_patches", "face_normals", "FAR_LANDMARK", "MIN_PIECE"]
+__all__ = ["AttachmentPatches", "attachment_patches", "cross_rows", "edge_graph", "face_normals",
+           "FAR_LANDMARK", "MIN_PIECE"]
 
 #: landmarks farther than this (metres) from the muscle surface are named in a note
 FAR_LANDMARK = 0.02
@@ -73,7 +74,7 @@ class AttachmentPatches:
     notes: tuple = ()
 
 
-def _graph(vertices, edges):
+def edge_graph(vertices, edges):
     """The mesh's edge graph weighted by the edges' lengths: a sparse (V, V) matrix with the
     length of each edge ``(a, b)``, ``a < b``, at ``(a, b)`` (the graph routines here are
     undirected: the upper triangle is the graph), the row of each stored entry, and the
@@ -92,17 +93,22 @@ def _graph(vertices, edges):
     return sp.csr_matrix((length, hi, indptr), shape=(n, n)), lo, length
 
 
+def cross_rows(p, q):
+    """Row-wise cross products of (..., 3) arrays (np.cross's formula, written out per
+    coordinate)."""
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = p[..., 1] * q[..., 2] - p[..., 2] * q[..., 1]
+    out[..., 1] = p[..., 2] * q[..., 0] - p[..., 0] * q[..., 2]
+    out[..., 2] = p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]
+    return out
+
+
 def face_normals(vertices, faces):
     """(T, 3) face normals scaled by twice the face area: ``(b - a) x (c - a)`` for the corners
-    a, b, c (np.cross's formula, written out: a third of its time)."""
+    a, b, c."""
     a = np.take(vertices, faces[:, 0], axis=0)
-    ab = np.take(vertices, faces[:, 1], axis=0) - a
-    ac = np.take(vertices, faces[:, 2], axis=0) - a
-    out = np.empty_like(ab)
-    out[:, 0] = ab[:, 1] * ac[:, 2] - ab[:, 2] * ac[:, 1]
-    out[:, 1] = ab[:, 2] * ac[:, 0] - ab[:, 0] * ac[:, 2]
-    out[:, 2] = ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0]
-    return out
+    return cross_rows(np.take(vertices, faces[:, 1], axis=0) - a,
+                      np.take(vertices, faces[:, 2], axis=0) - a)
 
 
 def _grow(graph, seeds, radius):
@@ -112,7 +118,7 @@ def _grow(graph, seeds, radius):
 
 
 def _components(mask, graph, rows):
-    """Connected components of the graph (`_graph`, its entries' ``rows``) without the edges
+    """Connected components of the graph (`edge_graph`, its entries' ``rows``) without the edges
     that join a vertex of ``mask`` to one outside it: the pieces of ``mask`` and those of the
     rest at once, (count, (V,) labels, (E,) whether each stored edge is kept). Labels are
     numbered by each component's first vertex (scipy's order)."""
@@ -178,7 +184,7 @@ def attachment_patches(vertices, faces, origin, insertion, edges, *,
         `face_normals` of the surface, when at hand.
     """
     v = np.asarray(vertices, dtype=np.float64)
-    graph, rows, length = _graph(v, edges)
+    graph, rows, length = edge_graph(v, edges)
     mean_edge = float(length.mean())
     tree = cKDTree(v, leafsize=64, balanced_tree=False, compact_nodes=False)  # faster build
     notes = []

@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from ..mesh.closest_point import closest_point
+from .patch import cross_rows
 
 __all__ = ["area_points", "relax_on_patch", "relax_on_patches", "LLOYD", "grid_area_map",
            "knothe_rosenblatt", "kr_coordinates", "locate", "WINDOW", "SAMPLES"]
@@ -284,12 +285,9 @@ def _barycentric(px, py, xs, ys, cand):
 
 def _areas(tri):
     """(T,) areas of the triangles ``tri`` (T, 3, 3): half the norm of the cross product of
-    the edges from the first corner, written out per coordinate (numpy's cross and norm
-    with their per-call costs give the same numbers)."""
-    (ax, ay, az), (bx, by, bz) = np.moveaxis(tri[:, 1] - tri[:, 0], -1, 0), np.moveaxis(
-        tri[:, 2] - tri[:, 0], -1, 0)
-    c0, c1, c2 = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    return 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    the edges from the first corner."""
+    c = cross_rows(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    return 0.5 * np.sqrt(c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1] + c[:, 2] * c[:, 2])
 
 
 def area_points(vertices, faces, face_mask, centre, e1, e2, X, Y):

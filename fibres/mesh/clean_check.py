@@ -80,7 +80,7 @@ def clean_mesh_geometry(v, f):
         2.0 * float(tol.merge))
     if not well_shaped or n_pieces != 1:
         return None, None
-    extent = np.array([v[:, k].max() - v[:, k].min() for k in range(3)])   # 7x numpy's axis=0
+    extent = np.array([v[:, k].max() - v[:, k].min() for k in range(3)])   # column by column
     if not volume > 1e-9 * float(np.linalg.norm(extent)) ** 3:
         return None, None
     return topology, edge_sum / (3 * len(f))
@@ -141,7 +141,7 @@ def _has_merged_vertices(v, scale):
 
 def _has_duplicate_rows(q):
     """Whether two rows of the (V, 3) int64 array are equal, in numpy: one sort of a row hash
-    (~4x faster than a lexsort of the rows), only rows of equal hashes compared row by row."""
+    (instead of a lexsort of the rows), only rows of equal hashes compared row by row."""
     h = (q[:, 0] * np.int64(-7046029254386353131) + q[:, 1]) * np.int64(0x5851F42D4C957F2D) \
         + q[:, 2]                                            # wraps around: a hash, not a key
     if not (np.diff(np.sort(h)) == 0).any():

@@ -24,9 +24,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
+from ..attachments.patch import cross_rows, edge_graph
 from ..errors import InputError
 from ..fit.box import shape_sign
 from .isolines import isoline_loops_at, isoline_moments
+from .planes import _stable_order
 
 __all__ = ["SAMPLES"]
 
@@ -43,6 +45,8 @@ _PATH = 48
 #: a patch's dead end: surface farther from the other patch than the patch's farthest point by
 #: more than this share of the surface's extent from the other patch (`dead_end_levels`)
 DEAD_END = 0.1
+#: the words that mark a dead end's note (`dead_end_levels`), for those who look for it
+DEAD_END_NOTE = "lies beyond the"
 
 
 def bending_measure(s, points, weight):
@@ -63,7 +67,7 @@ def bending_measure(s, points, weight):
     c = np.stack([np.interp(t, s, points[:, d]) for d in range(3)], axis=1)
     d = np.gradient(c, axis=0)
     d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
-    turn = np.arctan2(np.linalg.norm(_cross(d[:-1], d[1:]), axis=1),
+    turn = np.arctan2(np.linalg.norm(cross_rows(d[:-1], d[1:]), axis=1),
                       np.einsum("ij,ij->i", d[1:], d[:-1]))
     cum = np.concatenate([[0.0], np.cumsum(turn)]) * weight * total / np.pi
     return np.interp(s, t, cum)
@@ -103,18 +107,17 @@ def dead_end_levels(plan):
         bounds[k] = float(u[dead].max() if k == 0 else u[dead].min())
         area = 0.5 * np.linalg.norm(plan.face_normals(), axis=1)
         share = area[dead[f].all(axis=1)].sum() / area.sum()
-        notes.append(f"{share:.0%} of the surface lies beyond the {name} patch (farther from "
+        notes.append(f"{share:.0%} of the surface {DEAD_END_NOTE} {name} patch (farther from "
                      f"the other attachment): no slices or fibres there; check the {name} "
                      "landmarks if the muscle's fibres reach it")
     return bounds[0], bounds[1], notes
 
 
 def _surface_distance_from(vertices, edges, source):
-    """(V,) shortest distance over the mesh's edges from the vertices ``source`` (V,) bool."""
-    i, j = edges[:, 0], edges[:, 1]
-    graph = sp.csr_matrix((np.linalg.norm(vertices[i] - vertices[j], axis=1), (i, j)),
-                          shape=(len(vertices), len(vertices)))
-    return dijkstra(graph, directed=False, indices=np.flatnonzero(source), min_only=True)
+    """(V,) shortest distance over the mesh's edges (`edge_graph`) from the vertices
+    ``source`` (V,) bool."""
+    return dijkstra(edge_graph(vertices, edges)[0], directed=False,
+                    indices=np.flatnonzero(source), min_only=True)
 
 
 def _levels(plan, resolution: int) -> np.ndarray:
@@ -160,22 +163,15 @@ def _levels(plan, resolution: int) -> np.ndarray:
 
 def _stable_argsort(x):
     """``np.argsort(x, kind="stable")`` of a float array without NaN: the vectorised default
-    sort, then each run of equal values put in index order (one sort of run << bits | index)."""
+    sort gives each value's run of equal values, whose stable order (`planes._stable_order`)
+    is the answer."""
     order = np.argsort(x)
     xs = x[order]
     run = np.zeros(x.size, dtype=np.int64)
     np.cumsum(xs[1:] != xs[:-1], out=run[1:])
-    bits = max(int(x.size).bit_length(), 1)
-    return np.sort((run << bits) | order) & ((1 << bits) - 1)
-
-
-def _cross(p, q):
-    """Row-wise cross products of (..., 3) arrays (numpy's formula, without its overhead)."""
-    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
-    out[..., 0] = p[..., 1] * q[..., 2] - p[..., 2] * q[..., 1]
-    out[..., 1] = p[..., 2] * q[..., 0] - p[..., 0] * q[..., 2]
-    out[..., 2] = p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]
-    return out
+    rank = np.empty(x.size, dtype=np.int64)
+    rank[order] = run
+    return _stable_order(rank)[0]
 
 
 def _loop_frames(p, first, size):
@@ -192,7 +188,7 @@ def _loop_frames(p, first, size):
         total = seg[a:a + m].sum()
         centres[j] = centres[j] / total if total > 0 else p[a:a + m].mean(axis=0)
     c = np.repeat(centres, size, axis=0)
-    normals = 0.5 * np.add.reduceat(_cross(p - c, q - c), first, axis=0)
+    normals = 0.5 * np.add.reduceat(cross_rows(p - c, q - c), first, axis=0)
     for j, area in enumerate(normals):
         norm = np.linalg.norm(area)
         normals[j] = area / norm if norm > 0 else (0.0, 0.0, 1.0)
@@ -362,7 +358,7 @@ def _slices(plan, resolution: int) -> _Slices:
     # positions along each loop by arc length from a seam that starts at the middle loop's
     # point towards the square's corner (0, 0) and is carried to each next loop by its nearest
     # point (the field's flow lines cross its isolines at right angles)
-    e2 = _cross(normals, axes)
+    e2 = cross_rows(normals, axes)
     e2m = e2[mid]
     d = pts_mid - centres[mid]
     x, y = d @ axes[mid], d @ e2m

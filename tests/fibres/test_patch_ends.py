@@ -230,7 +230,7 @@ def test_holes_and_pieces_from_one_components_search_match_two():
     once, a second only when holes were filled) fills and drops what the oracle does."""
     v, f = _sphere(900)
     edges, _ = mesh_edges(f, len(v))
-    graph, rows, _ = P._graph(v, edges)
+    graph, rows, _ = P.edge_graph(v, edges)
     area = np.full(len(v), 1.0)
     z = v[:, 2]
     rng = np.random.default_rng(3)

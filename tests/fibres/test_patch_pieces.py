@@ -3,7 +3,7 @@ component search of the filled patch (the oracle below)."""
 import numpy as np
 import trimesh
 
-from fibres.attachments.patch import MIN_PIECE, _components, _graph, _pieces
+from fibres.attachments.patch import MIN_PIECE, _components, _pieces, edge_graph
 from fibres.slicing.harmonic_field import mesh_edges
 
 
@@ -32,7 +32,7 @@ def test_filled_holes_and_pieces_match_a_fresh_search():
     v, f = np.asarray(sphere.vertices), np.asarray(sphere.faces, dtype=np.int64)
     edges = mesh_edges(f, len(v))
     edges = edges[0] if isinstance(edges, tuple) else edges
-    graph, rows, _ = _graph(v, edges)
+    graph, rows, _ = edge_graph(v, edges)
     vertex_area = np.bincount(f.reshape(-1), np.repeat(sphere.area_faces / 3.0, 3), len(v))
     rng = np.random.default_rng(3)
     filled = 0
